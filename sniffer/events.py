@@ -1,0 +1,106 @@
+"""What a source hands the pipeline: timestamped bytes, silence ticks, gaps.
+
+Time is integer nanoseconds on the capture's monotonic clock.  A Chunk says
+where its time came from:
+
+* per byte (`byte_t_ns` given): a logic analyzer, a sigrok CSV or the
+  simulator knows the start-bit time of every byte;
+* per read (`byte_t_ns` is None): a USB adapter only tells us when a read
+  returned, and one read may hold several frames or part of one.  `t_ns` is
+  then the host time the read returned, *after* its last byte arrived.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+FLAG_FRAMING = "framing"
+FLAG_PARITY = "parity"
+
+
+@dataclass(slots=True, frozen=True)
+class Chunk:
+    """Bytes from one read (or one logic-analyzer run of bytes)."""
+
+    t_ns: int
+    data: bytes
+    byte_t_ns: tuple[int, ...] | None = None
+    flags: tuple[tuple[int, str], ...] = ()  # (offset in data, FLAG_*)
+    channel: str = ""
+
+    @property
+    def per_byte(self) -> bool:
+        return self.byte_t_ns is not None
+
+
+@dataclass(slots=True, frozen=True)
+class Tick:
+    """The source saw no byte up to `t_ns`: lets the framer close frames on silence.
+
+    Live capture records the ticks that changed anything, so a replay makes
+    the same decisions at the same places.
+    """
+
+    t_ns: int
+
+
+@dataclass(slots=True, frozen=True)
+class Gap:
+    """The source was interrupted (adapter unplugged, port lost) from t_ns to t_end_ns."""
+
+    t_ns: int
+    t_end_ns: int
+    reason: str
+
+
+Event = Chunk | Tick | Gap
+
+
+@dataclass(slots=True)
+class CaptureInfo:
+    """Metadata of a capture: written to MCAP, read back on replay."""
+
+    source: str = ""
+    port: str = ""
+    baud: int | None = None
+    parity: str | None = None  # "N", "E", "O"
+    stopbits: int | None = None
+    databits: int = 8
+    time_source: str = "byte"  # "byte" or "read" (see Chunk)
+    t0_ns: int = 0  # capture start on the monotonic clock; JSONL `t` counts from here
+    wall_anchor_ns: int = 0  # wall-clock ns (Unix epoch) at t0_ns
+    low_latency: dict = field(default_factory=dict)
+    devices: dict = field(default_factory=dict)  # unit -> model id
+    protocol: str = "modbus-rtu"
+    sniffer_version: str = ""
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {
+            "source": self.source,
+            "port": self.port,
+            "baud": self.baud,
+            "parity": self.parity,
+            "stopbits": self.stopbits,
+            "databits": self.databits,
+            "time_source": self.time_source,
+            "t0_ns": self.t0_ns,
+            "wall_anchor_ns": self.wall_anchor_ns,
+            "low_latency": dict(self.low_latency),
+            "devices": {str(k): v for k, v in self.devices.items()},
+            "protocol": self.protocol,
+            "sniffer_version": self.sniffer_version,
+            "extra": dict(self.extra),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "CaptureInfo":
+        info = cls()
+        for key in (
+            "source", "port", "baud", "parity", "stopbits", "databits", "time_source",
+            "t0_ns", "wall_anchor_ns", "low_latency", "protocol", "sniffer_version", "extra",
+        ):
+            if key in d and d[key] is not None:
+                setattr(info, key, d[key])
+        info.devices = {int(k): v for k, v in (d.get("devices") or {}).items()}
+        return info

@@ -1,0 +1,88 @@
+"""The Frame: one run of bytes from the line, with what we know about it.
+
+Every input byte ends up in exactly one Frame; bytes that form no frame make a
+noise frame (protocol "noise", with a reason).  The framer fills the wire
+facts, the pairer the role / pair / latency, the decoder the meaning.
+"""
+
+from __future__ import annotations
+
+from .codes import Annotation
+
+REQUEST = "request"
+RESPONSE = "response"
+UNKNOWN = "unknown"
+NOISE_ROLE = "noise"
+
+# candidate-role bits, set by the framer from structure
+CAN_REQ = 1
+CAN_RSP = 2
+
+
+class Frame:
+    __slots__ = (
+        "index", "t_ns", "t_end_ns", "raw", "protocol", "unit", "function",
+        "can", "role", "crc_ok", "crc_expected", "time_source", "idle_before_ns",
+        "annotations", "pair", "latency_ms", "model", "points", "exception",
+        "fields", "summary", "noise_reason", "channel", "peer",
+    )
+
+    def __init__(
+        self,
+        index: int,
+        t_ns: int,
+        t_end_ns: int,
+        raw: bytes,
+        protocol: str,
+        unit: int | None = None,
+        function: int | None = None,
+        can: int = 0,
+        crc_ok: bool | None = None,
+        crc_expected: int | None = None,
+        time_source: str = "byte",
+        idle_before_ns: int | None = None,
+        noise_reason: str | None = None,
+        channel: str = "",
+    ) -> None:
+        self.index = index
+        self.t_ns = t_ns
+        self.t_end_ns = t_end_ns
+        self.raw = raw
+        self.protocol = protocol
+        self.unit = unit
+        self.function = function
+        self.can = can
+        self.role = NOISE_ROLE if protocol == "noise" else UNKNOWN
+        self.crc_ok = crc_ok
+        self.crc_expected = crc_expected
+        self.time_source = time_source
+        self.idle_before_ns = idle_before_ns
+        self.annotations: list[Annotation] = []
+        self.pair: int | None = None
+        self.latency_ms: float | None = None
+        self.model: str | None = None
+        self.points: list[dict] = []
+        self.exception: dict | None = None
+        self.fields: list | None = None  # decoded tree: [(name, value, start, end, children)]
+        self.summary: str = ""
+        self.noise_reason = noise_reason
+        self.channel = channel
+        self.peer: Frame | None = None  # the paired frame, until decoded (then dropped)
+
+    @property
+    def is_noise(self) -> bool:
+        return self.protocol == "noise"
+
+    def worst_severity(self) -> str | None:
+        order = {"info": 0, "warning": 1, "error": 2}
+        worst = None
+        for a in self.annotations:
+            if worst is None or order[a.severity] > order[worst]:
+                worst = a.severity
+        return worst
+
+    def __repr__(self) -> str:  # pragma: no cover - debugging aid
+        return (
+            f"Frame(#{self.index} t={self.t_ns} {self.protocol} {self.role} "
+            f"unit={self.unit} fc={self.function} raw={self.raw.hex()} crc_ok={self.crc_ok})"
+        )

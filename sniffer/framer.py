@@ -1,0 +1,389 @@
+"""Modbus RTU framer: silence first, but not silence only.
+
+Sans-I/O: `feed(chunk)`, `tick(t_ns)` and `flush()` return finished Frames.
+
+What the framer knows about each byte boundary:
+  HARD  silence >= t3.5 (per-byte times), a large gap between reads, a line
+        (channel) change, or a tick that proved silence: frames never span it.
+  SOFT  silence >= 1.5 characters (per-byte times), or the start of a new USB
+        read: a likely boundary, but frames may span it (an adapter splits
+        frames across reads; a sloppy master pauses mid-frame).
+  none  bytes known back to back, or inside one read (unknown timing).
+
+At each frame start the framer tries, in this order (see `_step`):
+  A. the lengths implied by unit, function code and byte count, shortest
+     first, with a valid CRC: that is a frame (cuts glued frames, rejoins
+     split ones, and a frame followed by 0x00 bytes is not swallowed);
+  B1. the run of bytes up to the next boundary, if its CRC is valid (a
+     frame whose length contradicts its function code, or an unknown code);
+  B2. a structural length that ends exactly at the next boundary, bad CRC
+     (a corrupted frame);
+  B3. otherwise noise, up to the next boundary or up to the first later
+     position where a CRC-valid structural frame starts whose end is also
+     plausible (boundary, end of data, or another valid frame).
+Decisions depend only on bytes and boundaries, never on how reads were cut,
+so feeding a capture whole, byte by byte or in random chunks gives the same
+frames (a property test checks it).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+from . import codes
+from .codes import note
+from .crc import crc_expected, crc_found, crc_ok
+from .events import FLAG_FRAMING, Chunk
+from .frame import CAN_REQ, CAN_RSP, Frame
+from .line import LineSettings
+from .rtu_layout import KNOWN_FUNCTIONS, MAX_ADU, Need, candidates
+
+NONE, SOFT, HARD = 0, 1, 2
+MAX_NOISE = MAX_ADU  # a noise frame never holds more than this many bytes
+_WAIT = None
+
+
+class RtuFramer:
+    protocol = "modbus-rtu"
+
+    def __init__(self, line: LineSettings, *, read_slack_ns: int = 20_000_000) -> None:
+        self.line = line
+        self.char_ns = line.char_ns
+        self.soft_ns = line.char_ns * 3 // 2
+        self.hard_ns = line.t35_ns
+        self.t15_ns = line.t15_ns
+        # a per-read gap is silence only beyond t3.5 plus the adapter's latency slack
+        self.read_slack_ns = read_slack_ns
+        self.buf = bytearray()
+        self.base = 0  # absolute index of buf[0]
+        self.pos = 0  # absolute index of the next undecided byte
+        self.segs: deque = deque()  # (abs_start, Chunk)
+        self.bounds: deque = deque()  # (abs_pos, SOFT|HARD), ascending
+        self.flags: deque = deque()  # (abs_pos, flag), ascending
+        self.closed = False  # silence proven after the last byte (tick/flush)
+        self.last_t_end: int | None = None  # end of the last byte seen (ns)
+        self.last_channel: str | None = None
+        self.index = 0
+        self.prev_frame_end_ns: int | None = None
+
+    # ---------------------------------------------------------------- input
+    def feed(self, chunk: Chunk) -> list[Frame]:
+        data = chunk.data
+        if not data:
+            return []
+        start = self.base + len(self.buf)
+        n = len(data)
+        char = self.char_ns
+        bt = chunk.byte_t_ns
+        if bt is not None:
+            first_t = bt[0]
+            end_t = bt[-1] + char
+        else:
+            first_t = chunk.t_ns - n * char
+            end_t = chunk.t_ns
+        cls = NONE
+        if self.last_t_end is None:
+            cls = HARD
+        elif self.closed or (self.last_channel is not None and chunk.channel != self.last_channel):
+            cls = HARD
+        else:
+            gap = first_t - self.last_t_end
+            if bt is None:
+                cls = HARD if gap > self.hard_ns + self.read_slack_ns else SOFT
+            elif gap >= self.hard_ns:
+                cls = HARD
+            elif gap >= self.soft_ns:
+                cls = SOFT
+        if cls:
+            self.bounds.append((start, cls))
+        if bt is not None and n > 1:
+            soft, hard = self.soft_ns + char, self.hard_ns + char
+            prev = bt[0]
+            bounds = self.bounds
+            for i in range(1, n):
+                t = bt[i]
+                d = t - prev
+                if d >= soft:
+                    bounds.append((start + i, HARD if d >= hard else SOFT))
+                prev = t
+        for off, flag in chunk.flags:
+            self.flags.append((start + off, flag))
+        self.closed = False
+        self.last_t_end = end_t
+        self.last_channel = chunk.channel
+        self.buf += data
+        self.segs.append((start, chunk))
+        return self._run()
+
+    def tick(self, t_ns: int) -> list[Frame]:
+        """Silence until t_ns: once it exceeds t3.5 (+ read slack), close what is pending."""
+        if self.closed or self.last_t_end is None or self.pos >= self.base + len(self.buf):
+            return []
+        limit = self.hard_ns + (self.read_slack_ns if self._per_read_tail() else 0)
+        if t_ns - self.last_t_end <= limit:
+            return []
+        self.closed = True
+        return self._run()
+
+    def would_close(self, t_ns: int) -> bool:
+        """True if tick(t_ns) would close pending bytes (used to record effective ticks)."""
+        if self.closed or self.last_t_end is None or self.pos >= self.base + len(self.buf):
+            return False
+        limit = self.hard_ns + (self.read_slack_ns if self._per_read_tail() else 0)
+        return t_ns - self.last_t_end > limit
+
+    def flush(self) -> list[Frame]:
+        """End of input: everything pending becomes frames."""
+        self.closed = True
+        return self._run()
+
+    def pending_bytes(self) -> int:
+        return self.base + len(self.buf) - self.pos
+
+    # ------------------------------------------------------------- decisions
+    def _per_read_tail(self) -> bool:
+        return bool(self.segs) and self.segs[-1][1].byte_t_ns is None
+
+    def _run(self) -> list[Frame]:
+        out: list[Frame] = []
+        while True:
+            step = self._step(self.pos)
+            if step is None:
+                break
+            out.append(step)
+        self._compact()
+        return out
+
+    def _avail(self, p: int) -> tuple[int, bool]:
+        """(limit, final): bytes usable from p, and whether more can ever come before limit."""
+        for b, c in self.bounds:
+            if b > p and c == HARD:
+                return b, True
+        return self.base + len(self.buf), self.closed
+
+    def _next_boundary(self, p: int, end: int, final: bool):
+        for b, c in self.bounds:
+            if b > p:
+                if b <= end:
+                    return b
+                break
+        if final:
+            return end
+        if end - p >= MAX_NOISE:
+            return p + MAX_NOISE  # no silence for a whole ADU: cut, deterministically
+        return _WAIT
+
+    def _is_boundary(self, e: int, end: int, final: bool):
+        """Is there a boundary (SOFT/HARD/end of data) at e? None while unknown."""
+        if e >= end:
+            return True if final else None
+        for b, c in self.bounds:
+            if b == e:
+                return True
+            if b > e:
+                break
+        return False
+
+    def _crc_candidate(self, p: int, end: int, final: bool):
+        """First (shortest) structural candidate at p with a good CRC: (len, can), False, or _WAIT."""
+        buf, base = self.buf, self.base
+        cands = candidates(buf, p - base, end - base)
+        for length, can in cands:
+            if type(length) is Need:
+                if final:
+                    continue
+                return _WAIT
+            if p + length > end:
+                if final:
+                    continue
+                return _WAIT
+            if crc_ok(buf[p - base : p + length - base]):
+                return length, can
+        return False
+
+    def _step(self, p: int):
+        end, final = self._avail(p)
+        if p >= end:
+            if final and end < self.base + len(self.buf):
+                return None  # nothing before the hard boundary; cannot happen
+            return None
+        # A. structural length + CRC
+        hit = self._crc_candidate(p, end, final)
+        if hit is _WAIT:
+            return None
+        if hit:
+            return self._emit(p, p + hit[0], hit[1], crc_good=True)
+        b = self._next_boundary(p, end, final)
+        if b is _WAIT:
+            return None
+        buf, base = self.buf, self.base
+        seg = bytes(buf[p - base : b - base])
+        # B1. the run up to the boundary carries a valid CRC
+        if len(seg) >= 4 and crc_ok(seg) and seg[0] <= 247:
+            fc = seg[1]
+            fr = self._emit(p, b, CAN_REQ | CAN_RSP, crc_good=True)
+            base_fc = fc & 0x7F
+            if base_fc in KNOWN_FUNCTIONS and fc != 0x80:
+                fr.annotations.append(
+                    note(codes.LENGTH_MISMATCH,
+                         f"{len(seg)} bytes do not fit function 0x{fc:02X}", 0, len(seg))
+                )
+            else:
+                fr.annotations.append(
+                    note(codes.FUNCTION_UNKNOWN, f"function 0x{fc:02X} shown raw", 1, 2)
+                )
+            return fr
+        # B2. a structural length ending exactly at the boundary, bad CRC
+        for length, can in candidates(buf, p - base, b - base):
+            if type(length) is int and p + length == b:
+                return self._emit(p, b, can, crc_good=False)
+        # B3. noise up to the boundary or to the next strong frame start
+        q = self._resync(p, b, end, final)
+        if q is _WAIT:
+            return None
+        return self._emit_noise(p, q)
+
+    def _resync(self, p: int, b: int, end: int, final: bool):
+        base = self.base
+        buf = self.buf
+        for q in range(p + 1, b):
+            u = buf[q - base]
+            if u > 247 or q + 1 >= end:
+                if q + 1 >= end and not final:
+                    return _WAIT
+                continue
+            fc = buf[q + 1 - base]
+            if (fc & 0x7F) not in KNOWN_FUNCTIONS:
+                continue
+            hit = self._crc_candidate(q, end, final)
+            if hit is _WAIT:
+                return _WAIT
+            if not hit:
+                continue
+            e = q + hit[0]
+            at = self._is_boundary(e, end, final)
+            if at is None:
+                return _WAIT
+            if at:
+                return q
+            nxt = self._crc_candidate(e, end, final)
+            if nxt is _WAIT:
+                return _WAIT
+            if nxt:
+                return q
+        return b
+
+    # -------------------------------------------------------------- output
+    def _time_of(self, i: int) -> int:
+        """Start time of absolute byte i (per read: estimated back from the read time)."""
+        for start, ch in self.segs:
+            n = len(ch.data)
+            if i < start + n:
+                if ch.byte_t_ns is not None:
+                    return ch.byte_t_ns[i - start]
+                return ch.t_ns - (start + n - i) * self.char_ns
+        raise IndexError(i)
+
+    def _per_byte_at(self, i: int) -> bool:
+        for start, ch in self.segs:
+            if i < start + len(ch.data):
+                return ch.byte_t_ns is not None
+        return False
+
+    def _channel_at(self, i: int) -> str:
+        for start, ch in self.segs:
+            if i < start + len(ch.data):
+                return ch.channel
+        return ""
+
+    def _new_frame(self, p: int, e: int, protocol: str, raw: bytes) -> Frame:
+        t0 = self._time_of(p)
+        t1 = self._time_of(e - 1) + self.char_ns
+        per_byte = self._per_byte_at(p)
+        idle = None if self.prev_frame_end_ns is None else t0 - self.prev_frame_end_ns
+        fr = Frame(
+            self.index, t0, t1, raw, protocol,
+            time_source="byte" if per_byte else "read",
+            idle_before_ns=idle, channel=self._channel_at(p),
+        )
+        self.index += 1
+        self.prev_frame_end_ns = t1
+        for pos, flag in self.flags:
+            if pos >= e:
+                break
+            if pos >= p:
+                c = codes.UART_FRAMING if flag == FLAG_FRAMING else codes.UART_PARITY
+                fr.annotations.append(note(c, f"byte {pos - p} flagged {flag}", pos - p, pos - p + 1))
+        if per_byte:
+            for bpos, _c in self.bounds:
+                if bpos >= e:
+                    break
+                if bpos > p:
+                    gap = self._time_of(bpos) - self._time_of(bpos - 1) - self.char_ns
+                    if gap > self.t15_ns:
+                        fr.annotations.append(
+                            note(codes.T15_VIOLATION, f"{gap / 1e6:.2f} ms silence before byte {bpos - p}",
+                                 bpos - p, bpos - p + 1)
+                        )
+        return fr
+
+    def _emit(self, p: int, e: int, can: int, crc_good: bool) -> Frame:
+        raw = bytes(self.buf[p - self.base : e - self.base])
+        fr = self._new_frame(p, e, self.protocol, raw)
+        fr.unit = raw[0]
+        fr.function = raw[1]
+        fr.can = can
+        fr.crc_ok = crc_good
+        if raw[0] > 247:
+            fr.annotations.append(note(codes.UNIT_RESERVED, f"unit {raw[0]}", 0, 1))
+        if not crc_good:
+            exp = crc_expected(raw)
+            fr.crc_expected = exp
+            fr.annotations.append(
+                note(codes.CRC_MISMATCH,
+                     f"CRC is 0x{crc_found(raw):04X}, expected 0x{exp:04X} "
+                     f"(bytes {exp & 0xFF:02x} {exp >> 8:02x})",
+                     len(raw) - 2, len(raw))
+            )
+        if fr.time_source == "byte" and fr.idle_before_ns is not None and fr.idle_before_ns < self.hard_ns:
+            fr.annotations.append(
+                note(codes.T35_SHORT,
+                     f"{fr.idle_before_ns / self.char_ns:.2f} characters of silence before the frame",
+                     0, 1)
+            )
+        self.pos = e
+        return fr
+
+    def _emit_noise(self, p: int, q: int) -> Frame:
+        raw = bytes(self.buf[p - self.base : q - self.base])
+        fr = self._new_frame(p, q, "noise", raw)
+        reason = _noise_reason(raw)
+        fr.noise_reason = reason
+        fr.annotations.append(note(codes.NOISE, reason, 0, len(raw)))
+        self.pos = q
+        return fr
+
+    def _compact(self) -> None:
+        pos = self.pos
+        segs = self.segs
+        while segs and segs[0][0] + len(segs[0][1].data) <= pos:
+            segs.popleft()
+        while self.bounds and self.bounds[0][0] <= pos:
+            self.bounds.popleft()
+        while self.flags and self.flags[0][0] < pos:
+            self.flags.popleft()
+        drop = pos - self.base
+        if drop > 4096 or (drop and drop == len(self.buf)):
+            del self.buf[:drop]
+            self.base = pos
+
+
+def _noise_reason(raw: bytes) -> str:
+    if len(raw) < 4:
+        return f"{len(raw)} byte(s): too short for a frame"
+    if raw[0] > 247:
+        return f"no frame: unit {raw[0]} is reserved and no valid CRC"
+    fc = raw[1]
+    if (fc & 0x7F) not in KNOWN_FUNCTIONS or fc == 0x80:
+        return f"no frame: unknown function 0x{fc:02X} and no valid CRC"
+    return f"no frame: function 0x{fc:02X} but length/CRC do not fit"

@@ -1,0 +1,208 @@
+"""Pairing on one half-duplex line: which frame is a request, which answers it.
+
+Sans-I/O.  `push(frame)` returns the frames that are settled, in capture
+order; a request is held until its response, the next request, a timeout
+tick, or the end of the capture settles it (one transaction of delay).
+
+Rules (one master, RTU):
+  * a frame that can only be a response (exception, byte-count shape) is one;
+  * a frame whose shape fits both (05/06/08/16 echoes, unknown codes) is the
+    response if it matches the pending request's unit and function within
+    the response timeout, else a new request;
+  * a new request while one is pending: the pending one got no response
+    (pair.no_response, and pair.timeout past the unit's timeout); identical
+    bytes mark the new one a retry;
+  * broadcast (unit 0) expects no answer; an answer right after it is an error;
+  * a response with nothing pending (or from another unit) is an orphan.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+from . import codes
+from .codes import note
+from .frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE, UNKNOWN, Frame
+
+DEFAULT_TIMEOUT_MS = 1000.0
+
+
+class Pairer:
+    def __init__(self, timeout_ms: float = DEFAULT_TIMEOUT_MS, unit_timeouts: dict | None = None) -> None:
+        self.timeout_ns = int(timeout_ms * 1e6)
+        self.unit_timeouts = {u: int(ms * 1e6) for u, ms in (unit_timeouts or {}).items()}
+        self.pending: Frame | None = None
+        self.held: deque[Frame] = deque()
+        self.last_request: Frame | None = None  # for broadcast-response detection
+
+    def _timeout(self, unit: int) -> int:
+        return self.unit_timeouts.get(unit, self.timeout_ns)
+
+    def push(self, f: Frame) -> list[Frame]:
+        if f.protocol == "noise":
+            if self.held:
+                self.held.append(f)
+                return []
+            return [f]
+        pending = self.pending
+        can = f.can
+        if can == CAN_REQ | CAN_RSP or can == 0:
+            if (
+                pending is not None
+                and _same_transaction(pending, f)
+                and f.t_ns - pending.t_end_ns <= self._timeout(pending.unit)
+            ):
+                role = RESPONSE
+            elif pending is None and self._answers_broadcast(f):
+                role = RESPONSE
+            else:
+                role = REQUEST
+        elif can & CAN_RSP:
+            role = RESPONSE
+        else:
+            role = REQUEST
+        f.role = role
+        if role == RESPONSE:
+            return self._response(f)
+        return self._request(f)
+
+    def _answers_broadcast(self, f: Frame) -> bool:
+        last = self.last_request
+        return last is not None and last.unit == 0 and last.function == f.function and last.index == f.index - 1
+
+    def _response(self, f: Frame) -> list[Frame]:
+        req = self.pending
+        if req is not None and _same_transaction(req, f):
+            self.pending = None
+            f.pair = req.index
+            req.pair = f.index
+            f.peer = req
+            req.peer = f
+            lat = f.t_ns - req.t_end_ns
+            if f.time_source == "read" and lat < 0:
+                lat = 0
+            f.latency_ms = lat / 1e6
+            if lat > self._timeout(req.unit):
+                f.annotations.append(
+                    note(codes.LATE_RESPONSE, f"{lat / 1e6:.1f} ms after the request", 0, len(f.raw))
+                )
+            why = response_mismatch(req.raw, f.raw) if req.crc_ok and f.crc_ok else None
+            if why:
+                f.annotations.append(note(codes.PAIR_MISMATCH, why, 0, len(f.raw)))
+            out = list(self.held)
+            self.held.clear()
+            out.append(f)
+            return out
+        last = self.last_request
+        if req is None and last is not None and last.unit == 0 and last.index == f.index - 1:
+            f.annotations.append(
+                note(codes.BROADCAST_RESPONSE, f"unit {f.unit} answered broadcast frame #{last.index}",
+                     0, len(f.raw))
+            )
+        else:
+            why = "nothing pending" if req is None else (
+                f"pending request #{req.index} is for unit {req.unit} function 0x{req.function:02X}"
+            )
+            f.annotations.append(note(codes.ORPHAN_RESPONSE, why, 0, len(f.raw)))
+        if self.held:
+            self.held.append(f)
+            return []
+        return [f]
+
+    def _request(self, f: Frame) -> list[Frame]:
+        out: list[Frame] = []
+        req = self.pending
+        if req is not None:
+            self._unanswered(req, f.t_ns)
+            if req.raw == f.raw:
+                f.annotations.append(note(codes.RETRY, f"repeats frame #{req.index}", 0, len(f.raw)))
+            out.extend(self.held)
+            self.held.clear()
+            self.pending = None
+        self.last_request = f
+        if f.unit == 0:
+            f.annotations.append(note(codes.BROADCAST, "no response expected", 0, 1))
+            out.append(f)
+            return out
+        self.pending = f
+        self.held.append(f)
+        return out
+
+    def _unanswered(self, req: Frame, now_ns: int) -> None:
+        waited = now_ns - req.t_end_ns
+        req.annotations.append(
+            note(codes.NO_RESPONSE, f"no response ({waited / 1e6:.1f} ms until the next request)",
+                 0, len(req.raw))
+        )
+        if waited > self._timeout(req.unit):
+            req.annotations.append(
+                note(codes.TIMEOUT, f"unit {req.unit}: no response within "
+                     f"{self._timeout(req.unit) / 1e6:.0f} ms", 0, len(req.raw))
+            )
+
+    def tick(self, t_ns: int) -> list[Frame]:
+        req = self.pending
+        if req is None or t_ns - req.t_end_ns <= self._timeout(req.unit):
+            return []
+        req.annotations.append(
+            note(codes.TIMEOUT, f"unit {req.unit}: no response within "
+                 f"{self._timeout(req.unit) / 1e6:.0f} ms", 0, len(req.raw))
+        )
+        req.annotations.append(note(codes.NO_RESPONSE, "no response", 0, len(req.raw)))
+        self.pending = None
+        out = list(self.held)
+        self.held.clear()
+        return out
+
+    def flush(self) -> list[Frame]:
+        req = self.pending
+        if req is not None:
+            req.annotations.append(
+                note(codes.END_OF_CAPTURE, "capture ended while waiting for the response", 0, len(req.raw))
+            )
+            self.pending = None
+        out = list(self.held)
+        self.held.clear()
+        return out
+
+
+def _same_transaction(req: Frame, f: Frame) -> bool:
+    return req.unit == f.unit and (f.function == req.function or f.function == (req.function | 0x80))
+
+
+def response_mismatch(req: bytes, rsp: bytes) -> str | None:
+    """Why a CRC-good response does not answer its CRC-good request, or None."""
+    fc = req[1]
+    if rsp[1] & 0x80:
+        return None
+    try:
+        if fc in (0x01, 0x02):
+            qty = (req[4] << 8) | req[5]
+            want = (qty + 7) // 8
+            if rsp[2] != want:
+                return f"byte count {rsp[2]}, expected {want} for {qty} bits"
+        elif fc in (0x03, 0x04):
+            qty = (req[4] << 8) | req[5]
+            if rsp[2] != 2 * qty:
+                return f"byte count {rsp[2]}, expected {2 * qty} for {qty} registers"
+        elif fc in (0x05, 0x06, 0x16):
+            if rsp != req:
+                return "response is not an echo of the request"
+        elif fc == 0x08:
+            if rsp[2:4] != req[2:4]:
+                return "diagnostic sub-function not echoed"
+        elif fc in (0x0F, 0x10):
+            if rsp[2:6] != req[2:6]:
+                ra, rq = (req[2] << 8) | req[3], (req[4] << 8) | req[5]
+                sa, sq = (rsp[2] << 8) | rsp[3], (rsp[4] << 8) | rsp[5]
+                return f"response says address {sa} x {sq}, request was {ra} x {rq}"
+        elif fc == 0x17:
+            qty = (req[4] << 8) | req[5]
+            if rsp[2] != 2 * qty:
+                return f"byte count {rsp[2]}, expected {2 * qty} for {qty} registers"
+    except IndexError:
+        return "response too short for its request"
+    return None
+
+
+__all__ = ["Pairer", "response_mismatch", "UNKNOWN"]
