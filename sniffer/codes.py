@@ -49,7 +49,12 @@ CRC_MISMATCH = Code("modbus.crc.mismatch", ERROR, "CRC does not match the frame'
 LENGTH_MISMATCH = Code(
     "modbus.length.mismatch", ERROR, "frame length does not match its function code / byte count"
 )
-FUNCTION_UNKNOWN = Code("modbus.function.unknown", INFO, "function code not in the Modbus spec: shown raw")
+FUNCTION_UNKNOWN = Code(
+    "modbus.function.unknown", WARNING, "function code neither public nor user-defined in the Modbus spec"
+)
+FUNCTION_USER = Code(
+    "modbus.function.user_defined", INFO, "user-defined function code (65-72, 100-110): shown raw"
+)
 UNIT_RESERVED = Code("modbus.unit.reserved", WARNING, "unit address 248-255 is reserved")
 T15_VIOLATION = Code(
     "modbus.timing.t15", WARNING, "silence inside the frame longer than 1.5 character times"

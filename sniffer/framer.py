@@ -229,8 +229,10 @@ class RtuFramer:
                          f"{len(seg)} bytes do not fit function 0x{fc:02X}", 0, len(seg))
                 )
             else:
+                user = 65 <= base_fc <= 72 or 100 <= base_fc <= 110
                 fr.annotations.append(
-                    note(codes.FUNCTION_UNKNOWN, f"function 0x{fc:02X} shown raw", 1, 2)
+                    note(codes.FUNCTION_USER if user else codes.FUNCTION_UNKNOWN,
+                         f"function 0x{fc:02X} ({fc}) shown raw", 1, 2)
                 )
             return fr
         # B2. a structural length ending exactly at the boundary, bad CRC

@@ -1,0 +1,1 @@
+"""Frame decoders, one sub-package per drive model; `registry` picks one per unit."""

@@ -1,0 +1,246 @@
+"""Generic Modbus decoder: every standard function code, registers by number.
+
+Drive models subclass GenericModbus and override `point()` (and `check_*`
+hooks) to give registers their manual names, scales and units; the walking
+of requests, responses, exceptions and the register shadow stays here.
+"""
+
+from __future__ import annotations
+
+from construct import ConstructError
+
+from sniffer import codes
+from sniffer.codes import Code, note
+from sniffer.frame import REQUEST, RESPONSE, Frame
+
+from ..base import UnitState
+from .fast import FAST
+from .schema import EXCEPTION_NAMES, FUNCTION_NAMES, LAYOUTS
+
+COIL_VALUE = Code("modbus.coil.value", "error", "write single coil value must be FF00 or 0000")
+QUANTITY = Code("modbus.quantity.range", "error", "quantity outside the range the Modbus spec allows")
+
+SPACE = {0x01: "coil", 0x02: "discrete", 0x03: "holding", 0x04: "input",
+         0x05: "coil", 0x06: "holding", 0x0F: "coil", 0x10: "holding", 0x16: "holding", 0x17: "holding"}
+_MAX_QTY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x0F: 1968, 0x10: 123}
+
+
+class GenericModbus:
+    model = "generic"
+    codes: tuple[Code, ...] = (COIL_VALUE, QUANTITY)
+
+    # ---- hooks for drive models --------------------------------------------
+    def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
+        """One decoded value. Models map (space, address) to name/scale/unit."""
+        name = f"{space}[{address}]" if address is not None else f"{space}[?]"
+        return {"name": name, "address": address, "raw": raw, "value": raw, "unit": None}
+
+    # ---- decode ----------------------------------------------------------
+    def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
+        raw = f.raw
+        fc = f.function
+        if fc is None or len(raw) < 4:
+            return
+        body = raw[2:-2]
+        if fc & 0x80:
+            self._exception(f, fc, body)
+            return
+        role = f.role if f.role in (REQUEST, RESPONSE) else REQUEST
+        reader = FAST.get((fc, role))
+        if reader is not None:
+            parsed = reader(body)
+        else:
+            layout = LAYOUTS.get((fc, role))
+            if layout is None:
+                f.summary = f"function 0x{fc:02X} ({len(body)} data bytes)"
+                return
+            try:
+                parsed = layout.parse(body)
+            except (ConstructError, ValueError, IndexError, OverflowError):
+                parsed = None
+        if parsed is None:
+            f.annotations.append(
+                note(codes.DECODE_SHORT, f"{len(body)} data bytes too few for {FUNCTION_NAMES.get(fc, hex(fc))}",
+                     2, len(raw) - 2)
+            )
+            f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} (malformed)"
+            return
+        handler = _HANDLERS.get(fc)
+        if handler is None:
+            f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} {role}"
+            return
+        handler(self, f, role, parsed, request, state)
+
+    def _exception(self, f: Frame, fc: int, body: bytes) -> None:
+        code = body[0] if body else None
+        name = EXCEPTION_NAMES.get(code, "UNKNOWN EXCEPTION") if code is not None else "MISSING CODE"
+        f.exception = {"code": code, "name": name}
+        base = FUNCTION_NAMES.get(fc & 0x7F, f"function 0x{fc & 0x7F:02X}")
+        f.summary = f"exception {code:02X} {name} ({base})" if code is not None else f"exception ({base})"
+        f.annotations.append(note(codes.EXCEPTION, f"{code} {name}", 2, 3))
+
+    # ---- per-function handlers ---------------------------------------------
+    def _read_req(self, f, role, p, request, state):
+        fc = f.function
+        a, q = p["address"], p["quantity"]
+        f.summary = f"read {SPACE[fc]} {a}..{a + q - 1} ({q})"
+        self._check_qty(f, fc, q)
+
+    def _read_regs_rsp(self, f, role, p, request, state):
+        fc = f.function
+        values = p["values"]
+        space = SPACE[fc]
+        addr = None
+        if request is not None and request.crc_ok and len(request.raw) >= 8:
+            addr = (request.raw[2] << 8) | request.raw[3]
+        else:
+            f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.raw) - 2))
+        shadow = state.holding if fc in (0x03, 0x17) else state.input
+        pts = []
+        point = self.point
+        for i, v in enumerate(values):
+            a = None if addr is None else addr + i
+            pts.append(point(space, a, v, state))
+            if a is not None:
+                shadow[a] = v
+        f.points = pts
+        f.summary = _points_summary(pts)
+
+    def _read_bits_rsp(self, f, role, p, request, state):
+        fc = f.function
+        space = SPACE[fc]
+        status = p["status"]
+        addr, qty = None, len(status) * 8
+        if request is not None and request.crc_ok and len(request.raw) >= 8:
+            addr = (request.raw[2] << 8) | request.raw[3]
+            qty = min(qty, (request.raw[4] << 8) | request.raw[5])
+        else:
+            f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "bit numbers unknown", 2, len(f.raw) - 2))
+        shadow = state.coils if fc == 0x01 else state.discrete
+        pts = []
+        for i in range(qty):
+            bit = (status[i >> 3] >> (i & 7)) & 1
+            a = None if addr is None else addr + i
+            pts.append(self.point(space, a, bit, state))
+            if a is not None:
+                shadow[a] = bit
+        f.points = pts
+        f.summary = _points_summary(pts)
+
+    def _write_single(self, f, role, p, request, state):
+        fc = f.function
+        a, v = p["address"], p["value"]
+        if fc == 0x05:
+            if v not in (0xFF00, 0x0000):
+                f.annotations.append(note(COIL_VALUE, f"value 0x{v:04X}", 4, 6))
+            bit = 1 if v == 0xFF00 else 0
+            pt = self.point("coil", a, bit, state)
+            if role == RESPONSE or f.unit == 0:
+                state.coils[a] = bit
+        else:
+            pt = self.point("holding", a, v, state)
+            if role == RESPONSE or f.unit == 0:
+                state.holding[a] = v
+        f.points = [pt]
+        verb = "write" if role == REQUEST else "wrote"
+        f.summary = f"{verb} {_pt_text(pt)}"
+
+    def _write_multi_req(self, f, role, p, request, state):
+        fc = f.function
+        a, q = p["address"], p["quantity"]
+        self._check_qty(f, fc, q)
+        pts = []
+        if fc == 0x0F:
+            vals = p["values"]
+            for i in range(min(q, len(vals) * 8)):
+                pts.append(self.point("coil", a + i, (vals[i >> 3] >> (i & 7)) & 1, state))
+        else:
+            for i, v in enumerate(p["values"]):
+                pts.append(self.point("holding", a + i, v, state))
+        if f.unit == 0:
+            self._commit(pts, fc, state)
+        f.points = pts
+        f.summary = "write " + _points_summary(pts)
+
+    def _write_multi_rsp(self, f, role, p, request, state):
+        fc = f.function
+        a, q = p["address"], p["quantity"]
+        f.summary = f"wrote {SPACE[fc]} {a}..{a + q - 1} ({q})"
+        if request is not None and request.points and request.crc_ok and f.crc_ok:
+            self._commit(request.points, fc, state)
+
+    def _commit(self, pts, fc, state):
+        shadow = state.coils if fc == 0x0F else state.holding
+        for pt in pts:
+            if pt["address"] is not None:
+                shadow[pt["address"]] = pt["raw"]
+
+    def _other(self, f, role, p, request, state):
+        fc = f.function
+        items = ", ".join(f"{k}={_short(v)}" for k, v in p.items() if not k.startswith("_"))
+        f.summary = f"{FUNCTION_NAMES[fc]} {role}: {items}" if items else f"{FUNCTION_NAMES[fc]} {role}"
+        if fc == 0x16 and role == RESPONSE:
+            a = p["address"]
+            old = state.holding.get(a)
+            if old is not None:
+                state.holding[a] = (old & p["and_mask"]) | (p["or_mask"] & ~p["and_mask"] & 0xFFFF)
+        if fc == 0x17 and role == REQUEST:
+            f.points = [self.point("holding", p["write_address"] + i, v, state) for i, v in enumerate(p["values"])]
+
+    def _rw_rsp(self, f, role, p, request, state):
+        if request is not None and request.crc_ok and len(request.raw) >= 8:
+            addr = (request.raw[2] << 8) | request.raw[3]
+            f.points = [self.point("holding", addr + i, v, state) for i, v in enumerate(p["values"])]
+            for pt in f.points:
+                state.holding[pt["address"]] = pt["raw"]
+            f.summary = _points_summary(f.points)
+        else:
+            self._read_regs_rsp(f, role, p, None, state)
+
+    def _check_qty(self, f, fc, q):
+        hi = _MAX_QTY.get(fc)
+        if hi is not None and not 1 <= q <= hi:
+            f.annotations.append(note(QUANTITY, f"quantity {q} (allowed 1..{hi})", 4, 6))
+
+
+def _dispatch(self, f, role, p, request, state):
+    fc = f.function
+    if fc in (0x01, 0x02, 0x03, 0x04) and role == REQUEST:
+        return self._read_req(f, role, p, request, state)
+    if fc in (0x03, 0x04):
+        return self._read_regs_rsp(f, role, p, request, state)
+    if fc in (0x01, 0x02):
+        return self._read_bits_rsp(f, role, p, request, state)
+    if fc in (0x05, 0x06):
+        return self._write_single(f, role, p, request, state)
+    if fc in (0x0F, 0x10):
+        if role == REQUEST:
+            return self._write_multi_req(f, role, p, request, state)
+        return self._write_multi_rsp(f, role, p, request, state)
+    if fc == 0x17 and role == RESPONSE:
+        return self._rw_rsp(f, role, p, request, state)
+    return self._other(f, role, p, request, state)
+
+
+_HANDLERS = {fc: _dispatch for fc in FUNCTION_NAMES}
+
+
+def _pt_text(pt: dict) -> str:
+    v = pt["value"]
+    unit = pt.get("unit")
+    return f"{pt['name']}={v}{' ' + unit if unit else ''}"
+
+
+def _points_summary(pts: list[dict], limit: int = 6) -> str:
+    text = " ".join(_pt_text(p) for p in pts[:limit])
+    if len(pts) > limit:
+        text += f" ... (+{len(pts) - limit})"
+    return text
+
+
+def _short(v) -> str:
+    if isinstance(v, (bytes, bytearray)):
+        return v.hex()
+    if isinstance(v, list):
+        return "[" + ",".join(_short(x) for x in v[:8]) + ("...]" if len(v) > 8 else "]")
+    return str(v)

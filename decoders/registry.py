@@ -1,0 +1,79 @@
+"""Choose a decoder per unit: `--device UNIT=MODEL` (repeatable) or a bus file.
+
+A registry is an explicit instance: built from the decoders it may use and
+the device map, then passed to the pipeline.  Nothing is registered at import.
+"""
+
+from __future__ import annotations
+
+from sniffer import codes as core_codes
+from sniffer.codes import CodeBook, note
+from sniffer.frame import Frame
+
+from .base import Decoder, UnitState
+
+
+class DeviceMapError(ValueError):
+    pass
+
+
+class DecoderRegistry:
+    def __init__(self, decoders: dict[str, Decoder], devices: dict[int, str] | None = None,
+                 default: str = "generic") -> None:
+        self.decoders = dict(decoders)
+        if default not in self.decoders:
+            raise DeviceMapError(f"default model {default!r} is not available")
+        self.default = default
+        self.devices: dict[int, str] = {}
+        for unit, model in (devices or {}).items():
+            if model not in self.decoders:
+                known = ", ".join(sorted(self.decoders))
+                raise DeviceMapError(f"unknown model {model!r} for unit {unit} (known: {known})")
+            self.devices[int(unit)] = model
+        self.states: dict[int, UnitState] = {}
+        self.codebook = CodeBook(*(d.codes for d in self.decoders.values()))
+
+    def model_for(self, unit: int | None) -> str:
+        if unit is None:
+            return self.default
+        return self.devices.get(unit, self.default)
+
+    def state(self, unit: int) -> UnitState:
+        st = self.states.get(unit)
+        if st is None:
+            st = self.states[unit] = UnitState(unit)
+        return st
+
+    def decode(self, f: Frame) -> None:
+        if f.protocol == "noise" or f.unit is None:
+            return
+        model = self.model_for(f.unit)
+        f.model = model
+        try:
+            self.decoders[model].decode(f, f.peer, self.state(f.unit))
+        except Exception as e:  # a decoder bug must not stop a capture
+            f.annotations.append(
+                note(core_codes.DECODE_SHORT, f"decoder {model} failed: {type(e).__name__}: {e}",
+                     0, len(f.raw))
+            )
+
+
+def parse_device_args(items: list[str] | None) -> dict[int, str]:
+    """['1=a510', '2=tds-v8'] -> {1: 'a510', 2: 'tds-v8'}."""
+    out: dict[int, str] = {}
+    for item in items or []:
+        unit_s, sep, model = item.partition("=")
+        try:
+            unit = int(unit_s, 0)
+        except ValueError:
+            unit = -1
+        if not sep or not model or not 0 <= unit <= 255:
+            raise DeviceMapError(f"--device {item!r}: expected UNIT=MODEL with UNIT 0..255")
+        out[unit] = model.strip()
+    return out
+
+
+def default_registry(devices: dict[int, str] | None = None) -> DecoderRegistry:
+    from .generic import GenericModbus
+
+    return DecoderRegistry({"generic": GenericModbus()}, devices)

@@ -1,0 +1,262 @@
+"""Command line: live, replay, decode, simulate, demo, repair.
+
+Bad input gets one clear line on stderr and a non-zero exit (2 for usage
+and unreadable input), never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+from . import __version__
+from .events import CaptureInfo, Chunk
+from .line import LineSettings, SettingsError
+from .pairer import DEFAULT_TIMEOUT_MS
+from .sources import CaptureError
+
+EXIT_USAGE = 2
+
+
+class UsageError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, not usage + line
+        raise UsageError(message)
+
+
+def _serial_flags(p: argparse.ArgumentParser, required: bool = False) -> None:
+    g = p.add_argument_group("serial line")
+    g.add_argument("--baud", type=int, help="baud rate (e.g. 9600, 19200, 115200)")
+    g.add_argument("--parity", choices=["N", "E", "O"], type=str.upper, help="parity (default N)")
+    g.add_argument("--stopbits", type=int, choices=[1, 2], help="stop bits (default 1)")
+
+
+def _decode_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("decoding")
+    g.add_argument("--device", action="append", metavar="UNIT=MODEL",
+                   help="decode UNIT with MODEL (repeatable), e.g. --device 2=a510")
+    g.add_argument("--bus", metavar="FILE", help="bus file (TOML): serial settings, unit models, timeouts")
+    g.add_argument("--timeout-ms", type=float, default=None,
+                   help=f"response timeout per unit (default {DEFAULT_TIMEOUT_MS:.0f} ms)")
+
+
+def _format_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--format", choices=["text", "jsonl"], default="text", help="output format (default text)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="sniffer", description="Passive RS-485 sniffer for PLC <-> drive links (Modbus RTU).")
+    p.add_argument("--version", action="version", version=f"sniffer {__version__}")
+    sub = p.add_subparsers(dest="cmd", metavar="COMMAND", parser_class=_Parser)
+
+    s = sub.add_parser("live", help="capture a serial port (read-only) and decode live")
+    s.add_argument("port", help="serial device, e.g. /dev/ttyUSB0")
+    _serial_flags(s)
+    _decode_flags(s)
+    _format_flag(s)
+    s.add_argument("--out", metavar="FILE.mcap", help="MCAP file to write (default: sniffer-<time>.mcap)")
+    s.add_argument("--no-out", action="store_true", help="do not write an MCAP file")
+    s.add_argument("--duration", type=float, default=0, help="stop after S seconds (default: until Ctrl-C)")
+
+    s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV)")
+    s.add_argument("file")
+    s.add_argument("--input-format", choices=["auto", "mcap", "csv", "saleae"], default="auto")
+    _serial_flags(s)
+    _decode_flags(s)
+    _format_flag(s)
+
+    s = sub.add_parser("decode", help="decode frames given as hex, one argument per frame")
+    s.add_argument("hex", nargs="+", help="frame bytes in hex, e.g. 010300000002C40B")
+    s.add_argument("--baud", type=int, default=9600, help=argparse.SUPPRESS)
+    _decode_flags(s)
+    _format_flag(s)
+
+    s = sub.add_parser("simulate", help="write a simulated capture (MCAP or byte CSV by extension)")
+    s.add_argument("--out", required=True, metavar="FILE", help="FILE.mcap or FILE.csv")
+    s.add_argument("--scenario", default="default")
+    s.add_argument("--duration", type=float, default=10.0, help="seconds of bus traffic (default 10)")
+    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--adapter", choices=["wire", "usb"], default="usb",
+                   help="timestamps per byte (logic analyzer) or per USB read (default usb)")
+    _serial_flags(s)
+
+    s = sub.add_parser("demo", help="live capture of a simulated bus over a pseudo-terminal")
+    s.add_argument("--scenario", default="default")
+    s.add_argument("--duration", type=float, default=15.0, help="seconds (default 15; 0 = until Ctrl-C)")
+    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--out", default="demo.mcap", metavar="FILE.mcap", help="MCAP file (default demo.mcap)")
+    s.add_argument("--headless", action="store_true", help="text stream instead of the TUI")
+    _format_flag(s)
+
+    s = sub.add_parser("repair", help="make a truncated (killed) capture readable by any MCAP reader")
+    s.add_argument("file")
+    s.add_argument("-o", "--out", help="output file (default: FILE.repaired.mcap)")
+    return p
+
+
+# ---------------------------------------------------------------- helpers
+def _line(args, info: CaptureInfo | None, bus, *, need: bool) -> LineSettings:
+    baud = args.baud or (bus.baud if bus else None) or (info.baud if info else None)
+    parity = args.parity or (bus.parity if bus else None) or (info.parity if info else None) or "N"
+    stop = args.stopbits or (bus.stopbits if bus else None) or (info.stopbits if info else None) or 1
+    if baud is None:
+        if need:
+            raise UsageError("this capture does not say its baud rate: give --baud (and --parity/--stopbits)")
+        baud = 9600
+    return LineSettings(int(baud), str(parity).upper(), int(stop))
+
+
+def _bus(args):
+    if getattr(args, "bus", None):
+        from .busfile import load_bus_file
+
+        return load_bus_file(args.bus)
+    return None
+
+
+def _registry(args, bus, info: CaptureInfo | None = None):
+    from decoders.registry import default_registry, parse_device_args
+
+    devices = dict(info.devices) if info and info.devices else {}
+    if bus:
+        devices.update(bus.devices)
+    devices.update(parse_device_args(args.device))
+    return default_registry(devices)
+
+
+def _timeouts(args, bus) -> dict:
+    kw = {"timeout_ms": args.timeout_ms if args.timeout_ms is not None else DEFAULT_TIMEOUT_MS}
+    if bus and bus.timeouts_ms:
+        kw["unit_timeouts"] = bus.timeouts_ms
+    return kw
+
+
+def _out_sink(args, line_buffered: bool):
+    if args.format == "jsonl":
+        from .sinks.jsonl import JsonlSink
+
+        return JsonlSink(sys.stdout.buffer, flush=line_buffered)
+    from .sinks.text import TextSink
+
+    return TextSink(sys.stdout, flush=line_buffered)
+
+
+# ---------------------------------------------------------------- commands
+def cmd_replay(args) -> int:
+    from .pipeline import Pipeline
+    from .sources.replay import open_replay
+
+    bus = _bus(args)
+    info, events = open_replay(args.file, args.input_format)
+    line = _line(args, info, bus, need=True)
+    registry = _registry(args, bus, info)
+    p = Pipeline(info, line, registry, [_out_sink(args, False)], **_timeouts(args, bus))
+    try:
+        for ev in events:
+            p.feed(ev)
+    finally:
+        p.finish()
+    return 0
+
+
+def cmd_decode(args) -> int:
+    from .pipeline import Pipeline
+
+    bus = _bus(args)
+    line = LineSettings(args.baud)
+    frames = []
+    for h in args.hex:
+        text = h.replace(" ", "").replace(":", "")
+        try:
+            data = bytes.fromhex(text)
+        except ValueError:
+            raise UsageError(f"not hex: {h!r}") from None
+        if data:
+            frames.append(data)
+    info = CaptureInfo(source="decode", baud=line.baud, parity=line.parity, stopbits=line.stopbits)
+    p = Pipeline(info, line, _registry(args, bus), [_out_sink(args, False)], **_timeouts(args, bus))
+    t = 0
+    gap = 10 * line.t35_ns  # each argument is its own burst on the line
+    for data in frames:
+        times = tuple(t + i * line.char_ns for i in range(len(data)))
+        p.feed(Chunk(t, data, times))
+        t = times[-1] + line.char_ns + gap
+    p.finish()
+    return 0
+
+
+def cmd_repair(args) -> int:
+    from .mcap_repair import repair
+
+    out = args.out or (args.file[:-5] if args.file.endswith(".mcap") else args.file) + ".repaired.mcap"
+    if not os.path.exists(args.file):
+        raise CaptureError(f"{args.file}: no such file")
+    stats = repair(args.file, out)
+    print(f"{out}: {stats}", file=sys.stderr)
+    return 0
+
+
+def cmd_live(args) -> int:
+    from .live import run_live
+
+    return run_live(args, _bus(args), _line, _registry, _timeouts, _out_sink)
+
+
+def cmd_simulate(args) -> int:
+    from .simulate_cmd import run_simulate
+
+    return run_simulate(args)
+
+
+def cmd_demo(args) -> int:
+    from .live import run_demo
+
+    return run_demo(args, _registry, _out_sink)
+
+
+COMMANDS = {
+    "live": cmd_live, "replay": cmd_replay, "decode": cmd_decode,
+    "simulate": cmd_simulate, "demo": cmd_demo, "repair": cmd_repair,
+}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+        if not args.cmd:
+            parser.print_help(sys.stderr)
+            return EXIT_USAGE
+        return COMMANDS[args.cmd](args)
+    except UsageError as e:
+        print(f"sniffer: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except (CaptureError, SettingsError) as e:
+        print(f"sniffer: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except ValueError as e:  # device map, bus file
+        from decoders.registry import DeviceMapError
+        from .busfile import BusFileError
+
+        if isinstance(e, (DeviceMapError, BusFileError)):
+            print(f"sniffer: error: {e}", file=sys.stderr)
+            return EXIT_USAGE
+        raise
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:
+        # output piped into `head` etc.: stop quietly
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

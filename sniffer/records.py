@@ -1,0 +1,108 @@
+"""Frame -> JSON record: the JSONL contract other tools and tests depend on.
+
+One object per frame with at least: t, raw, protocol, unit, function, role,
+crc_ok, exception, model, points, annotations, latency_ms, pair.  The same
+record is the MCAP `/frames` message, described by FRAME_SCHEMA.
+"""
+
+from __future__ import annotations
+
+import orjson
+
+from .frame import Frame
+
+
+def frame_record(f: Frame, t0_ns: int) -> dict:
+    return {
+        "index": f.index,
+        "t": round((f.t_ns - t0_ns) / 1e9, 9),
+        "t_end": round((f.t_end_ns - t0_ns) / 1e9, 9),
+        "raw": f.raw.hex(),
+        "protocol": f.protocol,
+        "unit": f.unit,
+        "function": f.function,
+        "role": f.role,
+        "crc_ok": f.crc_ok,
+        "crc_expected": None if f.crc_expected is None else f"{f.crc_expected:04x}",
+        "exception": f.exception,
+        "model": f.model,
+        "points": f.points,
+        "annotations": [a.to_dict() for a in f.annotations],
+        "latency_ms": None if f.latency_ms is None else round(f.latency_ms, 3),
+        "pair": f.pair,
+        "summary": f.summary,
+        "time_source": f.time_source,
+        "channel": f.channel,
+        "noise_reason": f.noise_reason,
+    }
+
+
+def dumps(record: dict) -> bytes:
+    return orjson.dumps(record)
+
+
+def loads(data: bytes | str) -> dict:
+    return orjson.loads(data)
+
+
+_NULLABLE_INT = {"type": ["integer", "null"]}
+_NULLABLE_NUM = {"type": ["number", "null"]}
+
+FRAME_SCHEMA = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": "sniffer.Frame",
+    "description": "One frame seen on the RS-485 line, decoded",
+    "type": "object",
+    "properties": {
+        "index": {"type": "integer", "description": "frame number in the capture"},
+        "t": {"type": "number", "description": "seconds from capture start (first byte)"},
+        "t_end": {"type": "number", "description": "seconds from capture start (end of last byte)"},
+        "raw": {"type": "string", "description": "frame bytes, hex"},
+        "protocol": {"type": "string", "enum": ["modbus-rtu", "modbus-ascii", "pd-rtu", "pd-ascii", "noise"]},
+        "unit": _NULLABLE_INT,
+        "function": _NULLABLE_INT,
+        "role": {"type": "string", "enum": ["request", "response", "unknown", "noise"]},
+        "crc_ok": {"type": ["boolean", "null"]},
+        "crc_expected": {"type": ["string", "null"]},
+        "exception": {
+            "type": ["object", "null"],
+            "properties": {"code": {"type": "integer"}, "name": {"type": "string"}},
+        },
+        "model": {"type": ["string", "null"]},
+        "points": {
+            "type": "array",
+            "items": {
+                "type": "object",
+                "properties": {
+                    "name": {"type": "string"},
+                    "address": _NULLABLE_INT,
+                    "raw": {},
+                    "value": {},
+                    "unit": {"type": ["string", "null"]},
+                },
+            },
+        },
+        "annotations": {
+            "type": "array",
+            "items": {
+                "type": "object",
+                "properties": {
+                    "code": {"type": "string"},
+                    "severity": {"type": "string", "enum": ["info", "warning", "error"]},
+                    "detail": {"type": "string"},
+                    "span": {"type": "array", "items": {"type": "integer"}},
+                },
+            },
+        },
+        "latency_ms": _NULLABLE_NUM,
+        "pair": _NULLABLE_INT,
+        "summary": {"type": "string"},
+        "time_source": {"type": "string", "enum": ["byte", "read"]},
+        "channel": {"type": "string"},
+        "noise_reason": {"type": ["string", "null"]},
+    },
+    "required": [
+        "t", "raw", "protocol", "unit", "function", "role", "crc_ok", "exception",
+        "model", "points", "annotations", "latency_ms", "pair",
+    ],
+}

@@ -1,0 +1,1 @@
+"""Where decoded frames go: text, JSONL, MCAP (sniffer.mcap_sink), the TUI."""

@@ -1,0 +1,52 @@
+"""One human line per frame, for a terminal or a log file."""
+
+from __future__ import annotations
+
+import sys
+from typing import TextIO
+
+from ..events import CaptureInfo
+from ..frame import Frame
+
+_MARK = {"error": "!!", "warning": "! ", "info": "  ", None: "  "}
+
+
+def frame_line(f: Frame, t0_ns: int) -> str:
+    t = (f.t_ns - t0_ns) / 1e9
+    mark = _MARK[f.worst_severity()]
+    if f.protocol == "noise":
+        return f"{t:12.6f} {mark} NOISE   {len(f.raw):3d}B {f.raw[:24].hex(' ')}{'...' if len(f.raw) > 24 else ''}  [{f.noise_reason}]"
+    role = {"request": "REQ", "response": "RSP"}.get(f.role, "???")
+    arrow = "->" if f.role == "request" else "<-"
+    pair = f" #{f.pair}" if f.pair is not None else ""
+    lat = f" {f.latency_ms:6.1f}ms" if f.latency_ms is not None else ""
+    fc = f"{f.function:02X}" if f.function is not None else "--"
+    crc = "" if f.crc_ok else " CRC!"
+    notes = [a.code for a in f.annotations if a.severity != "info"]
+    tail = f"  [{', '.join(notes)}]" if notes else ""
+    model = f" {f.model}" if f.model and f.model != "generic" else ""
+    return (
+        f"{t:12.6f} {mark} {arrow}{role} u{f.unit:<3d}{model} fc{fc}{crc} #{f.index}{pair}{lat}  "
+        f"{f.summary}{tail}"
+    )
+
+
+class TextSink:
+    def __init__(self, out: TextIO | None = None, flush: bool = False) -> None:
+        self.out = out or sys.stdout
+        self.flush_each = flush
+        self.t0 = 0
+
+    def start(self, info: CaptureInfo) -> None:
+        self.t0 = info.t0_ns
+
+    def raw(self, event) -> None:
+        pass
+
+    def frame(self, f: Frame) -> None:
+        self.out.write(frame_line(f, self.t0) + "\n")
+        if self.flush_each:
+            self.out.flush()
+
+    def close(self) -> None:
+        self.out.flush()

@@ -1,0 +1,38 @@
+"""Open any capture file for replay: MCAP, byte CSV or Saleae CSV."""
+
+from __future__ import annotations
+
+import os
+
+from . import CaptureError
+
+FORMATS = ("auto", "mcap", "csv", "saleae")
+
+
+def open_replay(path: str, fmt: str = "auto"):
+    """(CaptureInfo, events iterator) or CaptureError with one clear line."""
+    from . import bytecsv, mcapsrc, saleae
+
+    if not os.path.exists(path):
+        raise CaptureError(f"{path}: no such file")
+    if os.path.isdir(path):
+        raise CaptureError(f"{path}: is a directory, not a capture file")
+    if fmt == "auto":
+        if mcapsrc.sniff(path):
+            fmt = "mcap"
+        elif bytecsv.sniff(path):
+            fmt = "csv"
+        elif saleae.sniff(path):
+            fmt = "saleae"
+        else:
+            raise CaptureError(
+                f"{path}: unknown capture format (expected MCAP from this tool, a byte CSV "
+                "t_s,channel,byte_hex,flags, or a Saleae async-serial CSV export)"
+            )
+    if fmt == "mcap":
+        return mcapsrc.open_mcap(path)
+    if fmt == "csv":
+        return bytecsv.open_byte_csv(path)
+    if fmt == "saleae":
+        return saleae.open_saleae_csv(path)
+    raise CaptureError(f"unknown input format {fmt!r} (one of {', '.join(FORMATS)})")

@@ -1,0 +1,30 @@
+"""Small shared helpers for tests: run events through the real pipeline."""
+
+from __future__ import annotations
+
+from decoders.registry import default_registry
+from sniffer.events import CaptureInfo, Chunk
+from sniffer.line import LineSettings
+from sniffer.pipeline import Pipeline
+
+
+def run_events(events, line: LineSettings, devices=None, info: CaptureInfo | None = None, **kw):
+    info = info or CaptureInfo(baud=line.baud, parity=line.parity, stopbits=line.stopbits)
+    p = Pipeline(info, line, default_registry(devices), **kw)
+    out = []
+    for ev in events:
+        out += p.feed(ev)
+    out += p.finish()
+    return out
+
+
+def bursts(frames_hex: list[str], line: LineSettings, gap_chars: float = 5.0, t0: int = 0) -> list[Chunk]:
+    """Each hex string as back-to-back bytes with per-byte times, `gap_chars` of silence between."""
+    out = []
+    t = t0
+    for h in frames_hex:
+        data = bytes.fromhex(h)
+        times = tuple(t + i * line.char_ns for i in range(len(data)))
+        out.append(Chunk(t, data, times))
+        t = times[-1] + line.char_ns + int(gap_chars * line.char_ns)
+    return out
