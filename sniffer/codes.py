@@ -44,6 +44,13 @@ def note(code: Code, detail: str, start: int, end: int) -> Annotation:
     return Annotation(code.code, code.severity, detail, start, end)
 
 
+def note_in(code: Code, detail: str, start: int, end: int, size: int) -> Annotation:
+    """An annotation whose span is clamped into a frame of `size` bytes (never empty)."""
+    end = min(end, size)
+    start = min(start, end - 1) if end > 0 else 0
+    return Annotation(code.code, code.severity, detail, max(0, start), max(end, 1))
+
+
 # --- framing -----------------------------------------------------------------
 CRC_MISMATCH = Code("modbus.crc.mismatch", ERROR, "CRC does not match the frame's bytes")
 LENGTH_MISMATCH = Code(

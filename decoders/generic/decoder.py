@@ -10,7 +10,7 @@ from __future__ import annotations
 from construct import ConstructError
 
 from sniffer import codes
-from sniffer.codes import Code, note
+from sniffer.codes import Code, note, note_in
 from sniffer.frame import REQUEST, RESPONSE, Frame
 
 from ..base import UnitState
@@ -60,8 +60,8 @@ class GenericModbus:
                 parsed = None
         if parsed is None:
             f.annotations.append(
-                note(codes.DECODE_SHORT, f"{len(body)} data bytes too few for {FUNCTION_NAMES.get(fc, hex(fc))}",
-                     2, len(raw) - 2)
+                note_in(codes.DECODE_SHORT, f"{len(body)} data bytes too few for {FUNCTION_NAMES.get(fc, hex(fc))}",
+                        2, max(3, len(raw) - 2), len(raw))
             )
             f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} (malformed)"
             return
@@ -77,7 +77,7 @@ class GenericModbus:
         f.exception = {"code": code, "name": name}
         base = FUNCTION_NAMES.get(fc & 0x7F, f"function 0x{fc & 0x7F:02X}")
         f.summary = f"exception {code:02X} {name} ({base})" if code is not None else f"exception ({base})"
-        f.annotations.append(note(codes.EXCEPTION, f"{code} {name}", 2, 3))
+        f.annotations.append(note_in(codes.EXCEPTION, f"{code} {name}", 2, 3, len(f.raw)))
 
     # ---- per-function handlers ---------------------------------------------
     def _read_req(self, f, role, p, request, state):
