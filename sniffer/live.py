@@ -1,0 +1,167 @@
+"""Live capture loop (`sniffer live`) and the simulated-bus demo (`sniffer demo`).
+
+The capture owns the port and the MCAP file; viewers (text stream today,
+the TUI later) are sinks.  Whatever stops the capture (Ctrl-C, --duration,
+a full disk, an error) the pipeline is finished and the MCAP closed, so
+nothing already captured is lost.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+import time
+
+from . import __version__
+from .line import LineSettings
+from .mcap_sink import CaptureStorageError, McapSink
+from .pipeline import Pipeline
+from .sources.serial_live import SerialSource
+
+# The line each simulated scenario runs at (what a real bus of that kind uses).
+SCENARIO_LINES = {
+    "default": LineSettings(19200, "E", 1),
+    "errors": LineSettings(19200, "E", 1),
+    "fast": LineSettings(115200, "N", 1),
+    "stress": LineSettings(115200, "N", 1),
+}
+
+
+def _default_out() -> str:
+    return time.strftime("sniffer-%Y%m%d-%H%M%S.mcap")
+
+
+def capture(source: SerialSource, line: LineSettings, registry, sinks, *, duration_s: float = 0,
+            stop: threading.Event | None = None, timeouts: dict | None = None, mcap: McapSink | None = None):
+    """Run a live source through a pipeline until duration, stop, or Ctrl-C. Returns (pipeline, error)."""
+    info = source.open()
+    info.devices = dict(registry.devices)
+    info.sniffer_version = __version__
+    all_sinks = list(sinks) + ([mcap] if mcap else [])
+    p = Pipeline(info, line, registry, all_sinks, **(timeouts or {}))
+    stop = stop or threading.Event()
+    deadline = time.monotonic() + duration_s if duration_s > 0 else None
+    error = None
+
+    def _watch():
+        while not stop.wait(0.05):
+            if deadline is not None and time.monotonic() >= deadline:
+                break
+        source.stop()
+
+    watcher = threading.Thread(target=_watch, name="capture-deadline", daemon=True)
+    watcher.start()
+    try:
+        for ev in source.events():
+            p.feed(ev)
+            if mcap is not None:
+                mcap.maybe_flush()
+    except CaptureStorageError as e:
+        error = f"capture file: {e} (capture stopped; what was written is intact)"
+    finally:
+        stop.set()
+        source.stop()
+        try:
+            p.finish()
+        except CaptureStorageError as e:
+            error = error or f"capture file: {e}"
+    return p, error
+
+
+def run_live(args, bus, line_fn, registry_fn, timeouts_fn, out_sink_fn) -> int:
+    line = line_fn(args, None, bus, need=False)
+    registry = registry_fn(args, bus)
+    source = SerialSource(args.port, line)
+    mcap = None
+    if not args.no_out:
+        path = args.out or _default_out()
+        mcap = McapSink(path)
+        print(f"sniffer: capturing {args.port} at {line.label()} (read-only) -> {path}", file=sys.stderr)
+    stop = threading.Event()
+    _on_signals(stop)
+    p, error = capture(source, line, registry, [out_sink_fn(args, True)], duration_s=args.duration,
+                       stop=stop, timeouts=timeouts_fn(args, bus), mcap=mcap)
+    _summary(p, mcap)
+    if error:
+        print(f"sniffer: error: {error}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def run_demo(args, registry_fn, out_sink_fn) -> int:
+    from .simulator.ptybus import PtyBus
+    from .simulator.scenario import get_scenario
+    from .simulator.bus import simulate
+
+    try:
+        scenario = get_scenario(args.scenario)
+    except ValueError as e:
+        print(f"sniffer: error: {e}", file=sys.stderr)
+        return 2
+    line = SCENARIO_LINES.get(args.scenario, LineSettings(19200, "E", 1))
+    args.device = getattr(args, "device", None)
+    registry = registry_fn(args, None)
+    duration = args.duration if args.duration > 0 else 24 * 3600.0
+    stop = threading.Event()
+    _on_signals(stop)
+    with PtyBus() as bus:
+        print(f"sniffer: demo '{scenario.name}' on simulated bus {bus.port} at {line.label()} -> {args.out}",
+              file=sys.stderr)
+        frames = simulate(scenario, line, duration, args.seed)
+        stats = {}
+
+        def _play():
+            stats["play"] = bus.play(frames, stop_event=stop)
+            time.sleep(0.3)  # let the last frames reach the sniffer, then close on silence
+            stop.set()
+
+        source = SerialSource(bus.port, line, reconnect=False, low_latency=False)
+        player = threading.Thread(target=_play, name="simulated-bus", daemon=True)
+        mcap = McapSink(args.out)
+        sinks = [out_sink_fn(args, True)]
+        started = False
+
+        def _start_player():
+            nonlocal started
+            if not started:
+                started = True
+                player.start()
+
+        # start the bus only once the port is open, so no byte is missed
+        orig_open = source.open
+
+        def _open_then_play():
+            info = orig_open()
+            _start_player()
+            return info
+
+        source.open = _open_then_play  # type: ignore[method-assign]
+        p, error = capture(source, line, registry, sinks, duration_s=duration, stop=stop, mcap=mcap)
+        stop.set()
+        player.join(timeout=5)
+        sent = stats.get("play")
+        bus.drain()
+        _summary(p, mcap)
+        if sent is not None:
+            print(f"sniffer: simulator sent {sent.frames} frames ({sent.bytes} bytes); "
+                  f"sniffer wrote {bus.bytes_received_from_sniffer} bytes to the bus", file=sys.stderr)
+    if error:
+        print(f"sniffer: error: {error}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _summary(p: Pipeline, mcap: McapSink | None) -> None:
+    where = f"; MCAP {mcap.path} ({mcap.bytes_written} bytes)" if mcap else ""
+    print(f"sniffer: {p.frames_out} frames, {p.bytes_in} bytes, {p.noise_bytes} noise bytes{where}",
+          file=sys.stderr)
+
+
+def _on_signals(stop: threading.Event) -> None:
+    def handler(signum, frame):
+        stop.set()
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, handler)
+        signal.signal(signal.SIGTERM, handler)
