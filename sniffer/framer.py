@@ -16,11 +16,12 @@ At each frame start the framer tries, in this order (see `_step`):
      split ones, and a frame followed by 0x00 bytes is not swallowed);
   B1. the run of bytes up to the next boundary, if its CRC is valid (a
      frame whose length contradicts its function code, or an unknown code);
-  B2. a structural length that ends exactly at the next boundary, bad CRC
+  B2. if a CRC-valid structural frame starts later, before the boundary,
+     and its end is plausible too (boundary, end of data, or another valid
+     frame), the bytes before it are noise (noise glued to a frame in one read);
+  B3. a structural length that ends exactly at the next boundary, bad CRC
      (a corrupted frame);
-  B3. otherwise noise, up to the next boundary or up to the first later
-     position where a CRC-valid structural frame starts whose end is also
-     plausible (boundary, end of data, or another valid frame).
+  B4. otherwise noise up to the next boundary.
 Decisions depend only on bytes and boundaries, never on how reads were cut,
 so feeding a capture whole, byte by byte or in random chunks gives the same
 frames (a property test checks it).
@@ -235,15 +236,18 @@ class RtuFramer:
                          f"function 0x{fc:02X} ({fc}) shown raw", 1, 2)
                 )
             return fr
-        # B2. a structural length ending exactly at the boundary, bad CRC
-        for length, can in candidates(buf, p - base, b - base):
-            if type(length) is int and p + length == b:
-                return self._emit(p, b, can, crc_good=False)
-        # B3. noise up to the boundary or to the next strong frame start
+        # B2. a strong frame starts before the boundary: what precedes it is noise
         q = self._resync(p, b, end, final)
         if q is _WAIT:
             return None
-        return self._emit_noise(p, q)
+        if q < b:
+            return self._emit_noise(p, q)
+        # B3. a structural length ending exactly at the boundary, bad CRC
+        for length, can in candidates(buf, p - base, b - base):
+            if type(length) is int and p + length == b:
+                return self._emit(p, b, can, crc_good=False)
+        # B4. noise up to the boundary
+        return self._emit_noise(p, b)
 
     def _resync(self, p: int, b: int, end: int, final: bool):
         base = self.base

@@ -33,8 +33,12 @@ def _default_out() -> str:
 
 
 def capture(source: SerialSource, line: LineSettings, registry, sinks, *, duration_s: float = 0,
-            stop: threading.Event | None = None, timeouts: dict | None = None, mcap: McapSink | None = None):
-    """Run a live source through a pipeline until duration, stop, or Ctrl-C. Returns (pipeline, error)."""
+            stop: threading.Event | None = None, timeouts: dict | None = None, mcap: McapSink | None = None,
+            on_open=None):
+    """Run a live source through a pipeline until duration, stop, or Ctrl-C. Returns (pipeline, error).
+
+    `on_open(info)` runs once the port is open (the demo starts its bus then, so no byte is missed).
+    """
     info = source.open()
     info.devices = dict(registry.devices)
     info.sniffer_version = __version__
@@ -52,6 +56,8 @@ def capture(source: SerialSource, line: LineSettings, registry, sinks, *, durati
 
     watcher = threading.Thread(target=_watch, name="capture-deadline", daemon=True)
     watcher.start()
+    if on_open is not None:
+        on_open(info)
     try:
         for ev in source.events():
             p.feed(ev)
@@ -120,24 +126,8 @@ def run_demo(args, registry_fn, out_sink_fn) -> int:
         player = threading.Thread(target=_play, name="simulated-bus", daemon=True)
         mcap = McapSink(args.out)
         sinks = [out_sink_fn(args, True)]
-        started = False
-
-        def _start_player():
-            nonlocal started
-            if not started:
-                started = True
-                player.start()
-
-        # start the bus only once the port is open, so no byte is missed
-        orig_open = source.open
-
-        def _open_then_play():
-            info = orig_open()
-            _start_player()
-            return info
-
-        source.open = _open_then_play  # type: ignore[method-assign]
-        p, error = capture(source, line, registry, sinks, duration_s=duration, stop=stop, mcap=mcap)
+        p, error = capture(source, line, registry, sinks, duration_s=duration + 5, stop=stop, mcap=mcap,
+                           on_open=lambda info: player.start())
         stop.set()
         player.join(timeout=5)
         sent = stats.get("play")

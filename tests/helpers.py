@@ -28,3 +28,26 @@ def bursts(frames_hex: list[str], line: LineSettings, gap_chars: float = 5.0, t0
         out.append(Chunk(t, data, times))
         t = times[-1] + line.char_ns + int(gap_chars * line.char_ns)
     return out
+
+
+class ListSink:
+    """Collects JSONL records (as the JSONL sink would write them) and raw events."""
+
+    def __init__(self) -> None:
+        self.records: list[dict] = []
+        self.events: list = []
+        self.t0 = 0
+
+    def start(self, info) -> None:
+        self.t0 = info.t0_ns
+
+    def raw(self, event) -> None:
+        self.events.append(event)
+
+    def frame(self, f) -> None:
+        from sniffer.records import frame_record
+
+        self.records.append(frame_record(f, self.t0))
+
+    def close(self) -> None:
+        pass

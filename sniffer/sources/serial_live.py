@@ -1,0 +1,355 @@
+"""Live capture from a serial port, strictly receive-only.
+
+Passivity is the point of this module: a stray byte on a PLC <-> drive link
+can start a motor.  So:
+
+* the port is opened with os.open(O_RDONLY | O_NOCTTY | O_NONBLOCK), never
+  through pyserial's Serial (its open() uses O_RDWR and then drives DTR/RTS
+  and flushes buffers).  Subclassing it would mean overriding open() and
+  most of what it calls, so termios is done here directly; pyserial only
+  lends its termios2 ioctl numbers (odd baud rates) and its sysfs walk for
+  the adapter's USB identity.  A write on this fd fails with EBADF, and the
+  class has no write() at all;
+* the tty line discipline can transmit on its own even without a writable
+  fd: ECHO echoes received bytes back out, IXOFF sends XOFF when the input
+  buffer fills.  Raw mode clears them, and `_configure` reads the settings
+  back and refuses to capture if they did not stick.  The one window left is
+  between open() and tcsetattr() on a freshly plugged adapter (kernel
+  default termios has ECHO on): microseconds, and usb-serial keeps a tty's
+  termios across close and reopen while the adapter stays plugged;
+* opening a tty raises DTR/RTS (the kernel does it, not us).  Adapters that
+  switch their RS-485 driver with RTS instead of automatically would then
+  drive the bus: use an auto-direction adapter, or a receive-only one.
+
+One reader thread does every read and every Tick, so the event stream is in
+time order by construction; the consumer only drains a queue.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import select
+import stat
+import termios
+import threading
+import time
+from collections import deque
+from collections.abc import Iterator
+
+from ..events import CaptureInfo, Chunk, Gap, Tick
+from ..line import LineSettings
+from ..lowlatency import request_low_latency
+from . import CaptureError
+
+READ_SIZE = 4096
+PORT_POLL_S = 0.2  # how often a lost port is looked for, and a live one's path checked
+# Errors that mean "the adapter went away", not "this program is broken".
+LOST_ERRNOS = {errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF}
+
+
+class PortLostError(CaptureError):
+    """The port went away during a capture and reconnect was off."""
+
+
+_END = object()
+
+
+class SerialSource:
+    """Read-only serial capture: `open()`, iterate `events()`, `stop()` from any thread."""
+
+    def __init__(self, port: str, line: LineSettings, *, tick_interval_s: float = 0.005,
+                 reconnect: bool = True, low_latency: bool = True, sysfs: str = "/sys") -> None:
+        self.port = port
+        self.line = line
+        self.tick_ns = max(1, int(tick_interval_s * 1e9))
+        self.reconnect = reconnect
+        self.low_latency = low_latency
+        self.sysfs = sysfs
+        self.info: CaptureInfo | None = None
+        self.lost_since_ns: int | None = None  # set while the port is away (for a status line)
+        self._fd: int | None = None
+        self._rdev: int | None = None
+        self._queue: deque = deque()
+        self._cond = threading.Condition()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._error: BaseException | None = None
+        self._lost_reason = ""
+        self.ignored: dict = {}  # settings the driver dropped and why that is harmless (see _configure)
+        self._ended = False
+
+    # -- consumer side -------------------------------------------------------------
+
+    @property
+    def fd(self) -> int | None:
+        """The descriptor being read (None while the port is away): for inspection only."""
+        return self._fd
+
+    def open(self) -> CaptureInfo:
+        if self.info is not None:
+            return self.info
+        fd = self._open_port()
+        t0 = time.monotonic_ns()
+        wall = time.time_ns()
+        try:
+            ll = request_low_latency(fd, self.port, self.sysfs) if self.low_latency else {"requested": False}
+        except BaseException:
+            os.close(fd)
+            raise
+        self._fd = fd
+        self.info = CaptureInfo(
+            source=f"serial:{self.port}", port=self.port, baud=self.line.baud, parity=self.line.parity,
+            stopbits=self.line.stopbits, databits=self.line.databits, time_source="read",
+            t0_ns=t0, wall_anchor_ns=wall, low_latency=ll,
+        )
+        if self.ignored:
+            self.info.extra["line_ignored"] = dict(self.ignored)
+        self._thread = threading.Thread(target=self._run, name=f"serial-reader {self.port}", daemon=True)
+        self._thread.start()
+        return self.info
+
+    def events(self) -> Iterator[Chunk | Tick | Gap]:
+        """Chunks, Ticks and Gaps in time order; ends once stop() was called and the queue is drained."""
+        self.open()
+        while not self._ended:
+            with self._cond:
+                while not self._queue:
+                    self._cond.wait(0.1)
+                item = self._queue.popleft()
+            if item is _END:
+                self._ended = True
+                if self._error is not None:
+                    raise self._error
+                return
+            yield item
+
+    def stop(self) -> None:
+        self._stop.set()
+        t = self._thread
+        if t is not None and t is not threading.current_thread():
+            t.join(timeout=5)
+
+    def __enter__(self) -> "SerialSource":
+        self.open()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    # -- reader thread -------------------------------------------------------------
+
+    def _push(self, item) -> None:
+        with self._cond:
+            q = self._queue
+            if type(item) is Tick and q and type(q[-1]) is Tick:
+                q[-1] = item  # consumer is behind: only the latest silence matters
+            else:
+                q.append(item)
+            self._cond.notify()
+
+    def _run(self) -> None:
+        try:
+            last = time.monotonic_ns()  # time of the last event handed out
+            next_path_check = last + int(PORT_POLL_S * 1e9)
+            while not self._stop.is_set():
+                if self._fd is None:
+                    self._wait_for_port()
+                    last = time.monotonic_ns()
+                    continue
+                now = time.monotonic_ns()
+                timeout = min(max(0, last + self.tick_ns - now) / 1e9, PORT_POLL_S)
+                try:
+                    ready, _, _ = select.select([self._fd], [], [], timeout)
+                    data = os.read(self._fd, READ_SIZE) if ready else None
+                except BlockingIOError:
+                    continue
+                except OSError as e:
+                    if e.errno not in LOST_ERRNOS:
+                        raise
+                    self._lose(e.strerror or str(e))
+                    continue
+                now = time.monotonic_ns()  # right after the read: the read's timestamp
+                if data:
+                    self._push(Chunk(now, data))
+                    last = now
+                    continue
+                if data == b"":  # readable but empty: the tty was hung up
+                    self._lose("hang-up (end of file)")
+                    continue
+                if now - last >= self.tick_ns:
+                    self._push(Tick(now))
+                    last = now
+                if now >= next_path_check:
+                    next_path_check = now + int(PORT_POLL_S * 1e9)
+                    gone = self._path_gone()
+                    if gone:
+                        self._lose(gone)
+        except BaseException as e:  # handed to the consumer, raised from events()
+            self._error = e
+        finally:
+            self._close()
+            self._push(_END)
+
+    def _lose(self, reason: str) -> None:
+        self._close()
+        if not self.reconnect:
+            raise PortLostError(f"{self.port}: port lost ({reason})")
+        self.lost_since_ns = time.monotonic_ns()
+        self._lost_reason = reason
+
+    def _wait_for_port(self) -> None:
+        """Poll for the port to come back; one Gap covers the whole outage."""
+        lost, reason = self.lost_since_ns, self._lost_reason
+        while not self._stop.wait(PORT_POLL_S):
+            try:
+                fd = self._open_port()
+            except CaptureError:
+                continue
+            back = time.monotonic_ns()
+            if self.low_latency:  # a replugged FTDI starts again at 16 ms
+                request_low_latency(fd, self.port, self.sysfs)
+            self._fd = fd
+            self.lost_since_ns = None
+            self._push(Gap(lost, back, f"port lost ({reason}), reopened"))
+            return
+        self._push(Gap(lost, time.monotonic_ns(), f"port lost ({reason}), capture stopped before it returned"))
+
+    def _path_gone(self) -> str:
+        """A vanished or re-pointed port path means the adapter we hold is not the port any more."""
+        try:
+            rdev = os.stat(self.port).st_rdev
+        except FileNotFoundError:
+            return "port path vanished"
+        except OSError:
+            return ""
+        return "" if rdev == self._rdev else "port path now names another device"
+
+    def _close(self) -> None:
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+    # -- opening -------------------------------------------------------------------
+
+    def _open_port(self) -> int:
+        try:
+            fd = os.open(self.port, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        except OSError as e:
+            raise CaptureError(f"{self.port}: {_open_error(e)}") from None
+        try:
+            st = os.fstat(fd)
+            if not stat.S_ISCHR(st.st_mode) or not os.isatty(fd):
+                raise CaptureError("not a serial port (not a tty)")
+            self.ignored = _configure(fd, self.line, os.major(st.st_rdev) in PTY_SLAVE_MAJORS)
+            self._rdev = st.st_rdev
+        except CaptureError as e:
+            os.close(fd)
+            raise CaptureError(f"{self.port}: {e}") from None
+        except BaseException:
+            os.close(fd)
+            raise
+        return fd
+
+
+def _open_error(e: OSError) -> str:
+    if e.errno == errno.ENOENT:
+        return "no such port (adapter unplugged or wrong name?)"
+    if e.errno in (errno.EACCES, errno.EPERM):
+        return "permission denied (is your user in the dialout group?)"
+    if e.errno == errno.EBUSY:
+        return "port is busy (another program holds it exclusively)"
+    if e.errno in (errno.ENXIO, errno.ENODEV):
+        return "no device behind this port"
+    return e.strerror or str(e)
+
+
+# -- termios -----------------------------------------------------------------------
+
+# IGNPAR/IGNBRK would make UART drivers drop bad bytes, and bad bytes are what a sniffer is for.
+# INPCK off delivers them as received (unflagged: PARMRK marking could add FLAG_PARITY later).
+_IFLAG_OFF = (termios.IGNBRK | termios.IGNPAR | termios.BRKINT | termios.PARMRK | termios.ISTRIP | termios.INLCR
+              | termios.IGNCR | termios.ICRNL | termios.IXON | termios.IXOFF | termios.IXANY
+              | termios.INPCK | termios.IMAXBEL | getattr(termios, "IUCLC", 0))
+# ECHO* would transmit received bytes back: these are the flags that must never stay on.
+_LFLAG_OFF = (termios.ECHO | termios.ECHOE | termios.ECHOK | termios.ECHONL | termios.ICANON
+              | termios.ISIG | termios.IEXTEN | getattr(termios, "ECHOCTL", 0) | getattr(termios, "ECHOKE", 0))
+_MUST_BE_OFF = termios.ECHO | termios.ECHONL | termios.ICANON
+_FRAME_BITS = termios.CSIZE | termios.PARENB | termios.PARODD | termios.CSTOPB
+PTY_SLAVE_MAJORS = range(136, 144)  # UNIX98_PTY_SLAVE_MAJOR .. + UNIX98_PTY_MAJOR_COUNT
+
+
+def _configure(fd: int, line: LineSettings, pty: bool) -> dict:
+    """Raw receive at the line's settings, no flow control; the read-back is the judge.
+
+    Returns what the driver ignored and why that is acceptable (empty on a UART).
+    """
+    try:
+        iflag, oflag, cflag, lflag, _, _, cc = termios.tcgetattr(fd)
+    except termios.error as e:
+        raise CaptureError(f"not a serial port ({_termios_text(e)})") from None
+    iflag &= ~_IFLAG_OFF
+    oflag &= ~termios.OPOST
+    lflag &= ~_LFLAG_OFF
+    cflag &= ~(termios.CSIZE | termios.PARENB | termios.PARODD | termios.CSTOPB | termios.CRTSCTS)
+    cflag |= termios.CLOCAL | termios.CREAD
+    cflag |= termios.CS8 if line.databits == 8 else termios.CS7
+    if line.parity != "N":
+        cflag |= termios.PARENB | (termios.PARODD if line.parity == "O" else 0)
+    if line.stopbits == 2:
+        cflag |= termios.CSTOPB
+    # The fd is O_NONBLOCK and waits in select(); VMIN=1/VTIME=0 makes select() wake on the first byte.
+    cc[termios.VMIN] = 1
+    cc[termios.VTIME] = 0
+    speed = getattr(termios, f"B{line.baud}", None)
+    try:
+        termios.tcsetattr(fd, termios.TCSANOW,
+                          [iflag, oflag, cflag, lflag, speed or termios.B38400, speed or termios.B38400, cc])
+    except termios.error:
+        # glibc answers EINVAL after the ioctl succeeded when the driver dropped PARENB/CSIZE
+        # (a pty does); whatever it was, the read-back below decides.
+        pass
+    try:
+        if speed is None:
+            _set_custom_baud(fd, line.baud)
+        got_i, _, got_c, got_l, got_is, got_os, _ = termios.tcgetattr(fd)
+    except (termios.error, OSError) as e:
+        raise CaptureError(f"cannot configure the port: {_termios_text(e)}") from None
+    if got_i & termios.IXOFF or got_l & _MUST_BE_OFF:
+        raise CaptureError("the port kept echo or XOFF on; refusing to capture (it could transmit)")
+    if speed is not None and (got_is, got_os) != (speed, speed):
+        raise CaptureError(f"the driver refused {line.baud} baud")
+    ignored = {}
+    want = cflag & _FRAME_BITS
+    if got_c & _FRAME_BITS != want:
+        if not pty:
+            raise CaptureError(f"the driver refused the character format {line.databits}{line.parity}{line.stopbits}")
+        ignored["char_format"] = "a pseudo-terminal has no line: parity/stop bits do not apply"
+    # Bytes that arrived before raw mode have no usable time and may be mangled: drop them
+    # (TCIFLUSH discards input only; nothing is sent).
+    termios.tcflush(fd, termios.TCIFLUSH)
+    return ignored
+
+
+def _set_custom_baud(fd: int, baud: int) -> None:
+    """Non-standard rates (e.g. 250000) through termios2/BOTHER, as pyserial does."""
+    import array
+
+    from serial import serialposix
+
+    buf = array.array("i", [0] * 64)
+    fcntl.ioctl(fd, serialposix.TCGETS2, buf)
+    buf[2] = (buf[2] & ~termios.CBAUD) | serialposix.BOTHER
+    buf[9] = buf[10] = baud
+    fcntl.ioctl(fd, serialposix.TCSETS2, buf)
+
+
+def _termios_text(e: Exception) -> str:
+    args = getattr(e, "args", ())
+    if len(args) == 2 and isinstance(args[1], str):
+        return args[1]
+    return getattr(e, "strerror", None) or str(e)
