@@ -153,6 +153,9 @@ def cmd_replay(args) -> int:
 
     bus = _bus(args)
     info, events = open_replay(args.file, args.input_format)
+    if info.extra.get("mcap_unfinished"):
+        print(f"sniffer: note: {args.file} was not closed cleanly (capture killed?); read up to its last "
+              f"complete record. 'sniffer repair {args.file}' writes a clean copy.", file=sys.stderr)
     line = _line(args, info, bus, need=True)
     registry = _registry(args, bus, info)
     p = Pipeline(info, line, registry, [_out_sink(args, False)], **_timeouts(args, bus))
@@ -191,13 +194,14 @@ def cmd_decode(args) -> int:
 
 
 def cmd_repair(args) -> int:
-    from .mcap_repair import repair
+    from .mcap_repair import default_output, repair
 
-    out = args.out or (args.file[:-5] if args.file.endswith(".mcap") else args.file) + ".repaired.mcap"
+    out = args.out or default_output(args.file)
     if not os.path.exists(args.file):
         raise CaptureError(f"{args.file}: no such file")
-    stats = repair(args.file, out)
-    print(f"{out}: {stats}", file=sys.stderr)
+    st = repair(args.file, out)
+    print(f"sniffer: wrote {out}: {st['messages']} messages kept, {st['bytes_dropped']} bytes dropped"
+          f"{' (' + st['problem'] + ')' if st.get('problem') else ''}", file=sys.stderr)
     return 0
 
 

@@ -85,10 +85,18 @@ class Pipeline:
         raise TypeError(f"unknown event {ev!r}")
 
     def finish(self) -> list[Frame]:
-        out = self._settle(self.framer.flush())
-        out += self._decode(self.pairer.flush())
-        for s in self.sinks:
-            s.close()
+        try:
+            out = self._settle(self.framer.flush())
+            out += self._decode(self.pairer.flush())
+        finally:
+            first_error = None
+            for s in self.sinks:  # close every sink even if one fails
+                try:
+                    s.close()
+                except Exception as e:  # noqa: BLE001 - re-raised below
+                    first_error = first_error or e
+            if first_error is not None:
+                raise first_error
         return out
 
     def _settle(self, frames: list[Frame]) -> list[Frame]:

@@ -1,0 +1,109 @@
+"""Repair an MCAP capture that was never finished (killed writer, full disk, damage).
+
+Such a file has no summary or footer, so Foxglove and mcap's seeking reader
+refuse it.  `repair` copies every complete record (header, schemas,
+channels, metadata, attachments, messages) into a new, properly finished
+file and reports what it kept.  It works on any MCAP file, not only ours.
+The output is written next to its final name and renamed into place, so an
+interrupted repair never leaves a half-written file under that name.
+"""
+
+from __future__ import annotations
+
+import os
+
+from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
+from mcap.writer import CompressionType, Writer
+
+from .sources import CaptureError
+from .sources.mcapsrc import Scan, open_file
+
+
+def default_output(src: str | os.PathLike[str]) -> str:
+    """`capture.mcap` -> `capture.repaired.mcap`."""
+    base, ext = os.path.splitext(os.fspath(src))
+    return f"{base}.repaired{ext or '.mcap'}"
+
+
+def repair(src: str | os.PathLike[str], dst: str | os.PathLike[str]) -> dict:
+    """Write `dst`: a finished MCAP holding every complete record of `src`.
+
+    Returns counts: messages (kept), topics ({topic: messages}), metadata,
+    attachments, orphans (messages of an unknown channel, dropped),
+    bytes_in, bytes_kept (the readable prefix of src), bytes_dropped (cut-off
+    or damaged tail), was_finished, problem (why src's data stopped early).
+    Raises CaptureError if src is not MCAP, or src and dst are one file.
+    """
+    s, d = os.fspath(src), os.fspath(dst)
+    if os.path.exists(d) and os.path.samefile(s, d):
+        raise CaptureError(f"{s}: repair needs a different output file")
+    fh, size, tail_ok = open_file(s)
+    tmp = f"{d}.part"
+    try:
+        with fh, open(tmp, "wb") as out:
+            counts = _copy(fh, size, tail_ok, out)
+        os.replace(tmp, d)
+    except OSError as e:
+        _remove(tmp)
+        raise CaptureError(f"{d}: cannot write repaired file: {e.strerror or e}") from None
+    except BaseException:
+        _remove(tmp)
+        raise
+    return counts
+
+
+def _copy(fh, size: int, tail_ok: bool, out) -> dict:
+    scan = Scan(fh, size, tail_ok=tail_ok, salvage=True)
+    w = Writer(out, compression=CompressionType.ZSTD)
+    schema_ids: dict[int, int] = {0: 0}
+    channel_ids: dict[int, int] = {}
+    topics: dict[str, int] = {}
+    counts = {"messages": 0, "metadata": 0, "attachments": 0, "orphans": 0}
+    started = False
+    for rec in scan.records():
+        if isinstance(rec, Header):
+            w.start(profile=rec.profile, library=rec.library)
+            started = True
+            continue
+        if isinstance(rec, Schema):
+            if rec.id not in schema_ids:  # other writers repeat schemas in every chunk
+                schema_ids[rec.id] = w.register_schema(rec.name, rec.encoding, rec.data)
+        elif isinstance(rec, Channel):
+            if rec.id not in channel_ids and rec.schema_id in schema_ids:
+                channel_ids[rec.id] = w.register_channel(
+                    rec.topic, rec.message_encoding, schema_ids[rec.schema_id], dict(rec.metadata)
+                )
+        elif isinstance(rec, Message):
+            cid = channel_ids.get(rec.channel_id)
+            if cid is None:
+                counts["orphans"] += 1
+                continue
+            w.add_message(cid, rec.log_time, rec.data, rec.publish_time, rec.sequence)
+            topic = scan.channels[rec.channel_id].topic
+            topics[topic] = topics.get(topic, 0) + 1
+            counts["messages"] += 1
+        elif isinstance(rec, Metadata):
+            w.add_metadata(rec.name, dict(rec.metadata))
+            counts["metadata"] += 1
+        elif isinstance(rec, Attachment):
+            w.add_attachment(rec.create_time, rec.log_time, rec.name, rec.media_type, rec.data)
+            counts["attachments"] += 1
+    if not started:  # cut before the header was written: an empty but valid file
+        w.start(profile="", library="sniffer repair")
+    w.finish()
+    return {
+        **counts,
+        "topics": topics,
+        "bytes_in": size,
+        "bytes_kept": scan.end,
+        "bytes_dropped": 0 if scan.finished else size - scan.end,
+        "was_finished": tail_ok and scan.finished,
+        "problem": scan.problem,
+    }
+
+
+def _remove(path: str) -> None:
+    try:
+        os.remove(path)
+    except OSError:
+        pass
