@@ -47,13 +47,14 @@ _WAIT = None
 class RtuFramer:
     protocol = "modbus-rtu"
 
-    def __init__(self, line: LineSettings, *, read_slack_ns: int = 20_000_000) -> None:
+    def __init__(self, line: LineSettings, *, read_slack_ns: int = 50_000_000) -> None:
         self.line = line
         self.char_ns = line.char_ns
         self.soft_ns = line.char_ns * 3 // 2
         self.hard_ns = line.t35_ns
         self.t15_ns = line.t15_ns
-        # a per-read gap is silence only beyond t3.5 plus the adapter's latency slack
+        # a per-read gap is silence only beyond t3.5 plus the adapter's latency slack:
+        # a 16 ms latency timer plus a host that wakes 15-30 ms late must not cut a frame
         self.read_slack_ns = read_slack_ns
         self.buf = bytearray()
         self.base = 0  # absolute index of buf[0]
@@ -242,10 +243,24 @@ class RtuFramer:
             return None
         if q < b:
             return self._emit_noise(p, q)
-        # B3. a structural length ending exactly at the boundary, bad CRC
-        for length, can in candidates(buf, p - base, b - base):
-            if type(length) is int and p + length == b:
+        # B3. a structural length ending exactly at the boundary, bad CRC; with
+        # per-read times also one that runs over read boundaries (an adapter
+        # splits a damaged frame as readily as a good one) to a later boundary
+        per_read = not self._per_byte_at(p)
+        for length, can in candidates(buf, p - base, (end if per_read else b) - base):
+            if type(length) is not int:
+                if per_read and not final:
+                    return None  # its length is not known yet
+                continue
+            e = p + length
+            if e == b:
                 return self._emit(p, b, can, crc_good=False)
+            if per_read and b < e <= end:
+                at = self._is_boundary(e, end, final)
+                if at is None:
+                    return None
+                if at and self._resync(b - 1, e, end, final) == e:
+                    return self._emit(p, e, can, crc_good=False)
         # B4. noise up to the boundary
         return self._emit_noise(p, b)
 

@@ -1,0 +1,224 @@
+"""The simulated RS-485 line: a PLC master, drive slaves, and what goes wrong.
+
+`simulate()` yields WireFrames in bus order with exact per-byte start times
+and the ground truth a test needs to judge a sniffer (what each frame is,
+who sent it, whether it was answered, which fault it carries).  It is
+sans-I/O and deterministic: one `random.Random(seed)`, integer nanoseconds
+of bus time, no wall clock.  Only one party talks at a time, as on a real
+half-duplex line, so frames never overlap.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+from ..crc import crc_bytes
+from ..events import FLAG_FRAMING
+from ..line import LineSettings
+from .master import Master, Request
+from .scenario import Scenario, UnitSpec
+from .slave import SLAVE_BUSY, Drive
+
+KIND_REQUEST = "request"
+KIND_RESPONSE = "response"
+KIND_EXCEPTION = "exception"
+KIND_BROADCAST = "broadcast"
+KIND_NOISE = "noise"
+KIND_CORRUPTED = "corrupted"
+KINDS = (KIND_REQUEST, KIND_RESPONSE, KIND_EXCEPTION, KIND_BROADCAST, KIND_NOISE, KIND_CORRUPTED)
+
+# why a frame is special (WireFrame.fault)
+FAULT_CRC = "crc"  # a byte was hit on the wire; the CRC no longer matches
+FAULT_TIMEOUT = "timeout"  # request that got no answer at all
+FAULT_EXCEPTION = "exception"  # exception response (see exception_code)
+FAULT_BROADCAST_ANSWER = "broadcast_answer"  # a slave answered unit 0 (a firmware bug)
+FAULT_NOISE = "noise"
+
+
+@dataclass(frozen=True, slots=True)
+class WireFrame:
+    """One frame as it crossed the wire, plus what really happened."""
+
+    t_ns: int  # start bit of the first byte
+    t_end_ns: int  # end of the last byte's stop bit
+    raw: bytes  # as on the wire (CRC included, corrupted if kind == corrupted)
+    byte_t_ns: tuple[int, ...]  # start bit of every byte
+    kind: str  # one of KINDS
+    unit: int | None = None  # address byte as sent (None for noise)
+    function: int | None = None
+    expects_answer: bool = False  # the master waits for a reply to it
+    answered: bool = False  # a reply (good or damaged) followed
+    txn: int = -1  # exchange number: a request, its retries and the reply share it
+    attempt: int = 0  # 0 = first try, 1.. = retries with the same bytes
+    role: str = ""  # what the frame was meant to be (differs from kind when corrupted)
+    fault: str = ""  # FAULT_*, "" for an ordinary frame
+    exception_code: int | None = None
+    turnaround_ns: int | None = None  # reply: silence after the request's last stop bit
+    late: bool = False  # reply drawn from the unit's slow turnaround range
+    flags: tuple[tuple[int, str], ...] = ()  # UART errors a logic analyzer would flag
+
+    @property
+    def crc_valid(self) -> bool:
+        return self.kind not in (KIND_CORRUPTED, KIND_NOISE)
+
+
+class _Bus:
+    def __init__(self, sc: Scenario, line: LineSettings, seed: int) -> None:
+        self.sc = sc
+        self.line = line
+        self.rng = random.Random(seed)
+        self.char = line.char_ns
+        self.jitter = int(sc.byte_jitter_bits * 1e9 / line.baud)
+        self.master = Master(sc, self.rng)
+        self.specs: dict[int, UnitSpec] = {u.unit: u for u in sc.units}
+        self.drives = {u.unit: Drive(u, sc.drive_map, self.rng) for u in sc.units}
+        # the master's timeout must outlast t3.5, or a retry would glue to its request
+        self.timeout = max(int(sc.timeout_ms * 1e6), 2 * line.t35_ns)
+        self.txn = 0
+        self.now = int(sc.start_ms * 1e6)
+
+    # ---------------------------------------------------------------- wire
+    def _place(self, raw: bytes, t0: int) -> tuple[tuple[int, ...], int]:
+        times = []
+        t = t0
+        for _ in raw:
+            times.append(t)
+            t += self.char + (self.rng.randint(0, self.jitter) if self.jitter else 0)
+        return tuple(times), times[-1] + self.char
+
+    def _frame(self, raw: bytes, t0: int, kind: str, **kw) -> WireFrame:
+        times, end = self._place(raw, t0)
+        unit = kw.pop("unit", raw[0] if kind != KIND_NOISE else None)
+        fn = kw.pop("function", raw[1] if kind != KIND_NOISE and len(raw) > 1 else None)
+        return WireFrame(t0, end, raw, times, kind, unit, fn, **kw)
+
+    def _chars(self, lo_hi: tuple[float, float]) -> int:
+        return int(self.rng.uniform(*lo_hi) * self.char)
+
+    def _corrupt(self, raw: bytes) -> bytes:
+        """Hit one byte: any single-byte error is a burst under 16 bits, so the CRC always catches it."""
+        b = bytearray(raw)
+        b[self.rng.randrange(len(b))] ^= self.rng.randint(1, 255)
+        return bytes(b)
+
+    # -------------------------------------------------------------- flow
+    def run(self, end_ns: int) -> Iterator[WireFrame]:
+        sc = self.sc
+        period = int(sc.poll_period_ms * 1e6)
+        n = 0
+        cycle_start = self.now
+        while self.now < end_ns:
+            self.now = max(self.now, cycle_start)
+            self.master.operator(self.now)
+            if sc.broadcast_every and n % sc.broadcast_every == sc.broadcast_every - 1:
+                yield from self._broadcast(self.master.broadcast())
+            reqs = self.master.cycle(n)
+            for req in reqs:
+                if self.now >= end_ns:
+                    return
+                yield from self._exchange(req)
+                yield from self._idle()
+            if not reqs:
+                self.now += max(period, 10 * self.char)  # nothing to poll this cycle
+            n += 1
+            # fixed-rate cycles; an overrun cycle is followed at once, missed slots are skipped
+            cycle_start = max(cycle_start + period, self.now)
+
+    def _idle(self) -> Iterator[WireFrame]:
+        """The master's pause before its next request, sometimes with noise in it."""
+        sc = self.sc
+        if sc.noise_prob and self.rng.random() < sc.noise_prob:
+            t0 = self.now + self.line.t35_ns + self._chars((1.0, 4.0))
+            n = self.rng.randint(*sc.noise_len)
+            raw = bytes(self.rng.choice((0x00, 0xFF, self.rng.randrange(256))) for _ in range(n))
+            # a 0x00 from a driver switching on is a start bit that never ends: framing error
+            flags = tuple((i, FLAG_FRAMING) for i, b in enumerate(raw) if b == 0x00)
+            fr = self._frame(raw, t0, KIND_NOISE, fault=FAULT_NOISE, flags=flags)
+            yield fr
+            self.now = fr.t_end_ns + self.line.t35_ns
+        self.now += self._chars(sc.gap_chars)
+
+    def _broadcast(self, req: Request) -> Iterator[WireFrame]:
+        raw = bytes((0,)) + req.pdu + crc_bytes(bytes((0,)) + req.pdu)
+        self.txn += 1
+        liar = next((u for u in self.sc.units if u.answers_broadcast), None)
+        fr = self._frame(raw, self.now, KIND_BROADCAST, role=KIND_BROADCAST, txn=self.txn,
+                         answered=liar is not None)
+        yield fr
+        for d in self.drives.values():
+            d.advance(fr.t_end_ns)
+            d.handle(req.pdu)  # every drive applies the write
+        self.now = fr.t_end_ns + int(self.sc.broadcast_delay_ms * 1e6)
+        if liar is not None:
+            ta = self._chars(liar.turnaround_chars)
+            payload = bytes((liar.unit,)) + self.drives[liar.unit].handle(req.pdu)
+            rsp = self._frame(payload + crc_bytes(payload), fr.t_end_ns + ta, KIND_RESPONSE,
+                              role=KIND_RESPONSE, txn=self.txn, turnaround_ns=ta,
+                              fault=FAULT_BROADCAST_ANSWER)
+            yield rsp
+            self.now = max(self.now, rsp.t_end_ns)
+        yield from self._idle()
+
+    def _exchange(self, req: Request) -> Iterator[WireFrame]:
+        """One request, its retries after timeouts, and the reply if any."""
+        sc = self.sc
+        self.txn += 1
+        adu = bytes((req.unit,)) + req.pdu
+        raw = adu + crc_bytes(adu)
+        spec = self.specs.get(req.unit)
+        for attempt in range(sc.retries + 1):
+            hit = sc.request_corrupt_prob and self.rng.random() < sc.request_corrupt_prob
+            wire = self._corrupt(raw) if hit else raw
+            reply = None if hit or spec is None else self._reply(spec, req, raw)
+            kind = KIND_CORRUPTED if hit else KIND_REQUEST
+            fr = self._frame(
+                wire, self.now, kind, unit=req.unit, function=req.pdu[0], expects_answer=True,
+                answered=reply is not None, txn=self.txn, attempt=attempt, role=KIND_REQUEST,
+                fault=FAULT_CRC if hit else ("" if reply is not None else FAULT_TIMEOUT),
+            )
+            yield fr
+            if reply is None:
+                self.now = fr.t_end_ns + self.timeout
+                continue
+            ta, payload, slow = reply
+            rsp_raw = payload + crc_bytes(payload)
+            is_exc = bool(payload[1] & 0x80)
+            role = KIND_EXCEPTION if is_exc else KIND_RESPONSE
+            damaged = spec.corrupt_prob and self.rng.random() < spec.corrupt_prob
+            fault = FAULT_CRC if damaged else FAULT_EXCEPTION if is_exc else ""
+            rsp = self._frame(
+                self._corrupt(rsp_raw) if damaged else rsp_raw, fr.t_end_ns + ta,
+                KIND_CORRUPTED if damaged else role, unit=req.unit, function=payload[1],
+                txn=self.txn, attempt=attempt, role=role, fault=fault,
+                exception_code=payload[2] if is_exc else None, turnaround_ns=ta, late=slow,
+            )
+            yield rsp
+            self.now = rsp.t_end_ns
+            if not damaged:
+                return
+            # the master drops a reply with a bad CRC and waits out its timeout
+            self.now = max(self.now + self.line.t35_ns, fr.t_end_ns + self.timeout)
+
+    def _reply(self, spec: UnitSpec, req: Request, raw: bytes) -> tuple[int, bytes, bool] | None:
+        """(turnaround, response ADU without CRC, slow) or None when the unit stays silent."""
+        rng = self.rng
+        if spec.no_answer_prob and rng.random() < spec.no_answer_prob:
+            return None
+        slow = bool(spec.slow_prob) and rng.random() < spec.slow_prob
+        ta = self._chars(spec.slow_turnaround_chars if slow else spec.turnaround_chars)
+        # a reply must start before the master gives up, or the line would collide
+        ta = min(ta, self.timeout - self.line.t35_ns)
+        drive = self.drives[spec.unit]
+        drive.advance(self.now)
+        if spec.busy_prob and rng.random() < spec.busy_prob:
+            pdu = bytes((req.pdu[0] | 0x80, SLAVE_BUSY))
+        else:
+            pdu = drive.handle(req.pdu)
+        return ta, bytes((spec.unit,)) + pdu, slow
+
+
+def simulate(scenario: Scenario, line: LineSettings, duration_s: float, seed: int) -> Iterator[WireFrame]:
+    """Frames of `duration_s` seconds of bus traffic (exchanges started before the end finish)."""
+    return _Bus(scenario, line, seed).run(int(duration_s * 1e9))
