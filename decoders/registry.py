@@ -73,7 +73,26 @@ def parse_device_args(items: list[str] | None) -> dict[int, str]:
     return out
 
 
-def default_registry(devices: dict[int, str] | None = None) -> DecoderRegistry:
+def builtin_decoders() -> dict[str, Decoder]:
+    """Every model that ships with the sniffer, by --device model id."""
     from .generic import GenericModbus
+    from . import tds_v8
 
-    return DecoderRegistry({"generic": GenericModbus()}, devices)
+    decoders: dict[str, Decoder] = {"generic": GenericModbus()}
+    for mod in (tds_v8,):
+        d = mod.load()
+        decoders[d.model] = d
+    return decoders
+
+
+def default_registry(devices: dict[int, str] | None = None, model_files: list[str] | None = None
+                     ) -> DecoderRegistry:
+    """Built-in models plus user register maps (--model-file, a user map wins over a built-in id)."""
+    from .model import TableDecoder
+    from .tables import load_map
+
+    decoders = builtin_decoders()
+    for path in model_files or []:
+        d = TableDecoder(load_map(path))
+        decoders[d.model] = d
+    return DecoderRegistry(decoders, devices)

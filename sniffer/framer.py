@@ -21,7 +21,9 @@ At each frame start the framer tries, in this order (see `_step`):
      frame), the bytes before it are noise (noise glued to a frame in one read);
   B3. a structural length that ends exactly at the next boundary, bad CRC
      (a corrupted frame);
-  B4. otherwise noise up to the next boundary.
+  B4. a whole burst between two t3.5 silences with a plausible header is a
+     malformed frame (the Modbus definition of a frame), bad CRC;
+  B5. otherwise noise up to the next boundary.
 Decisions depend only on bytes and boundaries, never on how reads were cut,
 so feeding a capture whole, byte by byte or in random chunks gives the same
 frames (a property test checks it).
@@ -261,8 +263,34 @@ class RtuFramer:
                     return None
                 if at and self._resync(b - 1, e, end, final) == e:
                     return self._emit(p, e, can, crc_good=False)
-        # B4. noise up to the boundary
+        # B4. a whole burst between two silences of t3.5 is a frame by the
+        # Modbus definition: if its header is plausible, show it as a
+        # malformed frame (bad CRC, wrong length), not as noise
+        if (
+            b - p >= 4 and buf[p - base] <= 247 and (buf[p + 1 - base] & 0x7F) in KNOWN_FUNCTIONS
+            and self._class_at(p) == HARD and self._is_hard(b, end, final)
+        ):
+            fr = self._emit(p, b, CAN_REQ | CAN_RSP, crc_good=False)
+            fr.annotations.append(
+                note(codes.LENGTH_MISMATCH, f"{b - p} bytes do not fit function 0x{buf[p + 1 - base]:02X}",
+                     0, b - p)
+            )
+            return fr
+        # B5. noise up to the boundary
         return self._emit_noise(p, b)
+
+    def _class_at(self, p: int) -> int:
+        for b, c in self.bounds:
+            if b == p:
+                return c
+            if b > p:
+                break
+        return NONE
+
+    def _is_hard(self, e: int, end: int, final: bool) -> bool:
+        if e >= end:
+            return final
+        return self._class_at(e) == HARD
 
     def _resync(self, p: int, b: int, end: int, final: bool):
         base = self.base
@@ -389,7 +417,7 @@ class RtuFramer:
         segs = self.segs
         while segs and segs[0][0] + len(segs[0][1].data) <= pos:
             segs.popleft()
-        while self.bounds and self.bounds[0][0] <= pos:
+        while self.bounds and self.bounds[0][0] < pos:  # keep the one at pos: _class_at(pos)
             self.bounds.popleft()
         while self.flags and self.flags[0][0] < pos:
             self.flags.popleft()

@@ -35,6 +35,13 @@ class GenericModbus:
         name = f"{space}[{address}]" if address is not None else f"{space}[?]"
         return {"name": name, "address": address, "raw": raw, "value": raw, "unit": None}
 
+    def make_points(self, space: str, addr: int | None, values: list[int], state: UnitState) -> list[dict]:
+        """Points for consecutive registers (models override it to join 32-bit values)."""
+        point = self.point
+        if addr is None:
+            return [point(space, None, v, state) for v in values]
+        return [point(space, addr + i, v, state) for i, v in enumerate(values)]
+
     # ---- decode ----------------------------------------------------------
     def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
         raw = f.raw
@@ -96,13 +103,10 @@ class GenericModbus:
         else:
             f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.raw) - 2))
         shadow = state.holding if fc in (0x03, 0x17) else state.input
-        pts = []
-        point = self.point
-        for i, v in enumerate(values):
-            a = None if addr is None else addr + i
-            pts.append(point(space, a, v, state))
-            if a is not None:
-                shadow[a] = v
+        if addr is not None:
+            for i, v in enumerate(values):
+                shadow[addr + i] = v
+        pts = self.make_points(space, addr, values, state)
         f.points = pts
         f.summary = _points_summary(pts)
 
@@ -155,8 +159,7 @@ class GenericModbus:
             for i in range(min(q, len(vals) * 8)):
                 pts.append(self.point("coil", a + i, (vals[i >> 3] >> (i & 7)) & 1, state))
         else:
-            for i, v in enumerate(p["values"]):
-                pts.append(self.point("holding", a + i, v, state))
+            pts = self.make_points("holding", a, list(p["values"]), state)
         if f.unit == 0:
             self._commit(pts, fc, state)
         f.points = pts
@@ -228,7 +231,8 @@ _HANDLERS = {fc: _dispatch for fc in FUNCTION_NAMES}
 def _pt_text(pt: dict) -> str:
     v = pt["value"]
     unit = pt.get("unit")
-    return f"{pt['name']}={v}{' ' + unit if unit else ''}"
+    text = pt.get("text")
+    return f"{pt['name']}={v}{' ' + unit if unit else ''}{' [' + text + ']' if text else ''}"
 
 
 def _points_summary(pts: list[dict], limit: int = 6) -> str:

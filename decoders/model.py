@@ -1,0 +1,137 @@
+"""A drive model from its register map: names, ids, scales, units, enums, bits, write checks.
+
+`TableDecoder` is the one generic interpreter of register-map rows; a model
+package adds only what a table cannot say (subclass hooks `check_request`,
+`value_of`).  Values scaled through another register (TDS-V8 frequency =
+raw / 30000 * Cn-02) use the per-unit register shadow: until the reference
+register has been seen on the bus the value is shown in % with an
+annotation saying why.
+"""
+
+from __future__ import annotations
+
+from sniffer import codes
+from sniffer.codes import Code, note
+from sniffer.frame import REQUEST, RESPONSE, Frame
+
+from .base import UnitState
+from .generic.decoder import GenericModbus
+from .tables import Register, RegisterMap
+
+READ_ONLY = Code("model.write.read_only", "error", "write to a read-only register")
+RESERVED = Code("model.write.reserved", "error", "write to a reserved register")
+UNKNOWN_REG = Code("model.register.unknown", "warning", "register not in the model's register map")
+RANGE = Code("model.value.range", "warning", "written value outside the manual's range")
+BROADCAST_REG = Code("model.broadcast.register", "error", "broadcast write to a register the manual does not allow")
+TOO_MANY = Code("model.request.too_many", "error", "more registers in one request than the manual allows")
+SCALE_PENDING = Code("model.scale.pending", "info", "scaled through a register not yet seen on the bus: shown in %")
+VENDOR_EXCEPTION = Code("model.exception.vendor", "warning", "vendor exception code")
+MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION)
+
+_DIGITS = {1.0: 0, 0.1: 1, 0.01: 2, 0.001: 3}
+
+
+class TableDecoder(GenericModbus):
+    extra_codes: tuple[Code, ...] = ()
+
+    def __init__(self, regmap: RegisterMap) -> None:
+        self.map = regmap
+        self.model = regmap.model_id
+        self.codes = GenericModbus.codes + MODEL_CODES + self.extra_codes
+        self.max_regs = regmap.model.get("max_registers_per_request")
+        bc = regmap.model.get("broadcast_registers")
+        self.broadcast_regs = set(bc) if bc is not None else None
+
+    # ---- values ------------------------------------------------------------
+    def value_of(self, r: Register, raw: int, state: UnitState):
+        """(value, unit, pending) of one register's raw value."""
+        if r.type == "s16" and raw >= 0x8000:
+            raw -= 0x10000
+        sb = r.scale_by
+        if sb:
+            ref = self.map.registers.get(sb["addr"])
+            ref_raw = state.holding.get(sb["addr"])
+            if ref is None or ref_raw is None:
+                return round(raw * 100.0 / sb["full"], 2), "%", True
+            ref_val, ref_unit, _ = self.value_of(ref, ref_raw, state)
+            return round(raw * ref_val / sb["full"], 2), ref_unit or r.unit, False
+        scale = r.scale
+        if scale == 1:
+            return raw, r.unit or None, False
+        return round(raw * scale, _DIGITS.get(scale, 4)), r.unit or None, False
+
+    def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
+        r = self.map.registers.get(address) if space in ("holding", "input") and address is not None else None
+        if r is None:
+            return super().point(space, address, raw, state)
+        value, unit, pending = self.value_of(r, raw, state)
+        pt = {"name": r.name, "address": address, "raw": raw, "value": value, "unit": unit, "id": r.id}
+        if r.enum:
+            text = self.map.enum_text(r.enum, raw)
+            pt["text"] = text if text is not None else f"unknown code {raw}"
+        elif r.bits:
+            pt["text"] = self.map.bits_text(r.bits, raw)
+        if pending:
+            pt["pending"] = True
+        return pt
+
+    # ---- frames --------------------------------------------------------------
+    def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
+        super().decode(f, request, state)
+        if f.role == REQUEST and f.crc_ok:
+            self.check_request(f, state)
+        if any(p.get("pending") for p in f.points):
+            ref = next(p for p in f.points if p.get("pending"))
+            r = self.map.registers[ref["address"]]
+            ref_reg = self.map.registers.get(r.scale_by["addr"])
+            who = f"{ref_reg.id or ref_reg.name} (0x{ref_reg.addr:04X})" if ref_reg else "the reference register"
+            f.annotations.append(note(SCALE_PENDING,
+                                      f"{who} not seen yet: {r.name} shown as % of it", 0, len(f.raw)))
+
+    def _exception(self, f: Frame, fc: int, body: bytes) -> None:
+        super()._exception(f, fc, body)
+        code = body[0] if body else None
+        vend = self.map.exceptions.get(code) if code is not None else None
+        if vend:
+            f.exception = {"code": code, "name": vend.get("name", f.exception["name"])}
+            f.summary = f"exception {code:02X} {f.exception['name']} ({self.model})"
+            if code > 0x0B:
+                f.annotations.append(note(VENDOR_EXCEPTION, f"{code:02X}: {vend.get('text', vend.get('name'))}", 2, 3))
+
+    def check_request(self, f: Frame, state: UnitState) -> None:
+        """Annotate what the manual forbids in a request (models extend it)."""
+        fc = f.function
+        raw = f.raw
+        if fc in (0x03, 0x04, 0x10, 0x17) and len(raw) >= 8 and self.max_regs:
+            qty = (raw[4] << 8) | raw[5]
+            if qty > self.max_regs:
+                f.annotations.append(note(TOO_MANY, f"{qty} registers (manual: at most {self.max_regs})", 4, 6))
+        if fc not in (0x06, 0x10):
+            return
+        for k, pt in enumerate(f.points):
+            a = pt["address"]
+            span = (4, 6) if fc == 0x06 else (7 + 2 * k, 9 + 2 * k)
+            r = self.map.registers.get(a)
+            if r is None:
+                f.annotations.append(note(UNKNOWN_REG, f"0x{a:04X} is not in the {self.model} map", *span))
+                continue
+            if r.access == "reserved":
+                # A block write may pass over reserved registers with 0: the TDS-V8
+                # manual's own example (section 9) writes 0000H-0007H that way.
+                if not (fc == 0x10 and pt["raw"] == 0):
+                    f.annotations.append(note(RESERVED, f"0x{a:04X} is reserved", *span))
+            elif r.access == "R":
+                f.annotations.append(note(READ_ONLY, f"0x{a:04X} {r.name} is read-only", *span))
+            raw_v = pt["raw"]
+            if r.type == "s16" and raw_v >= 0x8000:
+                raw_v -= 0x10000
+            if (r.min is not None and raw_v < r.min) or (r.max is not None and raw_v > r.max):
+                f.annotations.append(
+                    note(RANGE, f"{r.id or r.name} = {raw_v}, manual range {r.min}..{r.max}", *span)
+                )
+            if f.unit == 0 and self.broadcast_regs is not None and a not in self.broadcast_regs:
+                allowed = ", ".join(f"0x{x:04X}" for x in sorted(self.broadcast_regs))
+                f.annotations.append(note(BROADCAST_REG, f"broadcast to 0x{a:04X} (allowed: {allowed})", *span))
+
+
+__all__ = ["TableDecoder", "MODEL_CODES", "RESPONSE"]
