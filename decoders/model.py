@@ -101,8 +101,8 @@ class TableDecoder(GenericModbus):
     def check_request(self, f: Frame, state: UnitState) -> None:
         """Annotate what the manual forbids in a request (models extend it)."""
         fc = f.function
-        raw = f.raw
-        if fc in (0x03, 0x04, 0x10, 0x17) and len(raw) >= 8 and self.max_regs:
+        raw = f.adu
+        if fc in (0x03, 0x04, 0x10, 0x17) and len(raw) >= 6 and self.max_regs:
             qty = (raw[4] << 8) | raw[5]
             if qty > self.max_regs:
                 f.annotations.append(note(TOO_MANY, f"{qty} registers (manual: at most {self.max_regs})", 4, 6))

@@ -76,10 +76,10 @@ def parse_device_args(items: list[str] | None) -> dict[int, str]:
 def builtin_decoders() -> dict[str, Decoder]:
     """Every model that ships with the sniffer, by --device model id."""
     from .generic import GenericModbus
-    from . import tds_v8
+    from . import synplus_spl, tds_v8
 
     decoders: dict[str, Decoder] = {"generic": GenericModbus()}
-    for mod in (tds_v8,):
+    for mod in (tds_v8, synplus_spl):
         d = mod.load()
         decoders[d.model] = d
     return decoders

@@ -381,6 +381,7 @@ class RtuFramer:
         fr = self._new_frame(p, e, self.protocol, raw)
         fr.unit = raw[0]
         fr.function = raw[1]
+        fr.adu = raw[:-2]
         fr.can = can
         fr.crc_ok = crc_good
         if raw[0] > 247:

@@ -92,7 +92,7 @@ class Pairer:
                 f.annotations.append(
                     note(codes.LATE_RESPONSE, f"{lat / 1e6:.1f} ms after the request", 0, len(f.raw))
                 )
-            why = response_mismatch(req.raw, f.raw) if req.crc_ok and f.crc_ok else None
+            why = response_mismatch(req.adu, f.adu) if req.crc_ok and f.crc_ok else None
             if why:
                 f.annotations.append(note(codes.PAIR_MISMATCH, why, 0, len(f.raw)))
             out = list(self.held)
@@ -177,7 +177,7 @@ def _same_transaction(req: Frame, f: Frame) -> bool:
 
 
 def response_mismatch(req: bytes, rsp: bytes) -> str | None:
-    """Why a CRC-good response does not answer its CRC-good request, or None."""
+    """Why a CRC-good response does not answer its CRC-good request, or None (ADUs, no checksum)."""
     fc = req[1]
     if rsp[1] & 0x80:
         return None

@@ -44,11 +44,11 @@ class GenericModbus:
 
     # ---- decode ----------------------------------------------------------
     def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
-        raw = f.raw
+        adu = f.adu  # unit + PDU, without CRC/LRC: spans below are ADU offsets
         fc = f.function
-        if fc is None or len(raw) < 4:
+        if fc is None or len(adu) < 2:
             return
-        body = raw[2:-2]
+        body = adu[2:]
         if fc & 0x80:
             self._exception(f, fc, body)
             return
@@ -68,7 +68,7 @@ class GenericModbus:
         if parsed is None:
             f.annotations.append(
                 note_in(codes.DECODE_SHORT, f"{len(body)} data bytes too few for {FUNCTION_NAMES.get(fc, hex(fc))}",
-                        2, max(3, len(raw) - 2), len(raw))
+                        2, max(3, len(adu)), len(f.raw))
             )
             f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} (malformed)"
             return
@@ -98,10 +98,10 @@ class GenericModbus:
         values = p["values"]
         space = SPACE[fc]
         addr = None
-        if request is not None and request.crc_ok and len(request.raw) >= 8:
-            addr = (request.raw[2] << 8) | request.raw[3]
+        if request is not None and request.crc_ok and len(request.adu) >= 6:
+            addr = (request.adu[2] << 8) | request.adu[3]
         else:
-            f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.raw) - 2))
+            f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.adu)))
         shadow = state.holding if fc in (0x03, 0x17) else state.input
         if addr is not None:
             for i, v in enumerate(values):
@@ -115,11 +115,11 @@ class GenericModbus:
         space = SPACE[fc]
         status = p["status"]
         addr, qty = None, len(status) * 8
-        if request is not None and request.crc_ok and len(request.raw) >= 8:
-            addr = (request.raw[2] << 8) | request.raw[3]
-            qty = min(qty, (request.raw[4] << 8) | request.raw[5])
+        if request is not None and request.crc_ok and len(request.adu) >= 6:
+            addr = (request.adu[2] << 8) | request.adu[3]
+            qty = min(qty, (request.adu[4] << 8) | request.adu[5])
         else:
-            f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "bit numbers unknown", 2, len(f.raw) - 2))
+            f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "bit numbers unknown", 2, len(f.adu)))
         shadow = state.coils if fc == 0x01 else state.discrete
         pts = []
         for i in range(qty):
@@ -191,8 +191,8 @@ class GenericModbus:
             f.points = [self.point("holding", p["write_address"] + i, v, state) for i, v in enumerate(p["values"])]
 
     def _rw_rsp(self, f, role, p, request, state):
-        if request is not None and request.crc_ok and len(request.raw) >= 8:
-            addr = (request.raw[2] << 8) | request.raw[3]
+        if request is not None and request.crc_ok and len(request.adu) >= 6:
+            addr = (request.adu[2] << 8) | request.adu[3]
             f.points = [self.point("holding", addr + i, v, state) for i, v in enumerate(p["values"])]
             for pt in f.points:
                 state.holding[pt["address"]] = pt["raw"]
