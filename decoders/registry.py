@@ -49,13 +49,26 @@ class DecoderRegistry:
             return
         model = self.model_for(f.unit)
         f.model = model
+        n0 = len(f.annotations)
         try:
             self.decoders[model].decode(f, f.peer, self.state(f.unit))
+            if f.protocol.endswith("-ascii"):
+                _spans_to_text(f, n0)
         except Exception as e:  # a decoder bug must not stop a capture
             f.annotations.append(
                 note(core_codes.DECODE_SHORT, f"decoder {model} failed: {type(e).__name__}: {e}",
                      0, len(f.raw))
             )
+
+
+def _spans_to_text(f: Frame, n0: int) -> None:
+    """Decoder spans count ADU bytes; on an ASCII frame byte i is characters 1+2i, 2+2i."""
+    n = len(f.raw)
+    for k in range(n0, len(f.annotations)):
+        a = f.annotations[k]
+        s = min(1 + 2 * a.start, n - 1)
+        e = max(s + 1, min(1 + 2 * a.end, n))
+        f.annotations[k] = type(a)(a.code, a.severity, a.detail, s, e)
 
 
 def parse_device_args(items: list[str] | None) -> dict[int, str]:
@@ -76,11 +89,11 @@ def parse_device_args(items: list[str] | None) -> dict[int, str]:
 def builtin_decoders() -> dict[str, Decoder]:
     """Every model that ships with the sniffer, by --device model id."""
     from .generic import GenericModbus
-    from . import synplus_spl, tds_v8
+    from . import synplus_spl, tds_v8, teco_a510
 
     decoders: dict[str, Decoder] = {"generic": GenericModbus()}
-    for mod in (tds_v8, synplus_spl):
-        d = mod.load()
+    for load in (tds_v8.load, teco_a510.load, teco_a510.load_high_frequency, synplus_spl.load):
+        d = load()
         decoders[d.model] = d
     return decoders
 

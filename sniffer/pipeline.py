@@ -32,6 +32,10 @@ def make_framer(protocol: str, line: LineSettings):
 
     if protocol == "modbus-rtu":
         return RtuFramer(line)
+    if protocol == "modbus-ascii":
+        from .ascii_framer import AsciiFramer
+
+        return AsciiFramer(line)
     raise ValueError(f"protocol {protocol!r} is not supported")
 
 

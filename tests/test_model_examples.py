@@ -19,7 +19,8 @@ from sniffer.line import LineSettings
 
 ROOT = Path(__file__).resolve().parent.parent / "decoders"
 LINE = LineSettings(9600, "N", 2)
-MODELS = {d.map.path and Path(d.map.path).parent.name: mid for mid, d in builtin_decoders().items() if hasattr(d, "map")}
+MODELS = {Path(d.map.path).parent.name: mid for mid, d in builtin_decoders().items()
+          if hasattr(d, "map") and not mid.endswith("-hf")}
 
 
 def _examples():
