@@ -18,6 +18,7 @@ from .pairer import DEFAULT_TIMEOUT_MS
 from .sources import CaptureError
 
 EXIT_USAGE = 2
+PROTOCOLS = ("modbus-rtu", "modbus-ascii", "pd-rtu", "pd-ascii")
 
 
 class UsageError(Exception):
@@ -43,6 +44,10 @@ def _decode_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--bus", metavar="FILE", help="bus file (TOML): serial settings, unit models, timeouts")
     g.add_argument("--timeout-ms", type=float, default=None,
                    help=f"response timeout per unit (default {DEFAULT_TIMEOUT_MS:.0f} ms)")
+    g.add_argument("--model-file", action="append", metavar="FILE.toml",
+                   help="a drive's register map (docs/register-map-format.md); its [model] id becomes a model")
+    g.add_argument("--protocol", choices=PROTOCOLS, default=None,
+                   help="line protocol (default modbus-rtu, or what the capture says)")
 
 
 def _format_flag(p: argparse.ArgumentParser) -> None:
@@ -126,11 +131,17 @@ def _registry(args, bus, info: CaptureInfo | None = None):
     if bus:
         devices.update(bus.devices)
     devices.update(parse_device_args(args.device))
-    return default_registry(devices)
+    return default_registry(devices, getattr(args, "model_file", None))
+
+
+def _protocol(args, bus, info: CaptureInfo | None = None) -> str:
+    return (getattr(args, "protocol", None) or (bus.protocol if bus else None)
+            or (info.protocol if info else None) or "modbus-rtu")
 
 
 def _timeouts(args, bus) -> dict:
-    kw = {"timeout_ms": args.timeout_ms if args.timeout_ms is not None else DEFAULT_TIMEOUT_MS}
+    kw = {"timeout_ms": args.timeout_ms if args.timeout_ms is not None else DEFAULT_TIMEOUT_MS,
+          "protocol": _protocol(args, bus)}
     if bus and bus.timeouts_ms:
         kw["unit_timeouts"] = bus.timeouts_ms
     return kw
@@ -158,7 +169,9 @@ def cmd_replay(args) -> int:
               f"complete record. 'sniffer repair {args.file}' writes a clean copy.", file=sys.stderr)
     line = _line(args, info, bus, need=True)
     registry = _registry(args, bus, info)
-    p = Pipeline(info, line, registry, [_out_sink(args, False)], **_timeouts(args, bus))
+    kw = _timeouts(args, bus)
+    kw["protocol"] = _protocol(args, bus, info)
+    p = Pipeline(info, line, registry, [_out_sink(args, False)], **kw)
     try:
         for ev in events:
             p.feed(ev)
@@ -173,12 +186,18 @@ def cmd_decode(args) -> int:
     bus = _bus(args)
     line = LineSettings(args.baud)
     frames = []
+    ascii_mode = _protocol(args, bus).endswith("-ascii")
     for h in args.hex:
-        text = h.replace(" ", "").replace(":", "")
-        try:
-            data = bytes.fromhex(text)
-        except ValueError:
-            raise UsageError(f"not hex: {h!r}") from None
+        if ascii_mode:  # the frame as its characters: ':0103...' (CR LF added if missing)
+            text = h.strip()
+            data = (text if text.startswith(":") else ":" + text).encode("ascii", "replace")
+            data += b"" if data.endswith(b"\r\n") else b"\r\n"
+        else:
+            text = h.replace(" ", "").replace(":", "")
+            try:
+                data = bytes.fromhex(text)
+            except ValueError:
+                raise UsageError(f"not hex: {h!r}") from None
         if data:
             frames.append(data)
     info = CaptureInfo(source="decode", baud=line.baud, parity=line.parity, stopbits=line.stopbits)
@@ -243,11 +262,12 @@ def main(argv: list[str] | None = None) -> int:
     except (CaptureError, SettingsError) as e:
         print(f"sniffer: error: {e}", file=sys.stderr)
         return EXIT_USAGE
-    except ValueError as e:  # device map, bus file
+    except ValueError as e:  # device map, bus file, register map
         from decoders.registry import DeviceMapError
+        from decoders.tables import MapError
         from .busfile import BusFileError
 
-        if isinstance(e, (DeviceMapError, BusFileError)):
+        if isinstance(e, (DeviceMapError, BusFileError, MapError)):
             print(f"sniffer: error: {e}", file=sys.stderr)
             return EXIT_USAGE
         raise
