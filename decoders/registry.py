@@ -6,20 +6,29 @@ the device map, then passed to the pipeline.  Nothing is registered at import.
 
 from __future__ import annotations
 
+import functools
+
 from sniffer import codes as core_codes
-from sniffer.codes import CodeBook, note
+from sniffer.codes import Code, CodeBook, note
 from sniffer.frame import Frame
 
 from .base import Decoder, UnitState
+
+
+GUESS = Code("model.guess", "info", "unit's model guessed from its traffic (no device map entry)")
 
 
 class DeviceMapError(ValueError):
     pass
 
 
+def _same_family(a: str, b: str) -> bool:
+    return a.split("-hf")[0] == b.split("-hf")[0]
+
+
 class DecoderRegistry:
     def __init__(self, decoders: dict[str, Decoder], devices: dict[int, str] | None = None,
-                 default: str = "generic") -> None:
+                 default: str = "generic", identify: bool = True) -> None:
         self.decoders = dict(decoders)
         if default not in self.decoders:
             raise DeviceMapError(f"default model {default!r} is not available")
@@ -31,12 +40,46 @@ class DecoderRegistry:
                 raise DeviceMapError(f"unknown model {model!r} for unit {unit} (known: {known})")
             self.devices[int(unit)] = model
         self.states: dict[int, UnitState] = {}
-        self.codebook = CodeBook(*(d.codes for d in self.decoders.values()))
+        self.guesses: dict[int, tuple[str, float, str]] = {}  # unit -> (model, confidence, evidence)
+        self._contradicted: set[int] = set()
+        self.identifier = None
+        if identify:
+            from .identify import Identifier
+
+            maps = {}
+            for mid, d in self.decoders.items():
+                m = getattr(d, "map", None)
+                if m is not None and all(m.path != o.path for o in maps.values()):
+                    maps[mid] = m
+            self.identifier = Identifier(maps) if maps else None
+        self.codebook = CodeBook(*(d.codes for d in self.decoders.values()), (GUESS,))
 
     def model_for(self, unit: int | None) -> str:
+        """A user's map wins; else the identifier's guess; else the default (generic)."""
         if unit is None:
             return self.default
-        return self.devices.get(unit, self.default)
+        m = self.devices.get(unit)
+        if m is not None:
+            return m
+        g = self.guesses.get(unit)
+        return g[0] if g else self.default
+
+    def _identify(self, f: Frame) -> None:
+        if self.identifier is None:
+            return
+        got = self.identifier.observe(f)
+        if got is None:
+            return
+        model, conf, evidence = got
+        given = self.devices.get(f.unit)
+        if given is None:
+            self.guesses[f.unit] = got
+            f.annotations.append(note(GUESS, f"unit {f.unit} looks like {model}: {evidence}", 0, len(f.raw)))
+        elif given != model and f.unit not in self._contradicted and not _same_family(given, model):
+            self._contradicted.add(f.unit)
+            f.annotations.append(note(core_codes.MODEL_MISMATCH,
+                                      f"unit {f.unit} is mapped to {given} but looks like {model}: {evidence}",
+                                      0, len(f.raw)))
 
     def state(self, unit: int) -> UnitState:
         st = self.states.get(unit)
@@ -47,6 +90,7 @@ class DecoderRegistry:
     def decode(self, f: Frame) -> None:
         if f.protocol == "noise" or f.unit is None:
             return
+        self._identify(f)
         model = self.model_for(f.unit)
         f.model = model
         n0 = len(f.annotations)
@@ -87,7 +131,16 @@ def parse_device_args(items: list[str] | None) -> dict[int, str]:
 
 
 def builtin_decoders() -> dict[str, Decoder]:
-    """Every model that ships with the sniffer, by --device model id."""
+    """Every model that ships with the sniffer, by --device model id.
+
+    Decoders keep no per-unit state (that lives in the registry's UnitStates),
+    so the loaded maps are shared by every registry of the process.
+    """
+    return dict(_builtin_decoders())
+
+
+@functools.lru_cache(maxsize=1)
+def _builtin_decoders() -> dict[str, Decoder]:
     from .generic import GenericModbus
     from . import synplus_spl, tds_v8, teco_a510
 
