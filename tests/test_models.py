@@ -76,3 +76,21 @@ def test_spl_vendor_exception():
     _, r = run_events(bursts([req, rsp], L), L, devices={1: "spl"})
     assert r.exception["code"] == 0x52 and r.exception["name"] != "UNKNOWN EXCEPTION"
     assert "model.exception.vendor" in codes_of(r)
+
+
+def test_readme_model_file_worked_example():
+    """The README's --model-file example, verbatim."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    r = subprocess.run(
+        [sys.executable, "-m", "sniffer", "decode", "03031100000440D7", "0303080259012C021C0003C6DB",
+         "030610010190DCD4", "038630E3B4", "--model-file", "docs/examples/acme-x1.toml", "--device", "3=acme-x1"],
+        capture_output=True, text=True, cwd=root, timeout=60)
+    assert r.returncode == 0, r.stderr
+    readme = (root / "README.md").read_text()
+    for line in r.stdout.splitlines():
+        assert line in readme, line
+    assert "Active fault=3 [OC (over-current during acceleration)]" in r.stdout
