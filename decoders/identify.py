@@ -35,9 +35,16 @@ class Identifier:
         """maps: {model id: RegisterMap} of the candidate models (variants sharing a map count once)."""
         self.maps = maps
         self.units: dict[int, UnitEvidence] = {}
+        self._cover_cache: dict[tuple[int, int], list[str]] = {}  # polls repeat: remember each range
 
     def _covering(self, a: int, q: int) -> list[str]:
-        out = []
+        key = (a, q)
+        hit = self._cover_cache.get(key)
+        if hit is not None:
+            return hit
+        if len(self._cover_cache) > 65536:
+            self._cover_cache.clear()
+        out = self._cover_cache[key] = []
         for mid, m in self.maps.items():
             regs = m.registers
             ok = True

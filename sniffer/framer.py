@@ -35,13 +35,15 @@ from collections import deque
 
 from . import codes
 from .codes import note
-from .crc import crc_expected, crc_found, crc_ok
+from .crc import _modbus, crc_expected, crc_found, crc_ok
 from .events import FLAG_FRAMING, Chunk
 from .frame import CAN_REQ, CAN_RSP, Frame
 from .line import LineSettings
 from .rtu_layout import KNOWN_FUNCTIONS, MAX_ADU, Need, candidates
 
 NONE, SOFT, HARD = 0, 1, 2
+_READS = frozenset((0x01, 0x02, 0x03, 0x04))  # request 8 bytes, response byte count + 5
+_ECHOES = frozenset((0x05, 0x06, 0x08))  # 8 bytes both ways
 MAX_NOISE = MAX_ADU  # a noise frame never holds more than this many bytes
 _WAIT = None
 
@@ -69,6 +71,7 @@ class RtuFramer:
         self.last_channel: str | None = None
         self.index = 0
         self.prev_frame_end_ns: int | None = None
+        self._need = 0  # absolute end of the bytes the pending decision waits for
 
     # ---------------------------------------------------------------- input
     def feed(self, chunk: Chunk) -> list[Frame]:
@@ -117,6 +120,8 @@ class RtuFramer:
         self.last_channel = chunk.channel
         self.buf += data
         self.segs.append((start, chunk))
+        if start + n < self._need and cls != HARD:
+            return []  # the frame being waited for is still incomplete: nothing can change
         return self._run()
 
     def tick(self, t_ns: int) -> list[Frame]:
@@ -149,6 +154,7 @@ class RtuFramer:
         return bool(self.segs) and self.segs[-1][1].byte_t_ns is None
 
     def _run(self) -> list[Frame]:
+        self._need = 0
         out: list[Frame] = []
         while True:
             step = self._step(self.pos)
@@ -189,9 +195,41 @@ class RtuFramer:
         return False
 
     def _crc_candidate(self, p: int, end: int, final: bool):
-        """First (shortest) structural candidate at p with a good CRC: (len, can), False, or _WAIT."""
+        """First (shortest) structural candidate at p with a good CRC: (len, can, raw), False, or _WAIT."""
         buf, base = self.buf, self.base
-        cands = candidates(buf, p - base, end - base)
+        i = p - base
+        n = end - base
+        if i + 2 < n:  # fast path for the function codes that make up nearly all traffic
+            unit, fc = buf[i], buf[i + 1]
+            if 0 < unit <= 247:
+                if fc in _READS:
+                    lr = buf[i + 2] + 5
+                    first, second = (8, CAN_REQ), (lr, CAN_RSP)
+                    if lr < 8:
+                        first, second = second, first
+                    elif lr == 8:
+                        first, second = (8, CAN_REQ | CAN_RSP), None
+                    for cand in (first, second):
+                        if cand is None:
+                            break
+                        if i + cand[0] > n:
+                            if final:
+                                return False
+                            self._need = p + cand[0]
+                            return _WAIT
+                        raw = bytes(buf[i : i + cand[0]])
+                        if not _modbus(raw):
+                            return cand[0], cand[1], raw
+                    return False
+                if fc in _ECHOES:
+                    if i + 8 > n:
+                        if final:
+                            return False
+                        self._need = p + 8
+                        return _WAIT
+                    raw = bytes(buf[i : i + 8])
+                    return (8, CAN_REQ | CAN_RSP, raw) if not _modbus(raw) else False
+        cands = candidates(buf, i, n)
         for length, can in cands:
             if type(length) is Need:
                 if final:
@@ -201,8 +239,9 @@ class RtuFramer:
                 if final:
                     continue
                 return _WAIT
-            if crc_ok(buf[p - base : p + length - base]):
-                return length, can
+            raw = bytes(buf[i : i + length])
+            if crc_ok(raw):
+                return length, can, raw
         return False
 
     def _step(self, p: int):
@@ -216,7 +255,7 @@ class RtuFramer:
         if hit is _WAIT:
             return None
         if hit:
-            return self._emit(p, p + hit[0], hit[1], crc_good=True)
+            return self._emit(p, p + hit[0], hit[1], crc_good=True, raw=hit[2])
         b = self._next_boundary(p, end, final)
         if b is _WAIT:
             return None
@@ -323,52 +362,55 @@ class RtuFramer:
         return b
 
     # -------------------------------------------------------------- output
-    def _time_of(self, i: int) -> int:
-        """Start time of absolute byte i (per read: estimated back from the read time)."""
+    def _seg(self, i: int):
         for start, ch in self.segs:
-            n = len(ch.data)
-            if i < start + n:
-                if ch.byte_t_ns is not None:
-                    return ch.byte_t_ns[i - start]
-                return ch.t_ns - (start + n - i) * self.char_ns
+            if i < start + len(ch.data):
+                return start, ch
         raise IndexError(i)
 
-    def _per_byte_at(self, i: int) -> bool:
-        for start, ch in self.segs:
-            if i < start + len(ch.data):
-                return ch.byte_t_ns is not None
-        return False
+    def _time_of(self, i: int) -> int:
+        """Start time of absolute byte i (per read: estimated back from the read time)."""
+        start, ch = self._seg(i)
+        if ch.byte_t_ns is not None:
+            return ch.byte_t_ns[i - start]
+        return ch.t_ns - (start + len(ch.data) - i) * self.char_ns
 
-    def _channel_at(self, i: int) -> str:
-        for start, ch in self.segs:
-            if i < start + len(ch.data):
-                return ch.channel
-        return ""
+    def _per_byte_at(self, i: int) -> bool:
+        return self._seg(i)[1].byte_t_ns is not None
 
     def _new_frame(self, p: int, e: int, protocol: str, raw: bytes) -> Frame:
-        t0 = self._time_of(p)
-        t1 = self._time_of(e - 1) + self.char_ns
-        per_byte = self._per_byte_at(p)
+        char = self.char_ns
+        s0, c0 = self._seg(p)
+        n0 = len(c0.data)
+        bt = c0.byte_t_ns
+        per_byte = bt is not None
+        t0 = bt[p - s0] if per_byte else c0.t_ns - (s0 + n0 - p) * char
+        last = e - 1
+        if last < s0 + n0:
+            t1 = (bt[last - s0] if per_byte else c0.t_ns - (s0 + n0 - last) * char) + char
+        else:
+            t1 = self._time_of(last) + char
         idle = None if self.prev_frame_end_ns is None else t0 - self.prev_frame_end_ns
         fr = Frame(
             self.index, t0, t1, raw, protocol,
             time_source="byte" if per_byte else "read",
-            idle_before_ns=idle, channel=self._channel_at(p),
+            idle_before_ns=idle, channel=c0.channel,
         )
         self.index += 1
         self.prev_frame_end_ns = t1
-        for pos, flag in self.flags:
-            if pos >= e:
-                break
-            if pos >= p:
-                c = codes.UART_FRAMING if flag == FLAG_FRAMING else codes.UART_PARITY
-                fr.annotations.append(note(c, f"byte {pos - p} flagged {flag}", pos - p, pos - p + 1))
+        if self.flags:
+            for pos, flag in self.flags:
+                if pos >= e:
+                    break
+                if pos >= p:
+                    c = codes.UART_FRAMING if flag == FLAG_FRAMING else codes.UART_PARITY
+                    fr.annotations.append(note(c, f"byte {pos - p} flagged {flag}", pos - p, pos - p + 1))
         if per_byte:
             for bpos, _c in self.bounds:
                 if bpos >= e:
                     break
                 if bpos > p:
-                    gap = self._time_of(bpos) - self._time_of(bpos - 1) - self.char_ns
+                    gap = self._time_of(bpos) - self._time_of(bpos - 1) - char
                     if gap > self.t15_ns:
                         fr.annotations.append(
                             note(codes.T15_VIOLATION, f"{gap / 1e6:.2f} ms silence before byte {bpos - p}",
@@ -376,8 +418,9 @@ class RtuFramer:
                         )
         return fr
 
-    def _emit(self, p: int, e: int, can: int, crc_good: bool) -> Frame:
-        raw = bytes(self.buf[p - self.base : e - self.base])
+    def _emit(self, p: int, e: int, can: int, crc_good: bool, raw: bytes | None = None) -> Frame:
+        if raw is None:
+            raw = bytes(self.buf[p - self.base : e - self.base])
         fr = self._new_frame(p, e, self.protocol, raw)
         fr.unit = raw[0]
         fr.function = raw[1]

@@ -15,8 +15,8 @@ from .frame import Frame
 def frame_record(f: Frame, t0_ns: int) -> dict:
     return {
         "index": f.index,
-        "t": round((f.t_ns - t0_ns) / 1e9, 9),
-        "t_end": round((f.t_end_ns - t0_ns) / 1e9, 9),
+        "t": (f.t_ns - t0_ns) / 1e9,
+        "t_end": (f.t_end_ns - t0_ns) / 1e9,
         "raw": f.raw.hex(),
         "protocol": f.protocol,
         "unit": f.unit,
@@ -27,7 +27,7 @@ def frame_record(f: Frame, t0_ns: int) -> dict:
         "exception": f.exception,
         "model": f.model,
         "points": f.points,
-        "annotations": [a.to_dict() for a in f.annotations],
+        "annotations": [a.to_dict() for a in f.annotations] if f.annotations else [],
         "latency_ms": None if f.latency_ms is None else round(f.latency_ms, 3),
         "pair": f.pair,
         "summary": f.summary,

@@ -40,6 +40,11 @@ class GenericModbus:
         point = self.point
         if addr is None:
             return [point(space, None, v, state) for v in values]
+        if type(self).point is GenericModbus.point:  # no model: skip the per-register call
+            return [
+                {"name": nm, "address": a, "raw": v, "value": v, "unit": None}
+                for nm, a, v in zip(_names(space, addr, len(values)), range(addr, addr + len(values)), values)
+            ]
         return [point(space, addr + i, v, state) for i, v in enumerate(values)]
 
     # ---- decode ----------------------------------------------------------
@@ -226,6 +231,20 @@ def _dispatch(self, f, role, p, request, state):
 
 
 _HANDLERS = {fc: _dispatch for fc in FUNCTION_NAMES}
+
+
+_NAME_CACHE: dict[tuple[str, int, int], list[str]] = {}
+
+
+def _names(space: str, addr: int, n: int) -> list[str]:
+    """Cached names of a register block: polls read the same blocks over and over."""
+    key = (space, addr, n)
+    names = _NAME_CACHE.get(key)
+    if names is None:
+        if len(_NAME_CACHE) > 4096:
+            _NAME_CACHE.clear()
+        names = _NAME_CACHE[key] = [f"{space}[{a}]" for a in range(addr, addr + n)]
+    return names
 
 
 def _pt_text(pt: dict) -> str:
