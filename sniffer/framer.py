@@ -221,6 +221,31 @@ class RtuFramer:
                         if not _modbus(raw):
                             return cand[0], cand[1], raw
                     return False
+                if fc == 0x10 or fc == 0x0F:  # response 8 bytes, request byte count + 9
+                    if i + 8 > n:
+                        if final:
+                            return False
+                        self._need = p + 8
+                        return _WAIT
+                    raw = bytes(buf[i : i + 8])
+                    if not _modbus(raw):
+                        return 8, CAN_RSP, raw
+                    lq = buf[i + 6] + 9
+                    if i + lq > n:
+                        if final:
+                            return False
+                        self._need = p + lq
+                        return _WAIT
+                    raw = bytes(buf[i : i + lq])
+                    return (lq, CAN_REQ, raw) if not _modbus(raw) else False
+                if fc & 0x80 and fc != 0x80:
+                    if i + 5 > n:
+                        if final:
+                            return False
+                        self._need = p + 5
+                        return _WAIT
+                    raw = bytes(buf[i : i + 5])
+                    return (5, CAN_RSP, raw) if not _modbus(raw) else False
                 if fc in _ECHOES:
                     if i + 8 > n:
                         if final:
