@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from sniffer.frame import REQUEST, Frame
 
 MIN_STRONG = 3
+SETTLED = 200  # evidence frames after which a unit's verdict stands (keeps the hot path cheap)
 
 
 @dataclass
@@ -61,6 +62,9 @@ class Identifier:
         """Feed one decoded-or-not frame; returns (model, confidence, evidence) when the guess changes."""
         if not f.crc_ok or f.unit in (None, 0) or len(f.adu) < 3:
             return None
+        ev = self.units.get(f.unit)
+        if ev is not None and ev.seen >= SETTLED:
+            return None
         fc = f.function
         models: list[str] = []
         label = ""
@@ -78,7 +82,8 @@ class Identifier:
                 label = f"exception {code:02X}H"
         else:
             return None
-        ev = self.units.setdefault(f.unit, UnitEvidence())
+        if ev is None:
+            ev = self.units[f.unit] = UnitEvidence()
         ev.seen += 1
         if len(models) == 1:
             ev.strong[models[0]] = ev.strong.get(models[0], 0) + 1
