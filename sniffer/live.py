@@ -19,14 +19,6 @@ from .mcap_sink import CaptureStorageError, McapSink
 from .pipeline import Pipeline
 from .sources.serial_live import SerialSource
 
-# The line each simulated scenario runs at (what a real bus of that kind uses).
-SCENARIO_LINES = {
-    "default": LineSettings(19200, "E", 1),
-    "errors": LineSettings(19200, "E", 1),
-    "fast": LineSettings(115200, "N", 1),
-    "stress": LineSettings(115200, "N", 1),
-}
-
 
 def _default_out() -> str:
     return time.strftime("sniffer-%Y%m%d-%H%M%S.mcap")
@@ -41,6 +33,7 @@ def capture(source: SerialSource, line: LineSettings, registry, sinks, *, durati
     """
     info = source.open()
     info.devices = dict(registry.devices)
+    info.protocol = (timeouts or {}).get("protocol", info.protocol)
     info.sniffer_version = __version__
     all_sinks = list(sinks) + ([mcap] if mcap else [])
     p = Pipeline(info, line, registry, all_sinks, **(timeouts or {}))
@@ -105,15 +98,18 @@ def run_demo(args, registry_fn, out_sink_fn) -> int:
     except ValueError as e:
         print(f"sniffer: error: {e}", file=sys.stderr)
         return 2
-    line = SCENARIO_LINES.get(args.scenario, LineSettings(19200, "E", 1))
-    args.device = getattr(args, "device", None)
+    line = scenario.line
+    protocol = getattr(args, "protocol", None) or scenario.protocol
+    # decode the simulated drives with their models unless the user names the models
+    args.device = getattr(args, "device", None) or [f"{u}={m}" for u, m in sorted(scenario.devices.items())]
     registry = registry_fn(args, None)
     duration = args.duration if args.duration > 0 else 24 * 3600.0
     stop = threading.Event()
     _on_signals(stop)
     with PtyBus() as bus:
-        print(f"sniffer: demo '{scenario.name}' on simulated bus {bus.port} at {line.label()} -> {args.out}",
-              file=sys.stderr)
+        models = ", ".join(f"{u}={m}" for u, m in sorted(registry.devices.items()))
+        print(f"sniffer: demo '{scenario.name}' on simulated bus {bus.port} at {line.label()} {protocol}"
+              f"{' (' + models + ')' if models else ''} -> {args.out}", file=sys.stderr)
         frames = simulate(scenario, line, duration, args.seed)
         stats = {}
 
@@ -127,7 +123,7 @@ def run_demo(args, registry_fn, out_sink_fn) -> int:
         mcap = McapSink(args.out)
         sinks = [out_sink_fn(args, True)]
         p, error = capture(source, line, registry, sinks, duration_s=duration + 5, stop=stop, mcap=mcap,
-                           on_open=lambda info: player.start())
+                           timeouts={"protocol": protocol}, on_open=lambda info: player.start())
         stop.set()
         player.join(timeout=5)
         sent = stats.get("play")

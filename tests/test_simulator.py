@@ -46,6 +46,8 @@ from sniffer.simulator import (
 L9600 = LineSettings(9600, "E")
 L115200 = LineSettings(115200, "N")
 LINES = {"default": L9600, "errors": L9600, "fast": L115200, "stress": L115200}
+MODELS = ["tds-v8", "a510", "a510-ascii", "spl", "spl-ascii"]  # real drive models (test_simulated_models.py)
+LINES.update({name: get_scenario(name).line for name in MODELS})
 
 _cache: dict = {}
 
@@ -59,7 +61,7 @@ def sim(name: str, line: LineSettings | None = None, duration: float = 20.0, see
 
 
 def test_registry_and_unknown_name():
-    assert set(SCENARIOS) >= {"default", "errors", "fast", "stress"}
+    assert set(SCENARIOS) >= {"default", "errors", "fast", "stress", *MODELS}
     with pytest.raises(ValueError, match="unknown scenario"):
         get_scenario("nope")
 
@@ -72,7 +74,7 @@ def test_same_seed_same_line_other_seed_other_line():
     assert [f.raw for f in a] != [f.raw for f in c]
 
 
-@pytest.mark.parametrize("name", ["default", "errors", "fast", "stress"])
+@pytest.mark.parametrize("name", ["default", "errors", "fast", "stress", "tds-v8", "a510", "spl"])
 def test_crc_valid_unless_damaged_and_lengths_fit_function(name):
     frames = sim(name)
     assert frames
@@ -89,7 +91,7 @@ def test_crc_valid_unless_damaged_and_lengths_fit_function(name):
         assert len(f.raw) in lengths, (f.raw.hex(" "), lengths)
 
 
-@pytest.mark.parametrize("name", ["default", "errors", "fast", "stress"])
+@pytest.mark.parametrize("name", ["default", "errors", "fast", "stress", *MODELS])
 def test_bytes_back_to_back_and_frames_never_overlap(name):
     line = LINES[name]
     sc = get_scenario(name)

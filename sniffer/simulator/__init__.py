@@ -1,12 +1,16 @@
-"""Simulated Modbus RTU line: a PLC master, drive slaves, faults, capture devices.
+"""Simulated Modbus RTU / ASCII line: a PLC master, drive slaves, faults, capture devices.
 
     frames = simulate(get_scenario("errors"), LineSettings(9600, "E"), 10.0, seed=1)
     chunks = wire_chunks(frames)          # a logic analyzer's view
     chunks = usb_chunks(frames, seed=1)   # a USB adapter's view
     PtyBus().play(frames)                 # a live port for the real serial source
 
-Everything but PtyBus is sans-I/O and deterministic for a seed, so tests
-can compare the sniffer's output with the simulator's ground truth.
+The generic drives keep a Delta-like layout (DriveMap); units named in a
+scenario's `devices` are drives of a real model (profiles.py: TDS-V8, TECO
+A510, Synplus SPL) that speak their manual's registers, faults and
+exception codes.  Everything but PtyBus is sans-I/O and deterministic for a
+seed, so tests can compare the sniffer's output with the simulator's ground
+truth.
 """
 
 from __future__ import annotations
@@ -29,11 +33,13 @@ from .bus import (
 )
 from .chunks import usb_chunks, wire_chunks
 from .ptybus import PlayStats, PtyBus
+from .profiles import PROFILES, ModelProfile, get_model
 from .scenario import SCENARIOS, DriveMap, PollSpec, Scenario, UnitSpec, get_scenario
 
 __all__ = [
     "FAULT_BROADCAST_ANSWER", "FAULT_CRC", "FAULT_EXCEPTION", "FAULT_NOISE", "FAULT_TIMEOUT",
     "KIND_BROADCAST", "KIND_CORRUPTED", "KIND_EXCEPTION", "KIND_NOISE", "KIND_REQUEST",
-    "KIND_RESPONSE", "KINDS", "SCENARIOS", "DriveMap", "PlayStats", "PollSpec", "PtyBus",
-    "Scenario", "UnitSpec", "WireFrame", "get_scenario", "simulate", "usb_chunks", "wire_chunks",
+    "KIND_RESPONSE", "KINDS", "PROFILES", "SCENARIOS", "DriveMap", "ModelProfile", "PlayStats", "PollSpec",
+    "PtyBus", "Scenario", "UnitSpec", "WireFrame", "get_model", "get_scenario", "simulate", "usb_chunks",
+    "wire_chunks",
 ]

@@ -5,7 +5,8 @@ and the ground truth a test needs to judge a sniffer (what each frame is,
 who sent it, whether it was answered, which fault it carries).  It is
 sans-I/O and deterministic: one `random.Random(seed)`, integer nanoseconds
 of bus time, no wall clock.  Only one party talks at a time, as on a real
-half-duplex line, so frames never overlap.
+half-duplex line, so frames never overlap.  Frames go out in the scenario's
+protocol: RTU (ADU + CRC) or ASCII (':' + hex + LRC + CR LF).
 """
 
 from __future__ import annotations
@@ -14,12 +15,13 @@ import random
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from ..crc import crc_bytes
+from ..crc import crc_bytes, lrc
 from ..events import FLAG_FRAMING
 from ..line import LineSettings
 from .master import Master, Request
+from .model_drive import ModelDrive
 from .scenario import Scenario, UnitSpec
-from .slave import SLAVE_BUSY, Drive
+from .slave import Drive
 
 KIND_REQUEST = "request"
 KIND_RESPONSE = "response"
@@ -43,7 +45,7 @@ class WireFrame:
 
     t_ns: int  # start bit of the first byte
     t_end_ns: int  # end of the last byte's stop bit
-    raw: bytes  # as on the wire (CRC included, corrupted if kind == corrupted)
+    raw: bytes  # as on the wire (CRC or LRC included, corrupted if kind == corrupted; ASCII: the characters)
     byte_t_ns: tuple[int, ...]  # start bit of every byte
     kind: str  # one of KINDS
     unit: int | None = None  # address byte as sent (None for noise)
@@ -73,13 +75,26 @@ class _Bus:
         self.jitter = int(sc.byte_jitter_bits * 1e9 / line.baud)
         self.master = Master(sc, self.rng)
         self.specs: dict[int, UnitSpec] = {u.unit: u for u in sc.units}
-        self.drives = {u.unit: Drive(u, sc.drive_map, self.rng) for u in sc.units}
+        self.drives: dict[int, Drive] = {
+            u.unit: (ModelDrive(u, self.master.models[u.unit], self.rng, sc.protocol)
+                     if u.unit in self.master.models else Drive(u, sc.drive_map, self.rng))
+            for u in sc.units
+        }
+        if sc.protocol not in ("modbus-rtu", "modbus-ascii"):
+            raise ValueError(f"scenario {sc.name}: protocol {sc.protocol!r} is not simulated")
+        self.ascii = sc.protocol == "modbus-ascii"
         # the master's timeout must outlast t3.5, or a retry would glue to its request
         self.timeout = max(int(sc.timeout_ms * 1e6), 2 * line.t35_ns)
         self.txn = 0
         self.now = int(sc.start_ms * 1e6)
 
     # ---------------------------------------------------------------- wire
+    def _encode(self, adu: bytes) -> bytes:
+        """An ADU (unit + PDU) as it goes on the wire in the scenario's protocol."""
+        if self.ascii:
+            return b":" + (adu + bytes((lrc(adu),))).hex().upper().encode() + b"\r\n"
+        return adu + crc_bytes(adu)
+
     def _place(self, raw: bytes, t0: int) -> tuple[tuple[int, ...], int]:
         times = []
         t = t0
@@ -88,18 +103,26 @@ class _Bus:
             t += self.char + (self.rng.randint(0, self.jitter) if self.jitter else 0)
         return tuple(times), times[-1] + self.char
 
-    def _frame(self, raw: bytes, t0: int, kind: str, **kw) -> WireFrame:
+    def _frame(self, raw: bytes, t0: int, kind: str, adu: bytes = b"", **kw) -> WireFrame:
         times, end = self._place(raw, t0)
-        unit = kw.pop("unit", raw[0] if kind != KIND_NOISE else None)
-        fn = kw.pop("function", raw[1] if kind != KIND_NOISE and len(raw) > 1 else None)
+        unit = kw.pop("unit", adu[0] if adu else None)
+        fn = kw.pop("function", adu[1] if len(adu) > 1 else None)
         return WireFrame(t0, end, raw, times, kind, unit, fn, **kw)
 
     def _chars(self, lo_hi: tuple[float, float]) -> int:
         return int(self.rng.uniform(*lo_hi) * self.char)
 
     def _corrupt(self, raw: bytes) -> bytes:
-        """Hit one byte: any single-byte error is a burst under 16 bits, so the CRC always catches it."""
+        """Hit one byte: any single-byte error is a burst under 16 bits, so the CRC always catches it.
+
+        ASCII: one hex digit becomes another, which changes one byte of the sum, so the LRC
+        always catches it (':' and CR LF are left alone: the frame keeps its shape).
+        """
         b = bytearray(raw)
+        if self.ascii:
+            i = self.rng.randrange(1, len(b) - 2)
+            b[i] = self.rng.choice([c for c in b"0123456789ABCDEF" if c != b[i]])
+            return bytes(b)
         b[self.rng.randrange(len(b))] ^= self.rng.randint(1, 255)
         return bytes(b)
 
@@ -141,10 +164,10 @@ class _Bus:
         self.now += self._chars(sc.gap_chars)
 
     def _broadcast(self, req: Request) -> Iterator[WireFrame]:
-        raw = bytes((0,)) + req.pdu + crc_bytes(bytes((0,)) + req.pdu)
+        adu = bytes((0,)) + req.pdu
         self.txn += 1
         liar = next((u for u in self.sc.units if u.answers_broadcast), None)
-        fr = self._frame(raw, self.now, KIND_BROADCAST, role=KIND_BROADCAST, txn=self.txn,
+        fr = self._frame(self._encode(adu), self.now, KIND_BROADCAST, adu, role=KIND_BROADCAST, txn=self.txn,
                          answered=liar is not None)
         yield fr
         for d in self.drives.values():
@@ -154,7 +177,7 @@ class _Bus:
         if liar is not None:
             ta = self._chars(liar.turnaround_chars)
             payload = bytes((liar.unit,)) + self.drives[liar.unit].handle(req.pdu)
-            rsp = self._frame(payload + crc_bytes(payload), fr.t_end_ns + ta, KIND_RESPONSE,
+            rsp = self._frame(self._encode(payload), fr.t_end_ns + ta, KIND_RESPONSE, payload,
                               role=KIND_RESPONSE, txn=self.txn, turnaround_ns=ta,
                               fault=FAULT_BROADCAST_ANSWER)
             yield rsp
@@ -166,7 +189,7 @@ class _Bus:
         sc = self.sc
         self.txn += 1
         adu = bytes((req.unit,)) + req.pdu
-        raw = adu + crc_bytes(adu)
+        raw = self._encode(adu)
         spec = self.specs.get(req.unit)
         for attempt in range(sc.retries + 1):
             hit = sc.request_corrupt_prob and self.rng.random() < sc.request_corrupt_prob
@@ -183,20 +206,21 @@ class _Bus:
                 self.now = fr.t_end_ns + self.timeout
                 continue
             ta, payload, slow = reply
-            rsp_raw = payload + crc_bytes(payload)
+            rsp_raw = self._encode(payload)
             is_exc = bool(payload[1] & 0x80)
             role = KIND_EXCEPTION if is_exc else KIND_RESPONSE
             damaged = spec.corrupt_prob and self.rng.random() < spec.corrupt_prob
             fault = FAULT_CRC if damaged else FAULT_EXCEPTION if is_exc else ""
             rsp = self._frame(
                 self._corrupt(rsp_raw) if damaged else rsp_raw, fr.t_end_ns + ta,
-                KIND_CORRUPTED if damaged else role, unit=req.unit, function=payload[1],
+                KIND_CORRUPTED if damaged else role, payload,
                 txn=self.txn, attempt=attempt, role=role, fault=fault,
                 exception_code=payload[2] if is_exc else None, turnaround_ns=ta, late=slow,
             )
             yield rsp
             self.now = rsp.t_end_ns
             if not damaged:
+                self.master.observe(req, payload[1:], rsp.t_end_ns)
                 return
             # the master drops a reply with a bad CRC and waits out its timeout
             self.now = max(self.now + self.line.t35_ns, fr.t_end_ns + self.timeout)
@@ -213,7 +237,7 @@ class _Bus:
         drive = self.drives[spec.unit]
         drive.advance(self.now)
         if spec.busy_prob and rng.random() < spec.busy_prob:
-            pdu = bytes((req.pdu[0] | 0x80, SLAVE_BUSY))
+            pdu = bytes((req.pdu[0] | 0x80, drive.busy_code))
         else:
             pdu = drive.handle(req.pdu)
         return ta, bytes((spec.unit,)) + pdu, slow

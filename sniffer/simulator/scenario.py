@@ -13,6 +13,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..line import LineSettings
+from .profiles import A510, SPL, TDS_V8, ModelProfile
+
 # Function codes the simulated drives implement; 0x11 (report server id) is
 # left out on purpose so a master asking for it draws exception 01.
 DRIVE_FUNCTIONS = frozenset({0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x08, 0x0F, 0x10})
@@ -64,22 +67,31 @@ class UnitSpec:
     corrupt_prob: float = 0.0  # a byte of the response is hit on the wire
     answers_broadcast: bool = False  # firmware bug: replies to unit 0
     functions: frozenset[int] = DRIVE_FUNCTIONS
+    # a drive of a real model (Scenario.devices) trips with a fault from its own table after
+    # this many seconds of bus time (uniform in the range), again after each reset; (0, 0) = never
+    trip_every_s: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True, slots=True)
 class PollSpec:
     """One request the master sends in its poll cycle.
 
-    Writes take their values from the master's state (see master.py):
-    control+0 gets the command word, control+1 the setpoint.
+    Writes take their values from the master's state (see master.py): the
+    unit's command word register gets the command word, its frequency
+    register the setpoint (control+0 / control+1 on a generic drive), other
+    registers `value`.  `param` names the register by the manual's id
+    (e.g. "Cn-27") in the unit's register map instead of by `address`.
     """
 
     function: int
     address: int = 0
     count: int = 1
-    every: int = 1  # on every N-th cycle ...
+    every: int = 1  # on every N-th cycle (cycle % every == phase) ...
     prob: float = 1.0  # ... and then with this probability
     units: tuple[int, ...] = ()  # () = every unit
+    phase: int = 0
+    value: int | None = None  # the word a write sends (None: from the master's state)
+    param: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,6 +100,13 @@ class Scenario:
     units: tuple[UnitSpec, ...]
     polls: tuple[PollSpec, ...]
     drive_map: DriveMap = field(default_factory=DriveMap)
+    line: LineSettings = LineSettings(19200, "E", 1)  # what a real bus of this kind runs at
+    protocol: str = "modbus-rtu"  # or "modbus-ascii"
+    # unit -> model id: those units are drives of that model (profiles.py) and the sniffer
+    # decodes them with it; other units are the generic drive (DriveMap)
+    devices: dict[int, str] = field(default_factory=dict, hash=False)
+    startup_polls: tuple[PollSpec, ...] = ()  # the PLC sends these once per unit before its run command
+    fault_reset_s: tuple[float, float] = (0.5, 1.5)  # the PLC resets a tripped drive this long after seeing it
     poll_period_ms: float = 100.0  # a cycle starts this often (at once if the last one overran)
     gap_chars: tuple[float, float] = (4.0, 8.0)  # master's silence before its next request
     timeout_ms: float = 100.0  # master gives up if no response has started by then
@@ -154,6 +173,7 @@ FAST = Scenario(
         UnitSpec(3, turnaround_chars=(2.5, 3.5)),
     ),
     polls=_READS + _WRITES,
+    line=LineSettings(115200, "N", 1),
     poll_period_ms=0.0,
     gap_chars=(2.0, 6.0),  # well under the fixed 1.75 ms t3.5 at 115200
     timeout_ms=20.0,
@@ -172,6 +192,7 @@ STRESS = Scenario(
         PollSpec(0x06, 0x2001, 1),
         PollSpec(0x0F, 0x0000, 16),
     ),
+    line=LineSettings(115200, "N", 1),
     poll_period_ms=0.0,
     gap_chars=(3.5, 4.0),
     timeout_ms=20.0,
@@ -179,7 +200,82 @@ STRESS = Scenario(
     byte_jitter_bits=0.0,
 )
 
-SCENARIOS: dict[str, Scenario] = {s.name: s for s in (DEFAULT, ERRORS, FAST, STRESS)}
+
+# ------------------------------------------------------------ real drive models
+# Two drives of one model on a line the manual allows, the PLC polling the
+# model's monitor block and writing its command word and setpoint, plus the
+# mistakes a real installation makes now and then, each drawing the model's
+# own answer.  Addresses of the monitor and command registers come from the
+# profiles (profiles.py); `param` polls name a register by its manual id.
+L_ASCII = LineSettings(9600, "E", 1, databits=7)  # Modbus ASCII's usual 7E1
+
+
+def _turnaround(ms: float, line: LineSettings) -> tuple[float, float]:
+    """A response time from the manual, +-10 %, in characters of the line."""
+    chars = ms * 1e6 / line.char_ns
+    return (0.9 * chars, 1.1 * chars)
+
+
+def _model_scenario(name: str, p: ModelProfile, line: LineSettings, response_ms: float,
+                    polls: tuple[PollSpec, ...], **kw) -> Scenario:
+    ta = _turnaround(response_ms, line)
+    units = (
+        UnitSpec(1, rated_current_a=12.0, turnaround_chars=ta, trip_every_s=(3.0, 7.0)),
+        UnitSpec(2, rated_current_a=7.5, turnaround_chars=ta, trip_every_s=(8.0, 20.0)),
+    )
+    base = (
+        PollSpec(0x03, *p.monitor),  # status, fault, frequencies, current, DC bus: every cycle
+        PollSpec(0x03, p.command, 2, every=5),  # read back command word + setpoint
+        PollSpec(0x08, every=25, phase=3),  # link check (loop-back)
+    )
+    return Scenario(name, units, base + polls, line=line, devices={u.unit: p.model for u in units},
+                    setpoint_range_hz=(10.0, 60.0), **kw)
+
+
+_TDS_SAVE = 0x0500  # [model] eeprom_save of the TDS-V8 map: write 0 to save An/bn (in DRV mode)
+TDS = _model_scenario(
+    "tds-v8", TDS_V8,
+    LineSettings(9600, "N", 2),  # Sn-37 = 3 (9600, the default), Sn-38 = 0: no parity, 2 stop bits
+    5.0,  # "about 5 ms"
+    (
+        PollSpec(0x03, param="Cn-02", every=100, phase=50),  # max frequency again (scales 0001H/0024H/0025H)
+        # a PLC program bug: Cn-27 (communication timeout) written while the drive is in DRV mode
+        PollSpec(0x06, param="Cn-27", value=20, every=40, phase=12, units=(1,)),
+        # multi-speed 1 = 25.00 Hz (allowed in DRV mode), saved to EEPROM, read back at once:
+        # the drive is still saving (21H busy) or the save failed (22H)
+        PollSpec(0x06, param="An-01", value=2500, every=20, phase=10, units=(2,)),
+        PollSpec(0x06, _TDS_SAVE, value=0, every=20, phase=10, units=(2,)),
+        PollSpec(0x03, param="An-01", every=20, phase=10, units=(2,)),
+    ),
+    startup_polls=(PollSpec(0x03, param="Cn-02"),),  # the sniffer needs Cn-02 to show Hz
+    poll_period_ms=200.0,
+)
+
+_A510_POLLS = (
+    # an HMI asking for the whole monitor block and more: 40 registers, 04H "over 32"
+    PollSpec(0x03, A510.monitor[0], 40, every=30, phase=15, units=(2,)),
+)
+A510_RTU = _model_scenario("a510", A510, LineSettings(19200, "N", 1), 10.0, _A510_POLLS,
+                           poll_period_ms=100.0)
+A510_ASCII = _model_scenario("a510-ascii", A510, L_ASCII, 10.0, _A510_POLLS, protocol="modbus-ascii",
+                             poll_period_ms=300.0)
+
+_SPL_POLLS = (  # an HMI and a commissioning laptop on the same line, each mistake now and then
+    PollSpec(0x03, 0x0130, 2, every=40, phase=4, units=(2,)),  # nothing there: 52H
+    PollSpec(0x06, SPL.frequency, value=8000, every=40, phase=9, units=(1,)),  # 80.00 Hz > max: 54H
+    PollSpec(0x10, 0x0200, 10, value=0, every=40, phase=14, units=(2,)),  # ladder page 1, PLC running: 55H
+    PollSpec(0x03, 0x0200, 40, every=40, phase=19, units=(1,)),  # reply over 80 bytes: 53H
+    PollSpec(0x04, *SPL.monitor, every=40, phase=24, units=(2,)),  # 04H is not an SPL function: 51H
+)
+_SPL_KW = dict(timeout_ms=400.0, retries=2)  # "TIME-OUT (400ms) & RETRY (max. : 2 times)"
+SPL_RTU = _model_scenario("spl", SPL, LineSettings(9600, "N", 1), 10.0, _SPL_POLLS,  # "10ms" between
+                          poll_period_ms=200.0, **_SPL_KW)
+SPL_ASCII = _model_scenario("spl-ascii", SPL, L_ASCII, 10.0, _SPL_POLLS, protocol="modbus-ascii",
+                            poll_period_ms=300.0, **_SPL_KW)
+
+SCENARIOS: dict[str, Scenario] = {
+    s.name: s for s in (DEFAULT, ERRORS, FAST, STRESS, TDS, A510_RTU, A510_ASCII, SPL_RTU, SPL_ASCII)
+}
 
 
 def get_scenario(name: str) -> Scenario:

@@ -32,6 +32,8 @@ class Drive:
         self.map = dmap
         self.rng = rng
         self.cmd = 0  # command word as last written
+        self.busy_code = SLAVE_BUSY  # what the drive answers when its CPU is busy
+        self.dc_nominal_v = 560.0  # DC bus of a 400 V drive at rest
         self.setpoint_hz = 0.0
         self.out_hz = 0.0
         self.accel_01s = 100  # 10.0 s to 50 Hz
@@ -45,13 +47,16 @@ class Drive:
         self.params = [rng.randrange(0, 1000) for _ in range(dmap.n_params)]
 
     # ------------------------------------------------------------- physics
+    def target_hz(self) -> float:
+        return self.setpoint_hz if self.cmd & 1 else 0.0
+
     def advance(self, t_ns: int) -> None:
         if self.t_ns is None:
             self.t_ns = t_ns
             return
         dt = max(0, t_ns - self.t_ns) / 1e9
         self.t_ns = t_ns
-        target = self.setpoint_hz if self.cmd & 1 else 0.0
+        target = self.target_hz()
         up = 50.0 / max(self.accel_01s / 10, 0.1)
         down = 50.0 / max(self.decel_01s / 10, 0.1)
         before = self.out_hz
@@ -66,8 +71,8 @@ class Drive:
             self.current_a = self.spec.rated_current_a * load * noise
         else:
             self.current_a = 0.0
-        regen = max(-accel, 0.0) / down * 60.0  # braking pumps the DC bus up
-        self.dc_bus_v += (560.0 + regen - self.dc_bus_v) * min(1.0, dt * 5)
+        regen = max(-accel, 0.0) / down * self.dc_nominal_v * 60.0 / 560.0  # braking pumps the DC bus up
+        self.dc_bus_v += (self.dc_nominal_v + regen - self.dc_bus_v) * min(1.0, dt * 5)
         self.dc_bus_v += (self.rng.random() - 0.5) * 2
         heat = 28.0 + 25.0 * self.current_a / self.spec.rated_current_a
         self.temp_c += (heat - self.temp_c) * min(1.0, dt / 60)
