@@ -113,7 +113,8 @@ def _line(args, info: CaptureInfo | None, bus, *, need: bool) -> LineSettings:
         if need:
             raise UsageError("this capture does not say its baud rate: give --baud (and --parity/--stopbits)")
         baud = 9600
-    return LineSettings(int(baud), str(parity).upper(), int(stop))
+    databits = (info.databits if info and info.databits else 8)
+    return LineSettings(int(baud), str(parity).upper(), int(stop), int(databits))
 
 
 def _bus(args):
