@@ -142,17 +142,17 @@ def builtin_decoders() -> dict[str, Decoder]:
 @functools.lru_cache(maxsize=1)
 def _builtin_decoders() -> dict[str, Decoder]:
     from .generic import GenericModbus
-    from . import synplus_spl, tds_v8, teco_a510
+    from . import pd_series, synplus_spl, tds_v8, teco_a510
 
     decoders: dict[str, Decoder] = {"generic": GenericModbus()}
-    for load in (tds_v8.load, teco_a510.load, teco_a510.load_high_frequency, synplus_spl.load):
+    for load in (tds_v8.load, teco_a510.load, teco_a510.load_high_frequency, synplus_spl.load, pd_series.load):
         d = load()
         decoders[d.model] = d
     return decoders
 
 
-def default_registry(devices: dict[int, str] | None = None, model_files: list[str] | None = None
-                     ) -> DecoderRegistry:
+def default_registry(devices: dict[int, str] | None = None, model_files: list[str] | None = None,
+                     default: str = "generic") -> DecoderRegistry:
     """Built-in models plus user register maps (--model-file, a user map wins over a built-in id)."""
     from .model import TableDecoder
     from .tables import load_map
@@ -161,4 +161,4 @@ def default_registry(devices: dict[int, str] | None = None, model_files: list[st
     for path in model_files or []:
         d = TableDecoder(load_map(path))
         decoders[d.model] = d
-    return DecoderRegistry(decoders, devices)
+    return DecoderRegistry(decoders, devices, default=default)

@@ -132,7 +132,9 @@ def _registry(args, bus, info: CaptureInfo | None = None):
     if bus:
         devices.update(bus.devices)
     devices.update(parse_device_args(args.device))
-    return default_registry(devices, getattr(args, "model_file", None))
+    # units on a PD-series line speak PD whether mapped or not
+    default = "pd-series" if _protocol(args, bus, info).startswith("pd-") else "generic"
+    return default_registry(devices, getattr(args, "model_file", None), default=default)
 
 
 def _protocol(args, bus, info: CaptureInfo | None = None) -> str:

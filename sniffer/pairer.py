@@ -99,7 +99,8 @@ class Pairer:
                 f.annotations.append(
                     note(codes.LATE_RESPONSE, f"{lat / 1e6:.1f} ms after the request", 0, len(f.raw))
                 )
-            why = response_mismatch(req.adu, f.adu) if req.crc_ok and f.crc_ok else None
+            why = (response_mismatch(req.adu, f.adu)
+                   if req.crc_ok and f.crc_ok and f.protocol.startswith("modbus") else None)
             if why:
                 f.annotations.append(note(codes.PAIR_MISMATCH, why, 0, len(f.raw)))
             out = list(self.held)

@@ -36,6 +36,10 @@ def make_framer(protocol: str, line: LineSettings):
         from .ascii_framer import AsciiFramer
 
         return AsciiFramer(line)
+    if protocol in ("pd-rtu", "pd-ascii"):
+        from .pd_framer import PdAsciiFramer, PdRtuFramer
+
+        return PdRtuFramer(line) if protocol == "pd-rtu" else PdAsciiFramer(line)
     raise ValueError(f"protocol {protocol!r} is not supported")
 
 

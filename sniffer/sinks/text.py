@@ -21,12 +21,13 @@ def frame_line(f: Frame, t0_ns: int) -> str:
     pair = f" #{f.pair}" if f.pair is not None else ""
     lat = f" {f.latency_ms:6.1f}ms" if f.latency_ms is not None else ""
     fc = f"{f.function:02X}" if f.function is not None else "--"
+    unit = f"{f.unit:<3d}" if f.unit is not None else "?  "
     crc = "" if f.crc_ok else " CRC!"
     notes = [a.code for a in f.annotations if a.severity != "info"]
     tail = f"  [{', '.join(notes)}]" if notes else ""
     model = f" {f.model}" if f.model and f.model != "generic" else ""
     return (
-        f"{t:12.6f} {mark} {arrow}{role} u{f.unit:<3d}{model} fc{fc}{crc} #{f.index}{pair}{lat}  "
+        f"{t:12.6f} {mark} {arrow}{role} u{unit}{model} fc{fc}{crc} #{f.index}{pair}{lat}  "
         f"{f.summary}{tail}"
     )
 
