@@ -156,6 +156,8 @@ class RtuFramer:
     def _run(self) -> list[Frame]:
         self._need = 0
         out: list[Frame] = []
+        if not self.flags and self.protocol == "modbus-rtu":  # not for subclasses' framings
+            self._fast(out)
         while True:
             step = self._step(self.pos)
             if step is None:
@@ -163,6 +165,96 @@ class RtuFramer:
             out.append(step)
         self._compact()
         return out
+
+    def _fast(self, out: list[Frame]) -> None:
+        """Rule A for per-read bytes in one tight loop: the bulk of a USB capture.
+
+        Same decisions as `_step` (shortest CRC-valid structural length first,
+        never across a HARD boundary); it stops at the first byte it cannot
+        settle alone (per-byte times, a flag, an unusual function code, a bad
+        CRC, bytes still to come) and `_step` carries on from there.
+        """
+        buf, base = self.buf, self.base
+        p = self.pos
+        limit, _final = self._avail(p)
+        lim = limit - base
+        segs = self.segs
+        k = 0
+        nseg = len(segs)
+        while k < nseg and p >= segs[k][0] + len(segs[k][1].data):
+            k += 1
+        if k >= nseg:
+            return
+        s0, c0 = segs[k]
+        if c0.byte_t_ns is not None:
+            return
+        char = self.char_ns
+        index = self.index
+        prev_end = self.prev_frame_end_ns
+        modbus = _modbus
+        while True:
+            i = p - base
+            if i + 5 > lim:
+                break
+            unit = buf[i]
+            if not 0 < unit <= 247:
+                break
+            fc = buf[i + 1]
+            if fc in _READS:
+                lr = buf[i + 2] + 5
+                if lr < 8:
+                    cands = ((lr, CAN_RSP), (8, CAN_REQ))
+                elif lr == 8:
+                    cands = ((8, CAN_REQ | CAN_RSP),)
+                else:
+                    cands = ((8, CAN_REQ), (lr, CAN_RSP))
+            elif fc in _ECHOES:
+                cands = ((8, CAN_REQ | CAN_RSP),)
+            elif fc == 0x10 or fc == 0x0F:
+                if i + 8 > lim:
+                    break
+                cands = ((8, CAN_RSP), (buf[i + 6] + 9, CAN_REQ))
+            elif fc & 0x80 and fc != 0x80:
+                cands = ((5, CAN_RSP),)
+            else:
+                break
+            hit = None
+            for length, can in cands:
+                if i + length > lim:
+                    break
+                raw = bytes(buf[i : i + length])
+                if not modbus(raw):
+                    hit = length, can, raw
+                    break
+            if hit is None:
+                break
+            length, can, raw = hit
+            e = p + length
+            n0 = len(c0.data)
+            t0 = c0.t_ns - (s0 + n0 - p) * char
+            while e - 1 >= s0 + n0:  # the frame ends in a later read
+                k += 1
+                s0, c0 = segs[k]
+                n0 = len(c0.data)
+                if c0.byte_t_ns is not None:
+                    self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
+                    return
+            t1 = c0.t_ns - (s0 + n0 - e) * char
+            fr = Frame(index, t0, t1, raw, "modbus-rtu", unit, fc, can, True, None, "read",
+                       None if prev_end is None else t0 - prev_end, None, c0.channel)
+            fr.adu = raw[:-2]
+            out.append(fr)
+            index += 1
+            prev_end = t1
+            p = e
+            if e >= s0 + n0:
+                k += 1
+                if k >= nseg:
+                    break
+                s0, c0 = segs[k]
+                if c0.byte_t_ns is not None:
+                    break
+        self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
 
     def _avail(self, p: int) -> tuple[int, bool]:
         """(limit, final): bytes usable from p, and whether more can ever come before limit."""

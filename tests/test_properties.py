@@ -173,3 +173,52 @@ def test_noise_then_frame_in_one_read():
     frames = _run([Chunk(10_000_000, noise + req)])
     assert [f.raw for f in frames] == [noise, req]
     assert frames[0].protocol == "noise" and frames[0].role == "noise" and frames[0].crc_ok is None
+
+
+class _SlowRtuFramer:
+    """RtuFramer without its tight per-read loop: the reference the fast path must equal."""
+
+    def __new__(cls, line):
+        from sniffer.framer import RtuFramer
+
+        f = RtuFramer(line)
+        f._fast = lambda out: None
+        return f
+
+
+def _frames_of(framer, chunks):
+    out = []
+    for c in chunks:
+        out += framer.feed(c)
+    out += framer.flush()
+    return [(f.raw, f.t_ns, f.t_end_ns, f.protocol, f.can, f.crc_ok, f.idle_before_ns,
+             tuple(a.code for a in f.annotations)) for f in out]
+
+
+def test_fast_path_equals_rule_by_rule_path_on_usb_captures():
+    from sniffer.framer import RtuFramer
+    from sniffer.simulator.bus import simulate
+    from sniffer.simulator.chunks import usb_chunks
+    from sniffer.simulator.scenario import get_scenario
+
+    for name, line in (("errors", LineSettings(19200, "E", 1)), ("fast", LineSettings(115200))):
+        chunks = list(usb_chunks(simulate(get_scenario(name), line, 3.0, 5), seed=5))
+        fast = _frames_of(RtuFramer(line), chunks)
+        assert fast == _frames_of(_SlowRtuFramer(line), chunks), name
+        assert len(fast) > 100
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.one_of(_frame, st.binary(min_size=1, max_size=12)), min_size=1, max_size=30),
+       st.lists(st.integers(1, 40), min_size=1, max_size=6))
+def test_fast_path_equals_rule_by_rule_path_on_random_reads(runs, cuts):
+    from sniffer.framer import RtuFramer
+
+    data = b"".join(runs)
+    chunks, t, i, k = [], 0, 0, 0
+    while i < len(data):
+        j = min(len(data), i + cuts[k % len(cuts)])
+        t += (j - i) * LINE.char_ns + (k % 4) * 3_000_000
+        chunks.append(Chunk(t, data[i:j]))
+        i, k = j, k + 1
+    assert _frames_of(RtuFramer(LINE), chunks) == _frames_of(_SlowRtuFramer(LINE), chunks)
