@@ -109,8 +109,7 @@ class GenericModbus:
             f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.adu)))
         shadow = state.holding if fc in (0x03, 0x17) else state.input
         if addr is not None:
-            for i, v in enumerate(values):
-                shadow[addr + i] = v
+            shadow.update(zip(range(addr, addr + len(values)), values))
         pts = self.make_points(space, addr, values, state)
         f.points = pts
         f.summary = _points_summary(pts)
@@ -248,14 +247,15 @@ def _names(space: str, addr: int, n: int) -> list[str]:
 
 
 def _pt_text(pt: dict) -> str:
-    v = pt["value"]
-    unit = pt.get("unit")
+    unit = pt["unit"]
     text = pt.get("text")
-    return f"{pt['name']}={v}{' ' + unit if unit else ''}{' [' + text + ']' if text else ''}"
+    if not unit and not text:
+        return f"{pt['name']}={pt['value']}"
+    return f"{pt['name']}={pt['value']}{' ' + unit if unit else ''}{' [' + text + ']' if text else ''}"
 
 
 def _points_summary(pts: list[dict], limit: int = 6) -> str:
-    text = " ".join(_pt_text(p) for p in pts[:limit])
+    text = " ".join([_pt_text(p) for p in pts[:limit]])
     if len(pts) > limit:
         text += f" ... (+{len(pts) - limit})"
     return text
