@@ -196,27 +196,8 @@ class RtuFramer:
             i = p - base
             if i + 5 > lim:
                 break
-            unit = buf[i]
-            if not 0 < unit <= 247:
-                break
-            fc = buf[i + 1]
-            if fc in _READS:
-                lr = buf[i + 2] + 5
-                if lr < 8:
-                    cands = ((lr, CAN_RSP), (8, CAN_REQ))
-                elif lr == 8:
-                    cands = ((8, CAN_REQ | CAN_RSP),)
-                else:
-                    cands = ((8, CAN_REQ), (lr, CAN_RSP))
-            elif fc in _ECHOES:
-                cands = ((8, CAN_REQ | CAN_RSP),)
-            elif fc == 0x10 or fc == 0x0F:
-                if i + 8 > lim:
-                    break
-                cands = ((8, CAN_RSP), (buf[i + 6] + 9, CAN_REQ))
-            elif fc & 0x80 and fc != 0x80:
-                cands = ((5, CAN_RSP),)
-            else:
+            cands = _quick(buf, i, lim)
+            if cands is None:
                 break
             hit = None
             for length, can in cands:
@@ -240,7 +221,7 @@ class RtuFramer:
                     self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
                     return
             t1 = c0.t_ns - (s0 + n0 - e) * char
-            fr = Frame(index, t0, t1, raw, "modbus-rtu", unit, fc, can, True, None, "read",
+            fr = Frame(index, t0, t1, raw, "modbus-rtu", raw[0], raw[1], can, True, None, "read",
                        None if prev_end is None else t0 - prev_end, None, c0.channel)
             fr.adu = raw[:-2]
             out.append(fr)
@@ -292,60 +273,18 @@ class RtuFramer:
         i = p - base
         n = end - base
         if i + 2 < n:  # fast path for the function codes that make up nearly all traffic
-            unit, fc = buf[i], buf[i + 1]
-            if 0 < unit <= 247:
-                if fc in _READS:
-                    lr = buf[i + 2] + 5
-                    first, second = (8, CAN_REQ), (lr, CAN_RSP)
-                    if lr < 8:
-                        first, second = second, first
-                    elif lr == 8:
-                        first, second = (8, CAN_REQ | CAN_RSP), None
-                    for cand in (first, second):
-                        if cand is None:
-                            break
-                        if i + cand[0] > n:
-                            if final:
-                                return False
-                            self._need = p + cand[0]
-                            return _WAIT
-                        raw = bytes(buf[i : i + cand[0]])
-                        if not _modbus(raw):
-                            return cand[0], cand[1], raw
-                    return False
-                if fc == 0x10 or fc == 0x0F:  # response 8 bytes, request byte count + 9
-                    if i + 8 > n:
+            quick = _quick(buf, i, n)
+            if quick is not None:
+                for length, can in quick:
+                    if i + length > n:
                         if final:
                             return False
-                        self._need = p + 8
+                        self._need = p + length
                         return _WAIT
-                    raw = bytes(buf[i : i + 8])
+                    raw = bytes(buf[i : i + length])
                     if not _modbus(raw):
-                        return 8, CAN_RSP, raw
-                    lq = buf[i + 6] + 9
-                    if i + lq > n:
-                        if final:
-                            return False
-                        self._need = p + lq
-                        return _WAIT
-                    raw = bytes(buf[i : i + lq])
-                    return (lq, CAN_REQ, raw) if not _modbus(raw) else False
-                if fc & 0x80 and fc != 0x80:
-                    if i + 5 > n:
-                        if final:
-                            return False
-                        self._need = p + 5
-                        return _WAIT
-                    raw = bytes(buf[i : i + 5])
-                    return (5, CAN_RSP, raw) if not _modbus(raw) else False
-                if fc in _ECHOES:
-                    if i + 8 > n:
-                        if final:
-                            return False
-                        self._need = p + 8
-                        return _WAIT
-                    raw = bytes(buf[i : i + 8])
-                    return (8, CAN_REQ | CAN_RSP, raw) if not _modbus(raw) else False
+                        return length, can, raw
+                return False
         cands = candidates(buf, i, n)
         for length, can in cands:
             if type(length) is Need:
@@ -586,6 +525,34 @@ class RtuFramer:
         if drop > 4096 or (drop and drop == len(self.buf)):
             del self.buf[:drop]
             self.base = pos
+
+
+def _quick(buf, i: int, n: int):
+    """Candidates (length, roles), shortest first, for the function codes of nearly all traffic.
+
+    None when unit/function are not one of those cases (the full rules in
+    rtu_layout apply).  Needs buf[i + 2] to exist (i + 2 < n).
+    """
+    unit = buf[i]
+    if not 0 < unit <= 247:
+        return None
+    fc = buf[i + 1]
+    if fc in _READS:  # request 8 bytes, response byte count + 5
+        lr = buf[i + 2] + 5
+        if lr < 8:
+            return ((lr, CAN_RSP), (8, CAN_REQ))
+        if lr == 8:
+            return ((8, CAN_REQ | CAN_RSP),)
+        return ((8, CAN_REQ), (lr, CAN_RSP))
+    if fc in _ECHOES:
+        return ((8, CAN_REQ | CAN_RSP),)
+    if fc == 0x10 or fc == 0x0F:  # response 8 bytes, request byte count + 9
+        if i + 8 > n:
+            return ((8, CAN_RSP),)  # the request is longer still: wait for the response length first
+        return ((8, CAN_RSP), (buf[i + 6] + 9, CAN_REQ))
+    if fc & 0x80 and fc != 0x80:
+        return ((5, CAN_RSP),)
+    return None
 
 
 def _noise_reason(raw: bytes) -> str:
