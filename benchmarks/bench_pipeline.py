@@ -57,15 +57,35 @@ _TRUTH = struct.Struct("<BBH")  # direction (0 request, 1 response), crc valid, 
 
 
 # ------------------------------------------------------------ the capture
+MIXES = ("drive", "stress")
+MIX = os.environ.get("BENCH_MIX", "drive")
+
+# What a PLC polls on a drive link: monitor and control blocks of a few registers,
+# setpoint and command writes, some coils.  `stress` instead reads 125-register
+# blocks (255-byte responses), the heaviest legal traffic per frame.
+DRIVE_POLLS = (
+    ("monitor", 0x03, 0x2100, 8),
+    ("control", 0x03, 0x2000, 4),
+    ("inputs", 0x04, 0x0000, 6),
+    ("coils", 0x01, 0x0000, 16),
+    ("setpoint", 0x10, 0x2000, 2),
+    ("command", 0x06, 0x2001, 1),
+    ("relay", 0x05, 0x0003, 1),
+)
+
+
 def bench_scenario():
-    """`stress` with a few errors, built with dataclasses.replace (scenarios are data)."""
+    """`stress` (or its drive-poll mix) with a few errors, built with dataclasses.replace."""
     from sniffer.simulator import PollSpec, UnitSpec, get_scenario
 
     stress = get_scenario("stress")
+    if MIX == "drive":
+        stress = dataclasses.replace(
+            stress, polls=tuple(PollSpec(fc, addr, qty) for _name, fc, addr, qty in DRIVE_POLLS))
     ta = (2.0, 3.0)
     return dataclasses.replace(
         stress,
-        name="stress+errors",
+        name=f"{MIX}+errors",
         units=(
             UnitSpec(1, turnaround_chars=ta, corrupt_prob=0.002, busy_prob=0.003),
             UnitSpec(2, turnaround_chars=ta, no_answer_prob=0.002),
@@ -536,9 +556,12 @@ def print_profile(res: dict, top: int) -> None:
 
 
 def main(argv=None) -> int:
+    global MIX
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=None, help="frames in the capture (default 1,000,000)")
     ap.add_argument("--quick", action="store_true", help="50,000 frames: a check that everything runs")
+    ap.add_argument("--mix", choices=MIXES, default=os.environ.get("BENCH_MIX", "drive"),
+                    help="drive: typical PLC-drive polls (default); stress: 125-register reads")
     ap.add_argument("--profile", action="store_true", help="cProfile the full pipeline (default 100,000 frames)")
     ap.add_argument("--repeat", type=int, default=3,
                     help="timed runs of (a), (b) and pymodbus' best case; the best is reported (default 3)")
@@ -547,6 +570,8 @@ def main(argv=None) -> int:
     ap.add_argument("--dir", help=argparse.SUPPRESS)
     ap.add_argument("--limit", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    MIX = args.mix
+    os.environ["BENCH_MIX"] = MIX  # the measuring children rebuild the same scenario
     if args.child:
         res = CHILDREN[args.child](Path(args.dir), args.limit, args.repeat)
         print(json.dumps(res))
