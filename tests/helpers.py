@@ -8,6 +8,14 @@ from sniffer.line import LineSettings
 from sniffer.pipeline import Pipeline
 
 
+def fr(hex_body: str) -> str:
+    """A frame's hex with its CRC appended."""
+    from sniffer.crc import crc_bytes
+
+    b = bytes.fromhex(hex_body)
+    return (b + crc_bytes(b)).hex()
+
+
 def run_events(events, line: LineSettings, devices=None, info: CaptureInfo | None = None, **kw):
     info = info or CaptureInfo(baud=line.baud, parity=line.parity, stopbits=line.stopbits)
     p = Pipeline(info, line, default_registry(devices), **kw)

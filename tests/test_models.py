@@ -2,17 +2,13 @@
 
 from __future__ import annotations
 
-from helpers import bursts, run_events
+from helpers import bursts, fr, run_events
 
-from sniffer.crc import crc_bytes
 from sniffer.line import LineSettings
 
 L = LineSettings(19200, "E", 1)
 
 
-def fr(body: str) -> str:
-    b = bytes.fromhex(body)
-    return (b + crc_bytes(b)).hex()
 
 
 def codes_of(f):

@@ -6,9 +6,8 @@ import os
 import subprocess
 import sys
 
-from helpers import ListSink, bursts, run_events
+from helpers import ListSink, bursts, fr, run_events
 
-from sniffer.crc import crc_bytes
 from sniffer.events import Chunk, Gap, Tick
 from sniffer.line import LineSettings
 from sniffer.busfile import load_bus_file
@@ -17,9 +16,6 @@ from sniffer.sources.saleae import open_saleae_csv
 L19 = LineSettings(19200, "E", 1)
 
 
-def fr(hex_body: str) -> str:
-    b = bytes.fromhex(hex_body)
-    return (b + crc_bytes(b)).hex()
 
 
 def codes_of(f):

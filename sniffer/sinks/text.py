@@ -32,9 +32,11 @@ def frame_line(f: Frame, t0_ns: int) -> str:
     )
 
 
-class TextSink:
-    def __init__(self, out: TextIO | None = None, flush: bool = False) -> None:
-        self.out = out or sys.stdout
+class StreamSink:
+    """A sink writing one line per frame to a stream; subclasses say how a frame reads."""
+
+    def __init__(self, out, flush: bool = False) -> None:
+        self.out = out
         self.flush_each = flush
         self.t0 = 0
 
@@ -44,10 +46,15 @@ class TextSink:
     def raw(self, event) -> None:
         pass
 
+    def close(self) -> None:
+        self.out.flush()
+
+
+class TextSink(StreamSink):
+    def __init__(self, out: TextIO | None = None, flush: bool = False) -> None:
+        super().__init__(out or sys.stdout, flush)
+
     def frame(self, f: Frame) -> None:
         self.out.write(frame_line(f, self.t0) + "\n")
         if self.flush_each:
             self.out.flush()
-
-    def close(self) -> None:
-        self.out.flush()
