@@ -8,7 +8,10 @@
 The generic drives keep a Delta-like layout (DriveMap); units named in a
 scenario's `devices` are drives of a real model (profiles.py: TDS-V8, TECO
 A510, Synplus SPL) that speak their manual's registers, faults and
-exception codes.  Everything but PtyBus is sans-I/O and deterministic for a
+exception codes.  Scenarios `pd-series` / `pd-series-ascii` put PD-series
+inverters on the line instead (not Modbus: pd_master.py, pd_drive.py, from
+the decoder's schema), with the protocol's > 50 ms quiet time before every
+frame.  Everything but PtyBus is sans-I/O and deterministic for a
 seed, so tests can compare the sniffer's output with the simulator's ground
 truth.
 """

@@ -6,7 +6,11 @@ who sent it, whether it was answered, which fault it carries).  It is
 sans-I/O and deterministic: one `random.Random(seed)`, integer nanoseconds
 of bus time, no wall clock.  Only one party talks at a time, as on a real
 half-duplex line, so frames never overlap.  Frames go out in the scenario's
-protocol: RTU (ADU + CRC) or ASCII (':' + hex + LRC + CR LF).
+protocol: RTU (ADU + CRC) or ASCII (':' + hex + LRC + CR LF).  The
+PD-series protocol (pd-rtu / pd-ascii) has the same checks and wire
+encodings but its own PDUs (FUNC LEN DATA): its PLC and inverters are
+pd_master.PdMaster and pd_drive.PdDrive, and every frame waits out the
+protocol's quiet time (Scenario.quiet_ms).
 """
 
 from __future__ import annotations
@@ -20,6 +24,8 @@ from ..events import FLAG_FRAMING
 from ..line import LineSettings
 from .master import Master, Request
 from .model_drive import ModelDrive
+from .pd_drive import PdDrive, data_method
+from .pd_master import PdMaster
 from .scenario import Scenario, UnitSpec
 from .slave import Drive
 
@@ -29,6 +35,7 @@ KIND_EXCEPTION = "exception"
 KIND_BROADCAST = "broadcast"
 KIND_NOISE = "noise"
 KIND_CORRUPTED = "corrupted"
+PROTOCOLS = ("modbus-rtu", "modbus-ascii", "pd-rtu", "pd-ascii")
 KINDS = (KIND_REQUEST, KIND_RESPONSE, KIND_EXCEPTION, KIND_BROADCAST, KIND_NOISE, KIND_CORRUPTED)
 
 # why a frame is special (WireFrame.fault)
@@ -73,16 +80,25 @@ class _Bus:
         self.rng = random.Random(seed)
         self.char = line.char_ns
         self.jitter = int(sc.byte_jitter_bits * 1e9 / line.baud)
-        self.master = Master(sc, self.rng)
-        self.specs: dict[int, UnitSpec] = {u.unit: u for u in sc.units}
-        self.drives: dict[int, Drive] = {
-            u.unit: (ModelDrive(u, self.master.models[u.unit], self.rng, sc.protocol)
-                     if u.unit in self.master.models else Drive(u, sc.drive_map, self.rng))
-            for u in sc.units
-        }
-        if sc.protocol not in ("modbus-rtu", "modbus-ascii"):
+        if sc.protocol not in PROTOCOLS:
             raise ValueError(f"scenario {sc.name}: protocol {sc.protocol!r} is not simulated")
-        self.ascii = sc.protocol == "modbus-ascii"
+        self.ascii = sc.protocol.endswith("-ascii")
+        self.pd = sc.protocol.startswith("pd-")
+        self.specs: dict[int, UnitSpec] = {u.unit: u for u in sc.units}
+        self.drives: dict[int, Drive]
+        if self.pd:
+            self.master = PdMaster(sc, self.rng)
+            method = data_method(self.ascii, line.parity)
+            self.drives = {u.unit: PdDrive(u, self.rng, method=method) for u in sc.units}
+        else:
+            self.master = Master(sc, self.rng)
+            self.drives = {
+                u.unit: (ModelDrive(u, self.master.models[u.unit], self.rng, sc.protocol)
+                         if u.unit in self.master.models else Drive(u, sc.drive_map, self.rng))
+                for u in sc.units
+            }
+        # "more than" the quiet time: one character more, so jitter never eats into it
+        self.quiet = int(sc.quiet_ms * 1e6) + self.char if sc.quiet_ms else 0
         # the master's timeout must outlast t3.5, or a retry would glue to its request
         self.timeout = max(int(sc.timeout_ms * 1e6), 2 * line.t35_ns)
         self.txn = 0
@@ -153,15 +169,15 @@ class _Bus:
         """The master's pause before its next request, sometimes with noise in it."""
         sc = self.sc
         if sc.noise_prob and self.rng.random() < sc.noise_prob:
-            t0 = self.now + self.line.t35_ns + self._chars((1.0, 4.0))
+            t0 = self.now + max(self.line.t35_ns, self.quiet) + self._chars((1.0, 4.0))
             n = self.rng.randint(*sc.noise_len)
             raw = bytes(self.rng.choice((0x00, 0xFF, self.rng.randrange(256))) for _ in range(n))
             # a 0x00 from a driver switching on is a start bit that never ends: framing error
             flags = tuple((i, FLAG_FRAMING) for i, b in enumerate(raw) if b == 0x00)
             fr = self._frame(raw, t0, KIND_NOISE, fault=FAULT_NOISE, flags=flags)
             yield fr
-            self.now = fr.t_end_ns + self.line.t35_ns
-        self.now += self._chars(sc.gap_chars)
+            self.now = fr.t_end_ns + max(self.line.t35_ns, self.quiet)
+        self.now += max(self._chars(sc.gap_chars), self.quiet)
 
     def _broadcast(self, req: Request) -> Iterator[WireFrame]:
         adu = bytes((0,)) + req.pdu
@@ -173,9 +189,9 @@ class _Bus:
         for d in self.drives.values():
             d.advance(fr.t_end_ns)
             d.handle(req.pdu)  # every drive applies the write
-        self.now = fr.t_end_ns + int(self.sc.broadcast_delay_ms * 1e6)
+        self.now = fr.t_end_ns + max(int(self.sc.broadcast_delay_ms * 1e6), self.quiet)
         if liar is not None:
-            ta = self._chars(liar.turnaround_chars)
+            ta = max(self._chars(liar.turnaround_chars), self.quiet)
             payload = bytes((liar.unit,)) + self.drives[liar.unit].handle(req.pdu)
             rsp = self._frame(self._encode(payload), fr.t_end_ns + ta, KIND_RESPONSE, payload,
                               role=KIND_RESPONSE, txn=self.txn, turnaround_ns=ta,
@@ -215,7 +231,9 @@ class _Bus:
                 self._corrupt(rsp_raw) if damaged else rsp_raw, fr.t_end_ns + ta,
                 KIND_CORRUPTED if damaged else role, payload,
                 txn=self.txn, attempt=attempt, role=role, fault=fault,
-                exception_code=payload[2] if is_exc else None, turnaround_ns=ta, late=slow,
+                # PD-series error replies carry no code byte: the function byte (81H/83H) is the code
+                exception_code=(payload[1] if self.pd else payload[2]) if is_exc else None,
+                turnaround_ns=ta, late=slow,
             )
             yield rsp
             self.now = rsp.t_end_ns
@@ -223,7 +241,7 @@ class _Bus:
                 self.master.observe(req, payload[1:], rsp.t_end_ns)
                 return
             # the master drops a reply with a bad CRC and waits out its timeout
-            self.now = max(self.now + self.line.t35_ns, fr.t_end_ns + self.timeout)
+            self.now = max(self.now + max(self.line.t35_ns, self.quiet), fr.t_end_ns + self.timeout)
 
     def _reply(self, spec: UnitSpec, req: Request, raw: bytes) -> tuple[int, bytes, bool] | None:
         """(turnaround, response ADU without CRC, slow) or None when the unit stays silent."""
@@ -231,7 +249,7 @@ class _Bus:
         if spec.no_answer_prob and rng.random() < spec.no_answer_prob:
             return None
         slow = bool(spec.slow_prob) and rng.random() < spec.slow_prob
-        ta = self._chars(spec.slow_turnaround_chars if slow else spec.turnaround_chars)
+        ta = max(self._chars(spec.slow_turnaround_chars if slow else spec.turnaround_chars), self.quiet)
         # a reply must start before the master gives up, or the line would collide
         ta = min(ta, self.timeout - self.line.t35_ns)
         drive = self.drives[spec.unit]

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..line import LineSettings
+from ..pd_framer import QUIET_NS
 from .profiles import A510, SPL, TDS_V8, ModelProfile
 
 # Function codes the simulated drives implement; 0x11 (report server id) is
@@ -101,7 +102,7 @@ class Scenario:
     polls: tuple[PollSpec, ...]
     drive_map: DriveMap = field(default_factory=DriveMap)
     line: LineSettings = LineSettings(19200, "E", 1)  # what a real bus of this kind runs at
-    protocol: str = "modbus-rtu"  # or "modbus-ascii"
+    protocol: str = "modbus-rtu"  # or "modbus-ascii", "pd-rtu", "pd-ascii" (PD-series inverters)
     # unit -> model id: those units are drives of that model (profiles.py) and the sniffer
     # decodes them with it; other units are the generic drive (DriveMap)
     devices: dict[int, str] = field(default_factory=dict, hash=False)
@@ -120,6 +121,9 @@ class Scenario:
     setpoint_range_hz: tuple[float, float] = (0.0, 50.0)
     byte_jitter_bits: float = 0.1  # extra idle after a character, 0..this many bits
     start_ms: float = 5.0  # idle line before the first frame
+    # the protocol's minimum silence before every frame, kept by master and slaves alike
+    # (PD-series: "more than 50 ms", l.203-206); 0 = none beyond gap_chars / turnaround_chars
+    quiet_ms: float = 0.0
 
 
 _READS = (
@@ -273,8 +277,55 @@ SPL_RTU = _model_scenario("spl", SPL, LineSettings(9600, "N", 1), 10.0, _SPL_POL
 SPL_ASCII = _model_scenario("spl-ascii", SPL, L_ASCII, 10.0, _SPL_POLLS, protocol="modbus-ascii",
                             poll_period_ms=300.0, **_SPL_KW)
 
+
+# ------------------------------------------------------------ PD-series inverters
+# Not Modbus (decoders/pd_series): a PLC and two inverters, units 1 and 2, plus broadcasts
+# (unit 0).  The manual asks > 50 ms of quiet before every frame (l.203-206), for the master
+# and the inverters' replies alike.  Polls name parameters by the manual's id (PD174), status
+# values by their CFG label (Out F), control commands by CNTR bit names (pd_master.py).
+_PD_QUIET_MS = QUIET_NS / 1e6
+_PD_POLLS = (
+    PollSpec(0x04, param="Out F"),  # the ramp, every cycle
+    PollSpec(0x04, param="Out A", every=2, phase=1),
+    PollSpec(0x04, param="Set F", every=4, phase=2),
+    PollSpec(0x04, param="DCV", every=4, phase=0),
+    PollSpec(0x04, param="RoTT", every=6, phase=3),
+    PollSpec(0x04, param="ACV", every=6, phase=5),
+    PollSpec(0x04, param="Tmp", every=8, phase=4),
+    PollSpec(0x04, param="Cont", every=8, phase=7),
+    PollSpec(0x01, param="PD003", every=7, phase=6),  # read back the set frequency
+    PollSpec(0x02, param="PD172", value=1, every=11, phase=9, units=(1,)),  # fault clear: "**", allowed running
+    PollSpec(0x08, every=9, phase=1),  # loop test
+    PollSpec(0x01, param="PD165", every=20, phase=12, units=(1,)),  # data method: says the line
+    # mistakes now and then
+    PollSpec(0x01, 200, every=10, phase=8, units=(2,)),  # no PD200 (the manual stops at PD183): 81H
+    PollSpec(0x02, param="PD170", value=7, every=13, phase=10, units=(1,)),  # set range 0-5: 81H
+    PollSpec(0x03, param="forward+reverse", every=12, phase=11, units=(2,)),  # contradictory CNTR: 83H
+)
+_PD_STARTUP = (PollSpec(0x01, param="PD174"), PollSpec(0x01, param="PD176"), PollSpec(0x01, param="PD181"),
+               PollSpec(0x02, param="PD003"))  # rated current, 50/60 Hz, version; set frequency while stopped
+
+
+def _pd_scenario(name: str, protocol: str, line: LineSettings) -> Scenario:
+    quiet = _PD_QUIET_MS
+    units = (UnitSpec(1, rated_current_a=7.0, turnaround_chars=_turnaround(quiet * 1.15, line)),
+             UnitSpec(2, rated_current_a=4.0, turnaround_chars=_turnaround(quiet * 1.25, line)))
+    return Scenario(
+        name, units, _PD_POLLS, line=line, protocol=protocol,
+        devices={0: "pd-series", **{u.unit: "pd-series" for u in units}},
+        startup_polls=_PD_STARTUP, quiet_ms=quiet,
+        gap_chars=(1.1 * quiet * 1e6 / line.char_ns, 1.6 * quiet * 1e6 / line.char_ns),
+        poll_period_ms=300.0, timeout_ms=500.0, broadcast_every=6, broadcast_delay_ms=quiet,
+        setpoint_change_s=1.5, setpoint_range_hz=(10.0, 50.0),
+    )
+
+
+PD_RTU = _pd_scenario("pd-series", "pd-rtu", LineSettings(9600, "N", 1))  # PD165 = 3: 8N1 for RTU
+PD_ASCII = _pd_scenario("pd-series-ascii", "pd-ascii", LineSettings(9600, "N", 1))  # PD165 = 0: 8N1 for ASCII
+
 SCENARIOS: dict[str, Scenario] = {
-    s.name: s for s in (DEFAULT, ERRORS, FAST, STRESS, TDS, A510_RTU, A510_ASCII, SPL_RTU, SPL_ASCII)
+    s.name: s for s in (DEFAULT, ERRORS, FAST, STRESS, TDS, A510_RTU, A510_ASCII, SPL_RTU, SPL_ASCII,
+                        PD_RTU, PD_ASCII)
 }
 
 
