@@ -8,6 +8,6 @@ sim() { "$S" simulate --scenario "$1" --duration "$2" --seed 11 --out "captures/
 sim default 4
 sim errors 6
 sim fast 1
-for m in tds-v8 a510 a510-ascii spl spl-ascii; do sim "$m" 10; done
+for m in tds-v8 a510 a510-ascii spl spl-ascii pd-series pd-series-ascii; do sim "$m" 10; done
 
 UPDATE_GOLDEN=1 .venv/bin/python -m pytest -q tests/test_golden.py
