@@ -117,3 +117,27 @@ def test_sigkilled_live_capture_replays_and_repairs(tmp_path):
     with open(fixed, "rb") as fh:
         n = sum(1 for _ in make_reader(fh).iter_messages(topics=["/raw"]))
     assert n > 20
+
+
+def test_ctrl_c_closes_the_capture_cleanly(tmp_path):
+    """SIGINT (Ctrl-C) during a live capture: exit 0, a finished MCAP any reader opens."""
+    out = tmp_path / "stopped.mcap"
+    proc = subprocess.Popen(SNIFFER + ["demo", "--headless", "--duration", "60", "--out", str(out)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 10_000):
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err and "frames" in err
+    from mcap.reader import make_reader
+
+    with open(out, "rb") as fh:
+        reader = make_reader(fh)
+        assert reader.get_summary() is not None  # finished: summary and footer written
+        assert sum(1 for _ in reader.iter_messages(topics=["/frames"])) > 10
