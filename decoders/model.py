@@ -10,7 +10,6 @@ annotation saying why.
 
 from __future__ import annotations
 
-from sniffer import codes
 from sniffer.codes import Code, note
 from sniffer.frame import REQUEST, RESPONSE, Frame
 

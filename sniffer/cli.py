@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 from . import __version__
 from .events import CaptureInfo, Chunk
