@@ -69,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV)")
     s.add_argument("file")
-    s.add_argument("--input-format", choices=["auto", "mcap", "csv", "saleae"], default="auto")
+    s.add_argument("--input-format", choices=["auto", "mcap", "csv", "saleae", "pcap"], default="auto")
     _serial_flags(s)
     _decode_flags(s)
     _format_flag(s)
@@ -100,6 +100,10 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("repair", help="make a truncated (killed) capture readable by any MCAP reader")
     s.add_argument("file")
     s.add_argument("-o", "--out", help="output file (default: FILE.repaired.mcap)")
+
+    from .export.commands import add_parsers as add_check_diff_export
+
+    add_check_diff_export(sub, _serial_flags, _decode_flags)
     return p
 
 
@@ -250,6 +254,12 @@ COMMANDS = {
 }
 
 
+def _check_diff_export():
+    from .export.commands import COMMANDS as extra
+
+    return extra
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
@@ -257,7 +267,8 @@ def main(argv: list[str] | None = None) -> int:
         if not args.cmd:
             parser.print_help(sys.stderr)
             return EXIT_USAGE
-        return COMMANDS[args.cmd](args)
+        commands = {**COMMANDS, **_check_diff_export()}
+        return commands[args.cmd](args)
     except UsageError as e:
         print(f"sniffer: error: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -6,12 +6,12 @@ import os
 
 from . import CaptureError
 
-FORMATS = ("auto", "mcap", "csv", "saleae")
+FORMATS = ("auto", "mcap", "csv", "saleae", "pcap")
 
 
 def open_replay(path: str, fmt: str = "auto"):
     """(CaptureInfo, events iterator) or CaptureError with one clear line."""
-    from . import bytecsv, mcapsrc, saleae
+    from . import bytecsv, mcapsrc, pcapsrc, saleae
 
     if not os.path.exists(path):
         raise CaptureError(f"{path}: no such file")
@@ -22,12 +22,14 @@ def open_replay(path: str, fmt: str = "auto"):
             fmt = "mcap"
         elif bytecsv.sniff(path):
             fmt = "csv"
+        elif pcapsrc.sniff(path):
+            fmt = "pcap"
         elif saleae.sniff(path):
             fmt = "saleae"
         else:
             raise CaptureError(
                 f"{path}: unknown capture format (expected MCAP from this tool, a byte CSV "
-                "t_s,channel,byte_hex,flags, or a Saleae async-serial CSV export)"
+                "t_s,channel,byte_hex,flags, a Saleae async-serial CSV export, or pcap/pcapng)"
             )
     if fmt == "mcap":
         return mcapsrc.open_mcap(path)
@@ -35,4 +37,6 @@ def open_replay(path: str, fmt: str = "auto"):
         return bytecsv.open_byte_csv(path)
     if fmt == "saleae":
         return saleae.open_saleae_csv(path)
+    if fmt == "pcap":
+        return pcapsrc.open_pcap(path)
     raise CaptureError(f"unknown input format {fmt!r} (one of {', '.join(FORMATS)})")

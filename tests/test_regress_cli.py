@@ -1,0 +1,69 @@
+"""The CLI glue for check / diff / export (sniffer.export.commands), on a parser built like cli's."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import orjson
+import pytest
+
+from sniffer import cli
+from sniffer.export.commands import COMMANDS, add_parsers
+
+CAPTURES = Path(__file__).resolve().parent.parent / "captures"
+A510 = str(CAPTURES / "sim" / "a510.mcap")
+DEFAULT = str(CAPTURES / "sim" / "default.mcap")
+WIZ = str(CAPTURES / "refcaptures" / "sigrok" / "wizmodbus.bytes.csv")
+
+
+def run(*argv) -> int:
+    p = argparse.ArgumentParser(prog="sniffer")
+    add_parsers(p.add_subparsers(dest="cmd"), cli._serial_flags, cli._decode_flags)
+    args = p.parse_args(argv)
+    return COMMANDS[args.cmd](args)
+
+
+def test_check_exit_codes(tmp_path, capsys):
+    g = str(tmp_path / "g.txt")
+    assert run("check", A510, "--golden", g) == 2
+    assert "no such golden" in capsys.readouterr().err
+    assert run("check", WIZ, "--golden", g, "--update-golden") == 2  # no baud in a byte CSV
+    assert "baud" in capsys.readouterr().err
+    assert run("check", WIZ, "--golden", g, "--baud", "9600", "--update-golden") == 0
+    assert run("check", WIZ, "--golden", g, "--baud", "9600") == 0
+    Path(g).write_text(Path(g).read_text().replace(" | ", " | X", 1))
+    assert run("check", WIZ, "--golden", g, "--baud", "9600") == 1
+    assert capsys.readouterr().out.startswith("--- ")
+
+
+def test_check_time_tolerance_flag(tmp_path):
+    g = tmp_path / "g.txt"
+    assert run("check", A510, "--golden", str(g), "--update-golden") == 0
+    lines = g.read_text().splitlines()
+    head, _, rest = lines[1].partition(" | ")
+    t, lat = head.split()
+    lines[1] = f"{float(t) + 0.004:.6f} {lat} | {rest}"
+    g.write_text("\n".join(lines) + "\n")
+    assert run("check", A510, "--golden", str(g)) == 1
+    assert run("check", A510, "--golden", str(g), "--time-tol-ms", "5") == 0
+
+
+def test_diff_text_and_json(capsys):
+    assert run("diff", A510, A510) == 0
+    assert "no semantic difference" in capsys.readouterr().out
+    assert run("diff", DEFAULT, A510, "--format", "json") == 1
+    d = orjson.loads(capsys.readouterr().out)
+    assert d["same"] is False and d["units"]["models"]["1"] == "a510"
+
+
+def test_diff_device_flag_applies_to_both(capsys):
+    assert run("diff", A510, A510, "--device", "1=generic") == 0
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet", "pcap", "pcapng", "mcap"])
+def test_export_every_format(tmp_path, fmt, capsys):
+    out = tmp_path / f"wiz.{fmt}"
+    assert run("export", WIZ, "--to", fmt, "--out", str(out), "--baud", "9600") == 0
+    assert out.stat().st_size > 0
+    assert "88 frames" in capsys.readouterr().err
