@@ -87,6 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=1)
     s.add_argument("--adapter", choices=["wire", "usb"], default="usb",
                    help="timestamps per byte (logic analyzer) or per USB read (default usb)")
+    s.add_argument("--param", action="append", metavar="KEY=VALUE",
+                   help="change the scenario: a setting (poll_period_ms=50) or a unit's (unit2.rated_current_a=7.5)")
     _serial_flags(s)
 
     s = sub.add_parser("demo", help="live capture of a simulated bus over a pseudo-terminal")
@@ -280,7 +282,9 @@ def main(argv: list[str] | None = None) -> int:
         from decoders.tables import MapError
         from .busfile import BusFileError
 
-        if isinstance(e, (DeviceMapError, BusFileError, MapError)):
+        from .simulator.overrides import OverrideError
+
+        if isinstance(e, (DeviceMapError, BusFileError, MapError, OverrideError)):
             print(f"sniffer: error: {e}", file=sys.stderr)
             return EXIT_USAGE
         raise

@@ -23,11 +23,14 @@ def run_simulate(args) -> int:
     from .simulator.chunks import usb_chunks, wire_chunks
     from .simulator.scenario import get_scenario
 
+    from .simulator.overrides import apply
+
     try:
         scenario = get_scenario(args.scenario)
     except ValueError as e:
         print(f"sniffer: error: {e}", file=sys.stderr)
         return 2
+    scenario = apply(scenario, getattr(args, "param", None))
     base = scenario.line
     line = LineSettings(args.baud or base.baud, args.parity or base.parity, args.stopbits or base.stopbits,
                         base.databits)

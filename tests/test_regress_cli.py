@@ -67,3 +67,26 @@ def test_export_every_format(tmp_path, fmt, capsys):
     assert run("export", WIZ, "--to", fmt, "--out", str(out), "--baud", "9600") == 0
     assert out.stat().st_size > 0
     assert "88 frames" in capsys.readouterr().err
+
+
+def test_readme_worked_example_names_the_changed_register(tmp_path):
+    """README: change one drive parameter in the simulator, record again, `sniffer diff` names it."""
+    import subprocess
+    import sys
+
+    sn = [sys.executable, "-m", "sniffer"]
+    base = ["simulate", "--scenario", "default", "--seed", "4", "--duration", "5"]
+    assert subprocess.run(sn + base + ["--out", "before.mcap"], cwd=tmp_path, capture_output=True).returncode == 0
+    assert subprocess.run(sn + base + ["--param", "unit2.rated_current_a=11.0", "--out", "after.mcap"],
+                          cwd=tmp_path, capture_output=True).returncode == 0
+    r = subprocess.run(sn + ["diff", "before.mcap", "after.mcap"], cwd=tmp_path, capture_output=True, text=True)
+    assert r.returncode == 1, r.stderr
+    changed = [l for l in r.stdout.splitlines() if l.startswith("  ~ u")]
+    assert changed and all(l.startswith("  ~ u2 ") for l in changed)  # only unit 2 changed
+    assert any("holding[8451]" in l and "->" in l for l in changed)
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    for line in r.stdout.splitlines():
+        assert line in readme, line
+    bad = subprocess.run(sn + base + ["--param", "unit9.rated_current_a=1", "--out", "x.mcap"], cwd=tmp_path,
+                         capture_output=True, text=True)
+    assert bad.returncode == 2 and "no unit 9" in bad.stderr and "Traceback" not in bad.stderr
