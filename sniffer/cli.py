@@ -70,6 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV)")
     s.add_argument("file")
     s.add_argument("--input-format", choices=["auto", "mcap", "csv", "saleae", "pcap"], default="auto")
+    s.add_argument("--progress", action="store_true", help="progress bar on stderr (frames/s, ETA for MCAP)")
     _serial_flags(s)
     _decode_flags(s)
     _format_flag(s)
@@ -180,10 +181,20 @@ def cmd_replay(args) -> int:
     kw = _timeouts(args, bus)
     kw["protocol"] = _protocol(args, bus, info)
     p = Pipeline(info, line, registry, [_out_sink(args, False)], **kw)
+    bar = None
+    if args.progress:
+        from .export.progress import ReplayProgress
+
+        bar = ReplayProgress(args.file)
+        bar.frames = lambda: p.frames_out
     try:
-        for ev in events:
+        for i, ev in enumerate(events):
             p.feed(ev)
+            if bar is not None:
+                bar.update(i, ev)
     finally:
+        if bar is not None:
+            bar.close()
         p.finish()
     return 0
 

@@ -44,18 +44,32 @@ class ReplayProgress:
         self.total = estimate_events(capture)
         self._progress = Progress(
             SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
-            TextColumn("{task.completed} events"), TextColumn("{task.fields[rate]}"),
+            TextColumn("{task.completed} events"), TextColumn("{task.fields[frames]}"),
+            TextColumn("{task.fields[rate]}"),
             TimeElapsedColumn(), TimeRemainingColumn(),
             console=Console(file=sys.stderr), transient=True,
         )
-        self._task = self._progress.add_task(os.path.basename(os.fspath(capture)), total=self.total, rate="")
+        self._task = self._progress.add_task(os.path.basename(os.fspath(capture)), total=self.total,
+                                             rate="", frames="")
         self._progress.start()
+        import time
+
+        self._clock = time.monotonic
+        self._t0 = self._clock()
+        self.frames = None  # a callable giving frames decoded so far, if the caller has one
 
     def update(self, i: int, ev) -> None:
         self._n = i + 1
         if self._n % self.every == 0:
-            speed = self._progress.tasks[0].speed
-            self._progress.update(self._task, completed=self._n, rate=f"{speed:,.0f}/s" if speed else "")
+            fields = {}
+            if self.frames is not None:
+                n = self.frames()
+                dt = max(1e-9, self._clock() - self._t0)
+                fields = {"frames": f"{n:,} frames", "rate": f"{n / dt:,.0f} frames/s"}
+            else:
+                speed = self._progress.tasks[0].speed
+                fields = {"rate": f"{speed:,.0f} events/s" if speed else ""}
+            self._progress.update(self._task, completed=self._n, **fields)
 
     def close(self) -> None:
         self._progress.update(self._task, completed=self._n)
