@@ -66,11 +66,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", metavar="FILE.mcap", help="MCAP file to write (default: sniffer-<time>.mcap)")
     s.add_argument("--no-out", action="store_true", help="do not write an MCAP file")
     s.add_argument("--duration", type=float, default=0, help="stop after S seconds (default: until Ctrl-C)")
+    s.add_argument("--headless", action="store_true", help="text stream instead of the TUI (default off a tty)")
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV)")
     s.add_argument("file")
     s.add_argument("--input-format", choices=["auto", "mcap", "csv", "saleae", "pcap"], default="auto")
     s.add_argument("--progress", action="store_true", help="progress bar on stderr (frames/s, ETA for MCAP)")
+    s.add_argument("--tui", action="store_true", help="browse the capture in the terminal UI")
     _serial_flags(s)
     _decode_flags(s)
     _format_flag(s)
@@ -180,6 +182,10 @@ def cmd_replay(args) -> int:
     registry = _registry(args, bus, info)
     kw = _timeouts(args, bus)
     kw["protocol"] = _protocol(args, bus, info)
+    if args.tui:
+        from .tui.run import replay_tui
+
+        return replay_tui(args.file, info, events, line, registry, **kw)
     p = Pipeline(info, line, registry, [_out_sink(args, False)], **kw)
     bar = None
     if args.progress:
@@ -243,7 +249,16 @@ def cmd_repair(args) -> int:
     return 0
 
 
+def _tui_wanted(args) -> bool:
+    """The TUI is the default on a terminal; --headless, --format jsonl or a pipe keep the stream."""
+    return not args.headless and args.format == "text" and sys.stdout.isatty() and sys.stdin.isatty()
+
+
 def cmd_live(args) -> int:
+    if _tui_wanted(args):
+        from .tui.run import live_tui
+
+        return live_tui(args, _bus(args), _line, _registry, _timeouts)
     from .live import run_live
 
     return run_live(args, _bus(args), _line, _registry, _timeouts, _out_sink)
@@ -256,6 +271,10 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_demo(args) -> int:
+    if _tui_wanted(args):
+        from .tui.run import demo_tui
+
+        return demo_tui(args, _registry)
     from .live import run_demo
 
     return run_demo(args, _registry, _out_sink)

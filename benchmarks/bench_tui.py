@@ -1,0 +1,207 @@
+"""How many frames per second the TUI absorbs, and how quickly it answers a key meanwhile.
+
+    .venv/bin/python benchmarks/bench_tui.py [--rates 1000,2000,5000,10000,20000] [--seconds 3]
+                                             [--million] [--quick]
+
+A feeder thread pushes synthetic frames (decoded frames of captures/sim/errors.mcap and
+a510.mcap, renumbered) into the TuiSink at a fixed rate, in 10 ms batches, as the capture
+thread would; the App runs headless under `run_test` (120x40) with its 15 Hz poll timer.
+For each rate it prints: frames absorbed per second, the backlog left in the sink, the time
+one poll tick takes (drain + store + redraw request), and the latency of key presses
+(Pilot press -> handled and screen idle) while frames keep arriving.
+`--million` also loads 1,000,000 frames into a FrameStore and times filters, next-error and
+drawing rows in the middle.  Figures are printed, nothing is asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import copy
+import gc
+import os
+import resource
+import statistics
+import sys
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))
+
+from tui_helpers import replay_frames
+
+from sniffer.tui.app import SnifferApp
+from sniffer.tui.model import FrameStore
+from sniffer.tui.sink import TuiSink
+
+
+def synthetic(n: int):
+    """n frames cloned from real decoded ones, renumbered, pairs kept consistent."""
+    pool = list(replay_frames("errors.mcap")[1]) + list(replay_frames("a510.mcap")[1])
+    span = len(pool)
+    period = max(f.t_ns for f in pool) + 10_000_000
+    out = []
+    for i in range(n):
+        src = pool[i % span]
+        k = i // span
+        f = copy.copy(src)
+        f.index = src.index + k * 100_000 if i % span < len(replay_frames("errors.mcap")[1]) else src.index + k * 100_000 + 50_000
+        if src.pair is not None:
+            f.pair = f.index - src.index + src.pair
+        f.t_ns = src.t_ns + k * period
+        out.append(f)
+    return out
+
+
+def rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+async def key_latency(app, pilot, key: str) -> float:
+    """Seconds from posting a key to the moment the App has acted on it (the cursor moved).
+
+    Pilot.press itself also waits for the screen to go idle, which a 15 Hz poll never
+    quite lets happen; that wait is not what a user feels, so it is not counted.
+    """
+    fl = app.frame_list
+    before = fl.cursor
+    if key == "home" and before == 0 or key == "up" and before <= 0:
+        fl.cursor = len(app.store.view) - 1
+        await asyncio.sleep(0)
+        before = fl.cursor
+    t = time.perf_counter()
+    task = asyncio.create_task(pilot.press(key))
+    while fl.cursor == before and time.perf_counter() - t < 5:
+        await asyncio.sleep(0.0005)
+    dt = time.perf_counter() - t
+    await task
+    return dt
+
+
+async def run_rate(rate: int, seconds: float, frames: list) -> dict:
+    sink = TuiSink()
+    sink.start(replay_frames("errors.mcap")[0])
+    app = SnifferApp(sink, None, poll_hz=15)
+    tick_times: list[float] = []
+    orig_poll = app.poll
+
+    def timed_poll():
+        t = time.perf_counter()
+        orig_poll()
+        tick_times.append(time.perf_counter() - t)
+
+    app.poll = timed_poll  # the interval timer calls the attribute
+    stop = threading.Event()
+    sent = [0]
+
+    def feeder():
+        batch_s = 0.01
+        per = max(int(rate * batch_s), 1)
+        t_next = time.perf_counter()
+        i = 0
+        while not stop.is_set() and i < len(frames):
+            sink.frames(frames[i:i + per])
+            i += per
+            sent[0] = i
+            t_next += per / rate
+            d = t_next - time.perf_counter()
+            if d > 0:
+                time.sleep(d)
+
+    async with app.run_test(size=(120, 40)) as pilot:
+        await pilot.pause(0.2)
+        th = threading.Thread(target=feeder, daemon=True)
+        t0 = time.perf_counter()
+        th.start()
+        n0 = len(app.store)
+        lat = []
+        k = 0
+        while time.perf_counter() - t0 < seconds:
+            await pilot.pause(0.15)
+            lat.append(await key_latency(app, pilot, "up" if k % 2 else "home"))
+            k += 1
+        elapsed = time.perf_counter() - t0
+        absorbed = len(app.store) - n0
+        stop.set()
+        th.join()
+        backlog = sink.backlog
+    return {
+        "rate": rate, "sent_per_s": sent[0] / elapsed, "absorbed_per_s": absorbed / elapsed,
+        "backlog": backlog, "tick_med_ms": 1e3 * statistics.median(tick_times) if tick_times else 0,
+        "tick_max_ms": 1e3 * max(tick_times) if tick_times else 0, "ticks_per_s": len(tick_times) / elapsed,
+        "key_med_ms": 1e3 * statistics.median(lat), "key_max_ms": 1e3 * max(lat), "keys": len(lat),
+    }
+
+
+def million(n: int) -> None:
+    print(f"\n{n:,} frames in a FrameStore (no Textual)")
+    frames = synthetic(n)
+    gc.collect()
+    r0 = rss_mb()
+    s = FrameStore()
+    t = time.perf_counter()
+    for i in range(0, n, 5000):
+        s.add(frames[i:i + 5000])
+    dt = time.perf_counter() - t
+    print(f"  add:            {dt:6.2f} s  ({n / dt:,.0f} frames/s)  peak RSS +{rss_mb() - r0:.0f} MB "
+          f"(frames themselves were built before)")
+    for label, kw in (("errors only", {"errors_only": True}), ("unit 2", {"errors_only": False, "units": frozenset({2})}),
+                      ("text 'ILLEGAL'", {"units": None, "text": "ILLEGAL"}), ("clear", {"text": ""})):
+        t = time.perf_counter()
+        s.update_filter(**kw)
+        print(f"  filter {label:15s} {time.perf_counter() - t:6.3f} s -> {len(s.view):,} rows")
+    t = time.perf_counter()
+    r = n // 2
+    for _ in range(1000):
+        r = s.next_problem(r)
+    print(f"  next error x1000: {1e3 * (time.perf_counter() - t):.1f} ms")
+
+    async def draw():
+        sink = TuiSink()
+        app = SnifferApp(sink, None)
+        app.store = s
+        async with app.run_test(size=(120, 40)) as pilot:
+            app.frame_list.store = s
+            app.frame_list.follow = False
+            app.frame_list.refresh_rows()
+            await pilot.pause()
+            t = time.perf_counter()
+            app.frame_list.select_row(n // 2)
+            await pilot.pause()
+            lat = []
+            for key in ("up", "home", "up", "home"):
+                lat.append(await key_latency(app, pilot, key))
+            print(f"  jump to middle: {1e3 * (time.perf_counter() - t):.0f} ms (incl. keys); "
+                  f"keys median {1e3 * statistics.median(lat):.0f} ms max {1e3 * max(lat):.0f} ms")
+
+    asyncio.run(draw())
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--rates", default="1000,2000,5000,10000,20000")
+    ap.add_argument("--seconds", type=float, default=3.0)
+    ap.add_argument("--million", action="store_true")
+    ap.add_argument("--quick", action="store_true", help="2 rates, 2 s each, 200k-frame store")
+    a = ap.parse_args()
+    rates = [int(x) for x in a.rates.split(",")]
+    if a.quick:
+        rates, a.seconds = [2000, 5000], 2.0
+    print(f"python {sys.version.split()[0]}, {os.cpu_count()} CPUs; App headless 120x40, poll 15 Hz")
+    need = int(max(rates) * (a.seconds + 1))
+    frames = synthetic(need)
+    print(f"{'rate':>7} {'sent/s':>8} {'absorbed/s':>10} {'backlog':>8} {'tick med':>9} {'tick max':>9} "
+          f"{'ticks/s':>7} {'key med':>8} {'key max':>8}")
+    for rate in rates:
+        r = asyncio.run(run_rate(rate, a.seconds, frames))
+        print(f"{r['rate']:>7} {r['sent_per_s']:>8.0f} {r['absorbed_per_s']:>10.0f} {r['backlog']:>8} "
+              f"{r['tick_med_ms']:>7.1f}ms {r['tick_max_ms']:>7.1f}ms {r['ticks_per_s']:>7.1f} "
+              f"{r['key_med_ms']:>6.0f}ms {r['key_max_ms']:>6.0f}ms")
+    if a.million or a.quick:
+        million(200_000 if a.quick else 1_000_000)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,317 @@
+"""The Textual App: a thin viewer over a FrameStore fed by a TuiSink.
+
+The pipeline runs elsewhere (a worker thread given as `feed`); the App polls
+the sink on a timer, adds the batch to the store and redraws once per tick.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Callable
+from typing import ClassVar
+
+from textual.app import App, ComposeResult
+from textual.binding import Binding
+from textual.containers import Vertical
+from textual.screen import ModalScreen
+from textual.widgets import Footer, Input, Static, TabbedContent, TabPane
+
+from .detail import DetailPane
+from .filters import filter_expr, parse_filter
+from .framelist import FrameList
+from .model import FrameStore
+from .registers import RegisterWatch
+from .sink import TuiSink
+from .status import status_text
+from .units import UnitsTable
+
+HELP = """\
+[b]rs485-sniffer TUI[/b] — keys
+
+  [b]1 2 3[/b]        frames / units / registers
+  [b]↑ ↓ PgUp PgDn[/b] move; [b]Home[/b] first; [b]End[/b] / [b]G[/b] follow the tail
+  [b]Enter[/b]        focus the detail tree (select a node: its bytes light up in the hex dump)
+  [b]p[/b]            jump to the paired request / response
+  [b]n[/b] / [b]N[/b]        next / previous problem (error, exception, timeout, noise)
+  [b]e[/b]            errors only (toggle)
+  [b]u[/b] / [b]f[/b]        only this frame's unit / function (toggle)
+  [b]/[/b]            filter bar: words search the line; u:1,2  fc:3,16  role:req  err
+  [b]c[/b]            clear all filters
+  [b]space[/b]        pause the view (capture goes on); again to resume
+  [b]m[/b]            bookmark; [b]][/b] / [b]\\[[/b] next / previous bookmark
+  [b]?[/b]            this help;  [b]q[/b] quit (stops the capture, closes the file)
+
+Colours: [bold bright_red]errors / bad CRC[/], [bold magenta]exceptions[/], [yellow]timeouts & warnings[/],
+[grey50 italic]noise[/]. The selected frame's pair has a grey background; ←/→ #n names it.
+"""
+
+
+LIST_HEADER = f"   {'time (s)':>12} {'dir':5} {'unit':4} {'model':<8} {'fc':4} {'frame→pair':<14} {'latency':>9} summary  [problems]"
+
+
+class HelpScreen(ModalScreen):
+    BINDINGS: ClassVar[list[Binding]] = [Binding("escape,q,question_mark", "dismiss", "Close")]
+    DEFAULT_CSS = "HelpScreen { align: center middle; } HelpScreen > Static { width: 100; height: auto; " \
+                  "border: thick $primary; background: $surface; padding: 1 2; }"
+
+    def compose(self) -> ComposeResult:
+        yield Static(HELP)
+
+
+class SnifferApp(App):
+    TITLE = "rs485-sniffer"
+    CSS = """
+    #filterbar { dock: top; display: none; }
+    #filterbar.shown { display: block; }
+    #status { height: 1; background: $panel; padding: 0 1; }
+    TabbedContent { height: 1fr; }
+    #framespane { height: 1fr; }
+    #listhead { height: 1; color: $text-muted; text-style: bold; }
+    FrameList { height: 3fr; }
+    DetailPane { height: 2fr; }
+    """
+    BINDINGS: ClassVar[list[Binding]] = [
+        Binding("1", "tab('frames')", "Frames"),
+        Binding("2", "tab('units')", "Units"),
+        Binding("3", "tab('registers')", "Registers"),
+        Binding("p", "pair", "Pair"),
+        Binding("n", "problem(1)", "Next err"),
+        Binding("N", "problem(0)", "Prev err", show=False),
+        Binding("e", "errors_only", "Errors"),
+        Binding("u", "unit_filter", "Unit"),
+        Binding("f", "function_filter", "Func", show=False),
+        Binding("slash", "filter_bar", "Filter"),
+        Binding("c", "clear_filters", "Clear", show=False),
+        Binding("space", "pause", "Pause"),
+        Binding("m", "bookmark", "Mark"),
+        Binding("right_square_bracket", "bookmark_jump(1)", "Next mark", show=False),
+        Binding("left_square_bracket", "bookmark_jump(0)", "Prev mark", show=False),
+        Binding("enter", "focus_detail", "Detail", show=False),
+        Binding("question_mark,f1", "help", "Help"),
+        Binding("q", "quit", "Quit"),
+    ]
+
+    def __init__(self, sink: TuiSink, feed: Callable[[TuiSink, threading.Event], object] | None = None, *,
+                 source_label: str = "", capture_path: str | None = None, registry=None,
+                 poll_hz: float = 15.0, max_batch: int = 20_000,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__()
+        self.sink = sink
+        self.feed = feed
+        self.stop_event = threading.Event()
+        self.source_label = source_label
+        self.capture_path = capture_path
+        self.registry = registry
+        self.poll_hz = poll_hz
+        self.max_batch = max_batch
+        self.store = FrameStore()
+        self.feed_error: BaseException | None = None
+        self.feed_result = None
+        self._thread: threading.Thread | None = None
+        self.clock = clock  # a fixed clock makes the status bar deterministic (snapshots)
+        self.t_start = clock()
+        self._rate = (self.t_start, 0, 0)  # (when, frames, bytes) at the last rate sample
+        self.frames_per_s = 0.0
+        self.bytes_per_s = 0.0
+        self._ticks = 0
+
+    # ---------------------------------------------------------------- layout
+    def compose(self) -> ComposeResult:
+        yield Input(placeholder="filter: words  u:1,2  fc:3  role:req|rsp|noise  err   (Enter applies, Esc closes)",
+                    id="filterbar")
+        with TabbedContent(initial="frames"):
+            with TabPane("Frames", id="frames"), Vertical(id="framespane"):
+                yield Static(LIST_HEADER, id="listhead", markup=False)
+                yield FrameList(self.store, id="list")
+                yield DetailPane(id="detail")
+            with TabPane("Units", id="units"):
+                yield UnitsTable(self.store, self.registry, id="unitstable")
+            with TabPane("Registers", id="registers"):
+                yield RegisterWatch(self.store, id="regwatch")
+        yield Static("", id="status")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        # widgets of the main screen, kept: App.query_one looks at whichever screen is on top (help)
+        self.frame_list = self.query_one("#list", FrameList)
+        self.detail = self.query_one("#detail", DetailPane)
+        self.status = self.query_one("#status", Static)
+        self.tabs = self.query_one(TabbedContent)
+        self.filter_bar = self.query_one("#filterbar", Input)
+        self.frame_list.focus()
+        self.set_interval(1 / self.poll_hz, self.poll)
+        if self.feed is not None:
+            self._thread = threading.Thread(target=self._run_feed, name="tui-feed", daemon=True)
+            self._thread.start()
+
+    def _run_feed(self) -> None:
+        try:
+            self.feed_result = self.feed(self.sink, self.stop_event)
+        except BaseException as e:  # noqa: BLE001 - shown in the status bar
+            self.feed_error = e
+            self.sink.error = f"{type(e).__name__}: {e}"
+        finally:
+            self.sink.closed.set()
+
+    def stop_feed(self, timeout: float = 5.0) -> None:
+        self.stop_event.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    async def action_quit(self) -> None:
+        self.stop_feed()
+        self.exit(self.feed_result)
+
+    # ---------------------------------------------------------------- polling
+    @property
+    def caught_up(self) -> bool:
+        """The feed has finished and every frame it produced is in the store."""
+        return self.sink.closed.is_set() and self.sink.backlog == 0
+
+    def poll(self) -> None:
+        if self.sink.info is not None and not self.store.frames:
+            self.store.t0_ns = self.sink.info.t0_ns
+        batch = self.sink.drain(self.max_batch)
+        if batch:
+            self.store.add(batch)
+            self.frame_list.refresh_rows()
+        self._ticks += 1
+        now = self.clock()
+        when, n0, b0 = self._rate
+        if now - when >= 1.0:
+            self.frames_per_s = (len(self.store) - n0) / (now - when)
+            self.bytes_per_s = (self.sink.bytes_in - b0) / (now - when)
+            self._rate = (now, len(self.store), self.sink.bytes_in)
+        if self._ticks % max(int(self.poll_hz / 2), 1) == 0 or batch and len(self.store) == len(batch):
+            self.refresh_tables()
+        self.status.update(status_text(self))
+
+    def refresh_tables(self) -> None:
+        active = self.tabs.active
+        if active == "units":
+            self.tabs.query_one("#unitstable", UnitsTable).update_rows()
+        elif active == "registers":
+            self.tabs.query_one("#regwatch", RegisterWatch).update_rows()
+
+    def capture_size(self) -> int | None:
+        path = self.capture_path or self.sink.capture_path
+        try:
+            return os.path.getsize(path) if path else None
+        except OSError:
+            return None
+
+    # ---------------------------------------------------------------- selection
+    def on_frame_list_selected(self, message: FrameList.Selected) -> None:
+        row = message.row
+        self.detail.show(None if row is None else self.store.frames[row], self.store.t0_ns)
+
+    @property
+    def selected_frame(self):
+        row = self.frame_list.selected_row
+        return None if row is None else self.store.frames[row]
+
+    def _goto(self, row: int | None, what: str) -> bool:
+        if row is None or not self.frame_list.select_row(row):
+            self.notify(f"no {what}", timeout=2)
+            return False
+        return True
+
+    def action_tab(self, tab: str) -> None:
+        self.tabs.active = tab
+        self.refresh_tables()
+        if tab == "frames":
+            self.frame_list.focus()
+
+    def action_pair(self) -> None:
+        row = self.frame_list.selected_row
+        if row is not None:
+            self._goto(self.store.pair_row(row), "paired frame (filtered out or none)")
+
+    def action_problem(self, forward: int) -> None:
+        row = self.frame_list.selected_row
+        start = row if row is not None else -1
+        self._goto(self.store.next_problem(start, bool(forward)), "further problem")
+
+    def action_bookmark(self) -> None:
+        row = self.frame_list.selected_row
+        if row is not None:
+            self.store.toggle_bookmark(row)
+            self.frame_list.refresh()
+
+    def action_bookmark_jump(self, forward: int) -> None:
+        row = self.frame_list.selected_row
+        self._goto(self.store.next_bookmark(row if row is not None else -1, bool(forward)), "bookmark")
+
+    def action_pause(self) -> None:
+        paused = self.store.pause()
+        if not paused:
+            self.frame_list.follow = True
+        self._after_view_change()
+
+    def action_focus_detail(self) -> None:
+        if self.focused is self.frame_list:
+            self.detail.query_one("Tree").focus()
+
+    # ---------------------------------------------------------------- filters
+    def _after_view_change(self, keep: int | None = None) -> None:
+        fl = self.frame_list
+        keep = fl.selected_row if keep is None else keep
+        fl.refresh_rows()
+        if keep is not None and len(self.store.view) and not fl.follow:
+            fl.cursor = self.store.nearest_pos(keep)
+        self.status.update(status_text(self))
+
+    def apply_filter(self, **kw) -> None:
+        keep = self.frame_list.selected_row
+        self.frame_list.follow = False
+        self.store.update_filter(**kw)
+        self._after_view_change(keep)
+
+    def action_errors_only(self) -> None:
+        self.apply_filter(errors_only=not self.store.filter.errors_only)
+
+    def action_unit_filter(self) -> None:
+        f = self.selected_frame
+        if self.store.filter.units is not None:
+            self.apply_filter(units=None)
+        elif f is not None and f.unit is not None:
+            self.apply_filter(units=frozenset({f.unit}))
+
+    def action_function_filter(self) -> None:
+        f = self.selected_frame
+        if self.store.filter.functions is not None:
+            self.apply_filter(functions=None)
+        elif f is not None and f.function is not None:
+            self.apply_filter(functions=frozenset({f.function & 0x7F}))
+
+    def action_clear_filters(self) -> None:
+        self.apply_filter(units=None, functions=None, roles=None, errors_only=False, text="")
+
+    def action_filter_bar(self) -> None:
+        bar = self.filter_bar
+        bar.value = filter_expr(self.store.filter)
+        bar.add_class("shown")
+        bar.focus()
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        if event.input.id == "filterbar":
+            try:
+                kw = parse_filter(event.value)
+            except ValueError as e:
+                self.notify(str(e), severity="error")
+                return
+            event.input.remove_class("shown")
+            self.frame_list.focus()
+            self.apply_filter(**kw)
+
+    def on_key(self, event) -> None:
+        bar = self.filter_bar
+        if event.key == "escape" and bar.has_class("shown"):
+            bar.remove_class("shown")
+            self.frame_list.focus()
+            event.stop()
+
+    def action_help(self) -> None:
+        self.push_screen(HelpScreen())

@@ -1,0 +1,164 @@
+"""Detail pane: the selected frame as a tree, a hex dump and its annotations in words.
+
+Selecting a tree node (a point, a field or an annotation) highlights its
+bytes in the hex dump.
+"""
+
+from __future__ import annotations
+
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.containers import Vertical
+from textual.widgets import Static, Tree
+
+from ..frame import Frame
+
+HL = "black on yellow"
+_READ_RSP = {3, 4}
+
+
+def point_spans(f: Frame) -> list[tuple[int, int] | None]:
+    """Byte spans of f.points where the layout is plain registers (fc03/04 response, fc06/16 request)."""
+    pts = f.points
+    out: list[tuple[int, int] | None] = [None] * len(pts)
+    if not pts or f.protocol != "modbus-rtu" or f.function is None or f.exception:
+        return out
+    addrs = [p.get("address") for p in pts]
+    if any(a is None for a in addrs):
+        return out
+    base = min(addrs)
+    if f.role == "response" and f.function in _READ_RSP:
+        off = 3
+    elif f.role == "request" and f.function == 16:
+        off = 7
+    elif f.role == "request" and f.function == 6 or f.role == "response" and f.function == 6:
+        return [(4, 6) for _ in pts]
+    else:
+        return out
+    for i, a in enumerate(addrs):
+        nxt = sorted(x for x in addrs if x > a)
+        words = (nxt[0] - a) if nxt else 1
+        s, e = off + 2 * (a - base), off + 2 * (a - base + words)
+        out[i] = (s, e) if e <= len(f.raw) - 2 else None
+    return out
+
+
+def hex_dump(raw: bytes, span: tuple[int, int] | None = None, width: int = 16) -> Text:
+    text = Text()
+    for off in range(0, len(raw), width):
+        text.append(f"{off:04x}  ", "dim")
+        chunk = raw[off:off + width]
+        for i, b in enumerate(chunk):
+            k = off + i
+            style = HL if span and span[0] <= k < span[1] else None
+            text.append(f"{b:02x}", style)
+            text.append(" ", style if span and span[0] <= k < span[1] - 1 else None)
+        text.append("   " * (width - len(chunk)) + " ")
+        for i, b in enumerate(chunk):
+            k = off + i
+            style = HL if span and span[0] <= k < span[1] else "dim"
+            text.append(chr(b) if 32 <= b < 127 else ".", style)
+        text.append("\n")
+    return text
+
+
+def _fmt_value(p: dict) -> str:
+    v = p.get("value")
+    unit = p.get("unit")
+    s = f"{v}" + (f" {unit}" if unit else "")
+    if p.get("raw") is not None and p.get("raw") != v:
+        s += f" (raw {p.get('raw')})"
+    return s
+
+
+class DetailPane(Vertical):
+    DEFAULT_CSS = """
+    DetailPane { height: 1fr; border-top: solid $primary; }
+    DetailPane > Tree { height: 1fr; }
+    DetailPane > #hex { height: auto; max-height: 10; padding: 0 1; }
+    """
+
+    def __init__(self, **kw) -> None:
+        super().__init__(**kw)
+        self.frame: Frame | None = None
+        self.t0_ns = 0
+        self.span: tuple[int, int] | None = None
+
+    def compose(self) -> ComposeResult:
+        tree: Tree = Tree("no frame selected", id="fields")
+        tree.show_root = True
+        yield tree
+        yield Static("", id="hex")
+
+    def show(self, f: Frame | None, t0_ns: int = 0) -> None:
+        self.frame, self.t0_ns, self.span = f, t0_ns, None
+        tree = self.query_one("#fields", Tree)
+        tree.clear()
+        if f is None:
+            tree.root.set_label("no frame selected")
+            self._hex()
+            return
+        t = (f.t_ns - t0_ns) / 1e9
+        head = f"#{f.index} {f.role} t={t:.6f}s {len(f.raw)}B"
+        if f.unit is not None:
+            head += f" unit {f.unit}"
+        if f.function is not None:
+            head += f" fc{f.function:02X}"
+        if f.model:
+            head += f" model {f.model}"
+        tree.root.set_label(head)
+        tree.root.data = (0, len(f.raw))
+        wire = tree.root.add("wire", expand=True, data=(0, len(f.raw)))
+        wire.add_leaf(f"protocol: {f.protocol}  time source: {f.time_source}")
+        if f.crc_ok is not None:
+            crc = "ok" if f.crc_ok else f"BAD (expected {f.crc_expected:04x})" if f.crc_expected is not None else "BAD"
+            wire.add_leaf(f"CRC: {crc}", data=(len(f.raw) - 2, len(f.raw)))
+        if f.pair is not None:
+            wire.add_leaf(f"pair: #{f.pair}" + (f"  latency {f.latency_ms:.2f} ms" if f.latency_ms is not None else ""))
+        if f.noise_reason:
+            wire.add_leaf(f"noise: {f.noise_reason}")
+        if f.summary:
+            tree.root.add_leaf(f"summary: {f.summary}")
+        if f.exception:
+            tree.root.add_leaf(f"exception {f.exception.get('code')}: {f.exception.get('name')}",
+                               data=(1, min(3, len(f.raw))))
+        if f.fields:
+            self._add_fields(tree.root.add("fields", expand=True), f.fields)
+        if f.points:
+            node = tree.root.add(f"points ({len(f.points)})", expand=True)
+            for p, span in zip(f.points, point_spans(f)):
+                addr = p.get("address")
+                pid = f" {p['id']}" if p.get("id") else ""
+                label = Text(f"{addr if addr is not None else '-'}{pid} {p.get('name', '')} = ")
+                label.append(_fmt_value(p), "bold")
+                pn = node.add(label, data=span, expand=False) if p.get("text") else node.add_leaf(label, data=span)
+                if p.get("text"):
+                    for part in str(p["text"]).split(", "):
+                        pn.add_leaf(part, data=span)
+        if f.annotations:
+            node = tree.root.add(f"annotations ({len(f.annotations)})", expand=True)
+            colour = {"error": "bold red", "warning": "yellow", "info": "dim"}
+            for a in f.annotations:
+                label = Text(f"{a.severity}: ", colour.get(a.severity))
+                label.append(f"{a.code} — {a.detail} [bytes {a.start}..{a.end - 1}]")
+                node.add_leaf(label, data=(a.start, a.end))
+        tree.root.expand()
+        self._hex()
+
+    def _add_fields(self, parent, fields) -> None:
+        for item in fields:
+            name, value, start, end, children = (list(item) + [None] * 5)[:5]
+            label = f"{name}: {value}" if value is not None else f"{name}"
+            if children:
+                self._add_fields(parent.add(label, data=(start, end)), children)
+            else:
+                parent.add_leaf(label, data=(start, end))
+
+    def _hex(self) -> None:
+        raw = self.frame.raw if self.frame is not None else b""
+        self.query_one("#hex", Static).update(hex_dump(raw, self.span))
+
+    def on_tree_node_highlighted(self, event: Tree.NodeHighlighted) -> None:
+        data = event.node.data
+        self.span = data if isinstance(data, tuple) else None
+        self._hex()

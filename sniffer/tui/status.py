@@ -1,0 +1,51 @@
+"""The status bar line: source, serial settings, low latency, capture file, rates."""
+
+from __future__ import annotations
+
+from rich.text import Text
+
+
+def _size(n: int | None) -> str:
+    if n is None:
+        return "-"
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1024 or unit == "GB":
+            return f"{n:.0f}{unit}" if unit == "B" else f"{n:.1f}{unit}"
+        n /= 1024
+    return str(n)
+
+
+def _low_latency(ll: dict) -> str:
+    if not ll:
+        return "low-latency ?"
+    if ll.get("simulated"):
+        return "low-latency sim"
+    ok = [k for k, v in ll.items() if v is True]
+    return "low-latency " + (",".join(ok) if ok else "off")
+
+
+def status_text(app) -> Text:
+    sink, store = app.sink, app.store
+    info = sink.info
+    parts = []
+    if info is not None:
+        src = app.source_label or info.port or info.source
+        line = f"{info.baud or '?'} {info.databits}{info.parity or 'N'}{info.stopbits or 1}"
+        parts.append(f"{src} {line} {info.protocol}")
+        parts.append(_low_latency(info.low_latency))
+    else:
+        parts.append(app.source_label or "waiting for source")
+    path = app.capture_path or sink.capture_path
+    if path:
+        parts.append(f"{path} {_size(app.capture_size())}")
+    parts.append(f"{len(store)} fr {app.frames_per_s:.0f} fr/s {_size(int(app.bytes_per_s))}/s")
+    parts.append(f"noise {store.noise_bytes}B")
+    parts.append(f"{app.clock() - app.t_start:.0f}s")
+    if store.filter.active:
+        parts.append(f"filter: {store.filter.describe()} ({len(store.view)})")
+    text = Text(" │ ".join(parts))
+    if store.paused:
+        text.append("  PAUSED", "bold black on yellow")
+    if sink.closed.is_set():
+        text.append("  [ended]" if not sink.error else f"  [error: {sink.error}]", "bold")
+    return text

@@ -1,0 +1,53 @@
+"""Units table: one row per unit seen on the bus."""
+
+from __future__ import annotations
+
+from textual.widgets import DataTable
+
+from .model import FrameStore
+
+COLUMNS = ("unit", "model", "req", "rsp", "CRC err", "exc", "timeouts", "lat min", "lat med", "lat max",
+           "poll/s", "last seen")
+
+
+def _ms(v: float | None) -> str:
+    return "-" if v is None else f"{v:.1f}"
+
+
+def unit_cells(st, t0_ns: int, guesses: dict | None = None, given: dict | None = None) -> tuple:
+    model = st.model or "-"
+    if given and st.unit in given:
+        model = f"{given[st.unit]} (given)"
+    elif guesses and st.unit in guesses:
+        g = guesses[st.unit]
+        model = f"{g[0]} (guess {g[1]:.0%})"
+    return (str(st.unit), model, str(st.requests), str(st.responses), str(st.crc_errors), str(st.exceptions),
+            str(st.timeouts), _ms(st.lat_min), _ms(st.lat_median), _ms(st.lat_max), f"{st.poll_rate:.1f}",
+            f"{(st.last_seen_ns - t0_ns) / 1e9:.3f}s")
+
+
+class UnitsTable(DataTable):
+    DEFAULT_CSS = "UnitsTable { height: 1fr; }"
+
+    def __init__(self, store: FrameStore, registry=None, **kw) -> None:
+        super().__init__(cursor_type="row", zebra_stripes=True, **kw)
+        self.store = store
+        self.registry = registry  # read only: its guesses are a dict the capture thread writes
+
+    def on_mount(self) -> None:
+        for c in COLUMNS:
+            self.add_column(c, key=c)
+        self.update_rows()
+
+    def update_rows(self) -> None:
+        reg = self.registry
+        guesses = dict(reg.guesses) if reg is not None else None  # dict() copies under the GIL
+        given = dict(reg.devices) if reg is not None else None
+        for st in self.store.unit_rows():
+            cells = unit_cells(st, self.store.t0_ns, guesses, given)
+            key = str(st.unit)
+            if key in self.rows:
+                for col, val in zip(COLUMNS[1:], cells[1:]):
+                    self.update_cell(key, col, val)
+            else:
+                self.add_row(*cells, key=key)

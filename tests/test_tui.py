@@ -1,0 +1,266 @@
+"""The TUI under Textual's Pilot, at a fixed size, over a deterministic replay."""
+
+import asyncio
+
+import pytest
+from tui_helpers import filled_sink, replay_frames
+
+from sniffer.tui.app import SnifferApp
+from sniffer.tui.model import F_PROBLEM
+
+SIZE = (140, 45)
+
+
+def make_app(name="errors.mcap") -> SnifferApp:
+    _, _, registry = replay_frames(name)
+    return SnifferApp(filled_sink(name), None, source_label=name, registry=registry, clock=lambda: 0.0)
+
+
+async def loaded(app, pilot):
+    app.poll()  # the timer would do the same within 1/15 s
+    await pilot.pause()
+    assert app.caught_up
+    return app
+
+
+def run(coro):
+    return asyncio.run(coro)
+
+
+def test_loads_and_follows_tail():
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            n = len(app.store)
+            assert n == len(replay_frames()[1])
+            assert app.frame_list.cursor == n - 1 and app.frame_list.follow
+            assert app.detail.frame is app.store.frames[-1]
+    run(go())
+
+
+def test_select_frame_and_detail_and_pair_jump():
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await pilot.press("home", "down", "down")
+            f = app.selected_frame
+            assert f is app.store.frames[2] and not app.frame_list.follow
+            assert app.detail.frame is f
+            assert f.role == "request" and f.pair is not None
+            await pilot.press("p")
+            g = app.selected_frame
+            assert g.index == f.pair and g.pair == f.index and g.role == "response"
+            assert app.detail.frame is g
+            await pilot.press("p")
+            assert app.selected_frame is f
+            await pilot.press("enter")  # into the detail tree; its nodes light bytes up
+            tree = app.detail.query_one("Tree")
+            assert app.focused is tree
+            spans = []
+            for _ in range(12):
+                await pilot.press("down")
+                spans.append(app.detail.span)
+            # fc16 request: the written registers' bytes (after unit, fc, addr, count, byte count)
+            assert (7, 9) in spans and (9, 11) in spans
+    run(go())
+
+
+def test_filter_by_unit_and_clear():
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await pilot.press("home", "down", "down")  # unit 2
+            await pilot.press("u")
+            assert app.store.filter.units == {2}
+            view = app.store.view
+            assert 0 < len(view) < len(app.store)
+            assert all(app.store.frames[r].unit == 2 for r in view)
+            assert app.selected_frame.index == 2  # the selection survives the filter
+            await pilot.press("u")
+            assert app.store.filter.units is None and len(app.store.view) == len(app.store)
+    run(go())
+
+
+def test_filter_bar():
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await pilot.press("slash")
+            await pilot.press(*"u:1 fc:3 role:rsp")
+            await pilot.press("enter")
+            f = app.store.filter
+            assert f.units == {1} and f.functions == {3} and f.roles == {"response"}
+            assert app.store.view and all(app.store.frames[r].unit == 1 for r in app.store.view)
+            await pilot.press("c")
+            assert not app.store.filter.active
+    run(go())
+
+
+def test_errors_only_and_jump_to_next_error():
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await pilot.press("home")
+            start = app.frame_list.selected_row
+            await pilot.press("n")
+            r1 = app.frame_list.selected_row
+            assert r1 > start and app.store.flags[r1] & F_PROBLEM
+            assert all(not app.store.flags[r] & F_PROBLEM for r in range(start + 1, r1))
+            await pilot.press("n")
+            r2 = app.frame_list.selected_row
+            assert r2 > r1 and app.store.flags[r2] & F_PROBLEM
+            await pilot.press("N")
+            assert app.frame_list.selected_row == r1
+            await pilot.press("e")
+            assert app.store.filter.errors_only
+            assert all(app.store.flags[r] & F_PROBLEM for r in app.store.view)
+            assert app.frame_list.selected_row == r1
+    run(go())
+
+
+def test_pause_keeps_view_while_frames_arrive():
+    async def go():
+        _, frames, registry = replay_frames()
+        from sniffer.tui.sink import TuiSink
+
+        sink = TuiSink()
+        sink.start(replay_frames()[0])
+        sink.frames(frames[:50])
+        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            app.poll()
+            await pilot.pause()
+            await pilot.press("space")
+            assert app.store.paused
+            sink.frames(frames[50:])
+            app.poll()
+            await pilot.pause()
+            assert len(app.store) == len(frames) and len(app.store.view) == 50
+            assert app.frame_list.cursor == 49
+            await pilot.press("space")
+            assert not app.store.paused and len(app.store.view) == len(frames)
+            assert app.frame_list.cursor == len(frames) - 1  # back to following the tail
+    run(go())
+
+
+def test_bookmarks_units_registers_help():
+    async def go():
+        app = make_app("a510.mcap")
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await pilot.press("home", "down", "m", "down", "down", "m", "home")
+            assert app.store.bookmarks == {1, 3}
+            await pilot.press("right_square_bracket")
+            assert app.frame_list.selected_row == 1
+            await pilot.press("right_square_bracket")
+            assert app.frame_list.selected_row == 3
+            await pilot.press("2")
+            await pilot.pause()
+            table = app.query_one("#unitstable")
+            assert table.row_count == len(app.store.units) == 2
+            await pilot.press("3")
+            await pilot.pause()
+            regs = app.query_one("#regs")
+            assert regs.row_count == len(app.store.registers) > 10
+            await pilot.press("question_mark")
+            assert type(app.screen).__name__ == "HelpScreen"
+            await pilot.press("escape")
+            assert type(app.screen).__name__ != "HelpScreen"
+    run(go())
+
+
+def test_replay_feed_thread_end_to_end():
+    """The real path: a replay decoded on the feed thread while the App polls."""
+    from tui_helpers import SIM
+
+    from decoders.registry import default_registry
+    from sniffer.line import LineSettings
+    from sniffer.sources.replay import open_replay
+    from sniffer.tui.run import replay_feed
+    from sniffer.tui.sink import TuiSink
+
+    async def go():
+        info, events = open_replay(str(SIM / "errors.mcap"))
+        reg = default_registry(info.devices)
+        feed = replay_feed(info, events, LineSettings(info.baud, info.parity, info.stopbits), reg,
+                           {"protocol": info.protocol})
+        app = SnifferApp(TuiSink(), feed, registry=reg)
+        async with app.run_test(size=SIZE) as pilot:
+            for _ in range(200):
+                await pilot.pause(0.05)
+                if app.caught_up and len(app.store) == app.sink.frames_in:
+                    break
+            assert app.feed_error is None
+            assert len(app.store) == len(replay_frames()[1])
+            await pilot.press("q")
+    run(go())
+
+
+@pytest.mark.parametrize("name", ["errors.mcap"])
+def test_mouse_click_selects(name):
+    async def go():
+        app = make_app(name)
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await pilot.press("home")
+            await pilot.click("#list", offset=(10, 3))
+            assert app.frame_list.cursor == 3
+    run(go())
+
+
+def test_demo_feed_live_path(tmp_path):
+    """The live path for real: the simulated bus on a pty, captured by capture() on the feed thread."""
+    import argparse
+
+    from sniffer.cli import _registry
+    from sniffer.tui.run import demo_feed
+    from sniffer.tui.sink import TuiSink
+
+    args = argparse.Namespace(scenario="errors", duration=1.5, seed=1, out=str(tmp_path / "d.mcap"),
+                              device=None, model_file=None, bus=None, protocol=None)
+    feed, label, path, registry = demo_feed(args, _registry)
+
+    async def go():
+        app = SnifferApp(TuiSink(), feed, source_label=label, capture_path=path, registry=registry)
+        async with app.run_test(size=SIZE) as pilot:
+            for _ in range(300):
+                await pilot.pause(0.05)
+                if app.caught_up and len(app.store) == app.sink.frames_in:
+                    break
+            assert app.feed_error is None, app.feed_error
+            assert len(app.store) > 20 and app.store.units
+            assert app.capture_size() and app.capture_size() > 0
+            await pilot.press("q")
+
+    run(go())
+
+
+def test_quit_stops_a_running_capture(tmp_path):
+    import argparse
+
+    from sniffer.cli import _registry
+    from sniffer.tui.run import demo_feed
+    from sniffer.tui.sink import TuiSink
+
+    args = argparse.Namespace(scenario="default", duration=60, seed=1, out=str(tmp_path / "d.mcap"),
+                              device=None, model_file=None, bus=None, protocol=None)
+    feed, label, path, registry = demo_feed(args, _registry)
+
+    async def go():
+        app = SnifferApp(TuiSink(), feed, source_label=label, capture_path=path, registry=registry)
+        async with app.run_test(size=SIZE) as pilot:
+            for _ in range(200):
+                await pilot.pause(0.05)
+                if len(app.store) > 10:
+                    break
+            assert len(app.store) > 10
+            await pilot.press("q")
+        assert not app._thread.is_alive()  # stop event -> capture finished, MCAP closed
+        assert app.sink.closed.is_set() and app.feed_error is None
+
+    run(go())

@@ -1,0 +1,56 @@
+"""Snapshot tests of the main views (pytest-textual-snapshot), 140x45, deterministic replay.
+
+Update after a reviewed change: `.venv/bin/pytest tests/test_tui_snapshots.py --snapshot-update`.
+"""
+
+import pytest
+
+pytest.importorskip("pytest_textual_snapshot")
+
+from tui_helpers import filled_sink, replay_frames
+
+from sniffer.tui.app import SnifferApp
+
+SIZE = (140, 45)
+
+
+def make_app(name):
+    _, _, registry = replay_frames(name)
+    return SnifferApp(filled_sink(name), None, source_label=name, registry=registry, clock=lambda: 0.0)
+
+
+async def _load(pilot):
+    pilot.app.poll()
+    await pilot.pause()
+
+
+def test_frames_errors(snap_compare):
+    async def before(pilot):
+        await _load(pilot)
+        await pilot.press("home", "n", "n", "n", "n")  # an exception response
+
+    assert snap_compare(make_app("errors.mcap"), terminal_size=SIZE, run_before=before)
+
+
+def test_frames_errors_only_detail(snap_compare):
+    async def before(pilot):
+        await _load(pilot)
+        await pilot.press("e", "home", "down", "enter", "down", "down", "down")
+
+    assert snap_compare(make_app("errors.mcap"), terminal_size=SIZE, run_before=before)
+
+
+def test_units(snap_compare):
+    async def before(pilot):
+        await _load(pilot)
+        await pilot.press("2")
+
+    assert snap_compare(make_app("errors.mcap"), terminal_size=SIZE, run_before=before)
+
+
+def test_registers(snap_compare):
+    async def before(pilot):
+        await _load(pilot)
+        await pilot.press("3", "down", "down")
+
+    assert snap_compare(make_app("a510.mcap"), terminal_size=SIZE, run_before=before)

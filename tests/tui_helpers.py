@@ -1,0 +1,43 @@
+"""Deterministic replays for the TUI tests: decode a capture once, hand out its frames."""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+from decoders.registry import default_registry
+from sniffer.line import LineSettings
+from sniffer.pipeline import Pipeline
+from sniffer.sources.replay import open_replay
+from sniffer.tui.sink import TuiSink
+
+SIM = Path(__file__).resolve().parent.parent / "captures" / "sim"
+
+
+@functools.cache
+def _decode(name: str):
+    info, events = open_replay(str(SIM / name))
+    registry = default_registry(info.devices)
+    sink = TuiSink()
+    p = Pipeline(info, LineSettings(info.baud, info.parity or "N", info.stopbits or 1), registry, [sink],
+                 protocol=info.protocol)
+    for ev in events:
+        p.feed(ev)
+    p.finish()
+    return info, sink.drain(), registry
+
+
+def replay_frames(name: str = "errors.mcap"):
+    """(CaptureInfo, frames, registry) of a simulated capture; frames are shared, do not mutate them."""
+    return _decode(name)
+
+
+def filled_sink(name: str = "errors.mcap") -> TuiSink:
+    """A sink as a finished replay leaves it: every frame pending, closed."""
+    info, frames, _ = replay_frames(name)
+    sink = TuiSink()
+    sink.start(info)
+    sink.frames(frames)
+    sink.bytes_in = sum(len(f.raw) for f in frames)
+    sink.close()
+    return sink
