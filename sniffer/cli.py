@@ -191,7 +191,7 @@ def cmd_replay(args) -> int:
     if args.progress:
         from .export.progress import ReplayProgress
 
-        bar = ReplayProgress(args.file)
+        bar = ReplayProgress(args.file, events=events)
         bar.frames = lambda: p.frames_out
     try:
         for i, ev in enumerate(events):

@@ -33,7 +33,7 @@ def estimate_events(path) -> int | None:
 
 
 class ReplayProgress:
-    def __init__(self, capture, every: int = 500) -> None:
+    def __init__(self, capture, every: int = 500, events=None) -> None:
         from rich.console import Console
         from rich.progress import (
             BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn,
@@ -42,6 +42,11 @@ class ReplayProgress:
         self.every = every
         self._n = 0
         self.total = estimate_events(capture)
+        if self.total is None and events is not None:
+            import operator
+
+            # sources that read their file up front (CSV) know how many events they hold
+            self.total = operator.length_hint(events, 0) or None
         self._progress = Progress(
             SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
             TextColumn("{task.completed} events"), TextColumn("{task.fields[frames]}"),
