@@ -59,3 +59,21 @@ class ListSink:
 
     def close(self) -> None:
         pass
+
+
+_SIMULATED: dict = {}
+
+
+def simulate_and_decode(name: str, seconds: float, adapter: str = "wire", seed: int = 1,
+                        devices=None, protocol=None):
+    """(scenario, wire frames sent, frames decoded) for a simulated scenario; cached per arguments."""
+    from sniffer.simulator import get_scenario, simulate, usb_chunks, wire_chunks
+
+    key = (name, seconds, adapter, seed, tuple(sorted((devices or {}).items())), protocol)
+    if key not in _SIMULATED:
+        sc = get_scenario(name)
+        sent = list(simulate(sc, sc.line, seconds, seed))
+        chunks = wire_chunks(sent) if adapter == "wire" else usb_chunks(sent, seed=seed)
+        got = run_events(chunks, sc.line, devices=devices or sc.devices, protocol=protocol or sc.protocol)
+        _SIMULATED[key] = (sc, sent, got)
+    return _SIMULATED[key]

@@ -17,7 +17,7 @@ import sys
 from binascii import unhexlify
 
 import pytest
-from helpers import run_events
+from helpers import simulate_and_decode
 
 from decoders.registry import default_registry
 from sniffer.crc import lrc
@@ -29,9 +29,6 @@ from sniffer.simulator import (
     SCENARIOS,
     get_model,
     get_scenario,
-    simulate,
-    usb_chunks,
-    wire_chunks,
 )
 
 MODEL_SCENARIOS = ["tds-v8", "a510", "a510-ascii", "spl", "spl-ascii"]
@@ -45,18 +42,8 @@ MUST_RAISE = {
 }
 SECONDS = 10.0
 
-_cache: dict = {}
-
-
 def run(name: str, adapter: str = "wire", seed: int = 1):
-    key = (name, adapter, seed)
-    if key not in _cache:
-        sc = get_scenario(name)
-        sent = list(simulate(sc, sc.line, SECONDS, seed))
-        chunks = wire_chunks(sent) if adapter == "wire" else usb_chunks(sent, seed=seed)
-        got = run_events(chunks, sc.line, devices=sc.devices, protocol=sc.protocol)
-        _cache[key] = (sc, sent, got)
-    return _cache[key]
+    return simulate_and_decode(name, SECONDS, adapter, seed)
 
 
 def codes_of(f) -> list[str]:

@@ -18,7 +18,7 @@ import sys
 from collections import Counter
 
 import pytest
-from helpers import run_events
+from helpers import simulate_and_decode
 
 from decoders.pd_series.schema import CNTR_BITS, PARAMS, STATUS
 from sniffer.line import LineSettings
@@ -30,8 +30,6 @@ from sniffer.simulator import (
     KIND_RESPONSE,
     get_scenario,
     simulate,
-    usb_chunks,
-    wire_chunks,
 )
 from sniffer.simulator.pd_drive import LAST_PARAM, PD, data_method, status_scale
 from sniffer.simulator.pd_master import cntr
@@ -41,18 +39,8 @@ DEVICES = {1: "pd-series", 2: "pd-series", 0: "pd-series"}
 SECONDS = 30.0
 PROTOCOL = {"pd-series": "pd-rtu", "pd-series-ascii": "pd-ascii"}
 
-_cache: dict = {}
-
-
 def run(name: str, adapter: str = "wire", seed: int = 1):
-    key = (name, adapter, seed)
-    if key not in _cache:
-        sc = get_scenario(name)
-        sent = list(simulate(sc, sc.line, SECONDS, seed))
-        chunks = wire_chunks(sent) if adapter == "wire" else usb_chunks(sent, seed=seed)
-        got = run_events(chunks, sc.line, devices=DEVICES, protocol=PROTOCOL[name])
-        _cache[key] = (sc, sent, got)
-    return _cache[key]
+    return simulate_and_decode(name, SECONDS, adapter, seed, devices=DEVICES, protocol=PROTOCOL[name])
 
 
 def adu(f) -> bytes:
