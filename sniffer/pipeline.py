@@ -129,12 +129,13 @@ class Pipeline:
         sinks = self.sinks
         for f in frames:
             decode(f)
+            # a request is decoded before its response, which holds its own link to it:
+            # once decoded, a frame's link can go, so transactions are collected
+            f.peer = None
             if f.protocol == "noise":
                 self.noise_bytes += len(f.raw)
             for s in sinks:
                 s.frame(f)
-        for f in frames:
-            f.peer = None  # decoded: let transactions be collected
         self.frames_out += len(frames)
         return frames
 
