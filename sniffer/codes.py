@@ -74,9 +74,6 @@ T35_SHORT = Code(
 UART_FRAMING = Code("uart.framing_error", ERROR, "byte received with a framing error (bad stop bit)")
 UART_PARITY = Code("uart.parity_error", ERROR, "byte received with a parity error")
 NOISE = Code("noise.bytes", WARNING, "bytes that form no frame")
-READ_TIMESTAMPS = Code(
-    "time.per_read", INFO, "timestamps are per USB read, not per byte: timing is approximate"
-)
 SOURCE_GAP = Code("source.gap", WARNING, "capture interrupted (adapter lost); bytes may be missing")
 
 # --- pairing -----------------------------------------------------------------

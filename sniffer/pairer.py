@@ -86,14 +86,10 @@ class Pairer:
             f.peer = req
             req.peer = f
             lat = f.t_ns - req.t_end_ns
-            if f.time_source == "read" and lat <= 0:
-                # per-read times are estimated back from the read: a response read
-                # together with its request has no measurable turnaround
-                f.annotations.append(
-                    note(codes.READ_TIMESTAMPS, "latency unknown: request and response came in one read",
-                         0, len(f.raw))
-                )
-            else:
+            # per-read times are estimated back from the read: a response read together
+            # with its request has no measurable turnaround (latency stays null; the
+            # frame's time_source "read" says why)
+            if not (f.time_source == "read" and lat <= 0):
                 f.latency_ms = lat / 1e6
             if lat > self._timeout(req.unit):
                 f.annotations.append(

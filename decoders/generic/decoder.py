@@ -57,8 +57,8 @@ class GenericModbus:
         if fc & 0x80:
             self._exception(f, fc, body)
             return
-        role = f.role if f.role in (REQUEST, RESPONSE) else REQUEST
-        reader = FAST.get((fc, role))
+        role = RESPONSE if f.role == RESPONSE else REQUEST
+        reader = (_FAST_RSP if role == RESPONSE else _FAST_REQ).get(fc)
         if reader is not None:
             parsed = reader(body)
         else:
@@ -232,6 +232,8 @@ def _dispatch(self, f, role, p, request, state):
 _HANDLERS = {fc: _dispatch for fc in FUNCTION_NAMES}
 
 
+_FAST_REQ = {fc: reader for (fc, role), reader in FAST.items() if role == REQUEST}
+_FAST_RSP = {fc: reader for (fc, role), reader in FAST.items() if role == RESPONSE}
 _NAME_CACHE: dict[tuple[str, int, int], list[str]] = {}
 
 
