@@ -18,7 +18,6 @@ Rules (one master, RTU):
 
 from __future__ import annotations
 
-from collections import deque
 
 from . import codes
 from .codes import note
@@ -32,7 +31,7 @@ class Pairer:
         self.timeout_ns = int(timeout_ms * 1e6)
         self.unit_timeouts = {u: int(ms * 1e6) for u, ms in (unit_timeouts or {}).items()}
         self.pending: Frame | None = None
-        self.held: deque[Frame] = deque()
+        self.held: list[Frame] = []  # the pending request and what came after it
         self.last_request: Frame | None = None  # for broadcast-response detection
 
     def _timeout(self, unit: int) -> int:
@@ -99,9 +98,9 @@ class Pairer:
                    if req.crc_ok and f.crc_ok and f.protocol.startswith("modbus") else None)
             if why:
                 f.annotations.append(note(codes.PAIR_MISMATCH, why, 0, len(f.raw)))
-            out = list(self.held)
-            self.held.clear()
+            out = self.held  # the request and anything held since: settled now
             out.append(f)
+            self.held = []
             return out
         last = self.last_request
         if req is None and last is not None and last.unit == 0 and last.index == f.index - 1:
@@ -120,15 +119,16 @@ class Pairer:
         return [f]
 
     def _request(self, f: Frame) -> list[Frame]:
-        out: list[Frame] = []
         req = self.pending
-        if req is not None:
+        if req is not None:  # held is empty unless a request is pending
             self._unanswered(req, f.t_ns)
             if req.raw == f.raw:
                 f.annotations.append(note(codes.RETRY, f"repeats frame #{req.index}", 0, len(f.raw)))
-            out.extend(self.held)
-            self.held.clear()
+            out = self.held
+            self.held = []
             self.pending = None
+        else:
+            out = []
         self.last_request = f
         if f.unit == 0:
             f.annotations.append(note(codes.BROADCAST, "no response expected", 0, 1))
@@ -160,8 +160,8 @@ class Pairer:
         )
         req.annotations.append(note(codes.NO_RESPONSE, "no response", 0, len(req.raw)))
         self.pending = None
-        out = list(self.held)
-        self.held.clear()
+        out = self.held
+        self.held = []
         return out
 
     def flush(self) -> list[Frame]:
@@ -171,8 +171,8 @@ class Pairer:
                 note(codes.END_OF_CAPTURE, "capture ended while waiting for the response", 0, len(req.raw))
             )
             self.pending = None
-        out = list(self.held)
-        self.held.clear()
+        out = self.held
+        self.held = []
         return out
 
 
