@@ -108,10 +108,7 @@ class LineBuffer:
 
     def tick(self, t_ns: int) -> list[Frame]:
         """Silence until t_ns: once it exceeds t3.5 (+ read slack), close what is pending."""
-        if self.closed or self.last_t_end is None or self.pos >= self.base + len(self.buf):
-            return []
-        limit = self.hard_ns + (self.read_slack_ns if self._per_read_tail() else 0)
-        if t_ns - self.last_t_end <= limit:
+        if not self.would_close(t_ns):
             return []
         self.closed = True
         return self._run()

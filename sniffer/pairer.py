@@ -150,10 +150,15 @@ class Pairer:
                      f"{self._timeout(req.unit) / 1e6:.0f} ms", 0, len(req.raw))
             )
 
-    def tick(self, t_ns: int) -> list[Frame]:
+    def would_time_out(self, t_ns: int) -> bool:
+        """True if tick(t_ns) would settle the pending request (used to record effective ticks)."""
         req = self.pending
-        if req is None or t_ns - req.t_end_ns <= self._timeout(req.unit):
+        return req is not None and t_ns - req.t_end_ns > self._timeout(req.unit)
+
+    def tick(self, t_ns: int) -> list[Frame]:
+        if not self.would_time_out(t_ns):
             return []
+        req = self.pending
         req.annotations.append(
             note(codes.TIMEOUT, f"unit {req.unit}: no response within "
                  f"{self._timeout(req.unit) / 1e6:.0f} ms", 0, len(req.raw))

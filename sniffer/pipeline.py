@@ -74,10 +74,7 @@ class Pipeline:
             self.bytes_in += len(ev.data)
             return self._settle(self.framer.feed(ev))
         if type(ev) is Tick:
-            if not self.framer.would_close(ev.t_ns) and (
-                self.pairer.pending is None
-                or ev.t_ns - self.pairer.pending.t_end_ns <= self.pairer._timeout(self.pairer.pending.unit)
-            ):
+            if not self.framer.would_close(ev.t_ns) and not self.pairer.would_time_out(ev.t_ns):
                 return []  # a tick that changes nothing is not recorded
             for s in self.sinks:
                 s.raw(ev)
