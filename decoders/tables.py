@@ -6,9 +6,10 @@ One loader for the built-in drive models and for `--model-file`; the lint
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from sniffer.tomlfile import read_toml
 
 
 class MapError(ValueError):
@@ -102,13 +103,7 @@ def _parse_bits(table: dict) -> list[dict]:
 
 def load_map(path: str | Path) -> RegisterMap:
     path = str(path)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except OSError as e:
-        raise MapError(f"{path}: {e.strerror or e}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise MapError(f"{path}: not valid TOML ({e})") from None
+    doc = read_toml(path, MapError)
     model = doc.get("model")
     if not isinstance(model, dict) or not model.get("id"):
         raise MapError(f"{path}: no [model] table with an id")

@@ -15,8 +15,9 @@
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
+
+from .tomlfile import read_toml
 
 
 class BusFileError(ValueError):
@@ -34,13 +35,7 @@ class BusFile:
 
 
 def load_bus_file(path: str) -> BusFile:
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except OSError as e:
-        raise BusFileError(f"{path}: {e.strerror or e}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise BusFileError(f"{path}: not valid TOML ({e})") from None
+    doc = read_toml(path, BusFileError)
     bus = BusFile()
     serial = doc.get("serial", {})
     bus.baud = serial.get("baud")
