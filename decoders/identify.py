@@ -58,6 +58,11 @@ class Identifier:
                 out.append(mid)
         return out
 
+    def settled(self, unit: int) -> bool:
+        """True once a unit's verdict stands: observe() will not change it any more."""
+        ev = self.units.get(unit)
+        return ev is not None and ev.seen >= SETTLED
+
     def observe(self, f: Frame) -> tuple[str, float, str] | None:
         """Feed one decoded-or-not frame; returns (model, confidence, evidence) when the guess changes."""
         if not f.crc_ok or f.unit in (None, 0) or len(f.adu) < 3:

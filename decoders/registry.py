@@ -40,6 +40,8 @@ class DecoderRegistry:
                 raise DeviceMapError(f"unknown model {model!r} for unit {unit} (known: {known})")
             self.devices[int(unit)] = model
         self.states: dict[int, UnitState] = {}
+        # unit -> (model, decoder.decode, state) once nothing can change the unit's model
+        self._routes: dict[int, tuple] = {}
         self.guesses: dict[int, tuple[str, float, str]] = {}  # unit -> (model, confidence, evidence)
         self._contradicted: set[int] = set()
         self.identifier = None
@@ -88,14 +90,17 @@ class DecoderRegistry:
         return st
 
     def decode(self, f: Frame) -> None:
-        if f.protocol == "noise" or f.unit is None:
+        unit = f.unit
+        if unit is None or f.protocol == "noise":
             return
-        self._identify(f)
-        model = self.model_for(f.unit)
+        route = self._routes.get(unit)
+        if route is None:
+            route = self._route(f)
+        model, decode, state = route
         f.model = model
         n0 = len(f.annotations)
         try:
-            self.decoders[model].decode(f, f.peer, self.state(f.unit))
+            decode(f, f.peer, state)
             if f.protocol.endswith("-ascii"):
                 _spans_to_text(f, n0)
         except Exception as e:  # a decoder bug must not stop a capture
@@ -104,6 +109,15 @@ class DecoderRegistry:
                      0, len(f.raw))
             )
 
+    def _route(self, f: Frame) -> tuple:
+        """Identify (while the unit's verdict can still change) and pick the decoder; cache when final."""
+        unit = f.unit
+        self._identify(f)
+        model = self.model_for(unit)
+        route = (model, self.decoders[model].decode, self.state(unit))
+        if self.identifier is None or self.identifier.settled(unit):
+            self._routes[unit] = route
+        return route
 
 def _spans_to_text(f: Frame, n0: int) -> None:
     """Decoder spans count ADU bytes; on an ASCII frame byte i is characters 1+2i, 2+2i."""

@@ -88,35 +88,37 @@ class RtuFramer(LineBuffer):
         index = self.index
         prev_end = self.prev_frame_end_ns
         modbus = _modbus
+        p0 = p
+        data = bytes(buf[p - base : lim])  # one copy per call: slices of bytes are bytes
+        lim -= p - base
+        end0 = s0 + len(c0.data)  # absolute end of the current read
         while True:
-            i = p - base
+            i = p - p0
             if i + 5 > lim:
                 break
-            cands = _quick(buf, i, lim)
+            cands = _quick(data, i, lim)
             if cands is None:
                 break
-            hit = None
-            for length, can in cands:
-                if i + length > lim:
+            length = 0
+            for n, can in cands:
+                if i + n > lim:
                     break
-                raw = bytes(buf[i : i + length])
+                raw = data[i : i + n]
                 if not modbus(raw):
-                    hit = length, can, raw
+                    length = n
                     break
-            if hit is None:
+            if not length:
                 break
-            length, can, raw = hit
             e = p + length
-            n0 = len(c0.data)
-            t0 = c0.t_ns - (s0 + n0 - p) * char
-            while e - 1 >= s0 + n0:  # the frame ends in a later read
+            t0 = c0.t_ns - (end0 - p) * char
+            while e > end0:  # the frame ends in a later read
                 k += 1
                 s0, c0 = segs[k]
-                n0 = len(c0.data)
+                end0 = s0 + len(c0.data)
                 if c0.byte_t_ns is not None:
                     self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
                     return
-            t1 = c0.t_ns - (s0 + n0 - e) * char
+            t1 = c0.t_ns - (end0 - e) * char
             fr = Frame(index, t0, t1, raw, "modbus-rtu", raw[0], raw[1], can, True, None, "read",
                        None if prev_end is None else t0 - prev_end, None, c0.channel)
             fr.adu = raw[:-2]
@@ -124,11 +126,12 @@ class RtuFramer(LineBuffer):
             index += 1
             prev_end = t1
             p = e
-            if e >= s0 + n0:
+            if e >= end0:
                 k += 1
                 if k >= nseg:
                     break
                 s0, c0 = segs[k]
+                end0 = s0 + len(c0.data)
                 if c0.byte_t_ns is not None:
                     break
         self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p

@@ -43,26 +43,22 @@ class Pairer:
                 self.held.append(f)
                 return []
             return [f]
-        pending = self.pending
         can = f.can
-        if can == CAN_REQ | CAN_RSP or can == 0:
-            if (
-                pending is not None
-                and _same_transaction(pending, f)
-                and f.t_ns - pending.t_end_ns <= self._timeout(pending.unit)
-            ):
-                role = RESPONSE
-            elif pending is None and self._answers_broadcast(f):
-                role = RESPONSE
-            else:
-                role = REQUEST
-        elif can & CAN_RSP:
-            role = RESPONSE
-        else:
-            role = REQUEST
-        f.role = role
-        if role == RESPONSE:
+        if can == CAN_RSP:
+            f.role = RESPONSE
             return self._response(f)
+        if can == CAN_REQ:
+            f.role = REQUEST
+            return self._request(f)
+        pending = self.pending  # the shape fits both: context decides
+        if (pending is not None and _same_transaction(pending, f)
+                and f.t_ns - pending.t_end_ns <= self._timeout(pending.unit)):
+            f.role = RESPONSE
+            return self._response(f)
+        if pending is None and self._answers_broadcast(f):
+            f.role = RESPONSE
+            return self._response(f)
+        f.role = REQUEST
         return self._request(f)
 
     def _answers_broadcast(self, f: Frame) -> bool:
@@ -78,8 +74,8 @@ class Pairer:
 
     def _response(self, f: Frame) -> list[Frame]:
         req = self.pending
-        if req is not None and _same_transaction(req, f):
-            self.pending = None
+        if req is not None and req.unit == f.unit and (f.function == req.function or f.function == req.function | 0x80):
+            self.pending = None  # (_same_transaction, inline: every response passes here)
             f.pair = req.index
             req.pair = f.index
             f.peer = req
@@ -90,7 +86,7 @@ class Pairer:
             # frame's time_source "read" says why)
             if not (f.time_source == "read" and lat <= 0):
                 f.latency_ms = lat / 1e6
-            if lat > self._timeout(req.unit):
+            if lat > self.unit_timeouts.get(req.unit, self.timeout_ns):
                 f.annotations.append(
                     note(codes.LATE_RESPONSE, f"{lat / 1e6:.1f} ms after the request", 0, len(f.raw))
                 )

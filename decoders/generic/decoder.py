@@ -7,6 +7,8 @@ of requests, responses, exceptions and the register shadow stays here.
 
 from __future__ import annotations
 
+import functools
+
 from construct import ConstructError
 
 from sniffer import codes
@@ -36,7 +38,7 @@ class GenericModbus:
         return {"name": name, "address": address, "raw": raw, "value": raw, "unit": None}
 
     def make_points(self, space: str, addr: int | None, values: list[int], state: UnitState) -> list[dict]:
-        """Points for consecutive registers (models override it to join 32-bit values)."""
+        """Points for consecutive registers or bits of one space (a model may override it to join 32-bit values)."""
         point = self.point
         if addr is None:
             return [point(space, None, v, state) for v in values]
@@ -58,18 +60,13 @@ class GenericModbus:
             self._exception(f, fc, body)
             return
         role = RESPONSE if f.role == RESPONSE else REQUEST
-        reader = (_FAST_RSP if role == RESPONSE else _FAST_REQ).get(fc)
-        if reader is not None:
-            parsed = reader(body)
-        else:
-            layout = LAYOUTS.get((fc, role))
-            if layout is None:
-                f.summary = f"function 0x{fc:02X} ({len(body)} data bytes)"
-                return
-            try:
-                parsed = layout.parse(body)
-            except (ConstructError, ValueError, IndexError, OverflowError):
-                parsed = None
+        hot = self._hot.get((fc, role))
+        if hot is None:  # no handler: a function code we only name
+            f.summary = (f"{FUNCTION_NAMES[fc]} {role}" if fc in FUNCTION_NAMES
+                         else f"function 0x{fc:02X} ({len(body)} data bytes)")
+            return
+        reader, handler = hot
+        parsed = reader(body)
         if parsed is None:
             f.annotations.append(
                 note_in(codes.DECODE_SHORT, f"{len(body)} data bytes too few for {FUNCTION_NAMES.get(fc, hex(fc))}",
@@ -77,11 +74,17 @@ class GenericModbus:
             )
             f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} (malformed)"
             return
-        handler = _HANDLERS.get(fc)
-        if handler is None:
-            f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} {role}"
-            return
-        handler(self, f, role, parsed, request, state)
+        handler(f, role, parsed, request, state)
+
+    @functools.cached_property
+    def _hot(self) -> dict:
+        """(function, role) -> (body reader, bound handler): one lookup per frame, subclass overrides kept."""
+        out = {}
+        for (fc, role), layout in LAYOUTS.items():
+            name = _handler_name(fc, role)
+            if name is not None:
+                out[fc, role] = (FAST.get((fc, role)) or _construct_reader(layout), getattr(self, name))
+        return out
 
     def _exception(self, f: Frame, fc: int, body: bytes) -> None:
         code = body[0] if body else None
@@ -96,7 +99,8 @@ class GenericModbus:
         fc = f.function
         a, q = p["address"], p["quantity"]
         f.summary = f"read {SPACE[fc]} {a}..{a + q - 1} ({q})"
-        self._check_qty(f, fc, q)
+        if not 1 <= q <= _MAX_QTY[fc]:
+            self._check_qty(f, fc, q)
 
     def _read_regs_rsp(self, f, role, p, request, state):
         fc = f.function
@@ -125,13 +129,10 @@ class GenericModbus:
         else:
             f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "bit numbers unknown", 2, len(f.adu)))
         shadow = state.coils if fc == 0x01 else state.discrete
-        pts = []
-        for i in range(qty):
-            bit = (status[i >> 3] >> (i & 7)) & 1
-            a = None if addr is None else addr + i
-            pts.append(self.point(space, a, bit, state))
-            if a is not None:
-                shadow[a] = bit
+        bits = [(status[i >> 3] >> (i & 7)) & 1 for i in range(qty)]
+        if addr is not None:
+            shadow.update(zip(range(addr, addr + qty), bits))
+        pts = self.make_points(space, addr, bits, state)
         f.points = pts
         f.summary = _points_summary(pts)
 
@@ -210,30 +211,37 @@ class GenericModbus:
             f.annotations.append(note(QUANTITY, f"quantity {q} (allowed 1..{hi})", 4, 6))
 
 
-def _dispatch(self, f, role, p, request, state):
-    fc = f.function
+def _handler_name(fc: int, role: str) -> str | None:
+    """The method that decodes a parsed body of this function and role (None: name it only)."""
+    if fc not in FUNCTION_NAMES:
+        return None
     if fc in (0x01, 0x02, 0x03, 0x04) and role == REQUEST:
-        return self._read_req(f, role, p, request, state)
+        return "_read_req"
     if fc in (0x03, 0x04):
-        return self._read_regs_rsp(f, role, p, request, state)
+        return "_read_regs_rsp"
     if fc in (0x01, 0x02):
-        return self._read_bits_rsp(f, role, p, request, state)
+        return "_read_bits_rsp"
     if fc in (0x05, 0x06):
-        return self._write_single(f, role, p, request, state)
+        return "_write_single"
     if fc in (0x0F, 0x10):
-        if role == REQUEST:
-            return self._write_multi_req(f, role, p, request, state)
-        return self._write_multi_rsp(f, role, p, request, state)
+        return "_write_multi_req" if role == REQUEST else "_write_multi_rsp"
     if fc == 0x17 and role == RESPONSE:
-        return self._rw_rsp(f, role, p, request, state)
-    return self._other(f, role, p, request, state)
+        return "_rw_rsp"
+    return "_other"
 
 
-_HANDLERS = {fc: _dispatch for fc in FUNCTION_NAMES}
+def _construct_reader(layout):
+    """A construct layout as a reader: the parsed Container, or None where the body does not fit."""
+
+    def read(body: bytes):
+        try:
+            return layout.parse(body)
+        except (ConstructError, ValueError, IndexError, OverflowError):
+            return None
+
+    return read
 
 
-_FAST_REQ = {fc: reader for (fc, role), reader in FAST.items() if role == REQUEST}
-_FAST_RSP = {fc: reader for (fc, role), reader in FAST.items() if role == RESPONSE}
 _NAME_CACHE: dict[tuple[str, int, int], list[str]] = {}
 
 
@@ -257,7 +265,8 @@ def _pt_text(pt: dict) -> str:
 
 
 def _points_summary(pts: list[dict], limit: int = 6) -> str:
-    text = " ".join([_pt_text(p) for p in pts[:limit]])
+    text = " ".join([f"{p['name']}={p['value']}" if not p["unit"] and not p.get("text") else _pt_text(p)
+                     for p in pts[:limit]])
     if len(pts) > limit:
         text += f" ... (+{len(pts) - limit})"
     return text
