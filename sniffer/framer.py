@@ -52,8 +52,9 @@ class RtuFramer(LineBuffer):
     def _run(self) -> list[Frame]:
         self._need = 0
         out: list[Frame] = []
-        if not self.flags and self.protocol == "modbus-rtu":  # not for subclasses' framings
-            self._fast(out)
+        if not self.flags and self.protocol == "modbus-rtu" and self._fast(out):  # not for subclasses' framings
+            self._compact()
+            return out  # waiting for the rest of a frame: _step would say _WAIT too
         while True:
             step = self._step(self.pos)
             if step is None:
@@ -62,17 +63,19 @@ class RtuFramer(LineBuffer):
         self._compact()
         return out
 
-    def _fast(self, out: list[Frame]) -> None:
+    def _fast(self, out: list[Frame]) -> bool:
         """Rule A for per-read bytes in one tight loop: the bulk of a USB capture.
 
         Same decisions as `_step` (shortest CRC-valid structural length first,
         never across a HARD boundary); it stops at the first byte it cannot
         settle alone (per-byte times, a flag, an unusual function code, a bad
-        CRC, bytes still to come) and `_step` carries on from there.
+        CRC, bytes still to come) and `_step` carries on from there.  True when
+        it stopped where `_step` would wait too: a candidate runs past the
+        bytes so far and more can come (`_need` set as `_crc_candidate` sets it).
         """
         buf, base = self.buf, self.base
         p = self.pos
-        limit, _final = self._avail(p)
+        limit, final = self._avail(p)
         lim = limit - base
         segs = self.segs
         k = 0
@@ -80,10 +83,10 @@ class RtuFramer(LineBuffer):
         while k < nseg and p >= segs[k][0] + len(segs[k][1].data):
             k += 1
         if k >= nseg:
-            return
+            return False
         s0, c0 = segs[k]
         if c0.byte_t_ns is not None:
-            return
+            return False
         char = self.char_ns
         index = self.index
         prev_end = self.prev_frame_end_ns
@@ -102,6 +105,10 @@ class RtuFramer(LineBuffer):
             length = 0
             for n, can in cands:
                 if i + n > lim:
+                    if not final:
+                        self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
+                        self._need = p + n
+                        return True
                     break
                 raw = data[i : i + n]
                 if not modbus(raw):
@@ -117,7 +124,7 @@ class RtuFramer(LineBuffer):
                 end0 = s0 + len(c0.data)
                 if c0.byte_t_ns is not None:
                     self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
-                    return
+                    return False
             t1 = c0.t_ns - (end0 - e) * char
             fr = Frame(index, t0, t1, raw, "modbus-rtu", raw[0], raw[1], can, True, None, "read",
                        None if prev_end is None else t0 - prev_end, None, c0.channel)
@@ -135,6 +142,7 @@ class RtuFramer(LineBuffer):
                 if c0.byte_t_ns is not None:
                     break
         self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
+        return False
 
     def _crc_candidate(self, p: int, end: int, final: bool):
         """First (shortest) structural candidate at p with a good CRC: (len, can, raw), False, or _WAIT."""
@@ -303,31 +311,42 @@ class RtuFramer(LineBuffer):
         self.pos = e
         return fr
 
+def _read_cands(lr: int) -> tuple:
+    if lr < 8:
+        return ((lr, CAN_RSP), (8, CAN_REQ))
+    if lr == 8:
+        return ((8, CAN_REQ | CAN_RSP),)
+    return ((8, CAN_REQ), (lr, CAN_RSP))
+
+
+# candidate tuples built once: a read's by its response byte count, a write-multiple's by
+# its request byte count (buf[i + 6]); _quick runs for every frame
+_READ_CANDS = tuple(_read_cands(bc + 5) for bc in range(256))
+_WRITE_CANDS = tuple(((8, CAN_RSP), (bc + 9, CAN_REQ)) for bc in range(256))
+_ECHO_CANDS = ((8, CAN_REQ | CAN_RSP),)
+_WRITE_WAIT = ((8, CAN_RSP),)
+_EXC_CANDS = ((5, CAN_RSP),)
+
+
 def _quick(buf, i: int, n: int):
     """Candidates (length, roles), shortest first, for the function codes of nearly all traffic.
 
     None when unit/function are not one of those cases (the full rules in
     rtu_layout apply).  Needs buf[i + 2] to exist (i + 2 < n).
     """
-    unit = buf[i]
-    if not 0 < unit <= 247:
+    if not 0 < buf[i] <= 247:
         return None
     fc = buf[i + 1]
     if fc in _READS:  # request 8 bytes, response byte count + 5
-        lr = buf[i + 2] + 5
-        if lr < 8:
-            return ((lr, CAN_RSP), (8, CAN_REQ))
-        if lr == 8:
-            return ((8, CAN_REQ | CAN_RSP),)
-        return ((8, CAN_REQ), (lr, CAN_RSP))
+        return _READ_CANDS[buf[i + 2]]
     if fc in _ECHOES:
-        return ((8, CAN_REQ | CAN_RSP),)
+        return _ECHO_CANDS
     if fc == 0x10 or fc == 0x0F:  # response 8 bytes, request byte count + 9
         if i + 8 > n:
-            return ((8, CAN_RSP),)  # the request is longer still: wait for the response length first
-        return ((8, CAN_RSP), (buf[i + 6] + 9, CAN_REQ))
+            return _WRITE_WAIT  # the request is longer still: wait for the response length first
+        return _WRITE_CANDS[buf[i + 6]]
     if fc & 0x80 and fc != 0x80:
-        return ((5, CAN_RSP),)
+        return _EXC_CANDS
     return None
 
 
