@@ -24,7 +24,7 @@ class Frame:
         "index", "t_ns", "t_end_ns", "raw", "protocol", "unit", "function",
         "can", "role", "crc_ok", "crc_expected", "time_source", "idle_before_ns",
         "annotations", "pair", "latency_ms", "model", "points", "exception",
-        "fields", "summary", "noise_reason", "channel", "peer", "adu",
+        "fields", "summary", "noise_reason", "channel", "peer", "adu", "encoded",
     )
 
     def __init__(
@@ -70,6 +70,7 @@ class Frame:
         self.peer: Frame | None = None  # the paired frame, until decoded (then dropped)
         # unit + PDU without CRC/LRC, in binary whatever the wire encoding (ASCII is hex text)
         self.adu: bytes = b""
+        self.encoded: tuple[int, bytes] | None = None  # (t0_ns, JSON record): records.frame_json
 
     @property
     def is_noise(self) -> bool:

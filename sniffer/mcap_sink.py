@@ -43,7 +43,7 @@ from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 from . import __version__
 from .events import CaptureInfo, Chunk, Gap, Tick
 from .frame import Frame
-from .records import FRAME_SCHEMA, dumps, frame_record
+from .records import FRAME_SCHEMA, frame_json
 
 CAPTURE_TOPIC = "/capture"
 RAW_TOPIC = "/raw"
@@ -293,7 +293,7 @@ class McapSink:
 
     def frame(self, frame: Frame) -> None:
         if self._usable():
-            self._write(self._ch_frames, frame.t_ns, dumps(frame_record(frame, self._t0)))
+            self._write(self._ch_frames, frame.t_ns, frame_json(frame, self._t0))
 
     def maybe_flush(self) -> None:
         """Flush if flush_interval_s has passed: call it from the live loop when idle."""

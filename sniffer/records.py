@@ -37,6 +37,20 @@ def frame_record(f: Frame, t0_ns: int) -> dict:
     }
 
 
+def frame_json(f: Frame, t0_ns: int) -> bytes:
+    """dumps(frame_record(f, t0_ns)), encoded once per frame for all the sinks that write it.
+
+    A frame is final when the sinks see it (decoded, paired), so the JSONL
+    stream, the MCAP `/frames` channel and the viewers' socket share one encoding.
+    """
+    enc = f.encoded
+    if enc is not None and enc[0] == t0_ns:
+        return enc[1]
+    data = orjson.dumps(frame_record(f, t0_ns))
+    f.encoded = (t0_ns, data)
+    return data
+
+
 def dumps(record: dict) -> bytes:
     return orjson.dumps(record)
 

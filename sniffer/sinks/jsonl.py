@@ -6,7 +6,7 @@ import sys
 from typing import BinaryIO
 
 from ..frame import Frame
-from ..records import dumps, frame_record
+from ..records import frame_json
 from .text import StreamSink
 
 
@@ -15,6 +15,6 @@ class JsonlSink(StreamSink):
         super().__init__(out or sys.stdout.buffer, flush)
 
     def frame(self, f: Frame) -> None:
-        self.out.write(dumps(frame_record(f, self.t0)) + b"\n")
+        self.out.write(frame_json(f, self.t0) + b"\n")
         if self.flush_each:
             self.out.flush()
