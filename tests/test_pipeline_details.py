@@ -164,3 +164,24 @@ def test_full_disk_stops_live_capture_cleanly(tmp_path):
     assert r2.returncode == 0, r2.stderr
     assert len(r2.stdout.splitlines()) > 10
     del resource
+
+
+def test_register_shadow_keeps_only_what_crc_good_frames_said():
+    """A corrupted read response is decoded for the eye, but its values do not enter the shadow."""
+    from decoders.registry import default_registry
+    from sniffer.pipeline import Pipeline
+    from sniffer.events import CaptureInfo
+
+    good = fr("0103020064")  # holding[10] = 100
+    bad = fr("01030201c8")[:-4] + "0000"  # 456, CRC broken
+    write_bad = fr("0106000a0309")[:-4] + "ffff"  # an echo of a write with a broken CRC
+    frames_hex = [fr("0103000a0001"), good, fr("0103000a0001"), bad, fr("0106000a0309"), write_bad]
+    reg = default_registry()
+    p = Pipeline(CaptureInfo(baud=L19.baud, parity=L19.parity, stopbits=L19.stopbits), L19, reg)
+    out = []
+    for ev in bursts(frames_hex, L19):
+        out += p.feed(ev)
+    out += p.finish()
+    rsp_bad = out[3]
+    assert rsp_bad.crc_ok is False and rsp_bad.points[0]["value"] == 456  # still shown
+    assert reg.states[1].holding[10] == 100  # ... but the shadow kept the CRC-good value

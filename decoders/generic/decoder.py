@@ -112,7 +112,7 @@ class GenericModbus:
         else:
             f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.adu)))
         shadow = state.holding if fc in (0x03, 0x17) else state.input
-        if addr is not None:
+        if addr is not None and f.crc_ok:  # the shadow holds what CRC-good frames said
             shadow.update(zip(range(addr, addr + len(values)), values))
         pts = self.make_points(space, addr, values, state)
         f.points = pts
@@ -130,7 +130,7 @@ class GenericModbus:
             f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "bit numbers unknown", 2, len(f.adu)))
         shadow = state.coils if fc == 0x01 else state.discrete
         bits = [(status[i >> 3] >> (i & 7)) & 1 for i in range(qty)]
-        if addr is not None:
+        if addr is not None and f.crc_ok:
             shadow.update(zip(range(addr, addr + qty), bits))
         pts = self.make_points(space, addr, bits, state)
         f.points = pts
@@ -144,11 +144,11 @@ class GenericModbus:
                 f.annotations.append(note(COIL_VALUE, f"value 0x{v:04X}", 4, 6))
             bit = 1 if v == 0xFF00 else 0
             pt = self.point("coil", a, bit, state)
-            if role == RESPONSE or f.unit == 0:
+            if f.crc_ok and (role == RESPONSE or f.unit == 0):
                 state.coils[a] = bit
         else:
             pt = self.point("holding", a, v, state)
-            if role == RESPONSE or f.unit == 0:
+            if f.crc_ok and (role == RESPONSE or f.unit == 0):
                 state.holding[a] = v
         f.points = [pt]
         verb = "write" if role == REQUEST else "wrote"
@@ -165,7 +165,7 @@ class GenericModbus:
                 pts.append(self.point("coil", a + i, (vals[i >> 3] >> (i & 7)) & 1, state))
         else:
             pts = self.make_points("holding", a, list(p["values"]), state)
-        if f.unit == 0:
+        if f.unit == 0 and f.crc_ok:
             self._commit(pts, fc, state)
         f.points = pts
         f.summary = "write " + _points_summary(pts)
@@ -187,7 +187,7 @@ class GenericModbus:
         fc = f.function
         items = ", ".join(f"{k}={_short(v)}" for k, v in p.items() if not k.startswith("_"))
         f.summary = f"{FUNCTION_NAMES[fc]} {role}: {items}" if items else f"{FUNCTION_NAMES[fc]} {role}"
-        if fc == 0x16 and role == RESPONSE:
+        if fc == 0x16 and role == RESPONSE and f.crc_ok:
             a = p["address"]
             old = state.holding.get(a)
             if old is not None:
@@ -199,8 +199,9 @@ class GenericModbus:
         if request is not None and request.crc_ok and len(request.adu) >= 6:
             addr = (request.adu[2] << 8) | request.adu[3]
             f.points = [self.point("holding", addr + i, v, state) for i, v in enumerate(p["values"])]
-            for pt in f.points:
-                state.holding[pt["address"]] = pt["raw"]
+            if f.crc_ok:
+                for pt in f.points:
+                    state.holding[pt["address"]] = pt["raw"]
             f.summary = _points_summary(f.points)
         else:
             self._read_regs_rsp(f, role, p, None, state)
