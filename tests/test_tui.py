@@ -7,6 +7,8 @@ from tui_helpers import filled_sink, replay_frames
 
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.model import F_PROBLEM
+from sniffer.tui.shadow import SHADOW_TABLES
+from sniffer.tui.sink import TuiSink
 
 SIZE = (140, 45)
 
@@ -197,7 +199,42 @@ def test_replay_feed_thread_end_to_end():
                     break
             assert app.feed_error is None
             assert len(app.store) == len(replay_frames()[1])
+            # the register watch is the decoders' shadow, read on the feed thread frame by frame
+            assert app.sink.tap is not None and app.store.book.from_shadow
+            shadow = {(u, table, a): v for u, st in reg.states.items() for attr, table in SHADOW_TABLES
+                      for a, v in getattr(st, attr).items()}
+            assert {k: rv.raw for k, rv in app.store.registers.items()} == shadow
+            await pilot.press("3")
+            await pilot.pause()
+            assert app.query_one("#regs").row_count == len(shadow) > 100
             await pilot.press("q")
+    run(go())
+
+
+def test_register_watch_without_registry_builds_the_shadow_from_points():
+    """A viewer that only gets frames (records over a socket, say) has no registry to read."""
+
+    async def go():
+        info, frames, registry = replay_frames("a510.mcap")
+        sink = TuiSink()
+        sink.start(info)
+        sink.frames(frames)
+        sink.close()
+        app = SnifferApp(sink, None, clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            assert not app.store.book.from_shadow
+            await pilot.press("3")
+            regs = app.query_one("#regs")
+            regs.focus()
+            await pilot.press("down")
+            await pilot.pause()
+            assert regs.row_count == len(app.store.registers) == sum(len(st.holding) for st in registry.states.values())
+            watch = app.query_one("#regwatch")
+            assert watch.chosen == (1, "holding", 9474)
+            assert "Frequency command" in str(app.query_one("#spark-label").render())
+            cells = [str(c) for c in regs.get_row("1:holding:9474")]
+            assert cells[:5] == ["1", "holding", "9474", "Frequency command", "44.5"] and cells[6] == "4450"
     run(go())
 
 

@@ -1,11 +1,14 @@
 """The TUI's store and sink, without Textual."""
 
+import random
 import threading
 
-from tui_helpers import replay_frames
+import pytest
+from tui_helpers import replay_frames, replay_shadow
 
 from sniffer.tui.filters import filter_expr, parse_filter
-from sniffer.tui.model import F_EXC, F_NOISE, F_PROBLEM, F_TIMEOUT, Filter, FrameStore
+from sniffer.tui.model import F_EXC, F_NOISE, F_PROBLEM, F_TIMEOUT, Filter, FrameStore, frame_flags
+from sniffer.tui.shadow import SHADOW_TABLES
 from sniffer.tui.sink import TuiSink
 
 
@@ -172,3 +175,274 @@ def test_records_round_trip_into_the_store():
     ua, ub = a.units[1], b.units[1]
     assert (ua.requests, ua.responses, ua.exceptions, ua.timeouts) == (ub.requests, ub.responses, ub.exceptions,
                                                                         ub.timeouts)
+
+
+# ---------------------------------------------------------------- the compact store
+def _brute_passes(f, flags, flt) -> bool:
+    """The filter as the store applied it when it kept every Frame (written out again, independently)."""
+    if flt.errors_only and not flags & F_PROBLEM:
+        return False
+    if flt.units is not None and f.unit not in flt.units:
+        return False
+    if flt.functions is not None and (f.function is None or (f.function & 0x7F) not in flt.functions):
+        return False
+    if flt.roles is not None and f.role not in flt.roles:
+        return False
+    if not flt.text:
+        return True
+    t = flt.text
+    return (t in f.summary.lower() or any(t in a.code or t in a.detail.lower() for a in f.annotations)
+            or t in f.raw.hex() or t in (f.model or "") or t in (f.noise_reason or "").lower() or t == f.role)
+
+
+def _all_frames():
+    info, a, _ = replay_frames("errors.mcap")
+    _, b, _ = replay_frames("a510.mcap")
+    return info, list(a) + list(b)
+
+
+def test_compact_store_gives_back_what_was_added_across_blocks_and_eviction():
+    from sniffer.records import frame_record
+    from sniffer.tui.framepack import pack
+
+    info, frames = _all_frames()
+    s = FrameStore(info.t0_ns, block=16, frame_cache=8)
+    s.add(frames[:100])
+    s.add(frames[100:])
+    assert len(s) == len(frames) and s.blocks.sealed_rows == len(frames) // 16 * 16 and s.blocks.tail
+    s.blocks.clear_cache()
+    order = list(range(len(frames)))
+    random.Random(3).shuffle(order)  # jump between blocks: the caches evict all the time
+    for row in order + order[:50]:
+        got, want = s.frame(row), frames[row]
+        assert frame_record(got, info.t0_ns) == frame_record(want, info.t0_ns)
+        assert pack(got) == pack(want)  # every slot, not only what the record says
+        assert got.annotations == want.annotations and all(type(a) is type(w) for a, w in
+                                                           zip(got.annotations, want.annotations))
+    assert s.frames[-1].index == frames[-1].index and [f.index for f in s.frames[3:6]] == [3, 4, 5]
+    assert [f.index for f in s.frames] == [f.index for f in frames]
+    assert len(s.frames) == len(frames)
+    for row in range(len(frames)):
+        assert s.pair_row(row) == (None if frames[row].pair is None else s.row_of.get(frames[row].pair))
+        assert s.t_ns[row] == frames[row].t_ns
+
+
+class Level:  # a decoder's own type in a point: marshal cannot write it, pickle can
+    def __init__(self, v):
+        self.v = v
+
+    def __eq__(self, other):
+        return isinstance(other, type(self)) and other.v == self.v
+
+
+@pytest.mark.parametrize("local", [False, True], ids=["pickled", "kept as objects"])
+def test_compact_store_keeps_a_value_marshal_cannot_write(local):
+    from sniffer.frame import Frame
+
+    class LocalLevel(Level):  # not even picklable
+        pass
+
+    kind = LocalLevel if local else Level
+    s = FrameStore(block=4, frame_cache=1)
+    for i in range(9):
+        f = Frame(i, i * 1000, i * 1000 + 500, bytes([1, 3, 0, i]), "modbus-rtu", 1, 3)
+        f.points = [{"name": "x", "address": i, "raw": i, "value": kind(i), "unit": None}]
+        s.add([f])
+    s.blocks.clear_cache()
+    assert [s.frame(r).points[0]["value"] for r in range(9)] == [kind(i) for i in range(9)]
+    s.update_filter(text="0103")
+    assert list(s.view) == list(range(9))
+
+
+FILTERS = [
+    {"units": frozenset({2})}, {"units": frozenset({1, 9})}, {"functions": frozenset({3})},
+    {"functions": frozenset({16}), "errors_only": True}, {"roles": frozenset({"noise"})},
+    {"roles": frozenset({"request", "unknown"})}, {"errors_only": True},
+    {"text": "illegal"}, {"text": "ILLEGAL DATA"}, {"text": "crc"}, {"text": "0110"}, {"text": "10200"},
+    {"text": "modbus.crc.mismatch"}, {"text": "a510"}, {"text": "noise"}, {"text": "request"},
+    {"text": "response", "units": frozenset({2})}, {"text": "frequency", "roles": frozenset({"response"})},
+    {"text": "no such thing"}, {"units": frozenset({3}), "text": "timeout", "errors_only": True},
+]
+
+
+@pytest.mark.parametrize("kw", FILTERS, ids=lambda kw: " ".join(f"{k}={v}" for k, v in kw.items()))
+def test_filters_give_the_rows_a_brute_force_check_gives(kw):
+    info, frames = _all_frames()
+    s = FrameStore(info.t0_ns, block=32)
+    s.add(frames[:300])
+    flt = s.update_filter(**kw)
+    s.add(frames[300:])  # arriving under the filter: the per-frame test
+    flags = [frame_flags(f) for f in frames]
+    want = [r for r, f in enumerate(frames) if _brute_passes(f, flags[r], flt)]
+    assert list(s.view) == want
+    s.set_filter(flt)  # rebuilt from the columns and the packed search text
+    assert list(s.view) == want
+    s.pause(True)
+    s.add(frames[:40])  # paused: the view keeps its range
+    s.update_filter(**kw)
+    assert list(s.view) == want
+
+
+def test_row_index_takes_frames_out_of_order():
+    from sniffer.tui.model import RowIndex
+
+    ix = RowIndex()
+    for row, index in enumerate([0, 1, 5, 3, 6, 7, 2, 9]):
+        ix.add(index, row)
+    assert [ix.get(i) for i in (0, 1, 5, 3, 6, 7, 2, 9)] == list(range(8))
+    assert ix.get(4) is None and 8 not in ix and ix[9] == 7
+
+
+# ---------------------------------------------------------------- register watch from the shadow
+SHADOW_CAPTURES = ["errors.mcap", "a510.mcap", "tds-v8.mcap", "pd-series.mcap", "spl-ascii.mcap"]
+
+
+def _registry_shadow(registry) -> dict:
+    out = {}
+    for unit, st in registry.states.items():
+        for attr, table in SHADOW_TABLES:
+            for a, v in getattr(st, attr).items():
+                out[(unit, table, a)] = v
+    return out
+
+
+@pytest.mark.parametrize("name", SHADOW_CAPTURES)
+def test_register_watch_is_the_registry_shadow(name):
+    info, frames, registry = replay_frames(name)
+    s = FrameStore(info.t0_ns, registers_from_shadow=True)
+    shadow = replay_shadow(name)
+    s.add(frames[:57], [e for e in shadow if e[0] < 57])  # entries arrive with (or after) their frames
+    s.add(frames[57:], [e for e in shadow if e[0] >= 57])
+    assert {k: rv.raw for k, rv in s.registers.items()} == _registry_shadow(registry)
+    rows = s.register_rows()
+    assert any(rv.changes for rv in rows) and any(len(rv.history) > 1 for rv in rows)
+    for rv in rows:  # a value decoded from the shadow's raw, never a stale one
+        if rv.history:
+            assert rv.history[-1] == float(rv.value)
+
+
+@pytest.mark.parametrize("name", SHADOW_CAPTURES)
+def test_without_a_registry_the_points_give_the_same_shadow(name):
+    info, frames, registry = replay_frames(name)
+    a = FrameStore(info.t0_ns)
+    a.add(frames)
+    b = FrameStore(info.t0_ns, registers_from_shadow=True)
+    b.add(frames, replay_shadow(name))
+    assert {k: rv.raw for k, rv in a.registers.items()} == _registry_shadow(registry)
+    # the generic decoder also shadows a read response that failed its CRC (the points mode does not):
+    # those registers may count more changes in the shadow's watch
+    mangled = {(u, table, a) for seq, u, _t, entries in replay_shadow(name) for table, a, _raw, _p in entries
+               if frames[seq].crc_ok is False}
+    for k, rv in b.registers.items():
+        if k in mangled:
+            continue
+        ra = a.registers[k]
+        assert (ra.name, ra.value, ra.eng_unit, ra.text, ra.changes, list(ra.history)) == \
+               (rv.name, rv.value, rv.eng_unit, rv.text, rv.changes, list(rv.history))
+
+
+def _modbus(index, t_ms, raw_hex, role, pair=None, points=(), unit=1, function=0x10, crc_ok=True):
+    from sniffer.frame import Frame
+
+    f = Frame(index, t_ms * 1_000_000, t_ms * 1_000_000 + 500_000, bytes.fromhex(raw_hex), "modbus-rtu", unit,
+              function, crc_ok=crc_ok)
+    f.role, f.pair, f.points = role, pair, [dict(p) for p in points]
+    return f
+
+
+def test_a_write_enters_the_watch_when_its_response_confirms_it():
+    pts = [{"name": "holding[8192]", "address": 8192, "raw": 7, "value": 7, "unit": None}]
+    s = FrameStore()
+    s.add([_modbus(0, 0, "00", "request", points=pts)])
+    assert not s.registers  # not written yet as far as anyone knows
+    s.add([_modbus(1, 5, "00", "response", pair=0)])
+    assert s.registers[(1, "holding", 8192)].raw == 7
+    s.add([_modbus(2, 10, "00", "request", points=[dict(pts[0], raw=9, value=9)]),
+           _modbus(3, 15, "00", "response", pair=2, crc_ok=False)])  # a mangled answer confirms nothing
+    assert s.registers[(1, "holding", 8192)].raw == 7
+    s.add([_modbus(4, 20, "00", "request", unit=0, points=[dict(pts[0], raw=11, value=11)])])  # broadcast
+    assert s.registers[(0, "holding", 8192)].raw == 11
+
+
+def test_shadow_tap_reports_what_the_decoder_kept_and_sweeps_the_rest():
+    from decoders.base import UnitState
+    from sniffer.tui.shadow import ShadowTap
+
+    st = UnitState(1)
+    tap = ShadowTap({1: st}, clock=lambda: 0.0)
+    pt = {"name": "holding[5]", "address": 5, "raw": 3, "value": 3, "unit": None}
+    read = _modbus(1, 0, "00", "response", pair=0, points=[pt], function=3)
+    st.holding[5] = 3
+    assert tap.observe(read) == [("holding", 5, 3, pt)]
+    st.holding[5] = 4  # the decoder kept another value than the point says: the shadow wins
+    assert tap.observe(read) == [("holding", 5, 4, None)]
+    assert tap.observe(read) is None  # unchanged and not what the point says: nothing new
+    st.holding[6] = 1  # set by something the tap does not look at (a mask write)
+    st.coils[0] = 1
+    assert sorted(tap.sweep()[0][1]) == [("coil", 0, 1, None), ("holding", 6, 1, None)]
+    assert tap.sweep() == []
+
+
+def test_sink_hands_shadow_entries_out_with_their_frames():
+    _, frames, _ = replay_frames("a510.mcap")
+    shadow = replay_shadow("a510.mcap")
+    sink = TuiSink()
+    sink.frames(frames)
+    sink.shadow_entries(shadow)
+    got = []
+    while sink.backlog:
+        sink.drain(50)
+        entries = sink.drain_shadow()
+        assert all(seq < sink._drained for seq, *_ in entries)
+        got += entries
+    assert got == shadow
+
+
+def test_store_maps_rows_when_frames_arrive_out_of_order():
+    info, frames = _all_frames()
+    order = frames[:10] + [frames[12], frames[10], frames[11]] + frames[13:60]
+    s = FrameStore(info.t0_ns, block=8)
+    s.add(order)
+    for row, f in enumerate(order):
+        assert s.row_of[f.index] == row and s.frame(row).index == f.index
+
+
+def _frames_every(n, step_ns):
+    from sniffer.frame import Frame
+
+    return [Frame(i, i * step_ns, i * step_ns + 1000, b"\x01\x03", "modbus-rtu", 1, 3) for i in range(n)]
+
+
+def test_sink_makes_a_replay_wait_for_the_ui_but_never_a_live_line():
+    import time
+
+    replay = _frames_every(200, 1_000_000_000)  # 200 s of capture time at once: faster than real time
+    undrained = TuiSink(max_backlog=20)
+    for f in replay:  # nobody drains it (yet): a pipeline collecting frames never waits
+        undrained.frame(f)
+    assert undrained.backlog == 200
+    sink = TuiSink(max_backlog=20)
+    sink.drain()  # a UI is there
+    pusher = threading.Thread(target=lambda: [sink.frame(f) for f in replay], daemon=True)
+    pusher.start()
+    time.sleep(0.2)
+    assert pusher.is_alive() and sink.backlog == 20  # waits for the UI with the backlog full
+    got = []
+    while pusher.is_alive() or sink.backlog:
+        got += sink.drain(7)
+        time.sleep(0.001)
+    assert [f.index for f in got] == list(range(200))
+
+    stuck = TuiSink(max_backlog=20)
+    stuck.drain()
+    pusher = threading.Thread(target=lambda: [stuck.frame(f) for f in replay], daemon=True)
+    pusher.start()
+    time.sleep(0.1)
+    stuck.release()  # the App quits: the capture must not hang on a sink nobody drains
+    pusher.join(2)
+    assert not pusher.is_alive() and stuck.backlog == 200
+
+    live = TuiSink(max_backlog=5)
+    for f in _frames_every(50, 1000):  # capture time no faster than the wall clock
+        live.frame(f)
+    assert live.backlog == 50

@@ -106,7 +106,9 @@ class SnifferApp(App):
         self.registry = registry
         self.poll_hz = poll_hz
         self.max_batch = max_batch
-        self.store = FrameStore()
+        if registry is not None and sink.tap is None and not sink.frames_in:
+            sink.tap_registry(registry)  # the register watch reads the decoders' shadow
+        self.store = FrameStore(registers_from_shadow=sink.shadow)
         self.feed_error: BaseException | None = None
         self.feed_result = None
         self._thread: threading.Thread | None = None
@@ -157,6 +159,7 @@ class SnifferApp(App):
 
     def stop_feed(self, timeout: float = 5.0) -> None:
         self.stop_event.set()
+        self.sink.release()  # a replay waiting for the UI to drain would not see the stop
         if self._thread is not None:
             self._thread.join(timeout)
 
@@ -171,11 +174,13 @@ class SnifferApp(App):
         return self.sink.closed.is_set() and self.sink.backlog == 0
 
     def poll(self) -> None:
-        if self.sink.info is not None and not self.store.frames:
+        if self.sink.info is not None and not len(self.store):
             self.store.t0_ns = self.sink.info.t0_ns
         batch = self.sink.drain(self.max_batch)
+        shadow = self.sink.drain_shadow() if self.sink.shadow else None
+        if batch or shadow:
+            self.store.add(batch, shadow)
         if batch:
-            self.store.add(batch)
             self.frame_list.refresh_rows()
         self._ticks += 1
         now = self.clock()
@@ -205,12 +210,12 @@ class SnifferApp(App):
     # ---------------------------------------------------------------- selection
     def on_frame_list_selected(self, message: FrameList.Selected) -> None:
         row = message.row
-        self.detail.show(None if row is None else self.store.frames[row], self.store.t0_ns)
+        self.detail.show(None if row is None else self.store.frame(row), self.store.t0_ns)
 
     @property
     def selected_frame(self):
         row = self.frame_list.selected_row
-        return None if row is None else self.store.frames[row]
+        return None if row is None else self.store.frame(row)
 
     def _goto(self, row: int | None, what: str) -> bool:
         if row is None or not self.frame_list.select_row(row):

@@ -180,12 +180,11 @@ class FrameList(ScrollView, can_focus=True):
         if pos >= len(store.view) or pos < 0:
             return Strip.blank(width, self.rich_style)
         row = store.view[pos]
-        f = store.frames[row]
-        text = format_row(f, store.flags[row], store.t0_ns, row in store.bookmarks)
+        text = format_row(store.frame(row), store.flags[row], store.t0_ns, row in store.bookmarks)
         sel = self.selected_row
         if pos == self.cursor:
             text.stylize(S_CURSOR)
-        elif sel is not None and f.pair is not None and store.frames[sel].index == f.pair:
+        elif sel is not None and store.pair_row(row) == sel:
             text.stylize(S_PAIR)  # the selected frame's request / response
         segments = list(text.render(self.app.console))
         segments = [s for s in segments if s.text != "\n"]

@@ -1,13 +1,16 @@
-"""The TUI's model: every frame seen, index arrays for filters, per-unit stats.
+"""The TUI's model: every frame seen, compactly, with columns for filters, per-unit stats, registers.
 
 Free of Textual (toolong keeps its App thin and its model plain): the store is
 driven by `add(frames)` from the UI thread (the sink buffers frames from the
 capture thread, see `sink.py`) and unit-tested without a terminal.
 
-Rows are positions in `frames` (arrival order); `Frame.index` / `Frame.pair`
-are the pipeline's numbers, mapped to rows with `row_of`.  The view is an
-`array` of rows that pass the filter, appended to as frames arrive, so a
-million frames cost a few MB of index, not a widget row each.
+Rows are positions in arrival order; `Frame.index` / `Frame.pair` are the
+pipeline's numbers, mapped to rows with `row_of`.  What the list, filters and
+navigation need per row is in `array` columns (time, unit, function, role,
+flags, pair, and the index map: 30 bytes a row); the frames themselves are packed in compressed
+blocks (framepack.py) and rebuilt for the rows on screen, so a million-frame
+replay costs tens of MB, not gigabytes.  The view is an `array` of rows that
+pass the filter, appended to as frames arrive.
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ from dataclasses import dataclass, field
 
 from ..codes import Annotation
 from ..frame import Frame
+from .framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, RowIndex, matches_text
+from .shadow import RegisterBook, RegisterValue
 
 # per-frame flag bits
 F_ERROR = 1  # an error annotation or bad CRC
@@ -31,12 +36,13 @@ F_PROBLEM = F_ERROR | F_WARN | F_EXC | F_TIMEOUT | F_NOISE
 
 TIMEOUT_CODES = frozenset({"pair.timeout", "pair.no_response"})
 ROLES = ("request", "response", "unknown", "noise")
+ROLE_CODE = {r: i for i, r in enumerate(ROLES)}
+_NO_ROLE = 255  # a role outside ROLES (none today)
 _LAT_KEEP = 2048  # latencies kept per unit for the median
 _RATE_WINDOW_NS = 10_000_000_000  # poll rate over the last 10 s of capture time
-_HISTORY = 120  # values kept per register for the sparkline
-# which Modbus table a function's points live in
-TABLE_OF = {1: "coil", 5: "coil", 15: "coil", 2: "discrete", 3: "holding", 6: "holding", 16: "holding",
-            23: "holding", 4: "input"}
+
+__all__ = ["F_ERROR", "F_EXC", "F_NOISE", "F_PROBLEM", "F_TIMEOUT", "F_WARN", "Filter", "FrameStore",
+           "RegisterValue", "RowIndex", "UnitStats", "frame_flags", "frame_from_record"]
 
 
 def frame_flags(f: Frame) -> int:
@@ -130,46 +136,29 @@ class UnitStats:
         return (len(r) - 1) / span if span > 0 else 0.0
 
 
-@dataclass
-class RegisterValue:
-    unit: int
-    table: str
-    address: int
-    name: str
-    value: object
-    raw: object
-    eng_unit: str | None
-    text: str
-    t_ns: int
-    changed_ns: int
-    changes: int = 0
-    history: deque = field(default_factory=lambda: deque(maxlen=_HISTORY))
-
-
-def _matches_text(f: Frame, needle: str) -> bool:
-    """Free-text search over what a row and its detail show: summary, codes, details, model, hex."""
-    if needle in f.summary.lower():
-        return True
-    for a in f.annotations:
-        if needle in a.code or needle in a.detail.lower():
-            return True
-    return (needle in f.raw.hex() or needle in (f.model or "") or needle in (f.noise_reason or "").lower()
-            or needle == f.role)
-
-
 class FrameStore:
     """All frames of a capture plus what the views need to find them quickly."""
 
-    def __init__(self, t0_ns: int = 0) -> None:
+    def __init__(self, t0_ns: int = 0, *, registers_from_shadow: bool = False, block: int = BLOCK,
+                 frame_cache: int = FRAME_CACHE) -> None:
         self.t0_ns = t0_ns
-        self.frames: list[Frame] = []
+        self.blocks = FrameBlocks(block, frame_cache)
+        self.frames = FrameSeq(self.blocks)
+        # columns, one entry per row
+        self.t_ns = array("q")
+        self.unit = array("h")  # -1: none
+        self.function = array("h")  # -1: none
+        self.role = array("B")  # ROLE_CODE
         self.flags = array("B")
-        self.row_of: dict[int, int] = {}  # Frame.index -> row
+        self.pair = array("q")  # the pair's Frame.index, -1: none
+        self.row_of = RowIndex()
         self.filter = Filter()
         self.view = array("q")  # rows passing the filter (up to the pause point)
         self.problems = array("q")  # rows with any problem flag (unfiltered)
         self.units: dict[int, UnitStats] = {}
-        self.registers: dict[tuple[int, int], RegisterValue] = {}
+        self.book = RegisterBook(from_shadow=registers_from_shadow)
+        self.registers = self.book.values  # (unit, table, address) -> RegisterValue
+        self._shadow: list = []  # shadow entries waiting for their frame
         self.bookmarks: set[int] = set()
         self.paused_at: int | None = None  # row count when the view was paused
         self.bytes_total = 0
@@ -178,15 +167,36 @@ class FrameStore:
 
     # ------------------------------------------------------------- intake
     def __len__(self) -> int:
-        return len(self.frames)
+        return len(self.flags)
 
-    def add(self, frames) -> int:
-        """Append settled frames (UI thread); returns how many were added."""
+    def frame(self, row: int) -> Frame:
+        """The frame at a row (rebuilt from its block, or from the cache)."""
+        return self.blocks.get(row)
+
+    @property
+    def last_t_ns(self) -> int:
+        return self.t_ns[-1] if self.t_ns else 0
+
+    def add(self, frames, shadow=None) -> int:
+        """Append settled frames (UI thread); returns how many were added.
+
+        `shadow`: TuiSink.drain_shadow() entries (seq, unit, t_ns, entries), applied once the
+        frame with row seq is in."""
         n = 0
+        sh = self._shadow + list(shadow) if shadow else self._shadow
+        k = 0
+        book = self.book
         for f in frames:
+            while k < len(sh) and sh[k][0] < len(self.flags):
+                book.shadow(*sh[k][1:])
+                k += 1
             self._add_one(f)
             n += 1
-        if n:
+        while k < len(sh) and sh[k][0] < len(self.flags):
+            book.shadow(*sh[k][1:])
+            k += 1
+        self._shadow = sh[k:]
+        if n or k:
             self.generation += 1
         return n
 
@@ -195,11 +205,20 @@ class FrameStore:
         return self.add(frame_from_record(r, self.t0_ns) for r in records)
 
     def _add_one(self, f: Frame) -> None:
-        row = len(self.frames)
+        row = len(self.flags)
         fl = frame_flags(f)
-        self.frames.append(f)
+        self.blocks.append(f)
         self.flags.append(fl)
-        self.row_of[f.index] = row
+        self.t_ns.append(f.t_ns)
+        self.unit.append(-1 if f.unit is None else f.unit)
+        self.function.append(-1 if f.function is None else f.function)
+        self.role.append(ROLE_CODE.get(f.role, _NO_ROLE))
+        self.pair.append(-1 if f.pair is None else f.pair)
+        ix = self.row_of
+        if ix.rows is None and not ix.extra and (not ix.keys or f.index > ix.keys[-1]):
+            ix.keys.append(f.index)  # in order, as the pipeline numbers them: RowIndex.add's common case
+        else:
+            ix.add(f.index, row)
         self.bytes_total += len(f.raw)
         if fl & F_NOISE:
             self.noise_bytes += len(f.raw)
@@ -209,8 +228,7 @@ class FrameStore:
             self.view.append(row)
         if f.unit is not None and f.protocol != "noise":
             self._unit_stats(f, fl)
-            if f.points:
-                self._registers(f)
+            self.book.frame(f)
 
     def _unit_stats(self, f: Frame, fl: int) -> None:
         st = self.units.get(f.unit)
@@ -239,32 +257,9 @@ class FrameStore:
             st.lat_min = lat if st.lat_min is None else min(st.lat_min, lat)
             st.lat_max = lat if st.lat_max is None else max(st.lat_max, lat)
 
-    def _registers(self, f: Frame) -> None:
-        if f.crc_ok is False or f.exception:
-            return
-        table = TABLE_OF.get(f.function, "other") if f.function is not None else "other"
-        for p in f.points:
-            addr = p.get("address")
-            if addr is None:
-                continue
-            key = (f.unit, table, addr)
-            value = p.get("value")
-            rv = self.registers.get(key)
-            if rv is None:
-                rv = self.registers[key] = RegisterValue(
-                    f.unit, table, addr, p.get("name", ""), value, p.get("raw"), p.get("unit"), p.get("text") or "",
-                    f.t_ns, f.t_ns)
-            else:
-                if rv.value != value:
-                    rv.changed_ns = f.t_ns
-                    rv.changes += 1
-                rv.value, rv.raw, rv.t_ns = value, p.get("raw"), f.t_ns
-                rv.name, rv.eng_unit, rv.text = p.get("name", rv.name), p.get("unit"), p.get("text") or ""
-            if isinstance(value, (int, float)) and not isinstance(value, bool):
-                rv.history.append(float(value))
-
     # ------------------------------------------------------------- filters
     def _passes(self, f: Frame, fl: int) -> bool:
+        """The filter on one arriving frame (the same test _rebuild makes from the columns)."""
         flt = self.filter
         if not flt.active:
             return True
@@ -276,7 +271,7 @@ class FrameStore:
             return False
         if flt.roles is not None and f.role not in flt.roles:
             return False
-        return not flt.text or _matches_text(f, flt.text)
+        return not flt.text or matches_text(f, flt.text)
 
     def set_filter(self, flt: Filter) -> None:
         flt.text = flt.text.lower()
@@ -290,13 +285,55 @@ class FrameStore:
         return self.filter
 
     def _rebuild(self) -> None:
-        end = len(self.frames) if self.paused_at is None else self.paused_at
-        frames, flags, passes = self.frames, self.flags, self._passes
-        if not self.filter.active:
+        end = len(self) if self.paused_at is None else self.paused_at
+        flt = self.filter
+        if not flt.active:
             self.view = array("q", range(end))
-        else:
-            self.view = array("q", (r for r in range(end) if passes(frames[r], flags[r])))
+            self.generation += 1
+            return
+        rows = self.problems[:bisect.bisect_left(self.problems, end)] if flt.errors_only else range(end)
+        if flt.units is not None:
+            col, want = self.unit, frozenset(u for u in flt.units if u is not None and u >= 0)
+            rows = [r for r in rows if col[r] in want]
+        if flt.functions is not None:
+            col, want = self.function, flt.functions
+            rows = [r for r in rows if col[r] >= 0 and col[r] & 0x7F in want]
+        if flt.roles is not None:
+            col, want = self.role, frozenset(ROLE_CODE[x] for x in flt.roles if x in ROLE_CODE)
+            rows = [r for r in rows if col[r] in want]
+        if flt.text:
+            rows = self._text_rows(rows, flt.text)
+        self.view = rows if isinstance(rows, array) else array("q", rows)
         self.generation += 1
+
+    def _text_rows(self, rows, needle: str) -> array:
+        """The rows among `rows` (ascending) whose frame matches the free text."""
+        blocks, size = self.blocks, self.blocks.block
+        sealed = blocks.sealed_rows
+        nb = needle.encode("utf-8", "surrogatepass")
+        role = ROLE_CODE.get(needle)
+        roles = self.role
+        out = array("q")
+        if isinstance(rows, range) and role is None:  # every row: block by block
+            for b in range(min(sealed, rows.stop) // size):
+                out.extend(b * size + i for i in blocks.search(b, nb))
+            start = min(sealed, rows.stop) // size * size
+            out.extend(r for r in range(start, rows.stop) if matches_text(blocks.get(r), needle))
+            return out
+        cur, hits = -1, frozenset()
+        for r in rows:
+            if role is not None and roles[r] == role:
+                out.append(r)
+            elif r >= sealed:
+                if matches_text(blocks.get(r), needle):
+                    out.append(r)
+            else:
+                b = r // size
+                if b != cur:
+                    cur, hits = b, frozenset(blocks.search(b, nb))
+                if r - b * size in hits:
+                    out.append(r)
+        return out
 
     # ------------------------------------------------------------- pause
     @property
@@ -307,7 +344,7 @@ class FrameStore:
         """Freeze the view (capture and stats go on); resuming catches up."""
         on = not self.paused if on is None else on
         if on and self.paused_at is None:
-            self.paused_at = len(self.frames)
+            self.paused_at = len(self)
         elif not on and self.paused_at is not None:
             self.paused_at = None
             self._rebuild()
@@ -317,7 +354,7 @@ class FrameStore:
     # ------------------------------------------------------------- lookup
     def frame_at(self, pos: int) -> Frame:
         """The frame at position `pos` of the view."""
-        return self.frames[self.view[pos]]
+        return self.blocks.get(self.view[pos])
 
     def pos_of_row(self, row: int) -> int | None:
         """Position of a row in the view, or None if filtered out."""
@@ -328,12 +365,12 @@ class FrameStore:
         return min(bisect.bisect_left(self.view, row), max(len(self.view) - 1, 0))
 
     def pair_row(self, row: int) -> int | None:
-        p = self.frames[row].pair
-        return None if p is None else self.row_of.get(p)
+        p = self.pair[row]
+        return None if p < 0 else self.row_of.get(p)
 
     def next_problem(self, row: int, forward: bool = True) -> int | None:
         """The next (previous) row with a problem, after (before) `row`, within the view's range."""
-        end = len(self.frames) if self.paused_at is None else self.paused_at
+        end = len(self) if self.paused_at is None else self.paused_at
         pr = self.problems
         if forward:
             i = bisect.bisect_right(pr, row)
@@ -373,6 +410,5 @@ class FrameStore:
         return [self.units[u] for u in sorted(self.units)]
 
     def register_rows(self, unit: int | None = None) -> list[RegisterValue]:
-        """Latest decoded value per (unit, table, address): the register shadow with names and units."""
-        keys = sorted(k for k in self.registers if unit is None or k[0] == unit)
-        return [self.registers[k] for k in keys]
+        """Latest value per (unit, table, address): the register shadow with names and units."""
+        return self.book.rows(unit)

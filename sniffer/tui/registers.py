@@ -1,4 +1,5 @@
-"""Register watch: the latest value of every decoded register, changes highlighted, a sparkline."""
+"""Register watch: the register shadow per unit (latest value of every register), changes
+highlighted, a sparkline of the selected register.  The model is shadow.RegisterBook."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ from textual.widgets import DataTable, Sparkline, Static
 
 from .model import FrameStore
 
-COLUMNS = ("unit", "table", "addr", "name", "value", "unit ", "changes", "updated")
+COLUMNS = ("unit", "table", "addr", "name", "value", "unit ", "raw", "changes", "updated")
+_VALUE = COLUMNS.index("value")
 CHANGED_NS = 2_000_000_000  # a change shows highlighted for 2 s of capture time
 
 
@@ -23,7 +25,8 @@ class RegisterWatch(Vertical):
     def __init__(self, store: FrameStore, **kw) -> None:
         super().__init__(**kw)
         self.store = store
-        self.chosen: tuple[int, int] | None = None
+        self.chosen: tuple[int, str, int] | None = None
+        self._shown: dict[str, tuple] = {}  # row key -> cells on screen
 
     def compose(self) -> ComposeResult:
         yield DataTable(cursor_type="row", zebra_stripes=True, id="regs")
@@ -39,19 +42,27 @@ class RegisterWatch(Vertical):
     def update_rows(self) -> None:
         t = self.query_one("#regs", DataTable)
         store = self.store
-        now = max((f.t_ns for f in store.frames[-1:]), default=0)
+        now = store.last_t_ns
+        shown = self._shown
         for rv in store.register_rows():
             key = f"{rv.unit}:{rv.table}:{rv.address}"
-            fresh = rv.changes and now - rv.changed_ns < CHANGED_NS
-            value = Text(str(rv.value) if not rv.text else f"{rv.value} {rv.text}"[:60],
-                         "bold black on yellow" if fresh else "")
-            cells = (str(rv.unit), rv.table, str(rv.address), rv.name[:40], value, rv.eng_unit or "", str(rv.changes),
-                     f"{(rv.t_ns - store.t0_ns) / 1e9:.3f}s")
-            if key in t.rows:
-                for col, val in zip(COLUMNS[4:], cells[4:]):
-                    t.update_cell(key, col, val)
-            else:
-                t.add_row(*cells, key=key)
+            fresh = bool(rv.changes) and now - rv.changed_ns < CHANGED_NS
+            name = rv.name if not rv.id or rv.id in rv.name else f"{rv.id} {rv.name}"
+            cells = (str(rv.unit), rv.table, str(rv.address), name[:36],
+                     (str(rv.value) if not rv.text else f"{rv.value} {rv.text}")[:40], rv.eng_unit or "",
+                     str(rv.raw), str(rv.changes), f"{(rv.t_ns - store.t0_ns) / 1e9:.3f}s", fresh)
+            old = shown.get(key)
+            if old == cells:
+                continue
+            shown[key] = cells
+            row = list(cells[:-1])
+            row[_VALUE] = Text(cells[_VALUE], "bold black on yellow" if fresh else "")
+            if old is None:
+                t.add_row(*row, key=key)
+                continue
+            for i, col in enumerate(COLUMNS):
+                if i == _VALUE or cells[i] != old[i]:
+                    t.update_cell(key, col, row[i])
         self._spark()
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:

@@ -4,6 +4,16 @@ The capture (or replay) runs on its own thread and calls `frame()` thousands
 of times a second; the sink only appends to a list under a lock.  The App
 polls `drain()` on a timer (10-20 Hz) and adds the batch to its FrameStore,
 so the UI thread does one redraw per tick whatever the frame rate.
+
+A replay decodes faster than the UI can take frames in: when `max_backlog`
+frames wait, the UI has started draining and the frames' capture time runs
+ahead of the wall clock (a live line never does), `frame()` waits until the UI has drained half of them, so a
+million-frame replay does not pile up a million Frame objects in the sink.
+
+With a registry attached (`tap_registry`), the sink also reads the decoders'
+register shadow right after each frame (a ShadowTap, see shadow.py): the
+entries travel with the frame's sequence number and come out of
+`drain_shadow()` once their frame has been drained.
 """
 
 from __future__ import annotations
@@ -13,12 +23,25 @@ import time
 
 from ..events import CaptureInfo, Chunk
 from ..frame import Frame
+from .shadow import ShadowTap
+
+MAX_BACKLOG = 30_000  # frames waiting for the UI before a replay waits (the App drains 20,000 a tick)
 
 
 class TuiSink:
-    def __init__(self) -> None:
+    def __init__(self, max_backlog: int = MAX_BACKLOG) -> None:
         self._lock = threading.Lock()
+        self._room = threading.Condition(self._lock)
+        self.max_backlog = max_backlog
+        self._released = False  # the UI stopped draining: never wait again
+        self._ui = False  # someone drains (a UI polls): only then may a replay wait
+        self._t_first: tuple[int, float] | None = None  # (capture t_ns, wall time) of the first frame
         self._pending: list[Frame] = []
+        self._shadow: list[tuple] = []  # (seq, unit, t_ns, entries), seq ascending
+        self._drained = 0  # frames handed out by drain()
+        self._last_t_ns = 0
+        self.tap: ShadowTap | None = None
+        self.shadow = False  # shadow entries come with the frames (a tap, or a test's copy)
         self.info: CaptureInfo | None = None
         self.started = threading.Event()
         self.closed = threading.Event()
@@ -27,6 +50,11 @@ class TuiSink:
         self.t_start = time.monotonic()
         self.capture_path: str | None = None  # the MCAP being written, for the status bar
         self.error: str | None = None
+
+    def tap_registry(self, registry) -> None:
+        """Read `registry`'s register shadow after each frame (call before the capture starts)."""
+        self.tap = ShadowTap(registry.states)
+        self.shadow = True
 
     # ---- Sink protocol (capture thread)
     def start(self, info: CaptureInfo) -> None:
@@ -39,18 +67,64 @@ class TuiSink:
             self.bytes_in += len(event.data)  # single writer; readers tolerate a stale int
 
     def frame(self, frame: Frame) -> None:
-        with self._lock:
-            self._pending.append(frame)
-        self.frames_in += 1
+        tap = self.tap
+        if tap is None:
+            with self._lock:
+                self._pending.append(frame)
+                self.frames_in += 1
+                full = len(self._pending) >= self.max_backlog
+        else:
+            seen = tap.observe(frame)
+            swept = tap.sweep() if tap.due() else ()
+            self._last_t_ns = frame.t_ns
+            with self._lock:
+                seq = self.frames_in
+                self._pending.append(frame)
+                if seen:
+                    self._shadow.append((seq, frame.unit, frame.t_ns, seen))
+                for unit, entries in swept:
+                    self._shadow.append((seq, unit, frame.t_ns, entries))
+                self.frames_in = seq + 1
+                full = len(self._pending) >= self.max_backlog
+        if self._t_first is None:
+            self._t_first = (frame.t_ns, time.monotonic())
+        if full:
+            self._wait_for_room(frame.t_ns)
+
+    def _wait_for_room(self, t_ns: int) -> None:
+        """A source faster than real time (a replay) waits for the UI; a live line never does, nor a
+        sink nobody has drained yet (a pipeline collecting frames for later)."""
+        t0, w0 = self._t_first
+        if not self._ui or (t_ns - t0) / 1e9 < 2 * (time.monotonic() - w0) + 1:
+            return
+        with self._room:
+            self._room.wait_for(lambda: len(self._pending) < self.max_backlog // 2 or self._released)
+
+    def release(self) -> None:
+        """The UI stops draining (it quits): never make the capture wait again."""
+        with self._room:
+            self._released = True
+            self._room.notify_all()
 
     def frames(self, frames) -> None:
-        """Bulk variant (benchmarks, replays that batch)."""
+        """Bulk variant (benchmarks, tests; frames decoded earlier, so no shadow is read)."""
         frames = list(frames)
         with self._lock:
             self._pending.extend(frames)
-        self.frames_in += len(frames)
+            self.frames_in += len(frames)
+
+    def shadow_entries(self, entries) -> None:
+        """Shadow entries recorded by another sink's tap for the same frames (tests replaying a decode)."""
+        with self._lock:
+            self._shadow.extend(entries)
+        self.shadow = True
 
     def close(self) -> None:
+        tap = self.tap
+        if tap is not None and self.frames_in:  # whatever the last frames changed beyond their points
+            with self._lock:
+                for unit, entries in tap.sweep():
+                    self._shadow.append((self.frames_in - 1, unit, self._last_t_ns, entries))
         self.closed.set()
 
     # ---- UI thread
@@ -61,6 +135,19 @@ class TuiSink:
                 out, self._pending = self._pending, []
             else:
                 out, self._pending = self._pending[:limit], self._pending[limit:]
+            self._drained += len(out)
+            self._ui = True
+            self._room.notify_all()
+        return out
+
+    def drain_shadow(self) -> list[tuple]:
+        """Shadow entries of the frames drained so far: [(seq, unit, t_ns, [(table, address, raw, point)])]."""
+        with self._lock:
+            sh, upto = self._shadow, self._drained
+            k = len(sh)
+            while k and sh[k - 1][0] >= upto:
+                k -= 1
+            out, self._shadow = sh[:k], sh[k:]
         return out
 
     @property

@@ -1,0 +1,260 @@
+"""Frames kept compactly: sealed blocks of marshalled, zstd-compressed frames, rebuilt on demand.
+
+A decoded Frame with its points, annotations and strings costs 1.5-3 kB as
+Python objects; a million of them are gigabytes.  `FrameBlocks` keeps the
+newest frames (fewer than `block`) as objects and seals every `block` of them
+into one marshal dump compressed with zstd (50-70 bytes a frame on drive
+traffic), beside a compressed search text per block for the filter bar.  A
+frame asked for (a row on screen, the detail pane) is rebuilt from its block
+and kept in a small LRU, so the rows on screen cost one decompression per
+block and nothing after that.
+
+What the list, the filters and navigation need for every row lives in the
+store's `array` columns (model.py); this module holds the frames whole, plus
+`RowIndex` (Frame.index -> row) and `FrameSeq` (`store.frames` as a sequence).
+"""
+
+from __future__ import annotations
+
+import bisect
+import marshal
+import operator
+import pickle
+from array import array
+from collections import OrderedDict
+
+import zstandard
+
+from ..codes import Annotation
+from ..frame import Frame
+
+BLOCK = 256  # frames per sealed block
+FRAME_CACHE = 1024  # rebuilt frames kept (a screen is 40-100 rows)
+BLOCK_CACHE = 8  # unpacked blocks kept
+_LEVEL = 3  # zstd level: level 3 packs drive traffic about 12:1 in well under a microsecond a frame
+
+# peer is None once a frame is decoded; encoded (the JSON the sinks wrote) can be made again
+SLOTS = tuple(s for s in Frame.__slots__ if s not in ("peer", "encoded"))
+_ANN = SLOTS.index("annotations")
+_get = operator.attrgetter(*SLOTS)
+_SEP = "\x1e"  # between frames in a block's search text (record separator)
+_FIELD = "\x00"  # between fields of one frame's search text
+_PICKLED = 0x80  # a pickle (protocol >= 2) starts with 0x80; a marshal dump never does
+
+
+def pack(f: Frame) -> tuple:
+    """Every slot of a decoded frame but `peer`, as marshal can write it (annotations as plain tuples)."""
+    t = _get(f)
+    if t[_ANN]:
+        t = (*t[:_ANN], [tuple(a) for a in t[_ANN]], *t[_ANN + 1:])
+    return t
+
+
+def unpack(t) -> Frame:
+    f = Frame.__new__(Frame)
+    for name, v in zip(SLOTS, t):
+        setattr(f, name, v)
+    f.annotations = [Annotation(*a) for a in t[_ANN]] if t[_ANN] else []
+    f.peer = None
+    f.encoded = None
+    return f
+
+
+def search_text(f: Frame) -> str:
+    """What the free-text filter searches in a frame: summary, annotation codes and details, hex,
+    model and noise reason (lower case where people type them)."""
+    parts = [f.summary.lower()]
+    for a in f.annotations:
+        parts.append(a.code)
+        parts.append(a.detail.lower())
+    parts.append(f.raw.hex())
+    parts.append(f.model or "")
+    parts.append((f.noise_reason or "").lower())
+    return _FIELD.join(parts)
+
+
+def matches_text(f: Frame, needle: str) -> bool:
+    """The free-text filter on one frame (needle lower case); a role name also matches that role."""
+    return needle == f.role or needle in search_text(f)
+
+
+def _encode(s: str) -> bytes:
+    return s.encode("utf-8", "surrogatepass")
+
+
+def _dump(tuples: list[tuple]) -> bytes | None:
+    try:
+        return marshal.dumps(tuples)
+    except ValueError:  # a value marshal cannot write (a decoder's own type in a point): pickle it
+        try:
+            return pickle.dumps(tuples, protocol=5)
+        except Exception:  # noqa: BLE001 - not even that: the block keeps its frames as objects
+            return None
+
+
+def _load(data: bytes) -> list:
+    return pickle.loads(data) if data[:1] == bytes((_PICKLED,)) else marshal.loads(data)
+
+
+class FrameBlocks:
+    """Frames by row (arrival order): `append`, `get(row)`, `search(block, needle)`."""
+
+    def __init__(self, block: int = BLOCK, frame_cache: int = FRAME_CACHE, block_cache: int = BLOCK_CACHE) -> None:
+        self.block = block
+        self.tail: list[Frame] = []  # the newest frames, not sealed yet
+        self.packed: list[bytes | list[Frame]] = []  # one per sealed block (its frames if they would not pack)
+        self.texts: list[bytes] = []  # its search text
+        self.packed_bytes = 0
+        self._frame_cache: OrderedDict[int, Frame] = OrderedDict()
+        self._frame_cache_size = frame_cache
+        self._block_cache: OrderedDict[int, list] = OrderedDict()
+        self._block_cache_size = block_cache
+        self._zc = zstandard.ZstdCompressor(level=_LEVEL)
+        self._zd = zstandard.ZstdDecompressor()
+
+    def __len__(self) -> int:
+        return len(self.packed) * self.block + len(self.tail)
+
+    @property
+    def sealed_rows(self) -> int:
+        """Rows below this are in sealed blocks; the rest are `tail` objects."""
+        return len(self.packed) * self.block
+
+    def append(self, f: Frame) -> None:
+        self.tail.append(f)
+        if len(self.tail) >= self.block:
+            self._seal()
+
+    def _seal(self) -> None:
+        frames, self.tail = self.tail, []
+        base = self.sealed_rows
+        dump = _dump([pack(f) for f in frames])
+        data = frames if dump is None else self._compress(dump)
+        text = self._compress(_encode(_SEP.join([search_text(f) for f in frames])))
+        self.packed.append(data)
+        self.texts.append(text)
+        self.packed_bytes += (0 if dump is None else len(data)) + len(text)
+        # the frames just sealed are the ones most likely on screen: keep them as they are
+        c = self._frame_cache
+        c.update(zip(range(base, base + len(frames)), frames))
+        while len(c) > self._frame_cache_size:
+            c.popitem(last=False)
+
+    def _compress(self, data: bytes) -> bytes:
+        # zstandard returns a bytes object as large as its worst-case bound (uncompressed size and
+        # more) with a shorter length: copied, a block holds 10 kB instead of 80
+        return bytes(memoryview(self._zc.compress(data)))
+
+    def _remember(self, row: int, f: Frame) -> None:
+        c = self._frame_cache
+        c[row] = f
+        if len(c) > self._frame_cache_size:
+            c.popitem(last=False)
+
+    def _tuples(self, b: int) -> list:
+        c = self._block_cache
+        tuples = c.get(b)
+        if tuples is None:
+            tuples = c[b] = _load(self._zd.decompress(self.packed[b]))
+            if len(c) > self._block_cache_size:
+                c.popitem(last=False)
+        else:
+            c.move_to_end(b)
+        return tuples
+
+    def get(self, row: int) -> Frame:
+        sealed = self.sealed_rows
+        if row < 0:
+            row += len(self)
+        if row >= sealed:
+            return self.tail[row - sealed]
+        if row < 0:
+            raise IndexError(row)
+        c = self._frame_cache
+        f = c.get(row)
+        if f is not None:
+            c.move_to_end(row)
+            return f
+        b, i = divmod(row, self.block)
+        data = self.packed[b]
+        if type(data) is list:
+            return data[i]
+        f = unpack(self._tuples(b)[i])
+        self._remember(row, f)
+        return f
+
+    def search(self, b: int, needle: bytes) -> list[int]:
+        """Offsets (within sealed block b) of the frames whose search text contains needle (UTF-8)."""
+        text = self._zd.decompress(self.texts[b])
+        if needle not in text:
+            return []
+        parts = text.split(_SEP.encode())
+        if len(parts) != self.block:  # a separator inside a summary: ask the frames themselves
+            s = needle.decode("utf-8", "surrogatepass")
+            return [i for i in range(self.block) if s in search_text(self.get(b * self.block + i))]
+        return [i for i, p in enumerate(parts) if needle in p]
+
+    def clear_cache(self) -> None:
+        self._frame_cache.clear()
+        self._block_cache.clear()
+
+
+class RowIndex:
+    """Frame.index -> row.  The pipeline numbers frames in arrival order, so a sorted array and
+    bisect do (8 bytes a row, not a dict's ~100); the odd frame out of order goes in a dict."""
+
+    def __init__(self) -> None:
+        self.keys = array("q")
+        self.rows: array | None = None  # only once rows and key positions part
+        self.extra: dict[int, int] = {}
+
+    def add(self, index: int, row: int) -> None:
+        k = self.keys
+        if k and index <= k[-1]:
+            self.extra[index] = row
+            return
+        if self.rows is None and row != len(k):
+            self.rows = array("q", range(len(k)))
+        k.append(index)
+        if self.rows is not None:
+            self.rows.append(row)
+
+    def get(self, index: int, default=None):
+        r = self.extra.get(index)
+        if r is not None:
+            return r
+        k = self.keys
+        i = bisect.bisect_left(k, index)
+        if i < len(k) and k[i] == index:
+            return i if self.rows is None else self.rows[i]
+        return default
+
+    def __getitem__(self, index: int) -> int:
+        r = self.get(index)
+        if r is None:
+            raise KeyError(index)
+        return r
+
+    def __contains__(self, index: int) -> bool:
+        return self.get(index) is not None
+
+
+class FrameSeq:
+    """`store.frames`: the frames as a read-only sequence (each item rebuilt or cached on demand)."""
+
+    def __init__(self, blocks: FrameBlocks) -> None:
+        self._blocks = blocks
+
+    def __len__(self) -> int:
+        return len(self._blocks)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self._blocks.get(r) for r in range(*i.indices(len(self._blocks)))]
+        if not -len(self._blocks) <= i < len(self._blocks):
+            raise IndexError(i)
+        return self._blocks.get(i)
+
+    def __iter__(self):
+        get = self._blocks.get
+        return (get(r) for r in range(len(self._blocks)))
