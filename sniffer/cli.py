@@ -1,4 +1,4 @@
-"""Command line: live, replay, decode, simulate, demo, repair.
+"""Command line: live, replay, decode, simulate, demo, repair, attach, serve.
 
 Bad input gets one clear line on stderr and a non-zero exit (2 for usage
 and unreadable input), never a traceback.
@@ -49,6 +49,16 @@ def _decode_flags(p: argparse.ArgumentParser) -> None:
                    help="line protocol (default modbus-rtu, or what the capture says)")
 
 
+def _publish_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("viewers in other processes")
+    g.add_argument("--publish", metavar="SOCKET",
+                   help="publish the frames on a Unix socket (mode 0600) for `sniffer attach SOCKET`; "
+                        "tcp:[HOST:]PORT for TCP (host default 127.0.0.1)")
+    g.add_argument("--publish-backlog", type=int, default=100_000, metavar="N",
+                   help="frames a viewer that joins late gets first (default 100000)")
+    p.add_argument("--quiet", action="store_true", help="no frame lines on stdout (the MCAP and --publish only)")
+
+
 def _format_flag(p: argparse.ArgumentParser) -> None:
     p.add_argument("--format", choices=["text", "jsonl"], default="text", help="output format (default text)")
 
@@ -67,6 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-out", action="store_true", help="do not write an MCAP file")
     s.add_argument("--duration", type=float, default=0, help="stop after S seconds (default: until Ctrl-C)")
     s.add_argument("--headless", action="store_true", help="text stream instead of the TUI (default off a tty)")
+    _publish_flags(s)
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV)")
     s.add_argument("file")
@@ -101,6 +112,34 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default="demo.mcap", metavar="FILE.mcap", help="MCAP file (default demo.mcap)")
     s.add_argument("--headless", action="store_true", help="text stream instead of the TUI")
     _format_flag(s)
+    _publish_flags(s)
+
+    s = sub.add_parser("attach", help="view a capture that another process publishes (--publish, sniffer serve)")
+    s.add_argument("socket", help="the capture's socket (or tcp:[HOST:]PORT)")
+    s.add_argument("--headless", action="store_true", help="text stream instead of the TUI (default off a tty)")
+    s.add_argument("--tui", action="store_true", help="the TUI even without a terminal (sniffer serve uses it)")
+    _format_flag(s)
+
+    s = sub.add_parser("serve", help="serve the TUI to browsers (textual-serve); the capture runs on its own")
+    s.add_argument("port", nargs="?", help="serial device to capture, e.g. /dev/ttyUSB0 (or --demo)")
+    s.add_argument("--demo", action="store_true", help="capture the simulated bus of `sniffer demo` instead")
+    s.add_argument("--scenario", default="default", help="with --demo: the scenario (default default)")
+    s.add_argument("--seed", type=int, default=1, help=argparse.SUPPRESS)
+    _serial_flags(s)
+    _decode_flags(s)
+    s.add_argument("--out", metavar="FILE.mcap",
+                   help="MCAP file the capture writes (default: sniffer-<time>.mcap, demo.mcap with --demo)")
+    s.add_argument("--no-out", action="store_true", help="do not write an MCAP file")
+    s.add_argument("--duration", type=float, default=0, help="stop capturing after S seconds (default: until Ctrl-C)")
+    g = s.add_argument_group("serving")
+    g.add_argument("--host", default="127.0.0.1",
+                   help="address to serve on (default 127.0.0.1: this machine only)")
+    g.add_argument("--http-port", type=int, default=8000, help="HTTP port (default 8000)")
+    g.add_argument("--public-url", help="URL browsers use to reach the server (when behind a proxy or --host 0.0.0.0)")
+    g.add_argument("--socket", metavar="PATH",
+                   help="where the capture publishes (default: a fresh one in $XDG_RUNTIME_DIR or /tmp)")
+    g.add_argument("--publish-backlog", type=int, default=100_000, metavar="N",
+                   help="frames a viewer that joins late gets first (default 100000)")
 
     s = sub.add_parser("repair", help="make a truncated (killed) capture readable by any MCAP reader")
     s.add_argument("file")
@@ -250,8 +289,9 @@ def cmd_repair(args) -> int:
 
 
 def _tui_wanted(args) -> bool:
-    """The TUI is the default on a terminal; --headless, --format jsonl or a pipe keep the stream."""
-    return not args.headless and args.format == "text" and sys.stdout.isatty() and sys.stdin.isatty()
+    """The TUI is the default on a terminal; --headless, --quiet, --format jsonl or a pipe keep the stream."""
+    return (not args.headless and not getattr(args, "quiet", False) and args.format == "text"
+            and sys.stdout.isatty() and sys.stdin.isatty())
 
 
 def cmd_live(args) -> int:
@@ -280,9 +320,28 @@ def cmd_demo(args) -> int:
     return run_demo(args, _registry, _out_sink)
 
 
+def cmd_attach(args) -> int:
+    from .attach import Attachment, attach_tui, run_headless
+
+    att = Attachment(args.socket)  # no capture there: CaptureError, one line, exit 2
+    if args.tui or _tui_wanted(args):
+        return attach_tui(att)
+    return run_headless(att, args.format)
+
+
+def cmd_serve(args) -> int:
+    from .serve import ServeUsageError, run_serve
+
+    try:
+        return run_serve(args)
+    except ServeUsageError as e:
+        raise UsageError(str(e)) from None
+
+
 COMMANDS = {
     "live": cmd_live, "replay": cmd_replay, "decode": cmd_decode,
     "simulate": cmd_simulate, "demo": cmd_demo, "repair": cmd_repair,
+    "attach": cmd_attach, "serve": cmd_serve,
 }
 
 

@@ -8,6 +8,7 @@ nothing already captured is lost.
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 import threading
@@ -26,16 +27,17 @@ def _default_out() -> str:
 
 def capture(source: SerialSource, line: LineSettings, registry, sinks, *, duration_s: float = 0,
             stop: threading.Event | None = None, timeouts: dict | None = None, mcap: McapSink | None = None,
-            on_open=None):
+            on_open=None, publish=None):
     """Run a live source through a pipeline until duration, stop, or Ctrl-C. Returns (pipeline, error).
 
     `on_open(info)` runs once the port is open (the demo starts its bus then, so no byte is missed).
+    `publish` (a PublishSink) comes after the MCAP, so the file is closed before viewers are let go.
     """
     info = source.open()
     info.devices = dict(registry.devices)
     info.protocol = (timeouts or {}).get("protocol", info.protocol)
     info.sniffer_version = __version__
-    all_sinks = list(sinks) + ([mcap] if mcap else [])
+    all_sinks = list(sinks) + ([mcap] if mcap else []) + ([publish] if publish else [])
     p = Pipeline(info, line, registry, all_sinks, **(timeouts or {}))
     stop = stop or threading.Event()
     deadline = time.monotonic() + duration_s if duration_s > 0 else None
@@ -73,19 +75,37 @@ def run_live(args, bus, line_fn, registry_fn, timeouts_fn, out_sink_fn) -> int:
     registry = registry_fn(args, bus)
     source = SerialSource(args.port, line)
     mcap = None
-    if not args.no_out:
-        path = args.out or _default_out()
-        mcap = McapSink(path)
-        print(f"sniffer: capturing {args.port} at {line.label()} (read-only) -> {path}", file=sys.stderr)
-    stop = threading.Event()
-    _on_signals(stop)
-    p, error = capture(source, line, registry, [out_sink_fn(args, True)], duration_s=args.duration,
-                       stop=stop, timeouts=timeouts_fn(args, bus), mcap=mcap)
+    path = None if args.no_out else (args.out or _default_out())
+    publish = publisher(args, args.port, path)  # before the port opens: a bad address fails first
+    with publish or contextlib.nullcontext():
+        if path:
+            mcap = McapSink(path)
+            print(f"sniffer: capturing {args.port} at {line.label()} (read-only) -> {path}", file=sys.stderr)
+        stop = threading.Event()
+        _on_signals(stop)
+        p, error = capture(source, line, registry, _out_sinks(args, out_sink_fn), duration_s=args.duration,
+                           stop=stop, timeouts=timeouts_fn(args, bus), mcap=mcap, publish=publish)
     _summary(p, mcap)
     if error:
         print(f"sniffer: error: {error}", file=sys.stderr)
         return 1
     return 0
+
+
+def publisher(args, label: str, capture_path: str | None):
+    """The PublishSink for `--publish ADDRESS` (None without it); says where viewers attach."""
+    if not getattr(args, "publish", None):
+        return None
+    from .publish import PublishSink
+
+    sink = PublishSink(args.publish, label=label, capture_path=capture_path, backlog=args.publish_backlog)
+    print(f"sniffer: publishing on {sink.address} (view: sniffer attach {sink.address})", file=sys.stderr)
+    return sink
+
+
+def _out_sinks(args, out_sink_fn) -> list:
+    """The text/JSONL stream on stdout, unless --quiet."""
+    return [] if getattr(args, "quiet", False) else [out_sink_fn(args, True)]
 
 
 def run_demo(args, registry_fn, out_sink_fn) -> int:
@@ -106,7 +126,8 @@ def run_demo(args, registry_fn, out_sink_fn) -> int:
     duration = args.duration if args.duration > 0 else 24 * 3600.0
     stop = threading.Event()
     _on_signals(stop)
-    with PtyBus() as bus:
+    publish = publisher(args, f"demo {scenario.name}", args.out)
+    with PtyBus() as bus, publish or contextlib.nullcontext():
         models = ", ".join(f"{u}={m}" for u, m in sorted(registry.devices.items()))
         print(f"sniffer: demo '{scenario.name}' on simulated bus {bus.port} at {line.label()} {protocol}"
               f"{' (' + models + ')' if models else ''} -> {args.out}", file=sys.stderr)
@@ -121,9 +142,9 @@ def run_demo(args, registry_fn, out_sink_fn) -> int:
         source = SerialSource(bus.port, line, reconnect=False, low_latency=False)
         player = threading.Thread(target=_play, name="simulated-bus", daemon=True)
         mcap = McapSink(args.out)
-        sinks = [out_sink_fn(args, True)]
-        p, error = capture(source, line, registry, sinks, duration_s=duration + 5, stop=stop, mcap=mcap,
-                           timeouts={"protocol": protocol}, on_open=lambda info: player.start())
+        p, error = capture(source, line, registry, _out_sinks(args, out_sink_fn), duration_s=duration + 5,
+                           stop=stop, mcap=mcap, timeouts={"protocol": protocol},
+                           on_open=lambda info: player.start(), publish=publish)
         stop.set()
         player.join(timeout=5)
         sent = stats.get("play")

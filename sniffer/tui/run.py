@@ -7,6 +7,7 @@ the stop event, which ends the capture cleanly (MCAP closed).
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import threading
 import time
@@ -70,7 +71,7 @@ def live_tui(args, bus, line_fn, registry_fn, timeouts_fn) -> int:
 
 def live_feed(args, bus, line_fn, registry_fn, timeouts_fn):
     """(feed, source label, capture path, registry) for a live capture of args.port."""
-    from ..live import _default_out, capture
+    from ..live import _default_out, capture, publisher
     from ..mcap_sink import McapSink
     from ..sources.serial_live import SerialSource
 
@@ -78,11 +79,13 @@ def live_feed(args, bus, line_fn, registry_fn, timeouts_fn):
     registry = registry_fn(args, bus)
     source = SerialSource(args.port, line)
     path = None if args.no_out else (args.out or _default_out())
+    publish = publisher(args, args.port, path)
     mcap = McapSink(path) if path else None
 
     def feed(sink: TuiSink, stop: threading.Event):
-        p, error = capture(source, line, registry, [sink], duration_s=args.duration, stop=stop,
-                           timeouts=timeouts_fn(args, bus), mcap=mcap)
+        with publish or contextlib.nullcontext():
+            p, error = capture(source, line, registry, [sink], duration_s=args.duration, stop=stop,
+                               timeouts=timeouts_fn(args, bus), mcap=mcap, publish=publish)
         if error:
             raise RuntimeError(error)
         return p
@@ -102,7 +105,7 @@ def demo_tui(args, registry_fn) -> int:
 
 def demo_feed(args, registry_fn):
     """(feed, source label, capture path, registry) for the simulated-bus demo."""
-    from ..live import capture
+    from ..live import capture, publisher
     from ..mcap_sink import McapSink
     from ..simulator.bus import simulate
     from ..simulator.ptybus import PtyBus
@@ -115,9 +118,10 @@ def demo_feed(args, registry_fn):
     args.device = getattr(args, "device", None) or [f"{u}={m}" for u, m in sorted(scenario.devices.items())]
     registry = registry_fn(args, None)
     duration = args.duration if args.duration > 0 else 24 * 3600.0
+    publish = publisher(args, f"demo {scenario.name}", args.out)
 
     def feed(sink: TuiSink, stop: threading.Event):
-        with PtyBus() as bus:
+        with PtyBus() as bus, publish or contextlib.nullcontext():
             frames = simulate(scenario, line, duration, args.seed)
             source = SerialSource(bus.port, line, reconnect=False, low_latency=False)
 
@@ -129,7 +133,7 @@ def demo_feed(args, registry_fn):
             player = threading.Thread(target=_play, name="simulated-bus", daemon=True)
             p, error = capture(source, line, registry, [sink], duration_s=duration + 5, stop=stop,
                                mcap=McapSink(args.out), timeouts={"protocol": protocol},
-                               on_open=lambda info: player.start())
+                               on_open=lambda info: player.start(), publish=publish)
             stop.set()
             player.join(timeout=5)
             bus.drain()

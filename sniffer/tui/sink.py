@@ -50,6 +50,9 @@ class TuiSink:
         self.t_start = time.monotonic()
         self.capture_path: str | None = None  # the MCAP being written, for the status bar
         self.error: str | None = None
+        # a viewer attached to a publishing capture (attach.py): frames it does not have
+        self.earlier_frames = 0  # before the backlog it was sent (they are in the MCAP)
+        self.skipped_frames = 0  # dropped while it fell behind
 
     def tap_registry(self, registry) -> None:
         """Read `registry`'s register shadow after each frame (call before the capture starts)."""

@@ -40,6 +40,10 @@ def status_text(app) -> Text:
         parts.append(f"{path} {_size(app.capture_size())}")
     parts.append(f"{len(store)} fr {app.frames_per_s:.0f} fr/s {_size(int(app.bytes_per_s))}/s")
     parts.append(f"noise {store.noise_bytes}B")
+    missing = [f"{n} {what}" for n, what in ((sink.earlier_frames, "earlier (in the MCAP)"),
+                                              (sink.skipped_frames, "skipped")) if n]
+    if missing:
+        parts.append("not here: " + ", ".join(missing))
     parts.append(f"{app.clock() - app.t_start:.0f}s")
     if store.filter.active:
         parts.append(f"filter: {store.filter.describe()} ({len(store.view)})")

@@ -1,0 +1,416 @@
+"""Capture in one process, viewers in others: --publish, `sniffer attach`, `sniffer serve`.
+
+Real parts throughout: the simulated bus over a pty, Unix sockets, the TUI
+under Pilot, `sniffer serve` as a subprocess with textual-serve's web server
+and a websocket client.  Tests check what arrived, not when; the deadlines
+only bound a hang.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import urllib.request
+
+import pytest
+from helpers import ListSink
+from tui_helpers import SIM, replay_frames
+
+from decoders.registry import default_registry
+from sniffer.attach import Attachment, attach_feed
+from sniffer.cli import main
+from sniffer.events import CaptureInfo
+from sniffer.line import LineSettings
+from sniffer.live import capture
+from sniffer.mcap_sink import McapSink
+from sniffer.pipeline import Pipeline
+from sniffer.publish import CONTROL_PREFIX, PublishError, PublishSink
+from sniffer.records import loads
+from sniffer.simulator import simulate, wire_chunks
+from sniffer.simulator.ptybus import PtyBus
+from sniffer.simulator.scenario import get_scenario
+from sniffer.sources import CaptureError
+from sniffer.sources.mcapsrc import read_frames
+from sniffer.sources.replay import open_replay
+from sniffer.sources.serial_live import SerialSource
+from sniffer.tui.app import SnifferApp
+from sniffer.tui.sink import TuiSink
+from sniffer.tui.status import status_text
+
+LINE = LineSettings(19200, "E", 1)
+HANG_S = 60  # a bound on waiting for something that should happen, never an assertion on speed
+
+
+def _wait(cond, what: str, timeout: float = HANG_S) -> None:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < deadline, f"gave up waiting for {what}"
+        time.sleep(0.02)
+
+
+def read_stream(att: Attachment, *, start: threading.Event | None = None) -> list[dict]:
+    """Every frame record a viewer gets until the capture ends (control lines go to `att`)."""
+    if start is not None:
+        start.wait(HANG_S)
+    records = []
+    for lines in att.batches():
+        for line in lines:
+            if line.startswith(CONTROL_PREFIX):
+                att.control(line)
+            elif line:
+                records.append(loads(line))
+    att.close()
+    return records
+
+
+def _publishing(sock) -> bool:
+    try:
+        Attachment(str(sock)).close()
+    except CaptureError:  # not there yet, or bound and not listening yet
+        return False
+    return True
+
+
+class Viewer(threading.Thread):
+    def __init__(self, address: str, start: threading.Event | None = None) -> None:
+        super().__init__(daemon=True)
+        self.att = Attachment(address)  # connects and reads the header now
+        self.go = start
+        self.records: list[dict] = []
+
+    def run(self) -> None:
+        self.records = read_stream(self.att, start=self.go)
+
+
+# ---------------------------------------------------------------- (a) two viewers of a live capture
+def test_two_viewers_get_the_captures_frames(tmp_path):
+    """Demo bus over a pty, published; one viewer from the start, one joining halfway with a short backlog."""
+    sent = list(simulate(get_scenario("errors"), LINE, 2.0, seed=3))
+    half = len(sent) // 2
+    sock, out = str(tmp_path / "cap.sock"), tmp_path / "live.mcap"
+    backlog = 20
+    collector = ListSink()
+    stop = threading.Event()
+    viewers: dict[str, Viewer] = {}
+    pub = PublishSink(sock, label="pty demo", capture_path=str(out), backlog=backlog)
+    assert oct(os.stat(sock).st_mode & 0o777) == "0o600"
+    with PtyBus() as bus:
+        source = SerialSource(bus.port, LINE, reconnect=False, low_latency=False)
+
+        def play():
+            bus.play(sent[:half], speed=4.0, stop_event=stop)
+            _wait(lambda: pub.frames > backlog + 5, "the first half to be published")
+            viewers["late"] = Viewer(sock)
+            viewers["late"].start()
+            bus.play(sent[half:], speed=4.0, stop_event=stop)
+            stop.wait(0.5)  # then let the capture see the line go quiet
+            stop.set()
+
+        def on_open(info):
+            viewers["first"] = Viewer(sock)
+            viewers["first"].start()
+            threading.Thread(target=play, daemon=True).start()
+
+        p, error = capture(source, LINE, default_registry(), [collector], duration_s=HANG_S, stop=stop,
+                           mcap=McapSink(out), on_open=on_open, publish=pub)
+        bus.drain()
+        assert bus.bytes_received_from_sniffer == 0  # passive, publishing or not
+    assert error is None
+    first, late = viewers["first"], viewers["late"]
+    first.join(HANG_S)
+    late.join(HANG_S)
+    assert not os.path.exists(sock)  # removed when the capture ended
+
+    assert len(collector.records) == len(sent) > 50
+    assert read_frames(str(out)) == collector.records
+    assert first.records == collector.records
+    assert first.att.earlier_frames == 0 and first.att.skipped == 0
+    assert first.att.ended["frames"] == len(sent) and first.att.ended["bytes_in"] == p.bytes_in
+    assert first.att.ended["noise_bytes"] == p.noise_bytes > 0
+    assert first.att.capture_path == str(out) and first.att.label == "pty demo"
+    assert first.att.info.baud == LINE.baud and first.att.info.time_source == "read"
+
+    k = late.att.earlier_frames
+    assert k > 0  # it joined after the backlog had dropped frames, and the header says how many
+    assert late.att.header["backlog_frames"] == backlog
+    assert late.records == collector.records[k:]
+    assert late.att.ended == first.att.ended and late.att.skipped == 0
+
+
+# ---------------------------------------------------------------- (b) the TUI attached
+def _publish_replay(sock: str, name: str = "errors.mcap"):
+    """A PublishSink fed by a replay through the pipeline; returns (pipeline, thread that feeds it)."""
+    info, events = open_replay(str(SIM / name))
+    pub = PublishSink(sock, label=name, capture_path=str(SIM / name))
+    p = Pipeline(info, LineSettings(info.baud, info.parity or "N", info.stopbits or 1),
+                 default_registry(info.devices), [pub], protocol=info.protocol)  # start: viewers may connect
+
+    def run():
+        for ev in events:
+            p.feed(ev)
+        p.finish()
+
+    return p, threading.Thread(target=run, daemon=True)
+
+
+def test_attach_tui_shows_the_published_frames(tmp_path):
+    sock = str(tmp_path / "tui.sock")
+    p, feeder = _publish_replay(sock)
+    att = Attachment(sock)
+    feeder.start()
+    _, expected, _ = replay_frames("errors.mcap")
+
+    async def go():  # as attach.attach_tui builds it (no registry: the decoders live in the capture)
+        app = SnifferApp(TuiSink(), attach_feed(att), source_label=att.label, capture_path=att.capture_path,
+                         clock=lambda: 0.0)
+        async with app.run_test(size=(140, 45)) as pilot:
+            deadline = time.monotonic() + HANG_S
+            while not app.caught_up:
+                assert time.monotonic() < deadline, "the attached TUI never caught up"
+                await pilot.pause(0.05)
+            app.poll()
+            await pilot.pause()
+            store = app.store
+            assert [f.raw for f in store.frames] == [f.raw for f in expected]
+            assert [(f.index, f.pair, f.summary) for f in store.frames] == \
+                [(f.index, f.pair, f.summary) for f in expected]
+            assert app.feed_error is None
+            assert app.sink.bytes_in == p.bytes_in  # from the capture's status / end lines
+            status = status_text(app).plain
+            assert "[ended]" in status and "errors.mcap" in status and "not here" not in status
+            await pilot.press("home", "down", "down")
+            f = app.selected_frame
+            assert f.role == "request" and f.pair is not None
+            await pilot.press("p")  # pairs still link across the socket
+            assert app.selected_frame.index == f.pair
+            assert app.detail.frame is app.selected_frame
+    asyncio.run(go())
+    feeder.join(HANG_S)
+
+
+def test_demo_tui_publishes_to_a_viewer(tmp_path):
+    """`sniffer demo --publish SOCKET` on a terminal: its own TUI and an attached viewer see the same frames."""
+    import argparse
+
+    from sniffer.cli import _registry
+    from sniffer.tui.run import demo_feed
+
+    sock, out = str(tmp_path / "demo.sock"), tmp_path / "d.mcap"
+    args = argparse.Namespace(scenario="errors", duration=1.5, seed=1, out=str(out), device=None, model_file=None,
+                              bus=None, protocol=None, publish=sock, publish_backlog=100_000)
+    feed, label, path, registry = demo_feed(args, _registry)
+    viewer = None
+
+    async def go():
+        nonlocal viewer
+        app = SnifferApp(TuiSink(), feed, source_label=label, capture_path=path, registry=registry)
+        async with app.run_test(size=(140, 45)) as pilot:
+            deadline = time.monotonic() + HANG_S
+            while viewer is None:  # the socket listens once the capture has opened the pty
+                assert time.monotonic() < deadline, "the demo never published"
+                try:
+                    viewer = Viewer(sock)
+                except CaptureError:
+                    await pilot.pause(0.05)
+            viewer.start()
+            while not (app.caught_up and len(app.store) == app.sink.frames_in):
+                assert time.monotonic() < deadline, "the demo never ended"
+                await pilot.pause(0.05)
+            assert app.feed_error is None
+            return [f.raw.hex() for f in app.store.frames]
+
+    shown = asyncio.run(go())
+    viewer.join(HANG_S)
+    assert viewer.att.ended is not None and viewer.att.earlier_frames == 0
+    assert viewer.records == read_frames(str(out))
+    assert [r["raw"] for r in viewer.records] == shown and len(shown) > 20
+
+
+# ---------------------------------------------------------------- (c) sniffer serve
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _listening(port: int) -> list[str]:
+    """Local addresses (hex, as /proc/net/tcp* writes them) listening on `port`."""
+    out = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        try:
+            with open(table) as f:
+                rows = f.read().splitlines()[1:]
+        except OSError:
+            continue
+        for row in rows:
+            local, state = row.split()[1], row.split()[3]
+            addr, _, hexport = local.rpartition(":")
+            if state == "0A" and int(hexport, 16) == port:
+                out.append(addr)
+    return out
+
+
+async def _browser(port: int, want: list[bytes], proc: subprocess.Popen) -> bytes:
+    """Open the app's websocket as the page does, read until `want` is on screen, then Ctrl-C the server."""
+    import aiohttp
+
+    got = b""
+    async with aiohttp.ClientSession() as session, \
+            session.ws_connect(f"http://127.0.0.1:{port}/ws?width=140&height=40") as ws:
+        async with asyncio.timeout(HANG_S):
+            async for msg in ws:
+                if msg.type == aiohttp.WSMsgType.BINARY:
+                    got += msg.data
+                if all(w in got for w in want):
+                    break
+            proc.send_signal(signal.SIGINT)  # with the browser still connected
+            async for _ in ws:  # the server closes it
+                pass
+    return got
+
+
+def test_serve_demo_in_a_browser(tmp_path):
+    pytest.importorskip("textual_serve")
+    pytest.importorskip("aiohttp")
+    port = _free_port()
+    sock, out = tmp_path / "serve.sock", tmp_path / "served.mcap"
+    logs = tmp_path / "serve.err", tmp_path / "serve.out"  # textual-serve logs to stdout
+    screen_seen = False
+    with open(logs[0], "w") as err, open(logs[1], "w") as stdout:
+        proc = subprocess.Popen([sys.executable, "-m", "sniffer", "serve", "--demo", "--scenario", "errors",
+                                 "--http-port", str(port), "--socket", str(sock), "--out", str(out)],
+                                cwd=tmp_path, stdout=stdout, stderr=err, stdin=subprocess.DEVNULL)
+    try:
+        def up():
+            assert proc.poll() is None, f"serve exited: {logs[0].read_text()}"
+            with socket.socket() as s:
+                return s.connect_ex(("127.0.0.1", port)) == 0
+
+        _wait(up, "the web server")
+        assert _listening(port) == ["0100007F"]  # 127.0.0.1 only, no other address, no IPv6
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=HANG_S) as page:
+            html = page.read()
+        assert b"textual.js" in html and f"ws://127.0.0.1:{port}/ws".encode() in html
+        # a terminal viewer attaches to the same capture alongside
+        terminal = Attachment(str(sock))
+        assert terminal.label == "demo errors"
+        # a browser's websocket starts `sniffer attach SOCKET --tui`, which renders the capture
+        screen = asyncio.run(_browser(port, [b"Frames", b"demo errors"], proc))
+        screen_seen = True
+        assert b"Frames" in screen and b"demo errors" in screen
+        assert read_stream(terminal)  # the terminal viewer got frames, then the end of the capture
+        assert terminal.ended is not None
+    finally:
+        if not screen_seen:  # the test failed before the browser pressed Ctrl-C: stop it all the same
+            proc.send_signal(signal.SIGINT)
+        rc = proc.wait(HANG_S)
+    log = logs[0].read_text() + logs[1].read_text()
+    assert rc == 0, log
+    assert "Traceback" not in log and "sniffer: error" not in log
+    frames = read_frames(str(out))  # the capture child closed its MCAP
+    assert len(frames) > 0
+    assert not sock.exists()
+
+
+def test_serve_usage_errors(capsys):
+    pytest.importorskip("textual_serve")
+    assert main(["serve"]) == 2
+    assert main(["serve", "/dev/ttyUSB0", "--demo"]) == 2
+    assert main(["serve", "--demo", "--baud", "9600"]) == 2
+    with socket.socket() as busy:  # the HTTP port is taken: said before any capture starts
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        assert main(["serve", "--demo", "--http-port", str(busy.getsockname()[1])]) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 4 and all(x.startswith("sniffer: error: ") for x in lines)
+    assert "choose another --http-port" in lines[-1]
+
+
+def test_cli_attach_prints_what_a_replay_of_the_mcap_prints(tmp_path):
+    """`sniffer demo --publish` and `sniffer attach --headless` as processes; Ctrl-C ends both cleanly."""
+    sn = [sys.executable, "-m", "sniffer"]
+    sock, out = tmp_path / "cli.sock", tmp_path / "cli.mcap"
+    with open(tmp_path / "demo.err", "w") as derr:
+        demo = subprocess.Popen(sn + ["demo", "--scenario", "errors", "--duration", "0", "--quiet", "--out", str(out),
+                                      "--publish", str(sock)], stderr=derr, stdin=subprocess.DEVNULL)
+    try:
+        _wait(lambda: _publishing(sock), "the demo to publish")
+        with open(tmp_path / "attach.out", "w") as aout, open(tmp_path / "attach.err", "w") as aerr:
+            viewer = subprocess.Popen(sn + ["attach", str(sock), "--headless"], stdout=aout, stderr=aerr)
+        _wait(lambda: len((tmp_path / "attach.out").read_text().splitlines()) > 20, "frames in the viewer")
+    finally:
+        demo.send_signal(signal.SIGINT)
+        assert demo.wait(HANG_S) == 0
+    assert viewer.wait(HANG_S) == 0
+    err = (tmp_path / "attach.err").read_text().splitlines()
+    assert err[0].startswith(f"sniffer: attached to {sock}: demo errors at 19200 8E1 modbus-rtu")
+    assert err[-1].startswith("sniffer: capture ended: ")
+    replay = subprocess.run(sn + ["replay", str(out)], capture_output=True, text=True, check=True)
+    assert (tmp_path / "attach.out").read_text() == replay.stdout
+
+
+# ---------------------------------------------------------------- (d) nothing to attach to
+def test_attach_missing_socket_one_line_exit_2(tmp_path, capsys):
+    assert main(["attach", str(tmp_path / "nobody.sock")]) == 2
+    assert main(["attach", "tcp:1"]) == 2  # nothing listens on port 1
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 2 and all(x.startswith("sniffer: error: ") for x in lines)
+    assert "nobody.sock" in lines[0]
+
+
+def test_publish_refuses_busy_or_foreign_paths(tmp_path):
+    busy = str(tmp_path / "busy.sock")
+    with PublishSink(busy) as pub:
+        pub.start(CaptureInfo(source="test", baud=9600))
+        with pytest.raises(PublishError, match="another capture"):
+            PublishSink(busy)
+    assert not os.path.exists(busy)
+    stale = socket.socket(socket.AF_UNIX)  # a killed capture's leftover: bound, nobody listening
+    stale.bind(str(tmp_path / "stale.sock"))
+    stale.close()
+    PublishSink(str(tmp_path / "stale.sock")).close()
+    (tmp_path / "file").write_text("mine")
+    with pytest.raises(PublishError, match="not a socket"):
+        PublishSink(str(tmp_path / "file"))
+    assert (tmp_path / "file").read_text() == "mine"
+
+
+# ---------------------------------------------------------------- (e) a viewer that stops reading
+def test_stalled_viewer_does_not_stall_the_capture(tmp_path):
+    sc = get_scenario("default")
+    chunks = wire_chunks(list(simulate(sc, sc.line, 60.0, 2)))
+    sock = str(tmp_path / "slow.sock")
+    info = CaptureInfo(source="sim", baud=sc.line.baud, parity=sc.line.parity, stopbits=sc.line.stopbits)
+    collector = ListSink()
+    pub = PublishSink(sock, viewer_queue=200)
+    p = Pipeline(info, sc.line, default_registry(sc.devices), [collector, pub], protocol=sc.protocol)
+    go = threading.Event()
+    stalled = Viewer(sock, start=go)  # header read, then it reads nothing until `go`
+    stalled.start()
+
+    def run():
+        for ev in chunks:
+            p.feed(ev)
+
+    feeder = threading.Thread(target=run, daemon=True)
+    feeder.start()
+    feeder.join(HANG_S)
+    assert not feeder.is_alive()  # every event went through while the viewer read nothing
+    n = len(collector.records)
+    assert p.frames_out == n > 3000
+    _wait(lambda: pub.frames == n, "the publisher to serialise every frame")
+    go.set()  # the viewer reads again: it gets what was queued, the skip, then the end
+    p.finish()
+    stalled.join(HANG_S)
+    att, total = stalled.att, len(collector.records)
+    assert att.ended is not None and att.ended["frames"] == total
+    assert att.skipped > 0 and len(stalled.records) + att.skipped == total
+    # what it got are the capture's own records, in the capture's order
+    got = iter(collector.records)
+    assert all(any(r == c for c in got) for r in stalled.records)
