@@ -18,7 +18,8 @@
    plus how many frames the framer recovers, byte for byte, against the truth.
 3. Peers: pymodbus' RTU framer fed the same byte stream in the same read-sized
    pieces (as its transport does), and its best case (frames pre-split,
-   direction known); sigrok-cli if installed.
+   direction known); sigrok-cli if installed (apt-get install sigrok-cli), on a
+   given .sr capture or on the capture's first 2,000 frames as logic samples.
 
 Figures are printed, nothing is asserted: tests never assert wall-clock times.
 `--profile` instead runs (b) under cProfile and prints the top functions.
@@ -420,24 +421,73 @@ def run_child(kind: str, folder: Path, limit: int | None = None, repeat: int = 1
 
 
 # ----------------------------------------------------------------- sigrok
-def sigrok_peer(capture: str | None) -> str:
+SIGROK_FRAMES = 2000  # sigrok-cli decodes logic samples, not bytes: a slice of the capture is enough
+SIGROK_RATE = 1_000_000  # samples/s: 8.7 samples a bit at 115200 baud
+REFCAPTURES = Path(__file__).resolve().parent.parent / "captures" / "refcaptures" / "sigrok"
+
+
+def logic_capture(truth, rate: int = SIGROK_RATE) -> bytes:
+    """Wire frames as a 2-channel logic capture, one byte a sample: bit 0 the master's line
+    (requests), bit 1 the slaves' (responses), idle high, 3.5 characters between frames."""
+    spb = rate / LINE.baud
+    par = {"N": None, "E": 0, "O": 1}[LINE.parity]
+    out = bytearray()
+    t = 0.0
+    idle = 0b11
+
+    def hold(end: float, level: int) -> None:
+        n = int(round(end)) - len(out)
+        if n > 0:
+            out.extend(bytes((level,)) * n)
+
+    for direction, _valid, raw in truth:
+        t += spb * 10 * 3.5
+        hold(t, idle)
+        low = idle & ~(1 << direction)
+        for byte in raw:
+            bits = [0] + [(byte >> i) & 1 for i in range(8)]
+            if par is not None:
+                bits.append((bin(byte).count("1") + par) & 1)
+            bits += [1] * LINE.stopbits
+            for bit in bits:
+                t += spb
+                hold(t, idle if bit else low)
+    hold(t + spb * 40, idle)
+    return bytes(out)
+
+
+def sigrok_peer(folder: Path, capture: str | None) -> str:
+    """sigrok-cli's uart + modbus decoders: on a given .sr capture, or on the first frames of ours as logic samples."""
     exe = shutil.which("sigrok-cli")
     if not exe:
-        return f"sigrok-cli not installed ({SIGROK_ELSEWHERE})"
-    if not capture:
-        return f"sigrok-cli installed, no .sr capture given (--sigrok-capture) ({SIGROK_ELSEWHERE})"
-    ref = Path("/work/shared/refcaptures/sigrok") / (Path(capture).stem + ".json")
-    if not ref.exists():
-        return f"no {ref.name} next to the reference captures: cannot choose decoder options"
-    meta = json.loads(ref.read_text())
-    frames = meta["frames_csv_derived_by_us"]["frames"]
+        return f"sigrok-cli not installed (apt-get install sigrok-cli; {SIGROK_ELSEWHERE})"
+    if capture:
+        ref = REFCAPTURES / (Path(capture).stem + ".json")
+        if not ref.exists():
+            return f"no {ref.name} in captures/refcaptures/sigrok: cannot choose decoder options"
+        meta = json.loads(ref.read_text())
+        frames = meta["frames_csv_derived_by_us"]["frames"]
+        cmd = [exe, "-i", capture, "-P", meta["sigrok_cli"]["modbus_pd_spec"], "-A", "modbus"]
+        what = f"{frames} frames of {Path(capture).name}"
+    else:
+        truth = read_truth(folder / "truth.bin")[:SIGROK_FRAMES]
+        path = folder / "logic.bin"
+        path.write_bytes(logic_capture(truth))
+        frames = len(truth)
+        parity = {"N": "none", "E": "even", "O": "odd"}[LINE.parity]
+        spec = (f"uart:rx=0:tx=1:baudrate={LINE.baud}:parity={parity}:stop_bits={LINE.stopbits},"
+                f"modbus:scchannel=TX:cschannel=RX")
+        cmd = [exe, "-I", f"binary:numchannels=2:samplerate={SIGROK_RATE}", "-i", str(path), "-P", spec,
+               "-A", "modbus"]
+        what = (f"the first {frames:,} frames of this capture as 2-channel logic samples at "
+                f"{SIGROK_RATE / 1e6:g} MS/s")
     t0 = time.perf_counter()
-    r = subprocess.run([exe, "-i", capture, "-P", meta["sigrok_cli"]["modbus_pd_spec"], "-A", "modbus"],
-                       capture_output=True, text=True)
+    r = subprocess.run(cmd, capture_output=True, text=True)
     dt = time.perf_counter() - t0
     if r.returncode != 0:
         return f"sigrok-cli failed: {r.stderr.strip()[:200]}"
-    return f"{frames / dt:,.0f} frames/s ({frames} frames of {Path(capture).name} in {dt:.2f} s)"
+    good = r.stdout.count("CRC correct")
+    return f"{frames / dt:,.0f} frames/s ({what}, {good:,} CRC correct, {dt:.2f} s)"
 
 
 # ------------------------------------------------------------------ report
@@ -595,7 +645,7 @@ def main(argv=None) -> int:
         res["stream_q"] = run_child("stream", folder, meta["quarter_chunks"])
         res["stream_n"] = run_child("stream", folder)
         print("  stream: done", flush=True)
-        report(meta, res, sigrok_peer(args.sigrok_capture), n)
+        report(meta, res, sigrok_peer(folder, args.sigrok_capture), n)
     return 0
 
 
