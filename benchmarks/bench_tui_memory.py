@@ -9,7 +9,7 @@
      (`run_test`, 120x40, its 15 Hz poll) with replay_feed decoding the streamed capture on the
      feed thread (default registry, TuiSink tapped to its register shadow), until every frame
      is in the store.  Then the filters are timed on that store.
-   - store: the same pipeline and TuiSink on one thread, drained into a FrameStore every 20,000
+   - store: the same pipeline and TuiSink on one thread, drained into a FrameStore every 5,000
      frames (the App's max_batch), so the time in FrameStore.add is measured alone.
    - old: as `store`, but every Frame is also kept in a list with a dict index -> row, which is
      what the store held before (frames as objects); run with M frames (default N).
@@ -38,7 +38,7 @@ sys.path.insert(0, str(HERE))
 
 from bench_pipeline import LINE, _info, generate, read_chunks
 
-DRAIN = 20_000  # SnifferApp.max_batch
+DRAIN = 5_000  # SnifferApp.max_batch: at most this many frames a poll tick (about 50 ms of store work)
 TARGET_MB = 300
 
 

@@ -95,7 +95,7 @@ class SnifferApp(App):
 
     def __init__(self, sink: TuiSink, feed: Callable[[TuiSink, threading.Event], object] | None = None, *,
                  source_label: str = "", capture_path: str | None = None, registry=None,
-                 poll_hz: float = 15.0, max_batch: int = 20_000,
+                 poll_hz: float = 15.0, max_batch: int = 5_000,
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__()
         self.sink = sink
