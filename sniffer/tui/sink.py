@@ -25,7 +25,7 @@ from ..events import CaptureInfo, Chunk
 from ..frame import Frame
 from .shadow import ShadowTap
 
-MAX_BACKLOG = 30_000  # frames waiting for the UI before a replay waits (the App drains 20,000 a tick)
+MAX_BACKLOG = 30_000  # frames waiting for the UI before a replay waits (the App drains 5,000 a tick)
 
 
 class TuiSink:
