@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 from decoders.registry import default_registry
 from sniffer.events import CaptureInfo, Chunk
 from sniffer.line import LineSettings
@@ -77,3 +80,25 @@ def simulate_and_decode(name: str, seconds: float, adapter: str = "wire", seed: 
         got = run_events(chunks, sc.line, devices=devices or sc.devices, protocol=protocol or sc.protocol)
         _SIMULATED[key] = (sc, sent, got)
     return _SIMULATED[key]
+
+
+def run_sniffer(*args, timeout=120) -> subprocess.CompletedProcess:
+    """`python -m sniffer ARGS` as a user runs it, output captured."""
+    return subprocess.run([sys.executable, "-m", "sniffer", *args], capture_output=True, text=True, timeout=timeout)
+
+
+def demo_records(tmp_path, scenario: str, seconds: float = 2) -> tuple[list[dict], str]:
+    """`sniffer demo --headless --format jsonl` of a scenario over a real pty: (JSONL records, MCAP path).
+
+    Asserts what every demo must do: exit 0, write nothing to the bus, decode more than a few frames."""
+    import json
+
+    out = str(tmp_path / "demo.mcap")
+    r = run_sniffer("demo", "--scenario", scenario, "--duration", str(seconds), "--headless", "--format", "jsonl",
+                    "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert "sniffer wrote 0 bytes to the bus" in r.stderr
+    recs = [json.loads(line) for line in r.stdout.splitlines()]
+    assert len(recs) > 10
+    return recs, out
+

@@ -12,12 +12,10 @@ write is flagged.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from binascii import unhexlify
 
 import pytest
-from helpers import simulate_and_decode
+from helpers import demo_records, run_sniffer, simulate_and_decode
 
 from decoders.registry import default_registry
 from sniffer.crc import lrc
@@ -215,20 +213,15 @@ def test_tds_cn_write_in_drv_mode_is_flagged():
 # ------------------------------------------------------------ the commands
 
 
-def _sniffer(*args, timeout=120):
-    return subprocess.run([sys.executable, "-m", "sniffer", *args], capture_output=True, text=True,
-                          timeout=timeout)
-
-
 def test_simulate_writes_models_and_protocol_so_replay_needs_no_flags(tmp_path):
     out = tmp_path / "spl.mcap"
-    r = _sniffer("simulate", "--scenario", "spl-ascii", "--duration", "4", "--out", str(out))
+    r = run_sniffer("simulate", "--scenario", "spl-ascii", "--duration", "4", "--out", str(out))
     assert r.returncode == 0, r.stderr
     from sniffer.sources.mcapsrc import open_mcap
 
-    info, _ = open_mcap(str(out))
+    info, _ = open_mcap(out)
     assert (info.protocol, info.devices, info.databits) == ("modbus-ascii", {1: "spl", 2: "spl"}, 7)
-    r = _sniffer("replay", str(out), "--format", "jsonl")
+    r = run_sniffer("replay", str(out), "--format", "jsonl")
     assert r.returncode == 0, r.stderr
     recs = [json.loads(line) for line in r.stdout.splitlines()]
     assert len(recs) > 50
@@ -238,15 +231,9 @@ def test_simulate_writes_models_and_protocol_so_replay_needs_no_flags(tmp_path):
 
 
 def test_demo_plays_a_model_scenario_live(tmp_path):
-    out = tmp_path / "demo.mcap"
-    r = _sniffer("demo", "--scenario", "a510-ascii", "--duration", "2", "--headless", "--format", "jsonl",
-                 "--out", str(out))
-    assert r.returncode == 0, r.stderr
-    assert "sniffer wrote 0 bytes to the bus" in r.stderr
-    recs = [json.loads(line) for line in r.stdout.splitlines()]
-    assert len(recs) > 10
+    recs, out = demo_records(tmp_path, "a510-ascii")
     assert all(rec["crc_ok"] and rec["protocol"] == "modbus-ascii" and rec["model"] == "a510" for rec in recs)
     from sniffer.sources.mcapsrc import open_mcap
 
-    info, _ = open_mcap(str(out))
+    info, _ = open_mcap(out)
     assert info.protocol == "modbus-ascii" and info.devices == {1: "a510", 2: "a510"}

@@ -12,13 +12,10 @@ mistakes.
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from collections import Counter
 
 import pytest
-from helpers import simulate_and_decode
+from helpers import demo_records, simulate_and_decode
 
 from decoders.pd_series.schema import CNTR_BITS, PARAMS, STATUS
 from sniffer.line import LineSettings
@@ -278,19 +275,8 @@ def test_broadcasts_get_no_reply(name):
 # ------------------------------------------------------------ the commands
 
 
-def _sniffer(*args, timeout=120):
-    return subprocess.run([sys.executable, "-m", "sniffer", *args], capture_output=True, text=True,
-                          timeout=timeout)
-
-
 def test_demo_plays_the_pd_line_live(tmp_path):
-    out = tmp_path / "demo.mcap"
-    r = _sniffer("demo", "--scenario", "pd-series", "--duration", "2", "--headless", "--format", "jsonl",
-                 "--out", str(out))
-    assert r.returncode == 0, r.stderr
-    assert "sniffer wrote 0 bytes to the bus" in r.stderr
-    recs = [json.loads(line) for line in r.stdout.splitlines()]
-    assert len(recs) > 10
+    recs, _out = demo_records(tmp_path, "pd-series")
     assert all(rec["crc_ok"] and rec["protocol"] == "pd-rtu" and rec["model"] == "pd-series" for rec in recs)
     assert any(p["name"] == "Out F" and p["unit"] == "Hz" for rec in recs for p in rec["points"])
 
