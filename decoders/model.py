@@ -10,6 +10,14 @@ annotation saying why.
 
 from __future__ import annotations
 
+from sniffer.codes import MODEL_BROADCAST_REG as BROADCAST_REG
+from sniffer.codes import MODEL_RANGE as RANGE
+from sniffer.codes import MODEL_READ_ONLY as READ_ONLY
+from sniffer.codes import MODEL_RESERVED as RESERVED
+from sniffer.codes import MODEL_SCALE_PENDING as SCALE_PENDING
+from sniffer.codes import MODEL_TOO_MANY as TOO_MANY
+from sniffer.codes import MODEL_UNKNOWN_REG as UNKNOWN_REG
+from sniffer.codes import MODEL_VENDOR_EXCEPTION as VENDOR_EXCEPTION
 from sniffer.codes import Code, note
 from sniffer.frame import REQUEST, RESPONSE, Frame
 
@@ -17,14 +25,6 @@ from .base import UnitState
 from .generic.decoder import GenericModbus
 from .tables import Register, RegisterMap
 
-READ_ONLY = Code("model.write.read_only", "error", "write to a read-only register")
-RESERVED = Code("model.write.reserved", "error", "write to a reserved register")
-UNKNOWN_REG = Code("model.register.unknown", "warning", "register not in the model's register map")
-RANGE = Code("model.value.range", "warning", "written value outside the manual's range")
-BROADCAST_REG = Code("model.broadcast.register", "error", "broadcast write to a register the manual does not allow")
-TOO_MANY = Code("model.request.too_many", "error", "more registers in one request than the manual allows")
-SCALE_PENDING = Code("model.scale.pending", "info", "scaled through a register not yet seen on the bus: shown in %")
-VENDOR_EXCEPTION = Code("model.exception.vendor", "warning", "vendor exception code")
 MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION)
 
 _DIGITS = {1.0: 0, 0.1: 1, 0.01: 2, 0.001: 3}

@@ -9,13 +9,14 @@ from __future__ import annotations
 import functools
 
 from sniffer import codes as core_codes
-from sniffer.codes import Code, CodeBook, note
+from sniffer.codes import MODEL_GUESS as GUESS
+from sniffer.codes import CodeBook, note
 from sniffer.frame import Frame
+from sniffer.protocols import PROTOCOLS
 
 from .base import Decoder, UnitState
 
 
-GUESS = Code("model.guess", "info", "unit's model guessed from its traffic (no device map entry)")
 
 
 class DeviceMapError(ValueError):
@@ -54,7 +55,9 @@ class DecoderRegistry:
                 if m is not None and all(m.path != o.path for o in maps.values()):
                     maps[mid] = m
             self.identifier = Identifier(maps) if maps else None
-        self.codebook = CodeBook(*(d.codes for d in self.decoders.values()), (GUESS,))
+        from sniffer.protocols import all_codes
+
+        self.codebook = CodeBook(all_codes(), *(d.codes for d in self.decoders.values()))
 
     def model_for(self, unit: int | None) -> str:
         """A user's map wins; else the identifier's guess; else the default (generic)."""
@@ -101,7 +104,7 @@ class DecoderRegistry:
         n0 = len(f.annotations)
         try:
             decode(f, f.peer, state)
-            if f.protocol.endswith("-ascii"):
+            if f.protocol in _TEXT:
                 _spans_to_text(f, n0)
         except Exception as e:  # a decoder bug must not stop a capture
             f.annotations.append(
@@ -119,14 +122,16 @@ class DecoderRegistry:
             self._routes[unit] = route
         return route
 
+_TEXT = {name: p for name, p in PROTOCOLS.items() if p.text}
+
+
 def _spans_to_text(f: Frame, n0: int) -> None:
-    """Decoder spans count ADU bytes; on an ASCII frame byte i is characters 1+2i, 2+2i."""
+    """Decoder spans count ADU bytes: on a text (ASCII) frame, map them onto its characters."""
+    span = _TEXT[f.protocol].raw_span
     n = len(f.raw)
     for k in range(n0, len(f.annotations)):
         a = f.annotations[k]
-        s = min(1 + 2 * a.start, n - 1)
-        e = max(s + 1, min(1 + 2 * a.end, n))
-        f.annotations[k] = type(a)(a.code, a.severity, a.detail, s, e)
+        f.annotations[k] = type(a)(a.code, a.severity, a.detail, *span(a.start, a.end, n))
 
 
 def parse_device_args(items: list[str] | None) -> dict[int, str]:

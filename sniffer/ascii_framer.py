@@ -14,20 +14,20 @@ from binascii import Error as HexError
 from binascii import unhexlify
 
 from . import codes
-from .codes import Code, note
+from .codes import ASCII_BAD_HEX as BAD_HEX
+from .codes import ASCII_NO_CRLF as NO_CRLF
+from .codes import RTU_CODES, note
 from .crc import lrc
 from .frame import CAN_REQ, CAN_RSP, Frame
 from .framer import RtuFramer, _WAIT
 from .rtu_layout import Need, candidates
 
 MAX_ASCII = 1 + 2 * 256 + 2  # ':' + 2 * (ADU + LRC) + CR LF
-NO_CRLF = Code("modbus.ascii.no_crlf", "warning", "ASCII frame not ended by CR LF")
-BAD_HEX = Code("modbus.ascii.bad_hex", "error", "ASCII frame holds characters that are not hex digits")
-ASCII_CODES = (NO_CRLF, BAD_HEX)
 
 
 class AsciiFramer(RtuFramer):
     protocol = "modbus-ascii"
+    codes = RTU_CODES + (NO_CRLF, BAD_HEX)
 
     def _step(self, p: int):
         base = self.base

@@ -17,7 +17,7 @@ from .pairer import DEFAULT_TIMEOUT_MS
 from .sources import CaptureError
 
 EXIT_USAGE = 2
-PROTOCOLS = ("modbus-rtu", "modbus-ascii", "pd-rtu", "pd-ascii")
+from .protocols import NAMES as PROTOCOLS
 
 
 class UsageError(Exception):

@@ -1,9 +1,10 @@
-"""Annotation codes: declared once, spoken by the JSONL, the TUI and the tests.
+"""Annotation codes: every one is declared here, once, and spoken by the JSONL, the TUI and the tests.
 
 Each code is a constant `Code`; stages create annotations from the constant,
-so a misspelt code is a NameError, not a silent new string.  Decoders declare
-the codes they may emit (`Decoder.codes`); `CodeBook` collects the core codes
-and those of the decoders in one explicit instance.
+so a misspelt code is a NameError, not a silent new string.  Framers
+(`framer.codes`, collected by sniffer.protocols) and decoders (`Decoder.codes`)
+say which of them they may emit; `CodeBook` collects the core codes and those
+in one explicit instance, and a test checks that every code here is claimed.
 """
 
 from __future__ import annotations
@@ -94,13 +95,80 @@ END_OF_CAPTURE = Code("pair.end_of_capture", INFO, "capture ended before a respo
 # --- decoding ----------------------------------------------------------------
 EXCEPTION = Code("modbus.exception", WARNING, "exception response")
 DECODE_SHORT = Code("modbus.decode.short", ERROR, "frame too short for its function code")
-DECODE_ROLE = Code("modbus.decode.role_unknown", INFO, "direction unknown; decoded as both")
 NO_REQUEST_CONTEXT = Code(
     "modbus.decode.no_request", INFO, "register addresses unknown: response has no request"
 )
 MODEL_MISMATCH = Code("model.mismatch", WARNING, "traffic does not look like the configured model")
 
-CORE_CODES: tuple[Code, ...] = tuple(v for v in list(globals().values()) if isinstance(v, Code))
+# --- Modbus ASCII framing (ascii_framer) ------------------------------------------
+ASCII_NO_CRLF = Code("modbus.ascii.no_crlf", WARNING, "ASCII frame not ended by CR LF")
+ASCII_BAD_HEX = Code("modbus.ascii.bad_hex", ERROR, "ASCII frame holds characters that are not hex digits")
+
+# --- PD-series framing (pd_framer) -------------------------------------------------
+PD_LEN_MISMATCH = Code("pd.len.mismatch", WARNING, "LEN does not count the frame's data bytes")
+PD_QUIET_SHORT = Code("pd.timing.quiet", INFO, "less than the manual's 50 ms of quiet before the frame")
+PD_FUNCTION_UNKNOWN = Code("pd.function.unknown", WARNING, "function code not defined by the PD-series protocol")
+PD_WRITE_ERROR = Code("pd.error.write", INFO, "81H error reply to a write parameter (02H): paired as 82H")
+PD_NO_CRLF = Code("pd.ascii.no_crlf", WARNING, "ASCII frame not ended by CR LF")
+PD_BAD_HEX = Code("pd.ascii.bad_hex", ERROR, "ASCII frame holds characters that are not hex digits")
+
+# --- generic Modbus decoding (decoders/generic) ------------------------------------
+COIL_VALUE = Code("modbus.coil.value", ERROR, "write single coil value must be FF00 or 0000")
+QUANTITY = Code("modbus.quantity.range", ERROR, "quantity outside the range the Modbus spec allows")
+
+# --- drive models from register maps (decoders/model.py, decoders/registry.py) ------
+MODEL_GUESS = Code("model.guess", INFO, "unit's model guessed from its traffic (no device map entry)")
+MODEL_READ_ONLY = Code("model.write.read_only", ERROR, "write to a read-only register")
+MODEL_RESERVED = Code("model.write.reserved", ERROR, "write to a reserved register")
+MODEL_UNKNOWN_REG = Code("model.register.unknown", WARNING, "register not in the model's register map")
+MODEL_RANGE = Code("model.value.range", WARNING, "written value outside the manual's range")
+MODEL_BROADCAST_REG = Code(
+    "model.broadcast.register", ERROR, "broadcast write to a register the manual does not allow"
+)
+MODEL_TOO_MANY = Code(
+    "model.request.too_many", ERROR, "more registers in one request than the manual allows"
+)
+MODEL_SCALE_PENDING = Code(
+    "model.scale.pending", INFO, "scaled through a register not yet seen on the bus: shown in %"
+)
+MODEL_VENDOR_EXCEPTION = Code("model.exception.vendor", WARNING, "vendor exception code")
+TDS_PRG_ONLY = Code("tds.write.prg_only", ERROR, "Cn/Sn parameter written while the drive is in DRV mode")
+A510_ASSUMED = Code(
+    "a510.freq.resolution", INFO,
+    "frequency resolution assumed (0.1 Hz if the drive's maximum frequency is over 300 Hz)",
+)
+A510_SWITCHED = Code(
+    "a510.freq.high", WARNING,
+    "a frequency above 300.00 Hz: the drive must be set above 300 Hz, so 0.1 Hz resolution applies",
+)
+
+# --- PD-series decoding (decoders/pd_series) ---------------------------------------
+PD_DATA_SHORT = Code("pd.data.short", ERROR, "DATA too short for the function")
+PD_DATA_EXTRA = Code("pd.data.extra", WARNING, "more DATA bytes than the function's layout: the rest shown raw")
+PD_DATA_LONG = Code("pd.data.long", WARNING, "more than 25 DATA bytes (l.183: fifty ASCII characters at most)")
+PD_UNIT_RANGE = Code("pd.unit.range", WARNING, "address outside 0-250 (l.71-73)")
+PD_BROADCAST_READ = Code("pd.broadcast.read", WARNING, "broadcast read: the manual says no inverter answers")
+PD_ERROR_REPLY = Code("pd.error.reply", WARNING, "error reply (81H/83H)")
+PD_STATUS_CFG = Code("pd.status.cfg", WARNING, "status selector CFG outside 0-7 (l.165)")
+PD_NO_REQUEST = Code("pd.decode.no_request", INFO, "reply decoded without its request")
+PD_PARAM_UNKNOWN = Code("pd.param.unknown", INFO, "parameter not described in the manual: raw value")
+PD_READ_ONLY = Code("pd.write.read_only", ERROR, "write to a parameter the manual says cannot be set")
+PD_RANGE = Code("pd.value.range", WARNING, "written value outside the manual's set range")
+PD_RUNNING = Code("pd.write.running", WARNING, "parameter without ** written while the inverter runs (l.335)")
+PD_LOOP_ECHO = Code("pd.loop.echo", WARNING, "loop test reply is not an echo of its request")
+
+ALL_CODES: tuple[Code, ...] = tuple(v for v in list(globals().values()) if isinstance(v, Code))
+# what the stages outside framers and decoders emit (pipeline, pairer, registry); framers and
+# decoders declare their own in `codes` (protocols.py collects the framers')
+CORE_CODES: tuple[Code, ...] = (
+    SOURCE_GAP, NO_RESPONSE, TIMEOUT, LATE_RESPONSE, ORPHAN_RESPONSE, RETRY, BROADCAST_RESPONSE,
+    BROADCAST, PAIR_MISMATCH, END_OF_CAPTURE, DECODE_SHORT, MODEL_MISMATCH, MODEL_GUESS,
+)
+# the Modbus RTU framer's codes (LineBuffer's own are the UART, t1.5 and noise ones)
+LINE_CODES: tuple[Code, ...] = (UART_FRAMING, UART_PARITY, T15_VIOLATION, NOISE)
+RTU_CODES: tuple[Code, ...] = LINE_CODES + (
+    CRC_MISMATCH, LENGTH_MISMATCH, FUNCTION_UNKNOWN, FUNCTION_USER, UNIT_RESERVED, T35_SHORT,
+)
 
 
 class CodeBook:

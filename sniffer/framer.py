@@ -45,6 +45,7 @@ _ECHOES = frozenset((0x05, 0x06, 0x08))  # 8 bytes both ways
 
 class RtuFramer(LineBuffer):
     protocol = "modbus-rtu"
+    codes = codes.RTU_CODES
 
     def noise_reason(self, raw: bytes) -> str:
         return _noise_reason(raw)

@@ -31,6 +31,7 @@ _WAIT = None
 
 class LineBuffer:
     protocol = "line"
+    codes = codes.LINE_CODES
 
     def __init__(self, line: LineSettings, *, read_slack_ns: int = 50_000_000) -> None:
         self.line = line

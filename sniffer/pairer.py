@@ -22,8 +22,10 @@ from __future__ import annotations
 from . import codes
 from .codes import note
 from .frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE, UNKNOWN, Frame
+from .protocols import PROTOCOLS
 
 DEFAULT_TIMEOUT_MS = 1000.0
+_MODBUS = frozenset(name for name, p in PROTOCOLS.items() if p.family == "modbus")  # Modbus echo/count rules
 
 
 class Pairer:
@@ -91,7 +93,7 @@ class Pairer:
                     note(codes.LATE_RESPONSE, f"{lat / 1e6:.1f} ms after the request", 0, len(f.raw))
                 )
             why = (response_mismatch(req.adu, f.adu)
-                   if req.crc_ok and f.crc_ok and f.protocol.startswith("modbus") else None)
+                   if req.crc_ok and f.crc_ok and f.protocol in _MODBUS else None)
             if why:
                 f.annotations.append(note(codes.PAIR_MISMATCH, why, 0, len(f.raw)))
             out = self.held  # the request and anything held since: settled now

@@ -53,7 +53,14 @@ from fastcrc.crc16 import modbus as crc16_modbus  # incremental: `initial` = the
 
 from . import codes
 from .ascii_framer import AsciiFramer
-from .codes import Code, note
+from .codes import LINE_CODES, note
+from .codes import CRC_MISMATCH
+from .codes import PD_BAD_HEX as BAD_HEX
+from .codes import PD_FUNCTION_UNKNOWN as FUNCTION_UNKNOWN
+from .codes import PD_LEN_MISMATCH as LEN_MISMATCH
+from .codes import PD_NO_CRLF as NO_CRLF
+from .codes import PD_QUIET_SHORT as QUIET_SHORT
+from .codes import PD_WRITE_ERROR as WRITE_ERROR
 from .crc import crc_expected, crc_found, crc_ok, lrc
 from .frame import CAN_REQ, CAN_RSP, Frame
 from .framer import _WAIT, HARD, RtuFramer
@@ -68,13 +75,8 @@ RESERVED = frozenset({0x06, 0x07})  # l.87-89
 ERRORS = frozenset({0x81, 0x83})  # error replies (l.111, l.125, l.153)
 KNOWN = FUNCTIONS | ERRORS
 
-LEN_MISMATCH = Code("pd.len.mismatch", "warning", "LEN does not count the frame's data bytes")
-QUIET_SHORT = Code("pd.timing.quiet", "info", "less than the manual's 50 ms of quiet before the frame")
-FUNCTION_UNKNOWN = Code("pd.function.unknown", "warning", "function code not defined by the PD-series protocol")
-WRITE_ERROR = Code("pd.error.write", "info", "81H error reply to a write parameter (02H): paired as 82H")
-NO_CRLF = Code("pd.ascii.no_crlf", "warning", "ASCII frame not ended by CR LF")
-BAD_HEX = Code("pd.ascii.bad_hex", "error", "ASCII frame holds characters that are not hex digits")
-FRAMER_CODES = (LEN_MISMATCH, QUIET_SHORT, FUNCTION_UNKNOWN, WRITE_ERROR, NO_CRLF, BAD_HEX)
+RTU_CODES = LINE_CODES + (CRC_MISMATCH, LEN_MISMATCH, QUIET_SHORT, FUNCTION_UNKNOWN, WRITE_ERROR)
+ASCII_CODES = LINE_CODES + (CRC_MISMATCH, LEN_MISMATCH, FUNCTION_UNKNOWN, WRITE_ERROR, NO_CRLF, BAD_HEX)
 
 
 def roles(unit: int, fc: int) -> int:
@@ -131,6 +133,7 @@ class _PdCommon:
 
 class PdRtuFramer(_PdCommon, RtuFramer):
     protocol = "pd-rtu"
+    codes = RTU_CODES
 
     # ------------------------------------------------------------- decisions
     def _good_at(self, q: int, end: int, final: bool, max_unit: int = 255):
@@ -312,6 +315,7 @@ class PdAsciiFramer(_PdCommon, AsciiFramer):
     """':' ADDR FUNC LEN DATA LRC CR LF (l.64); cut like Modbus ASCII (AsciiFramer._step)."""
 
     protocol = "pd-ascii"
+    codes = ASCII_CODES
 
     def _span(self, i: int, j: int) -> tuple[int, int]:
         return 1 + 2 * i, 1 + 2 * j
@@ -358,4 +362,4 @@ class PdAsciiFramer(_PdCommon, AsciiFramer):
         return f"{len(body) // 2} byte(s) after ':': too short for ADDR FUNC + LRC"
 
 
-__all__ = ["PdRtuFramer", "PdAsciiFramer", "FRAMER_CODES", "FUNCTIONS", "ERRORS", "QUIET_NS", "roles"]
+__all__ = ["PdRtuFramer", "PdAsciiFramer", "FUNCTIONS", "ERRORS", "QUIET_NS", "roles"]

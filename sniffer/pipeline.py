@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Protocol
 
-from . import codes
+from . import codes, protocols
 from .codes import note
 from .events import CaptureInfo, Chunk, Gap, Tick
 from .frame import Frame
@@ -25,22 +25,6 @@ class Sink(Protocol):
     def raw(self, event: Chunk | Tick | Gap) -> None: ...
     def frame(self, frame: Frame) -> None: ...
     def close(self) -> None: ...
-
-
-def make_framer(protocol: str, line: LineSettings):
-    from .framer import RtuFramer
-
-    if protocol == "modbus-rtu":
-        return RtuFramer(line)
-    if protocol == "modbus-ascii":
-        from .ascii_framer import AsciiFramer
-
-        return AsciiFramer(line)
-    if protocol in ("pd-rtu", "pd-ascii"):
-        from .pd_framer import PdAsciiFramer, PdRtuFramer
-
-        return PdRtuFramer(line) if protocol == "pd-rtu" else PdAsciiFramer(line)
-    raise ValueError(f"protocol {protocol!r} is not supported")
 
 
 class Pipeline:
@@ -58,7 +42,7 @@ class Pipeline:
         self.line = line
         self.registry = registry
         self.sinks = list(sinks)
-        self.framer = make_framer(protocol, line)
+        self.framer = protocols.get(protocol).framer(line)
         self.pairer = Pairer(timeout_ms, unit_timeouts)
         self.frames_out = 0
         self.bytes_in = 0

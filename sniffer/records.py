@@ -10,6 +10,7 @@ from __future__ import annotations
 import orjson
 
 from .frame import Frame
+from .protocols import NAMES
 
 
 def frame_record(f: Frame, t0_ns: int) -> dict:
@@ -72,7 +73,7 @@ FRAME_SCHEMA = {
         "t": {"type": "number", "description": "seconds from capture start (first byte)"},
         "t_end": {"type": "number", "description": "seconds from capture start (end of last byte)"},
         "raw": {"type": "string", "description": "frame bytes, hex"},
-        "protocol": {"type": "string", "enum": ["modbus-rtu", "modbus-ascii", "pd-rtu", "pd-ascii", "noise"]},
+        "protocol": {"type": "string", "enum": [*NAMES, "noise"]},
         "unit": _NULLABLE_INT,
         "function": _NULLABLE_INT,
         "role": {"type": "string", "enum": ["request", "response", "unknown", "noise"]},

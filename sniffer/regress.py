@@ -25,6 +25,7 @@ from pathlib import Path
 
 from .events import CaptureInfo
 from .frame import Frame
+from .protocols import MODBUS_TABLES
 
 EXIT_SAME, EXIT_DIFFERENT, EXIT_ERROR = 0, 1, 2
 GOLDEN_HEADER = "# sniffer golden v1: t_s latency_ms | role unit model fc crc pair(offset) summary [codes]"
@@ -220,7 +221,6 @@ def check(capture, golden, *, tolerances: Tolerances | None = None, update: bool
 
 
 # ---------------------------------------------------------------- semantic diff
-_TABLE = {1: "coil", 2: "input", 3: "holding", 4: "inputreg", 5: "coil", 6: "holding", 15: "coil", 16: "holding"}
 
 
 def _request_key(f: Frame) -> tuple:
@@ -237,7 +237,7 @@ def _key_text(k: tuple) -> str:
     fc, addr, n = k
     if addr is None:
         return f"fc{fc:02X}" if fc is not None else "fc--"
-    return f"fc{fc:02X} {_TABLE.get(fc, '?')} {addr}..{addr + n - 1} ({n})"
+    return f"fc{fc:02X} {MODBUS_TABLES.get(fc, '?')} {addr}..{addr + n - 1} ({n})"
 
 
 def _pct(xs: list[float], q: float) -> float | None:

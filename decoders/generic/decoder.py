@@ -11,25 +11,24 @@ import functools
 
 from construct import ConstructError
 
-from sniffer import codes
-from sniffer.codes import Code, note, note_in
+from sniffer.codes import (
+    COIL_VALUE, DECODE_SHORT, EXCEPTION, NO_REQUEST_CONTEXT, QUANTITY, Code, note, note_in,
+)
 from sniffer.frame import REQUEST, RESPONSE, Frame
+from sniffer.protocols import MODBUS_TABLES
 
 from ..base import UnitState
 from .fast import FAST
 from .schema import EXCEPTION_NAMES, FUNCTION_NAMES, LAYOUTS
 
-COIL_VALUE = Code("modbus.coil.value", "error", "write single coil value must be FF00 or 0000")
-QUANTITY = Code("modbus.quantity.range", "error", "quantity outside the range the Modbus spec allows")
 
-SPACE = {0x01: "coil", 0x02: "discrete", 0x03: "holding", 0x04: "input",
-         0x05: "coil", 0x06: "holding", 0x0F: "coil", 0x10: "holding", 0x16: "holding", 0x17: "holding"}
+SPACE = MODBUS_TABLES  # function code -> "coil" / "discrete" / "holding" / "input"
 _MAX_QTY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x0F: 1968, 0x10: 123}
 
 
 class GenericModbus:
     model = "generic"
-    codes: tuple[Code, ...] = (COIL_VALUE, QUANTITY)
+    codes: tuple[Code, ...] = (EXCEPTION, DECODE_SHORT, NO_REQUEST_CONTEXT, COIL_VALUE, QUANTITY)
 
     # ---- hooks for drive models --------------------------------------------
     def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
@@ -69,7 +68,7 @@ class GenericModbus:
         parsed = reader(body)
         if parsed is None:
             f.annotations.append(
-                note_in(codes.DECODE_SHORT, f"{len(body)} data bytes too few for {FUNCTION_NAMES.get(fc, hex(fc))}",
+                note_in(DECODE_SHORT, f"{len(body)} data bytes too few for {FUNCTION_NAMES.get(fc, hex(fc))}",
                         2, max(3, len(adu)), len(f.raw))
             )
             f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} (malformed)"
@@ -92,7 +91,7 @@ class GenericModbus:
         f.exception = {"code": code, "name": name}
         base = FUNCTION_NAMES.get(fc & 0x7F, f"function 0x{fc & 0x7F:02X}")
         f.summary = f"exception {code:02X} {name} ({base})" if code is not None else f"exception ({base})"
-        f.annotations.append(note_in(codes.EXCEPTION, f"{code} {name}", 2, 3, len(f.raw)))
+        f.annotations.append(note_in(EXCEPTION, f"{code} {name}", 2, 3, len(f.raw)))
 
     # ---- per-function handlers ---------------------------------------------
     def _read_req(self, f, role, p, request, state):
@@ -110,7 +109,7 @@ class GenericModbus:
         if request is not None and request.crc_ok and len(request.adu) >= 6:
             addr = (request.adu[2] << 8) | request.adu[3]
         else:
-            f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.adu)))
+            f.annotations.append(note(NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.adu)))
         shadow = state.holding if fc in (0x03, 0x17) else state.input
         if addr is not None and f.crc_ok:  # the shadow holds what CRC-good frames said
             shadow.update(zip(range(addr, addr + len(values)), values))
@@ -127,7 +126,7 @@ class GenericModbus:
             addr = (request.adu[2] << 8) | request.adu[3]
             qty = min(qty, (request.adu[4] << 8) | request.adu[5])
         else:
-            f.annotations.append(note(codes.NO_REQUEST_CONTEXT, "bit numbers unknown", 2, len(f.adu)))
+            f.annotations.append(note(NO_REQUEST_CONTEXT, "bit numbers unknown", 2, len(f.adu)))
         shadow = state.coils if fc == 0x01 else state.discrete
         bits = [(status[i >> 3] >> (i & 7)) & 1 for i in range(qty)]
         if addr is not None and f.crc_ok:

@@ -23,9 +23,21 @@ from __future__ import annotations
 from construct import ConstructError
 
 from sniffer import codes as core
+from sniffer.codes import PD_DATA_SHORT as DATA_SHORT
+from sniffer.codes import PD_DATA_EXTRA as DATA_EXTRA
+from sniffer.codes import PD_DATA_LONG as DATA_LONG
+from sniffer.codes import PD_UNIT_RANGE as UNIT_RANGE
+from sniffer.codes import PD_BROADCAST_READ as BROADCAST_READ
+from sniffer.codes import PD_ERROR_REPLY as ERROR_REPLY
+from sniffer.codes import PD_STATUS_CFG as STATUS_CFG
+from sniffer.codes import PD_NO_REQUEST as NO_REQUEST
+from sniffer.codes import PD_PARAM_UNKNOWN as PARAM_UNKNOWN
+from sniffer.codes import PD_READ_ONLY as READ_ONLY
+from sniffer.codes import PD_RANGE as RANGE
+from sniffer.codes import PD_RUNNING as RUNNING
+from sniffer.codes import PD_LOOP_ECHO as LOOP_ECHO
 from sniffer.codes import Code, note_in
 from sniffer.frame import REQUEST, RESPONSE, Frame
-from sniffer.pd_framer import FRAMER_CODES
 
 from ..base import UnitState
 from .schema import (
@@ -33,19 +45,6 @@ from .schema import (
     bits_text, enum_text, layout_for,
 )
 
-DATA_SHORT = Code("pd.data.short", "error", "DATA too short for the function")
-DATA_EXTRA = Code("pd.data.extra", "warning", "more DATA bytes than the function's layout: the rest shown raw")
-DATA_LONG = Code("pd.data.long", "warning", "more than 25 DATA bytes (l.183: fifty ASCII characters at most)")
-UNIT_RANGE = Code("pd.unit.range", "warning", "address outside 0-250 (l.71-73)")
-BROADCAST_READ = Code("pd.broadcast.read", "warning", "broadcast read: the manual says no inverter answers")
-ERROR_REPLY = Code("pd.error.reply", "warning", "error reply (81H/83H)")
-STATUS_CFG = Code("pd.status.cfg", "warning", "status selector CFG outside 0-7 (l.165)")
-NO_REQUEST = Code("pd.decode.no_request", "info", "reply decoded without its request")
-PARAM_UNKNOWN = Code("pd.param.unknown", "info", "parameter not described in the manual: raw value")
-READ_ONLY = Code("pd.write.read_only", "error", "write to a parameter the manual says cannot be set")
-RANGE = Code("pd.value.range", "warning", "written value outside the manual's set range")
-RUNNING = Code("pd.write.running", "warning", "parameter without ** written while the inverter runs (l.335)")
-LOOP_ECHO = Code("pd.loop.echo", "warning", "loop test reply is not an echo of its request")
 DECODER_CODES = (DATA_SHORT, DATA_EXTRA, DATA_LONG, UNIT_RANGE, BROADCAST_READ, ERROR_REPLY, STATUS_CFG,
                  NO_REQUEST, PARAM_UNKNOWN, READ_ONLY, RANGE, RUNNING, LOOP_ECHO)
 
@@ -56,7 +55,7 @@ def load() -> "PdSeriesDecoder":
 
 class PdSeriesDecoder:
     model = "pd-series"
-    codes: tuple[Code, ...] = FRAMER_CODES + DECODER_CODES
+    codes: tuple[Code, ...] = DECODER_CODES + (core.PAIR_MISMATCH,)
 
     def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
         adu = f.adu

@@ -11,13 +11,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sniffer.codes import Code, note
+from sniffer.codes import TDS_PRG_ONLY as PRG_ONLY
+from sniffer.codes import note
 from sniffer.frame import RESPONSE
 
 from ..model import TableDecoder
 from ..tables import load_map
 
-PRG_ONLY = Code("tds.write.prg_only", "error", "Cn/Sn parameter written while the drive is in DRV mode")
 MAP_PATH = Path(__file__).with_name("registers.toml")
 
 

@@ -15,16 +15,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sniffer.codes import Code, note
+from sniffer.codes import A510_ASSUMED as ASSUMED
+from sniffer.codes import A510_SWITCHED as SWITCHED
+from sniffer.codes import note
 
 from ..model import TableDecoder
 from ..tables import Register, load_map
 
 RULE = "a510_fmax_over_300hz"
-ASSUMED = Code("a510.freq.resolution", "info",
-               "frequency resolution assumed (0.1 Hz if the drive's maximum frequency is over 300 Hz)")
-SWITCHED = Code("a510.freq.high", "warning",
-                "a frequency above 300.00 Hz: the drive must be set above 300 Hz, so 0.1 Hz resolution applies")
 MAP_PATH = Path(__file__).with_name("registers.toml")
 
 

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from ..crc import crc_bytes, lrc
 from ..events import FLAG_FRAMING
 from ..line import LineSettings
+from ..protocols import PROTOCOLS
 from .master import Master, Request
 from .model_drive import ModelDrive
 from .pd_drive import PdDrive, data_method
@@ -35,7 +36,6 @@ KIND_EXCEPTION = "exception"
 KIND_BROADCAST = "broadcast"
 KIND_NOISE = "noise"
 KIND_CORRUPTED = "corrupted"
-PROTOCOLS = ("modbus-rtu", "modbus-ascii", "pd-rtu", "pd-ascii")
 KINDS = (KIND_REQUEST, KIND_RESPONSE, KIND_EXCEPTION, KIND_BROADCAST, KIND_NOISE, KIND_CORRUPTED)
 
 # why a frame is special (WireFrame.fault)
@@ -80,10 +80,11 @@ class _Bus:
         self.rng = random.Random(seed)
         self.char = line.char_ns
         self.jitter = int(sc.byte_jitter_bits * 1e9 / line.baud)
-        if sc.protocol not in PROTOCOLS:
+        protocol = PROTOCOLS.get(sc.protocol)
+        if protocol is None:
             raise ValueError(f"scenario {sc.name}: protocol {sc.protocol!r} is not simulated")
-        self.ascii = sc.protocol.endswith("-ascii")
-        self.pd = sc.protocol.startswith("pd-")
+        self.ascii = protocol.text
+        self.pd = protocol.family == "pd"
         self.specs: dict[int, UnitSpec] = {u.unit: u for u in sc.units}
         self.drives: dict[int, Drive]
         if self.pd:

@@ -23,6 +23,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from ..frame import Frame
+from ..protocols import of_frame
 
 HISTORY = 120  # values kept per register for the plot
 SWEEP_S = 0.5  # wall-clock seconds between whole-shadow sweeps on the capture thread
@@ -30,18 +31,12 @@ _PENDING_WRITES = 1024  # write requests remembered until their response
 # UnitState attribute -> the watch's table name
 SHADOW_TABLES = (("holding", "holding"), ("input", "input"), ("coils", "coil"), ("discrete", "discrete"))
 _ATTR = {table: attr for attr, table in SHADOW_TABLES}
-# which table a function's points live in (the generic decoder's SPACE; the PD-series protocol's own codes)
-MODBUS_TABLE = {1: "coil", 5: "coil", 15: "coil", 2: "discrete", 3: "holding", 6: "holding", 16: "holding",
-                22: "holding", 23: "holding", 4: "input"}
-PD_TABLE = {1: "holding", 2: "holding", 4: "input"}
 
 
 def table_of(f: Frame) -> str | None:
     """The shadow table a frame's addressed points belong to, or None."""
-    if f.function is None:
-        return None
-    fc = f.function & 0x7F
-    return PD_TABLE.get(fc) if f.protocol.startswith("pd-") else MODBUS_TABLE.get(fc)
+    p = of_frame(f.protocol)
+    return None if p is None else p.table_of(f.function)
 
 
 def _commit_points(f: Frame, pending: dict) -> tuple[str | None, list]:

@@ -1,0 +1,106 @@
+"""The line protocols: one entry per protocol, every fact about it in one place.
+
+    protocol = get("modbus-ascii")
+    framer = protocol.framer(line)           # its framer class, on these line settings
+    protocol.default_model                   # the model for units without a --device entry
+    protocol.codes                           # the annotation codes its framer may emit
+    protocol.table_of(0x03)                  # "holding": the register table a function reads/writes
+    protocol.raw_span(2, 4, len(raw))        # ADU bytes [2, 4) as a span of the wire bytes
+
+A new protocol is a framer class (a `LineBuffer` subclass that declares its
+`codes`) and one `Protocol` entry below; nothing else lists protocols.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+
+from .codes import Code
+from .line import LineSettings, SettingsError
+
+# the four tables of the Modbus data model (the register shadow keeps one dict per table)
+COIL, DISCRETE, HOLDING, INPUT = "coil", "discrete", "holding", "input"
+TABLES = (COIL, DISCRETE, HOLDING, INPUT)
+
+# function code -> the table its addresses live in (Modbus application protocol 6.1-6.17)
+MODBUS_TABLES: Mapping[int, str] = MappingProxyType({
+    0x01: COIL, 0x02: DISCRETE, 0x03: HOLDING, 0x04: INPUT, 0x05: COIL, 0x06: HOLDING,
+    0x0F: COIL, 0x10: HOLDING, 0x16: HOLDING, 0x17: HOLDING,
+})
+# PD-series: 01H/02H read/write a parameter (kept as holding), 04H reads a status value (input)
+PD_TABLES: Mapping[int, str] = MappingProxyType({0x01: HOLDING, 0x02: HOLDING, 0x04: INPUT})
+
+
+@dataclass(frozen=True)
+class Protocol:
+    name: str
+    family: str  # "modbus" or "pd": which request/response rules apply
+    text: bool  # ASCII on the wire: raw holds characters, adu the binary bytes
+    default_model: str
+    tables: Mapping[int, str]
+    _framer: str  # "module:Class", imported when first used
+
+    @property
+    def framer_class(self):
+        import importlib
+
+        module, _, cls = self._framer.partition(":")
+        return getattr(importlib.import_module(module, __package__), cls)
+
+    def framer(self, line: LineSettings):
+        return self.framer_class(line)
+
+    @property
+    def codes(self) -> tuple[Code, ...]:
+        return tuple(self.framer_class.codes)
+
+    def table_of(self, function: int | None) -> str | None:
+        """The register table a function code's addresses belong to (exception bit ignored), or None."""
+        if function is None:
+            return None
+        return self.tables.get(function & 0x7F)
+
+    def raw_span(self, start: int, end: int, size: int) -> tuple[int, int]:
+        """ADU bytes [start, end) as a span of a frame's `size` wire bytes (never empty).
+
+        Binary framings put the ADU first in the frame: the span is the same.
+        ASCII puts byte i at characters 1 + 2i and 2 + 2i (after the ':').
+        """
+        if not self.text:
+            return start, end
+        s = min(1 + 2 * start, size - 1)
+        return s, max(s + 1, min(1 + 2 * end, size))
+
+
+PROTOCOLS: Mapping[str, Protocol] = MappingProxyType({p.name: p for p in (
+    Protocol("modbus-rtu", "modbus", False, "generic", MODBUS_TABLES, ".framer:RtuFramer"),
+    Protocol("modbus-ascii", "modbus", True, "generic", MODBUS_TABLES, ".ascii_framer:AsciiFramer"),
+    Protocol("pd-rtu", "pd", False, "pd-series", PD_TABLES, ".pd_framer:PdRtuFramer"),
+    Protocol("pd-ascii", "pd", True, "pd-series", PD_TABLES, ".pd_framer:PdAsciiFramer"),
+)})
+NAMES: tuple[str, ...] = tuple(PROTOCOLS)
+DEFAULT = "modbus-rtu"
+
+
+def get(name: str) -> Protocol:
+    """The protocol named `name`, or SettingsError naming the ones there are."""
+    p = PROTOCOLS.get(name) if isinstance(name, str) else None
+    if p is None:
+        raise SettingsError(f"protocol {str(name)[:60]!r} is not one of {', '.join(NAMES)}")
+    return p
+
+
+def of_frame(protocol: str) -> Protocol | None:
+    """The entry for a frame's `protocol` field (None for noise)."""
+    return PROTOCOLS.get(protocol)
+
+
+def all_codes() -> tuple[Code, ...]:
+    """Every code the framers of all protocols may emit (for the code book)."""
+    seen: dict[str, Code] = {}
+    for p in PROTOCOLS.values():
+        for c in p.codes:
+            seen.setdefault(c.code, c)
+    return tuple(seen.values())
