@@ -228,7 +228,7 @@ def cmd_replay(args) -> int:
     p = Pipeline(info, line, registry, [_out_sink(args, False)], **kw)
     bar = None
     if args.progress:
-        from .export.progress import ReplayProgress
+        from .progress import ReplayProgress
 
         bar = ReplayProgress(args.file, events=events)
         bar.frames = lambda: p.frames_out

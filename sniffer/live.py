@@ -16,7 +16,7 @@ import time
 
 from . import __version__
 from .line import LineSettings
-from .mcap_sink import CaptureStorageError, McapSink
+from .sinks.mcap import CaptureStorageError, McapSink
 from .pipeline import Pipeline
 from .sources.serial_live import SerialSource
 

@@ -55,7 +55,7 @@ def run_simulate(args) -> int:
     if not out.endswith(".mcap"):
         print("sniffer: error: --out must end in .mcap or .csv", file=sys.stderr)
         return 2
-    from .mcap_sink import CaptureStorageError, McapSink
+    from .sinks.mcap import CaptureStorageError, McapSink
     from .pipeline import Pipeline
 
     info = CaptureInfo(

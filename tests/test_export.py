@@ -126,7 +126,7 @@ def test_parquet_export_interrupted_leaves_valid_files(tmp_path):
 
 
 def test_progress_total_from_mcap_summary(tmp_path):
-    from sniffer.export.progress import estimate_events
+    from sniffer.progress import estimate_events
 
     assert estimate_events(A510) == 570  # the /raw events of the MCAP summary
     assert estimate_events(CAPTURES / "refcaptures" / "sigrok" / "wizmodbus.bytes.csv") is None

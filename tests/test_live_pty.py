@@ -14,7 +14,7 @@ from helpers import ListSink
 from decoders.registry import default_registry
 from sniffer.live import capture
 from sniffer.line import LineSettings
-from sniffer.mcap_sink import McapSink
+from sniffer.sinks.mcap import McapSink
 from sniffer.pipeline import Pipeline
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus

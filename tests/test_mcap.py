@@ -20,7 +20,8 @@ from sniffer.events import FLAG_FRAMING, FLAG_PARITY, CaptureInfo, Chunk, Gap, T
 from sniffer.framer import RtuFramer
 from sniffer.line import LineSettings
 from sniffer.mcap_repair import default_output, repair
-from sniffer.mcap_sink import RAW_SCHEMA, CaptureStorageError, McapSink, info_to_metadata
+from sniffer.mcap_format import RAW_SCHEMA, info_to_metadata
+from sniffer.sinks.mcap import CaptureStorageError, McapSink
 from sniffer.records import FRAME_SCHEMA, frame_record, loads
 from sniffer.sources import CaptureError
 from sniffer.sources.mcapsrc import open_mcap, read_frames, sniff
@@ -295,7 +296,7 @@ KILL_CHILD = r"""
 import sys, time
 sys.path.insert(0, sys.argv[2])
 from test_mcap import INFO, make_event
-from sniffer.mcap_sink import McapSink
+from sniffer.sinks.mcap import McapSink
 sink = McapSink(sys.argv[1], flush_interval_s=0.2)
 sink.start(INFO)
 i = 0
@@ -355,7 +356,7 @@ FULL_CHILD = r"""
 import json, resource, sys
 sys.path.insert(0, sys.argv[2])
 from test_mcap import INFO, make_event, real_frames
-from sniffer.mcap_sink import CaptureStorageError, McapSink
+from sniffer.sinks.mcap import CaptureStorageError, McapSink
 limit = int(sys.argv[3])
 resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))  # writes past it fail with EFBIG
 sink = McapSink(sys.argv[1], flush_interval_s=0)

@@ -11,7 +11,7 @@ import pytest
 
 from sniffer.crc import crc_bytes
 from sniffer.export import export
-from sniffer.export.pcap import TSHARK_ARGS, global_header, packet
+from sniffer.sinks.pcap import TSHARK_ARGS, global_header, packet
 from sniffer.regress import DecodeOptions, decode_capture
 from sniffer.sources import CaptureError
 from sniffer.sources.pcapsrc import open_pcap, read_packets, sniff

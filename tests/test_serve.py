@@ -28,7 +28,7 @@ from sniffer.cli import main
 from sniffer.events import CaptureInfo
 from sniffer.line import LineSettings
 from sniffer.live import capture
-from sniffer.mcap_sink import McapSink
+from sniffer.sinks.mcap import McapSink
 from sniffer.pipeline import Pipeline
 from sniffer.publish import CONTROL_PREFIX, PublishError, PublishSink
 from sniffer.records import loads

@@ -15,19 +15,19 @@ FORMATS = ("csv", "parquet", "pcap", "pcapng", "mcap")
 
 def make_sink(fmt: str, out: str | os.PathLike[str]):
     if fmt == "csv":
-        from .tables import CsvSink
+        from ..sinks.tables import CsvSink
 
         return CsvSink(out)
     if fmt == "parquet":
-        from .tables import ParquetSink
+        from ..sinks.tables import ParquetSink
 
         return ParquetSink(out)
     if fmt in ("pcap", "pcapng"):
-        from .pcap import PcapSink
+        from ..sinks.pcap import PcapSink
 
         return PcapSink(out, ng=True if fmt == "pcapng" else None)  # pcap: pcapng if OUT ends .pcapng
     if fmt == "mcap":
-        from ..mcap_sink import McapSink
+        from ..sinks.mcap import McapSink
 
         return McapSink(out)
     raise ValueError(f"unknown export format {fmt!r} (one of {', '.join(FORMATS)})")
@@ -46,7 +46,7 @@ def export(capture, fmt: str, out, options=None, progress: bool = False) -> int:
     on_event = None
     bar = None
     if progress:
-        from .progress import ReplayProgress
+        from ..progress import ReplayProgress
 
         bar = ReplayProgress(capture)
         on_event = bar.update

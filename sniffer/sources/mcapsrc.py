@@ -36,9 +36,10 @@ from mcap.records import (
 from mcap.stream_reader import breakup_chunk
 
 from ..events import CaptureInfo, Chunk as ChunkEvent, Gap, Tick
-from ..mcap_sink import (
+from ..mcap_format import (
     CAPTURE_TOPIC,
     FRAMES_TOPIC,
+    MAGIC,
     METADATA_NAME,
     RAW_FORMAT,
     RAW_TOPIC,
@@ -48,7 +49,6 @@ from ..mcap_sink import (
 from ..records import loads
 from . import CaptureError
 
-MAGIC = b"\x89MCAP0\r\n"
 
 _READERS = {
     Opcode.HEADER: Header.read,

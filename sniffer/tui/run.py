@@ -72,7 +72,7 @@ def live_tui(args, bus, line_fn, registry_fn, timeouts_fn) -> int:
 def live_feed(args, bus, line_fn, registry_fn, timeouts_fn):
     """(feed, source label, capture path, registry) for a live capture of args.port."""
     from ..live import _default_out, capture, publisher
-    from ..mcap_sink import McapSink
+    from ..sinks.mcap import McapSink
     from ..sources.serial_live import SerialSource
 
     line = line_fn(args, None, bus, need=False)
@@ -106,7 +106,7 @@ def demo_tui(args, registry_fn) -> int:
 def demo_feed(args, registry_fn):
     """(feed, source label, capture path, registry) for the simulated-bus demo."""
     from ..live import capture, publisher
-    from ..mcap_sink import McapSink
+    from ..sinks.mcap import McapSink
     from ..simulator.bus import simulate
     from ..simulator.ptybus import PtyBus
     from ..simulator.scenario import get_scenario

@@ -1,19 +1,9 @@
 """MCAP sink: a capture file that replays exactly and opens in Foxglove.
 
-Channels (JSON messages described by JSON Schema, so Foxglove can plot fields):
-
-* ``/capture`` -- one message, the first in the file: the CaptureInfo (line
-  settings, t0, wall anchor, low-latency state, device map).  The same dict is
-  MCAP metadata ``sniffer.capture``.  Both are on disk right after start(),
-  which flushes at once, so even a file cut a second after start still knows
-  its baud, parity and t0 (the metadata index in the summary would be lost).
-* ``/raw`` -- one message per source event (Chunk / Tick / Gap): the replay
-  input, enough to re-frame and re-decode with other settings.  See
-  `encode_event`.
-* ``/frames`` -- one message per decoded frame: the JSONL record of
-  sniffer.records (schema FRAME_SCHEMA).
-
-log_time = publish_time = wall_anchor_ns + (t_ns - t0_ns), clamped to >= 0.
+What goes in it (topics, schemas, the /raw codec) is sniffer.mcap_format.
+/capture and the `sniffer.capture` metadata are on disk right after start(),
+which flushes at once, so even a file cut a second after start still knows
+its baud, parity and t0 (the metadata index in the summary would be lost).
 
 Durability.  mcap's Writer collects messages in a chunk in memory.  Every
 `flush_interval_s` of *wall* time (the sink's monotonic clock, checked on each
@@ -40,123 +30,17 @@ from collections.abc import Callable
 import orjson
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
-from . import __version__
-from .events import CaptureInfo, Chunk, Gap, Tick
-from .frame import Frame
-from .records import FRAME_SCHEMA, frame_json
-
-CAPTURE_TOPIC = "/capture"
-RAW_TOPIC = "/raw"
-FRAMES_TOPIC = "/frames"
-METADATA_NAME = "sniffer.capture"
-RAW_FORMAT = "1"  # channel metadata "sniffer.format": bump when /raw changes incompatibly
-
-RAW_SCHEMA = {
-    "$schema": "https://json-schema.org/draft/2020-12/schema",
-    "title": "sniffer.RawEvent",
-    "description": "One source event: bytes read, a silence tick, or a gap in the capture",
-    "type": "object",
-    "properties": {
-        "kind": {"type": "string", "enum": ["chunk", "tick", "gap"]},
-        "t_ns": {
-            "type": "integer",
-            "description": "capture monotonic clock, ns (chunk: first byte if per-byte, else when the read returned)",
-        },
-        "data": {"type": "string", "description": "chunk bytes, hex"},
-        "byte_dt_ns": {
-            "type": ["array", "null"],
-            "items": {"type": "integer"},
-            "description": "start time of each byte as an offset from t_ns; null: one time per read",
-        },
-        "flags": {
-            "type": "array",
-            "description": "[byte offset, 'framing'|'parity'] UART errors",
-            "items": {"type": "array", "prefixItems": [{"type": "integer"}, {"type": "string"}]},
-        },
-        "channel": {"type": "string"},
-        "t_end_ns": {"type": "integer", "description": "gap: end of the interruption"},
-        "reason": {"type": "string", "description": "gap: why the source was interrupted"},
-    },
-    "required": ["kind", "t_ns"],
-}
-
-CAPTURE_SCHEMA = {
-    "$schema": "https://json-schema.org/draft/2020-12/schema",
-    "title": "sniffer.CaptureInfo",
-    "description": "How the capture was taken: serial settings, clocks, devices",
-    "type": "object",
-    "properties": {
-        "source": {"type": "string"},
-        "port": {"type": "string"},
-        "baud": {"type": ["integer", "null"]},
-        "parity": {"type": ["string", "null"]},
-        "stopbits": {"type": ["integer", "null"]},
-        "databits": {"type": "integer"},
-        "time_source": {"type": "string", "enum": ["byte", "read"]},
-        "t0_ns": {"type": "integer"},
-        "wall_anchor_ns": {"type": "integer"},
-        "low_latency": {"type": "object"},
-        "devices": {"type": "object"},
-        "protocol": {"type": "string"},
-        "sniffer_version": {"type": "string"},
-        "extra": {"type": "object"},
-    },
-}
+from .. import __version__
+from ..events import CaptureInfo, Chunk, Gap, Tick
+from ..frame import Frame
+from ..mcap_format import (
+    CAPTURE_TOPIC, CHANNELS, FRAMES_TOPIC, METADATA_NAME, RAW_FORMAT, RAW_TOPIC, encode_event, info_to_metadata,
+)
+from ..records import frame_json
 
 
 class CaptureStorageError(Exception):
     """The capture file cannot be written (disk full, file too large, I/O error): one line."""
-
-
-def encode_event(ev: Chunk | Tick | Gap) -> bytes:
-    """The /raw message of one event (exactly invertible by `decode_event`)."""
-    if type(ev) is Chunk:
-        t = ev.t_ns
-        return orjson.dumps({
-            "kind": "chunk",
-            "t_ns": t,
-            "data": ev.data.hex(),
-            "byte_dt_ns": None if ev.byte_t_ns is None else [b - t for b in ev.byte_t_ns],
-            "flags": [[i, f] for i, f in ev.flags],
-            "channel": ev.channel,
-        })
-    if type(ev) is Tick:
-        return orjson.dumps({"kind": "tick", "t_ns": ev.t_ns})
-    if type(ev) is Gap:
-        return orjson.dumps({"kind": "gap", "t_ns": ev.t_ns, "t_end_ns": ev.t_end_ns, "reason": ev.reason})
-    raise TypeError(f"not a source event: {ev!r}")
-
-
-def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
-    """Event from a /raw message; None for a kind this version does not know.
-
-    Raises ValueError (or KeyError/TypeError) on a malformed message.
-    """
-    d = orjson.loads(data)
-    kind = d["kind"]
-    t = int(d["t_ns"])
-    if kind == "chunk":
-        raw = bytes.fromhex(d["data"])
-        dt = d.get("byte_dt_ns")
-        byte_t = None if dt is None else tuple(t + int(x) for x in dt)
-        if byte_t is not None and len(byte_t) != len(raw):
-            raise ValueError("byte_dt_ns and data differ in length")
-        flags = tuple((int(i), str(f)) for i, f in d.get("flags") or ())
-        return Chunk(t, raw, byte_t, flags, str(d.get("channel") or ""))
-    if kind == "tick":
-        return Tick(t)
-    if kind == "gap":
-        return Gap(t, int(d["t_end_ns"]), str(d["reason"]))
-    return None
-
-
-def info_to_metadata(info: CaptureInfo) -> dict[str, str]:
-    """MCAP metadata is a string map: each CaptureInfo field, JSON-encoded."""
-    return {k: orjson.dumps(v).decode() for k, v in info.to_dict().items()}
-
-
-def info_from_metadata(meta: dict[str, str]) -> CaptureInfo:
-    return CaptureInfo.from_dict({k: orjson.loads(v) for k, v in meta.items()})
 
 
 class _AppendFile:
@@ -274,11 +158,7 @@ class McapSink:
             w.add_metadata(METADATA_NAME, info_to_metadata(info))
             meta = {"sniffer.format": RAW_FORMAT}
             ids = {}
-            for topic, name, schema in (
-                (CAPTURE_TOPIC, "sniffer.CaptureInfo", CAPTURE_SCHEMA),
-                (RAW_TOPIC, "sniffer.RawEvent", RAW_SCHEMA),
-                (FRAMES_TOPIC, "sniffer.Frame", FRAME_SCHEMA),
-            ):
+            for topic, name, schema in CHANNELS:
                 sid = w.register_schema(name, "jsonschema", orjson.dumps(schema))
                 ids[topic] = w.register_channel(topic, "json", sid, meta)
             self._ch_capture, self._ch_raw, self._ch_frames = ids[CAPTURE_TOPIC], ids[RAW_TOPIC], ids[FRAMES_TOPIC]

@@ -17,8 +17,8 @@ def estimate_events(path) -> int | None:
     try:
         from mcap.reader import make_reader
 
-        from ..mcap_sink import RAW_TOPIC
-        from ..sources import mcapsrc
+        from .mcap_format import RAW_TOPIC
+        from .sources import mcapsrc
 
         if not mcapsrc.sniff(path):
             return None
