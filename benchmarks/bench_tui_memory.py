@@ -6,7 +6,7 @@
    115200 8N1, seen through the FTDI read model, at least N frames (default 1,000,000).
 2. Measure, each in a fresh subprocess so one run's peak RSS does not hide another's:
    - app: what `sniffer replay FILE --tui` runs, without a terminal: SnifferApp headless
-     (`run_test`, 120x40, its 15 Hz poll) with replay_feed decoding the streamed capture on the
+     (`run_test`, 120x40, its 15 Hz poll) with a session decoding the streamed capture on the
      feed thread (default registry, TuiSink tapped to its register shadow), until every frame
      is in the store.  Then the filters are timed on that store.
    - store: the same pipeline and TuiSink on one thread, drained into a FrameStore every 5,000
@@ -134,14 +134,14 @@ def child_store(folder: Path, keep_frames: bool, limit_frames: int | None) -> di
 
 
 def child_app(folder: Path) -> dict:
-    from decoders.registry import default_registry
-    from sniffer.tui.app import SnifferApp
-    from sniffer.tui.run import replay_feed
+    from sniffer.session import CaptureSpec, EventSource, Session
+    from sniffer.tui.run import session_app
     from sniffer.tui.sink import TuiSink
 
-    registry = default_registry()
-    feed = replay_feed(_info(), read_chunks(folder / "chunks.bin"), LINE, registry)
-    app = SnifferApp(TuiSink(), feed, source_label="bench", registry=registry)
+    sink = TuiSink()
+    session = Session(CaptureSpec(), EventSource(_info(), read_chunks(folder / "chunks.bin")), [sink])
+    session.open()
+    app = session_app(session, sink, source_label="bench")
     res: dict = {}
 
     async def go():

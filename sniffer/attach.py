@@ -15,7 +15,7 @@ import time
 from collections.abc import Iterator
 
 from .events import CaptureInfo
-from .publish import CONTROL_PREFIX, STREAM_VERSION, Address, parse_address
+from .stream_format import CONTROL_PREFIX, STREAM_VERSION, Address, parse_address
 from .records import loads
 from .sources import CaptureError
 

@@ -2,15 +2,15 @@
 
     events (Chunk/Tick/Gap) -> framer -> pairer -> registry.decode -> sinks
 
-`Pipeline.feed(event)` and `Pipeline.finish()` return the settled, decoded
-frames (and hand them to the sinks).  A sink is any object with
-`start(info)`, `raw(event)`, `frame(frame)` and `close()`; see `Sink`.
+`Pipeline.feed(event)` and `Pipeline.flush()` return the settled, decoded
+frames (and hand them to the sinks); `close()` closes the sinks.  A sink is
+any object with `start(info)`, `raw(event)`, `frame(frame)` and `close()`
+(sniffer.sinks.base.Sink).  Sans-I/O: sniffer.session drives it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Protocol
 
 from . import codes, protocols
 from .codes import note
@@ -20,20 +20,13 @@ from .line import LineSettings
 from .pairer import DEFAULT_TIMEOUT_MS, Pairer
 
 
-class Sink(Protocol):
-    def start(self, info: CaptureInfo) -> None: ...
-    def raw(self, event: Chunk | Tick | Gap) -> None: ...
-    def frame(self, frame: Frame) -> None: ...
-    def close(self) -> None: ...
-
-
 class Pipeline:
     def __init__(
         self,
         info: CaptureInfo,
         line: LineSettings,
         registry,
-        sinks: Iterable[Sink] = (),
+        sinks: Iterable = (),
         protocol: str = "modbus-rtu",
         timeout_ms: float = DEFAULT_TIMEOUT_MS,
         unit_timeouts: dict[int, float] | None = None,
@@ -73,20 +66,29 @@ class Pipeline:
             return out
         raise TypeError(f"unknown event {ev!r}")
 
-    def finish(self) -> list[Frame]:
-        try:
-            out = self._settle(self.framer.flush())
-            out += self._decode(self.pairer.flush())
-        finally:
-            first_error = None
-            for s in self.sinks:  # close every sink even if one fails
-                try:
-                    s.close()
-                except Exception as e:  # noqa: BLE001 - re-raised below
-                    first_error = first_error or e
-            if first_error is not None:
-                raise first_error
+    def flush(self) -> list[Frame]:
+        """End of input: every pending byte becomes a frame, every held request is settled."""
+        out = self._settle(self.framer.flush())
+        out += self._decode(self.pairer.flush())
         return out
+
+    def close(self) -> None:
+        """Close every sink, even if one fails (the first failure is raised)."""
+        first_error = None
+        for s in self.sinks:
+            try:
+                s.close()
+            except Exception as e:  # noqa: BLE001 - re-raised below
+                first_error = first_error or e
+        if first_error is not None:
+            raise first_error
+
+    def finish(self) -> list[Frame]:
+        """flush() then close()."""
+        try:
+            return self.flush()
+        finally:
+            self.close()
 
     def _settle(self, frames: list[Frame]) -> list[Frame]:
         if not frames:
@@ -120,13 +122,3 @@ class Pipeline:
         self.frames_out += len(frames)
         return frames
 
-
-def run(info: CaptureInfo, events, line: LineSettings, registry, sinks=(), **kw) -> list[Frame] | None:
-    """Drive a whole source through a pipeline; returns nothing (frames went to the sinks)."""
-    p = Pipeline(info, line, registry, sinks, **kw)
-    try:
-        for ev in events:
-            p.feed(ev)
-    finally:
-        p.finish()
-    return None

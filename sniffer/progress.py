@@ -1,15 +1,16 @@
-"""A rich progress bar for long replays/exports (stderr): events, events/s, ETA.
+"""A progress bar for long replays and exports (stderr): frames, frames/s, ETA.
 
-The total is known for an MCAP closed cleanly (its summary counts the /raw
-events); for other sources the bar shows a count, the rate and the elapsed
-time, without ETA.  Ctrl-C is not caught here: the export's `finally`
-closes the bar and the output file.
+The bar advances by the bytes of the file read so far when the source can say
+it (`FileSource.position()`), else by events against the count an MCAP's
+summary gives, else it shows a count and the rate without ETA.  Ctrl-C is not
+caught here: the session's end closes the bar's owner's files.
 """
 
 from __future__ import annotations
 
 import os
 import sys
+import time
 
 
 def estimate_events(path) -> int | None:
@@ -33,7 +34,7 @@ def estimate_events(path) -> int | None:
 
 
 class ReplayProgress:
-    def __init__(self, capture, every: int = 500, events=None) -> None:
+    def __init__(self, capture, *, source=None, frames=None, every: int = 500) -> None:
         from rich.console import Console
         from rich.progress import (
             BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn,
@@ -41,41 +42,42 @@ class ReplayProgress:
 
         self.every = every
         self._n = 0
-        self.total = estimate_events(capture)
-        if self.total is None and events is not None:
-            import operator
-
-            # sources that read their file up front (CSV) know how many events they hold
-            self.total = operator.length_hint(events, 0) or None
+        self._source = source
+        self._position = getattr(source, "position", None)
+        self.frames = frames  # a callable giving frames decoded so far
+        pos = self._position() if self._position else None
+        self._by_bytes = pos is not None
+        self.total = pos[1] if pos else estimate_events(capture)
+        unit = "bytes" if self._by_bytes else "events"
         self._progress = Progress(
             SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
-            TextColumn("{task.completed} events"), TextColumn("{task.fields[frames]}"),
-            TextColumn("{task.fields[rate]}"),
-            TimeElapsedColumn(), TimeRemainingColumn(),
+            TextColumn(f"{{task.completed}} {unit}"), TextColumn("{task.fields[frames]}"),
+            TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TimeRemainingColumn(),
             console=Console(file=sys.stderr), transient=True,
         )
         self._task = self._progress.add_task(os.path.basename(os.fspath(capture)), total=self.total,
                                              rate="", frames="")
         self._progress.start()
-        import time
+        self._t0 = time.monotonic()
 
-        self._clock = time.monotonic
-        self._t0 = self._clock()
-        self.frames = None  # a callable giving frames decoded so far, if the caller has one
-
-    def update(self, i: int, ev) -> None:
-        self._n = i + 1
-        if self._n % self.every == 0:
-            fields = {}
-            if self.frames is not None:
-                n = self.frames()
-                dt = max(1e-9, self._clock() - self._t0)
-                fields = {"frames": f"{n:,} frames", "rate": f"{n / dt:,.0f} frames/s"}
-            else:
-                speed = self._progress.tasks[0].speed
-                fields = {"rate": f"{speed:,.0f} events/s" if speed else ""}
-            self._progress.update(self._task, completed=self._n, **fields)
+    def update(self, _event=None) -> None:
+        self._n += 1
+        if self._n % self.every:
+            return
+        fields = {}
+        if self.frames is not None:
+            n = self.frames()
+            dt = max(1e-9, time.monotonic() - self._t0)
+            fields = {"frames": f"{n:,} frames", "rate": f"{n / dt:,.0f} frames/s"}
+        done = self._n
+        if self._by_bytes:
+            pos = self._position()
+            done = pos[0] if pos else done
+        self._progress.update(self._task, completed=done, **fields)
 
     def close(self) -> None:
-        self._progress.update(self._task, completed=self._n)
+        if self._by_bytes and self.total:
+            self._progress.update(self._task, completed=self.total)
+        else:
+            self._progress.update(self._task, completed=self._n)
         self._progress.stop()

@@ -52,7 +52,8 @@ class SnifferChecker:
                  protocol=None, timeout_ms=None, model_files=None, time_tol_ms=None,
                  latency_tol_ms=None) -> str:
         """Check; returns the golden text path's message on update. Fails the test on a difference."""
-        from .regress import EXIT_DIFFERENT, EXIT_SAME, DecodeOptions, Tolerances, check
+        from .golden import EXIT_DIFFERENT, EXIT_SAME, Tolerances, check
+        from .session import CaptureSpec
 
         defaults = Tolerances()
         tol = Tolerances(
@@ -63,11 +64,9 @@ class SnifferChecker:
             from decoders.registry import parse_device_args
 
             devices = parse_device_args(list(devices))
-        opts = DecodeOptions(baud=baud, parity=parity, stopbits=stopbits, devices=dict(devices or {}),
-                             model_files=[str(self.base / m) for m in (model_files or [])],
-                             protocol=protocol, timeout_ms=timeout_ms)
-        rc, text = check(self.base / capture, self.base / golden, tolerances=tol, update=self.update,
-                         options=opts)
+        spec = CaptureSpec.of(baud=baud, parity=parity, stopbits=stopbits, devices=devices, protocol=protocol,
+                              timeout_ms=timeout_ms, model_files=[str(self.base / m) for m in (model_files or [])])
+        rc, text = check(self.base / capture, self.base / golden, spec=spec, tolerances=tol, update=self.update)
         if rc == EXIT_SAME:
             return text
         if rc == EXIT_DIFFERENT:

@@ -33,34 +33,10 @@ def default_socket() -> str:
     return os.path.join(where, f"sniffer-{os.getpid()}.sock")
 
 
-def capture_argv(args, sock: str) -> list[str]:
-    """The command line of the capture process for `serve`'s arguments."""
-    argv = [sys.executable, "-m", "sniffer"]
-    if args.demo:
-        given = [f for f, v in (("PORT", args.port), ("--baud", args.baud), ("--parity", args.parity),
-                                ("--stopbits", args.stopbits), ("--bus", args.bus), ("--device", args.device),
-                                ("--model-file", args.model_file), ("--protocol", args.protocol),
-                                ("--timeout-ms", args.timeout_ms), ("--no-out", args.no_out)) if v]
-        if given:
-            raise ServeUsageError(f"--demo sets its own line and drives; {', '.join(given)} is for a serial PORT")
-        argv += ["demo", "--scenario", args.scenario, "--seed", str(args.seed), "--out", args.out or "demo.mcap"]
-    else:
-        if not args.port:
-            raise ServeUsageError("give a serial PORT to capture, or --demo")
-        argv += ["live", args.port]
-        for flag, value in (("--baud", args.baud), ("--parity", args.parity), ("--stopbits", args.stopbits),
-                            ("--bus", args.bus), ("--timeout-ms", args.timeout_ms), ("--protocol", args.protocol),
-                            ("--out", args.out)):
-            if value is not None:
-                argv += [flag, str(value)]
-        for flag, values in (("--device", args.device), ("--model-file", args.model_file)):
-            for v in values or []:
-                argv += [flag, v]
-        if args.no_out:
-            argv.append("--no-out")
-    argv += ["--duration", str(args.duration), "--headless", "--quiet",
-             "--publish", sock, "--publish-backlog", str(args.publish_backlog)]
-    return argv
+def capture_argv(spec, command: str, sock: str) -> list[str]:
+    """The command line of the capture process: the spec's own flags (CaptureSpec.to_argv), publishing on sock."""
+    spec = spec.with_(publish=sock, headless=True, stream=None)
+    return [sys.executable, "-m", "sniffer", *spec.to_argv(command)]
 
 
 def viewer_command(sock: str) -> str:
@@ -151,7 +127,7 @@ def _server_class():
     return ViewerServer
 
 
-def run_serve(args) -> int:
+def run_serve(spec, args) -> int:
     try:
         from aiohttp.web_runner import GracefulExit
 
@@ -159,7 +135,11 @@ def run_serve(args) -> int:
     except ImportError:
         raise ServeUsageError("sniffer serve needs textual-serve (pip install textual-serve)") from None
     sock = os.path.abspath(args.socket or default_socket())
-    argv = capture_argv(args, sock)
+    if not args.demo and not args.no_out and not spec.out:
+        from .commands.common import default_capture_name
+
+        spec = spec.with_(out=default_capture_name())
+    argv = capture_argv(spec, "demo" if args.demo else "live", sock)
     _check_http_port(args.host, args.http_port)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"sniffer: note: serving on {args.host}: anyone who reaches port {args.http_port} there sees the "

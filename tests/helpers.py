@@ -102,3 +102,19 @@ def demo_records(tmp_path, scenario: str, seconds: float = 2) -> tuple[list[dict
     assert len(recs) > 10
     return recs, out
 
+
+
+def decoded(path, spec=None):
+    """(info, frames) of a capture file decoded through the session (frames as a list: small captures only)."""
+    from sniffer.session import decode_capture
+
+    session = decode_capture(path, spec)
+    frames = list(session)
+    return session.info, frames
+
+
+def export(capture, fmt: str, out, *flags: str) -> int:
+    """`sniffer export CAPTURE --to FMT --out OUT FLAGS...` in this process: its exit code."""
+    from sniffer.cli import main
+
+    return main(["export", str(capture), "--to", fmt, "--out", str(out), *flags])

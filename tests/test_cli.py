@@ -98,15 +98,18 @@ def test_sigkilled_live_capture_replays_and_repairs(tmp_path):
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=tmp_path)
     try:
         deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 20_000):
+        part = tmp_path / "killed.mcap.part"  # written under that name until the capture ends
+        while time.monotonic() < deadline and (not part.exists() or part.stat().st_size < 20_000):
             time.sleep(0.2)
         time.sleep(1.5)  # at least one more periodic flush
     finally:
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=10)
     assert proc.returncode == -signal.SIGKILL
-    r = run("replay", str(out), "--format", "jsonl")
+    assert not out.exists() and part.exists()
+    r = run("replay", str(out), "--format", "jsonl")  # the name the user gave: its part file is read
     assert r.returncode == 0, r.stderr
+    assert "killed.mcap.part" in r.stderr and "did not end cleanly" in r.stderr
     recs = [json.loads(l) for l in r.stdout.splitlines()]
     assert len(recs) > 20 and all(rec["crc_ok"] for rec in recs if rec["protocol"] != "noise")
     fixed = tmp_path / "fixed.mcap"

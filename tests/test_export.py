@@ -1,4 +1,4 @@
-"""sniffer.export: csv, parquet (read back by DuckDB and pyarrow), mcap re-export with other settings."""
+"""sniffer export: csv, parquet (read back by DuckDB and pyarrow), mcap re-export with other settings."""
 
 from __future__ import annotations
 
@@ -7,8 +7,12 @@ from pathlib import Path
 
 import pytest
 
-from sniffer.export import export, make_sink
-from sniffer.regress import DecodeOptions, decode_capture, golden_text
+from helpers import decoded, export
+
+from sniffer.golden import golden_text
+from sniffer.session import CaptureSpec, Session
+from sniffer.sinks import make_sink
+from sniffer.sources.replay import FileSource
 
 CAPTURES = Path(__file__).resolve().parent.parent / "captures"
 A510 = CAPTURES / "sim" / "a510.mcap"
@@ -17,13 +21,13 @@ ERRORS = CAPTURES / "sim" / "errors.mcap"
 
 @pytest.fixture(scope="module")
 def a510():
-    return decode_capture(A510)
+    return decoded(A510)
 
 
 def test_csv_frames_and_points(tmp_path, a510):
     info, frames = a510
     out = tmp_path / "a510.csv"
-    assert export(A510, "csv", out) == len(frames)
+    assert export(A510, "csv", out) == 0
     rows = list(csv.DictReader(out.open()))
     assert len(rows) == len(frames)
     assert [int(r["index"]) for r in rows] == [f.index for f in frames]
@@ -33,6 +37,7 @@ def test_csv_frames_and_points(tmp_path, a510):
     assert len(points) == sum(len(f.points) for f in frames)
     freq = next(p for p in points if p["name"] == "Frequency command")
     assert freq["eng_unit"] == "Hz" and float(freq["value"]) == 32.5 and freq["raw"] == "3250"
+    assert {p["crc_ok"] for p in points} == {"True"}  # every point says whether its frame's CRC held
 
 
 def test_parquet_reads_in_duckdb_and_pyarrow(tmp_path, a510):
@@ -65,46 +70,58 @@ def test_parquet_of_noise_and_exceptions(tmp_path):
 
 def test_mcap_reexport_with_other_settings_replays_to_the_new_decode(tmp_path):
     out = tmp_path / "a510-generic.mcap"
-    opts = DecodeOptions(devices={1: "generic", 2: "generic"})
-    export(A510, "mcap", out, opts)
-    info, frames = decode_capture(out)
+    assert export(A510, "mcap", out, "--device", "1=generic", "--device", "2=generic") == 0
+    info, frames = decoded(out)
     assert info.devices == {1: "generic", 2: "generic"}  # the new settings travel with the capture
     assert {f.model for f in frames if not f.is_noise} == {"generic"}
     # the raw bytes are the same capture: decoding it as A510 again gives the original decode
-    back = decode_capture(out, DecodeOptions(devices={1: "a510", 2: "a510"}))
-    assert golden_text(*back) == golden_text(*decode_capture(A510))
+    back = decoded(out, CaptureSpec.of(devices={1: "a510", 2: "a510"}))
+    assert golden_text(back[0].t0_ns, back[1]) == golden_text(a510_info_t0(), decoded(A510)[1])
+
+
+def a510_info_t0() -> int:
+    return decoded(A510)[0].t0_ns
+
+
+def _interrupt_after(n: int):
+    seen = []
+
+    def on_event(ev):
+        seen.append(ev)
+        if len(seen) == n:
+            raise KeyboardInterrupt
+
+    return on_event
 
 
 def test_csv_export_interrupted_leaves_a_valid_file(tmp_path):
     out = tmp_path / "cut.csv"
-
-    def stop(i, ev):
-        if i == 200:
-            raise KeyboardInterrupt
-
-    sink = make_sink("csv", out)
+    session = Session(CaptureSpec(), FileSource(str(A510)), [make_sink("csv", out)], on_event=_interrupt_after(200))
     with pytest.raises(KeyboardInterrupt):
-        decode_capture(A510, sinks=[sink], on_event=stop)
-    rows = list(csv.DictReader(out.open()))
+        session.run()
+    rows = list(csv.DictReader(out.open()))  # Ctrl-C keeps what was written: a valid, shorter file
     assert 0 < len(rows) < 502 and all(r["raw"] for r in rows)
+    assert not list(tmp_path.glob("*.part"))
 
 
-def test_progress_bar_export(tmp_path):
-    assert export(A510, "csv", tmp_path / "p.csv", progress=True) == 502
+def test_progress_bar_export(tmp_path, capfd):
+    assert export(A510, "csv", tmp_path / "p.csv", "--progress") == 0
+    assert len(list(csv.DictReader((tmp_path / "p.csv").open()))) == 502
 
 
 def test_unknown_format(tmp_path):
-    with pytest.raises(ValueError, match="one of csv, parquet, pcap, pcapng, mcap"):
+    with pytest.raises(ValueError, match="unknown output format 'xls'"):
         make_sink("xls", tmp_path / "x")
 
 
 def test_mcap_export_of_a_csv_keeps_the_line_settings(tmp_path):
     wiz = CAPTURES / "refcaptures" / "sigrok" / "wizmodbus.bytes.csv"
     out = tmp_path / "wiz.mcap"
-    export(wiz, "mcap", out, DecodeOptions(baud=9600))
-    info, frames = decode_capture(out)  # no --baud needed any more
+    assert export(wiz, "mcap", out, "--baud", "9600") == 0
+    info, frames = decoded(out)  # no --baud needed any more
     assert info.baud == 9600 and len(frames) == 88
-    assert golden_text(info, frames) == golden_text(*decode_capture(wiz, DecodeOptions(baud=9600)))
+    w_info, w_frames = decoded(wiz, CaptureSpec.of(baud=9600))
+    assert golden_text(info.t0_ns, frames) == golden_text(w_info.t0_ns, w_frames)
 
 
 def test_parquet_export_interrupted_leaves_valid_files(tmp_path):
@@ -113,13 +130,9 @@ def test_parquet_export_interrupted_leaves_valid_files(tmp_path):
     out = tmp_path / "cut.parquet"
     sink = make_sink("parquet", out)
     sink.batch = 50  # several row groups
-
-    def stop(i, ev):
-        if i == 300:
-            raise KeyboardInterrupt
-
+    session = Session(CaptureSpec(), FileSource(str(A510)), [sink], on_event=_interrupt_after(300))
     with pytest.raises(KeyboardInterrupt):
-        decode_capture(A510, sinks=[sink], on_event=stop)
+        session.run()
     n = pq.read_table(out).num_rows
     assert 0 < n < 502
     pq.read_table(tmp_path / "cut.points.parquet")
@@ -131,5 +144,5 @@ def test_progress_total_from_mcap_summary(tmp_path):
     assert estimate_events(A510) == 570  # the /raw events of the MCAP summary
     assert estimate_events(CAPTURES / "refcaptures" / "sigrok" / "wizmodbus.bytes.csv") is None
     n = []
-    decode_capture(A510, on_event=lambda i, ev: n.append(i))
+    Session(CaptureSpec(), FileSource(str(A510)), on_event=n.append).run()
     assert len(n) == 570

@@ -12,10 +12,10 @@ import threading
 from helpers import ListSink
 
 from decoders.registry import default_registry
-from sniffer.live import capture
 from sniffer.line import LineSettings
-from sniffer.sinks.mcap import McapSink
 from sniffer.pipeline import Pipeline
+from sniffer.session import CaptureSpec, Session
+from sniffer.sinks.mcap import McapSink
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
 from sniffer.simulator.scenario import get_scenario
@@ -39,11 +39,14 @@ def _live(tmp_path, scenario="default", seconds=2.0, speed=4.0):
             stop.wait(0.5)  # then let the capture see the line go quiet
             stop.set()
 
-        p, error = capture(source, LINE, default_registry(), [collector], duration_s=30, stop=stop,
-                           mcap=McapSink(out), on_open=lambda info: threading.Thread(target=play, daemon=True).start())
+        session = Session(CaptureSpec(duration_s=30), source, [collector, McapSink(out)], stop=stop,
+                          keep_partial=True)
+        session.open()  # the port is open: now the bus may talk
+        threading.Thread(target=play, daemon=True).start()
+        session.run()
         bus.drain()
         written_back = bus.bytes_received_from_sniffer
-    assert error is None
+    assert session.error is None
     return sent, collector, out, result["stats"], written_back
 
 

@@ -9,17 +9,28 @@ from pathlib import Path
 
 import pytest
 
+from helpers import decoded
+from helpers import export as _export
+
 from sniffer.crc import crc_bytes
-from sniffer.export import export
 from sniffer.sinks.pcap import TSHARK_ARGS, global_header, packet
-from sniffer.regress import DecodeOptions, decode_capture
+from sniffer.session import CaptureSpec
 from sniffer.sources import CaptureError
 from sniffer.sources.pcapsrc import open_pcap, read_packets, sniff
 
 CAPTURES = Path(__file__).resolve().parent.parent / "captures"
 WIZ = CAPTURES / "refcaptures" / "sigrok" / "wizmodbus.bytes.csv"
 ERRORS = CAPTURES / "sim" / "errors.mcap"
-BAUD = DecodeOptions(baud=9600)
+BAUD = CaptureSpec.of(baud=9600)
+
+
+def export(capture, fmt, out, spec=None) -> int:
+    flags = ["--baud", str(spec.flags.baud)] if spec is not None else []
+    return _export(capture, fmt, out, *flags)
+
+
+def decode_capture(path, spec=None):
+    return decoded(path, spec)
 
 
 def _fields(frames):
@@ -49,10 +60,11 @@ def test_tshark_decodes_our_pcap_as_modbus_rtu(tmp_path, ext):
                     reason="tshark not installed (scripts/install-system-deps.sh installs it)")
 def test_tshark_reads_noise_and_bad_crc_frames_too(tmp_path):
     out = tmp_path / "errors.pcap"
-    n = export(ERRORS, "pcap", out)
+    assert export(ERRORS, "pcap", out) == 0
+    n = len(decode_capture(ERRORS)[1])
     r = subprocess.run(["tshark", "-r", str(out), *TSHARK_ARGS, "-T", "fields", "-e", "frame.number"],
                        capture_output=True, text=True, timeout=120, check=True)
-    assert len(r.stdout.split()) == n
+    assert len(r.stdout.split()) == n == 432
 
 
 @pytest.mark.parametrize("ext", ["pcap", "pcapng"])

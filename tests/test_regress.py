@@ -1,13 +1,13 @@
-"""sniffer.regress: golden check with timing tolerances, and the semantic diff of two captures."""
+"""sniffer.golden (check with timing tolerances) and sniffer.semdiff (the semantic diff of two captures)."""
 
 from __future__ import annotations
 
 import orjson
 import pytest
 
-from sniffer.regress import (
-    EXIT_DIFFERENT, EXIT_ERROR, EXIT_SAME, DecodeOptions, Tolerances, check, compare_text, diff,
-)
+from sniffer.golden import EXIT_DIFFERENT, EXIT_ERROR, EXIT_SAME, Tolerances, check, compare_text
+from sniffer.semdiff import diff
+from sniffer.session import CaptureSpec
 from pathlib import Path
 
 CAPTURES = Path(__file__).resolve().parent.parent / "captures"
@@ -91,7 +91,7 @@ def test_errors_exit_2(tmp_path):
     assert rc == EXIT_ERROR and "no such file" in text
     rc, text = check(WIZ, tmp_path / "g.txt", update=True)  # a CSV does not say its baud rate
     assert rc == EXIT_ERROR and "baud" in text
-    rc, _ = check(WIZ, tmp_path / "g.txt", update=True, options=DecodeOptions(baud=9600))
+    rc, _ = check(WIZ, tmp_path / "g.txt", update=True, spec=CaptureSpec.of(baud=9600))
     assert rc == EXIT_SAME
 
 
@@ -147,7 +147,7 @@ def _pcap(path, value: int, period_s: float = 0.1, n: int = 5, exception: bool =
 def test_diff_register_value_change_period_and_exception(tmp_path):
     a = _pcap(tmp_path / "a.pcap", 42)
     b = _pcap(tmp_path / "b.pcap", 43, period_s=0.5)
-    opts = DecodeOptions(baud=9600)
+    opts = CaptureSpec.of(baud=9600)
     d = diff(a, b, opts).to_dict()
     (key, change), = d["registers"]["changed"].items()
     assert key.startswith("u1 16 ")

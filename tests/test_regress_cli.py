@@ -1,15 +1,13 @@
-"""The CLI glue for check / diff / export (sniffer.export.commands), on a parser built like cli's."""
+"""The commands check / diff / export through the CLI (sniffer.cli.main, in this process)."""
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import orjson
 import pytest
 
 from sniffer import cli
-from sniffer.export.commands import COMMANDS, add_parsers
 
 CAPTURES = Path(__file__).resolve().parent.parent / "captures"
 A510 = str(CAPTURES / "sim" / "a510.mcap")
@@ -18,10 +16,7 @@ WIZ = str(CAPTURES / "refcaptures" / "sigrok" / "wizmodbus.bytes.csv")
 
 
 def run(*argv) -> int:
-    p = argparse.ArgumentParser(prog="sniffer")
-    add_parsers(p.add_subparsers(dest="cmd"), cli._serial_flags, cli._decode_flags)
-    args = p.parse_args(argv)
-    return COMMANDS[args.cmd](args)
+    return cli.main(list(argv))
 
 
 def test_check_exit_codes(tmp_path, capsys):
@@ -66,7 +61,7 @@ def test_export_every_format(tmp_path, fmt, capsys):
     out = tmp_path / f"wiz.{fmt}"
     assert run("export", WIZ, "--to", fmt, "--out", str(out), "--baud", "9600") == 0
     assert out.stat().st_size > 0
-    assert "88 frames" in capsys.readouterr().err
+    assert "(88 frames)" in capsys.readouterr().err
 
 
 def test_readme_worked_example_names_the_changed_register(tmp_path):

@@ -27,10 +27,11 @@ from sniffer.attach import Attachment, attach_feed
 from sniffer.cli import main
 from sniffer.events import CaptureInfo
 from sniffer.line import LineSettings
-from sniffer.live import capture
+from sniffer.session import CaptureSpec, Session
 from sniffer.sinks.mcap import McapSink
 from sniffer.pipeline import Pipeline
-from sniffer.publish import CONTROL_PREFIX, PublishError, PublishSink
+from sniffer.sinks.publish import PublishSink
+from sniffer.stream_format import CONTROL_PREFIX, PublishError
 from sniffer.records import loads
 from sniffer.simulator import simulate, wire_chunks
 from sniffer.simulator.ptybus import PtyBus
@@ -112,16 +113,16 @@ def test_two_viewers_get_the_captures_frames(tmp_path):
             stop.wait(0.5)  # then let the capture see the line go quiet
             stop.set()
 
-        def on_open(info):
-            viewers["first"] = Viewer(sock)
-            viewers["first"].start()
-            threading.Thread(target=play, daemon=True).start()
-
-        p, error = capture(source, LINE, default_registry(), [collector], duration_s=HANG_S, stop=stop,
-                           mcap=McapSink(out), on_open=on_open, publish=pub)
+        p = Session(CaptureSpec(duration_s=HANG_S), source, [collector, McapSink(out), pub], stop=stop,
+                    keep_partial=True)
+        p.open()
+        viewers["first"] = Viewer(sock)
+        viewers["first"].start()
+        threading.Thread(target=play, daemon=True).start()
+        p.run()
         bus.drain()
         assert bus.bytes_received_from_sniffer == 0  # passive, publishing or not
-    assert error is None
+    assert p.error is None
     first, late = viewers["first"], viewers["late"]
     first.join(HANG_S)
     late.join(HANG_S)
@@ -196,20 +197,21 @@ def test_attach_tui_shows_the_published_frames(tmp_path):
 
 def test_demo_tui_publishes_to_a_viewer(tmp_path):
     """`sniffer demo --publish SOCKET` on a terminal: its own TUI and an attached viewer see the same frames."""
-    import argparse
-
-    from sniffer.cli import _registry
-    from sniffer.tui.run import demo_feed
+    from sniffer.commands.capture import capture_session
+    from sniffer.simulator.sources import DemoSource
 
     sock, out = str(tmp_path / "demo.sock"), tmp_path / "d.mcap"
-    args = argparse.Namespace(scenario="errors", duration=1.5, seed=1, out=str(out), device=None, model_file=None,
-                              bus=None, protocol=None, publish=sock, publish_backlog=100_000)
-    feed, label, path, registry = demo_feed(args, _registry)
+    spec = CaptureSpec(scenario="errors", out=str(out), publish=sock)
+    sink = TuiSink()
+    session = capture_session(spec, DemoSource(get_scenario("errors"), 1, 1.5), "demo errors", tui_sink=sink)
+    session.open()
     viewer = None
 
     async def go():
         nonlocal viewer
-        app = SnifferApp(TuiSink(), feed, source_label=label, capture_path=path, registry=registry)
+        app = SnifferApp(sink, lambda _s, _stop: session.run(), source_label="demo errors", capture_path=str(out),
+                         registry=session.registry)
+        app.stop_event = session.stop
         async with app.run_test(size=(140, 45)) as pilot:
             deadline = time.monotonic() + HANG_S
             while viewer is None:  # the socket listens once the capture has opened the pty

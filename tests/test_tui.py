@@ -180,18 +180,17 @@ def test_replay_feed_thread_end_to_end():
     """The real path: a replay decoded on the feed thread while the App polls."""
     from tui_helpers import SIM
 
-    from decoders.registry import default_registry
-    from sniffer.line import LineSettings
-    from sniffer.sources.replay import open_replay
-    from sniffer.tui.run import replay_feed
+    from sniffer.session import CaptureSpec, Session
+    from sniffer.sources.replay import FileSource
+    from sniffer.tui.run import session_app
     from sniffer.tui.sink import TuiSink
 
     async def go():
-        info, events = open_replay(str(SIM / "errors.mcap"))
-        reg = default_registry(info.devices)
-        feed = replay_feed(info, events, LineSettings(info.baud, info.parity, info.stopbits), reg,
-                           {"protocol": info.protocol})
-        app = SnifferApp(TuiSink(), feed, registry=reg)
+        sink = TuiSink()
+        session = Session(CaptureSpec(), FileSource(str(SIM / "errors.mcap")), [sink])
+        session.open()
+        reg = session.registry
+        app = session_app(session, sink)
         async with app.run_test(size=SIZE) as pilot:
             for _ in range(200):
                 await pilot.pause(0.05)
@@ -250,20 +249,27 @@ def test_mouse_click_selects(name):
     run(go())
 
 
-def test_demo_feed_live_path(tmp_path):
-    """The live path for real: the simulated bus on a pty, captured by capture() on the feed thread."""
-    import argparse
-
-    from sniffer.cli import _registry
-    from sniffer.tui.run import demo_feed
+def _demo_app(tmp_path, scenario: str, seconds: float):
+    """The App over `sniffer demo`'s session (the simulated bus on a pty, captured live to an MCAP)."""
+    from sniffer.commands.capture import capture_session
+    from sniffer.session import CaptureSpec
+    from sniffer.simulator.scenario import get_scenario
+    from sniffer.simulator.sources import DemoSource
+    from sniffer.tui.run import session_app
     from sniffer.tui.sink import TuiSink
 
-    args = argparse.Namespace(scenario="errors", duration=1.5, seed=1, out=str(tmp_path / "d.mcap"),
-                              device=None, model_file=None, bus=None, protocol=None)
-    feed, label, path, registry = demo_feed(args, _registry)
+    out = str(tmp_path / "d.mcap")
+    sink = TuiSink()
+    session = capture_session(CaptureSpec(out=out), DemoSource(get_scenario(scenario), 1, seconds), f"demo {scenario}",
+                              tui_sink=sink)
+    session.open()
+    return session_app(session, sink, source_label=f"demo {scenario}", capture_path=out)
 
+
+def test_demo_feed_live_path(tmp_path):
+    """The live path for real: the simulated bus on a pty, captured by capture() on the feed thread."""
     async def go():
-        app = SnifferApp(TuiSink(), feed, source_label=label, capture_path=path, registry=registry)
+        app = _demo_app(tmp_path, "errors", 1.5)
         async with app.run_test(size=SIZE) as pilot:
             for _ in range(300):
                 await pilot.pause(0.05)
@@ -278,18 +284,8 @@ def test_demo_feed_live_path(tmp_path):
 
 
 def test_quit_stops_a_running_capture(tmp_path):
-    import argparse
-
-    from sniffer.cli import _registry
-    from sniffer.tui.run import demo_feed
-    from sniffer.tui.sink import TuiSink
-
-    args = argparse.Namespace(scenario="default", duration=60, seed=1, out=str(tmp_path / "d.mcap"),
-                              device=None, model_file=None, bus=None, protocol=None)
-    feed, label, path, registry = demo_feed(args, _registry)
-
     async def go():
-        app = SnifferApp(TuiSink(), feed, source_label=label, capture_path=path, registry=registry)
+        app = _demo_app(tmp_path, "default", 60)
         async with app.run_test(size=SIZE) as pilot:
             for _ in range(200):
                 await pilot.pause(0.05)

@@ -11,8 +11,8 @@ from .text import StreamSink
 
 
 class JsonlSink(StreamSink):
-    def __init__(self, out: BinaryIO | None = None, flush: bool = False) -> None:
-        super().__init__(out or sys.stdout.buffer, flush)
+    def __init__(self, out: BinaryIO | None = None, flush: bool = False, own: bool = False) -> None:
+        super().__init__(out or sys.stdout.buffer, flush, own)
 
     def frame(self, f: Frame) -> None:
         self.out.write(frame_json(f, self.t0) + b"\n")

@@ -37,6 +37,7 @@ from ..mcap_format import (
     CAPTURE_TOPIC, CHANNELS, FRAMES_TOPIC, METADATA_NAME, RAW_FORMAT, RAW_TOPIC, encode_event, info_to_metadata,
 )
 from ..records import frame_json
+from .base import Sink
 
 
 class CaptureStorageError(Exception):
@@ -110,7 +111,7 @@ class _AppendFile:
             os.close(fd)
 
 
-class McapSink:
+class McapSink(Sink):
     """Pipeline sink writing /capture, /raw and /frames to one MCAP file.
 
     Raises CaptureStorageError once, from whichever call first fails to

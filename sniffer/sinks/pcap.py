@@ -22,6 +22,7 @@ import struct
 
 from ..events import CaptureInfo
 from ..frame import Frame
+from .base import Sink
 
 LINKTYPE_USER0 = 147
 LINKTYPE_RTAC_SERIAL = 250
@@ -66,14 +67,14 @@ def pcapng_packet(t_ns: int, data: bytes) -> bytes:
     return _block(6, struct.pack("<IIIII", 0, t >> 32, t & 0xFFFFFFFF, len(data), len(data)) + data)
 
 
-class PcapSink:
-    """Pipeline sink: one pcap packet per frame, flushed per frame (a killed export stays readable)."""
+class PcapSink(Sink):
+    """Pipeline sink: one pcap (or pcapng) packet per frame."""
 
     def __init__(self, out: str | os.PathLike[str], include_noise: bool = True, ng: bool | None = None) -> None:
         self.path = os.fspath(out)
         self.ng = self.path.endswith(".pcapng") if ng is None else ng  # pcapng by extension
         self.include_noise = include_noise
-        self._fh = open(self.path, "wb")
+        self._fh = open(self.path, "wb", buffering=1 << 16)
         self._t0 = 0
         self._anchor = 0
         self.frames = 0
@@ -82,9 +83,6 @@ class PcapSink:
         self._t0 = info.t0_ns
         self._anchor = info.wall_anchor_ns or 0
         self._fh.write(pcapng_header(info) if self.ng else global_header())
-
-    def raw(self, event) -> None:
-        pass
 
     def frame(self, f: Frame) -> None:
         if f.is_noise and not self.include_noise:

@@ -7,6 +7,7 @@ from typing import TextIO
 
 from ..events import CaptureInfo
 from ..frame import Frame
+from .base import Sink
 
 _MARK = {"error": "!!", "warning": "! ", "info": "  ", None: "  "}
 
@@ -15,7 +16,8 @@ def frame_line(f: Frame, t0_ns: int) -> str:
     t = (f.t_ns - t0_ns) / 1e9
     mark = _MARK[f.worst_severity()]
     if f.protocol == "noise":
-        return f"{t:12.6f} {mark} NOISE   {len(f.raw):3d}B {f.raw[:24].hex(' ')}{'...' if len(f.raw) > 24 else ''}  [{f.noise_reason}]"
+        more = "..." if len(f.raw) > 24 else ""
+        return f"{t:12.6f} {mark} NOISE   {len(f.raw):3d}B {f.raw[:24].hex(' ')}{more}  [{f.noise_reason}]"
     role = {"request": "REQ", "response": "RSP"}.get(f.role, "???")
     arrow = "->" if f.role == "request" else "<-"
     pair = f" #{f.pair}" if f.pair is not None else ""
@@ -32,27 +34,28 @@ def frame_line(f: Frame, t0_ns: int) -> str:
     )
 
 
-class StreamSink:
+class StreamSink(Sink):
     """A sink writing one line per frame to a stream; subclasses say how a frame reads."""
 
-    def __init__(self, out, flush: bool = False) -> None:
+    def __init__(self, out, flush: bool = False, own: bool = False) -> None:
         self.out = out
         self.flush_each = flush
+        self.own = own  # close the stream at the end (a file this sink opened)
         self.t0 = 0
 
     def start(self, info: CaptureInfo) -> None:
         self.t0 = info.t0_ns
 
-    def raw(self, event) -> None:
-        pass
-
     def close(self) -> None:
-        self.out.flush()
+        if self.own:
+            self.out.close()
+        else:
+            self.out.flush()
 
 
 class TextSink(StreamSink):
-    def __init__(self, out: TextIO | None = None, flush: bool = False) -> None:
-        super().__init__(out or sys.stdout, flush)
+    def __init__(self, out: TextIO | None = None, flush: bool = False, own: bool = False) -> None:
+        super().__init__(out or sys.stdout, flush, own)
 
     def frame(self, f: Frame) -> None:
         self.out.write(frame_line(f, self.t0) + "\n")

@@ -40,3 +40,38 @@ def open_replay(path: str, fmt: str = "auto"):
     if fmt == "pcap":
         return pcapsrc.open_pcap(path)
     raise CaptureError(f"unknown input format {fmt!r} (one of {', '.join(FORMATS)})")
+
+
+class FileSource:
+    """A capture file as a session source (TEMPORARY: wraps open_replay until the streaming readers land)."""
+
+    def __init__(self, path: str, fmt: str = "auto") -> None:
+        self.path = path
+        self.format = fmt
+        self.damage: list[str] = []
+        self._info = None
+        self._events = None
+        self._stop = False
+
+    def open(self):
+        if self._info is None:
+            self._info, self._events = open_replay(self.path, self.format)
+        return self._info
+
+    def events(self):
+        self.open()
+        for ev in self._events:
+            if self._stop:
+                return
+            yield ev
+
+    def stop(self) -> None:
+        self._stop = True
+
+    def close(self) -> None:
+        close = getattr(self._events, "close", None)
+        if close is not None:
+            close()
+
+    def position(self):
+        return None

@@ -1,21 +1,12 @@
-"""Publish a running capture to viewers on a local socket (`--publish`).
+"""Publish a running capture to viewers on a local socket (`--publish`): the stream of stream_format.py.
 
 The capture process owns the port and the MCAP file; any number of viewers
-(`sniffer attach`, the browser UI of `sniffer serve`) connect to a Unix
-socket (mode 0600) or, if asked, a TCP port, and read newline-delimited JSON:
-
-    {"sniffer": "header", ...}    first: capture info, MCAP path, frames not sent
-    {"index": 0, "t": ..., ...}   one frame record (sniffer.records) per frame
-    {"sniffer": "status", ...}    about once a second: bytes in, frames, noise, MCAP size
-    {"sniffer": "skipped", ...}   this viewer fell behind: that many frames were left out
-    {"sniffer": "end", ...}       the capture ended (last line)
-
+(`sniffer attach`, the browser UI of `sniffer serve`) connect and read.
 A late viewer first gets the last `backlog` records, then the live stream.
 The capture thread only appends frames to a deque; a thread of its own
 serialises them (once for all viewers) and does the socket I/O.  A viewer
 that falls behind has frames skipped (and is told how many); it never makes
-the capture wait.
-Nothing here touches the serial port.
+the capture wait.  Nothing here touches the serial port.
 """
 
 from __future__ import annotations
@@ -27,42 +18,14 @@ import socket
 import stat
 import threading
 from collections import deque
-from dataclasses import dataclass
 
-from . import __version__
-from .events import CaptureInfo, Chunk
-from .frame import Frame
-from .records import dumps, frame_json
-from .sources import CaptureError
-
-STREAM_VERSION = 1
-CONTROL_PREFIX = b'{"sniffer"'  # control lines start so; frame records start with {"index"
-
-
-class PublishError(CaptureError):
-    """The socket cannot be set up: one line for the user, exit code 2."""
-
-
-@dataclass(frozen=True, slots=True)
-class Address:
-    """Where a capture publishes: a Unix socket path, or `tcp:[HOST:]PORT` (host default 127.0.0.1)."""
-
-    path: str | None = None
-    host: str = "127.0.0.1"
-    port: int = 0
-
-    def __str__(self) -> str:
-        return self.path if self.path is not None else f"tcp:{self.host}:{self.port}"
-
-
-def parse_address(spec: str) -> Address:
-    if not spec.startswith("tcp:"):
-        return Address(path=spec)
-    host, _, port = spec[4:].rpartition(":")
-    try:
-        return Address(host=host.strip("[]") or "127.0.0.1", port=int(port))
-    except ValueError:
-        raise PublishError(f"{spec}: a TCP address is tcp:PORT or tcp:HOST:PORT") from None
+from .. import __version__
+from ..events import CaptureInfo, Chunk
+from ..frame import Frame
+from ..outputs import readable
+from ..records import frame_json
+from ..stream_format import STREAM_VERSION, Address, PublishError, control, parse_address
+from .base import Sink
 
 
 def _bind(addr: Address) -> socket.socket:
@@ -95,10 +58,6 @@ def _bind(addr: Address) -> socket.socket:
         s.close()
         raise PublishError(f"{path}: cannot create socket: {e.strerror or e}") from None
     return s
-
-
-def control(kind: str, **fields) -> bytes:
-    return dumps({"sniffer": kind, **fields}) + b"\n"
 
 
 class _Viewer:
@@ -144,7 +103,7 @@ class _Viewer:
         return out
 
 
-class PublishSink:
+class PublishSink(Sink):
     """A pipeline sink that serves the capture's frames to viewers on a socket.
 
     The socket is claimed at construction (so a bad address fails before the
@@ -264,7 +223,7 @@ class PublishSink:
         size = None
         if self.capture_path:
             with contextlib.suppress(OSError):
-                size = os.path.getsize(self.capture_path)
+                size = os.path.getsize(readable(self.capture_path)[0])  # its part file while it is written
         return {"frames": self.frames, "bytes_in": self.bytes_in, "noise_bytes": self.noise_bytes,
                 "capture_bytes": size}
 

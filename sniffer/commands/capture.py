@@ -1,0 +1,68 @@
+"""`sniffer live PORT` and `sniffer demo`: capture a line (read-only) or the simulated bus, into MCAP.
+
+Whatever ends the capture (Ctrl-C, SIGTERM, --duration, the TUI's quit, a full
+disk, the source failing) the pipeline is flushed and the MCAP closed and kept.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from ..session import CaptureSpec, Session, on_signals
+from .common import capture_sinks, default_capture_name, report, say, summary_line, tui_wanted
+
+
+def cmd_live(spec: CaptureSpec, args) -> int:
+    from ..sources.serial_live import SerialSource
+
+    if not args.no_out and not spec.out:
+        spec = spec.with_(out=default_capture_name())
+    line = spec.resolve(None, need_baud=False).line  # flags > bus file > defaults: the port's settings
+    source = SerialSource(spec.port, line)
+    return _capture(spec, source, spec.port, inputs=[spec.port])
+
+
+def cmd_demo(spec: CaptureSpec, args) -> int:
+    from ..simulator.sources import DemoSource, scenario_named
+
+    if args.no_out:
+        spec = spec.with_(out=None)
+    scenario = scenario_named(spec.scenario or "default")
+    source = DemoSource(scenario, spec.seed, spec.duration_s)
+    # the bus ends the demo (DemoSource stops after the scenario's duration): no deadline of the session's own
+    rc = _capture(spec.with_(duration_s=0.0), source, f"demo {scenario.name}")
+    if source.stats is not None:
+        say(f"simulator sent {source.stats.frames} frames ({source.stats.bytes} bytes); "
+            f"sniffer wrote {source.bytes_written_back} bytes to the bus")
+    return rc
+
+
+def capture_session(spec: CaptureSpec, source, label: str, *, tui_sink=None, inputs=()) -> Session:
+    """The session of a capture: the TUI's sink (or the stdout stream), the MCAP file, the viewers' socket;
+    its files are kept whatever ends it.  Outputs are checked now; nothing is opened yet."""
+    sinks = capture_sinks(spec, label, stream=tui_sink is None, inputs=inputs)
+    if tui_sink is not None:
+        sinks.insert(0, tui_sink)
+    return Session(spec, source, sinks, keep_partial=True, need_baud=False)
+
+
+def _capture(spec: CaptureSpec, source, label: str, inputs=()) -> int:
+    tui = tui_wanted(spec)
+    tui_sink = None
+    if tui:
+        from ..tui.sink import TuiSink
+
+        tui_sink = TuiSink()
+    session = capture_session(spec, source, label, tui_sink=tui_sink, inputs=inputs)
+    on_signals(session.stop)
+    session.open()  # a missing port, a bad setting: one line, and nothing created
+    where = f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)" if spec.out else ""
+    say(f"capturing {getattr(source, 'port', None) or label} at {session.resolved.describe()} (read-only){where}")
+    if tui:
+        from ..tui.run import run_session_tui
+
+        rc = run_session_tui(session, tui_sink, source_label=label, capture_path=spec.out)
+        return rc or report(session)
+    session.run()
+    print(summary_line(session), file=sys.stderr)
+    return report(session)

@@ -1,0 +1,96 @@
+"""What the commands share: exit codes, the stdout stream, a capture's sinks, the end-of-run report."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+from ..session import CaptureSpec, Session
+from ..sinks import FileSink
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+class UsageError(Exception):
+    """A wrong flag or a combination that cannot work: one line, exit code 2."""
+
+
+def say(text: str) -> None:
+    print(f"sniffer: {text}", file=sys.stderr)
+
+
+def stream_sink(spec: CaptureSpec, line_buffered: bool):
+    """The text or JSONL stream on stdout (None with --quiet)."""
+    if spec.stream == "jsonl":
+        from ..sinks.jsonl import JsonlSink
+
+        return JsonlSink(sys.stdout.buffer, flush=line_buffered)
+    if spec.stream == "text":
+        from ..sinks.text import TextSink
+
+        return TextSink(sys.stdout, flush=line_buffered)
+    return None
+
+
+def default_capture_name() -> str:
+    return time.strftime("sniffer-%Y%m%d-%H%M%S.mcap")
+
+
+def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=()) -> list:
+    """A capture's sinks: the stdout stream, the MCAP file, viewers on a socket (last: the file
+    is closed before viewers are let go).  Outputs are checked (and the socket bound) now, before
+    the port opens."""
+    from ..sinks.publish import PublishSink
+
+    sinks = []
+    if stream:
+        s = stream_sink(spec, line_buffered=True)
+        if s is not None:
+            sinks.append(s)
+    if spec.out:
+        sinks.append(FileSink("mcap", spec.out, inputs=inputs))
+    if spec.publish:
+        sinks.append(PublishSink(spec.publish, label=label, capture_path=spec.out, backlog=spec.publish_backlog))
+        say(f"publishing on {sinks[-1].address} (view: sniffer attach {sinks[-1].address})")
+    return sinks
+
+
+def written(session: Session) -> str:
+    """'; MCAP cab3.mcap (123456 bytes)' for the files a session wrote, or ''."""
+    parts = []
+    for o in session.outputs:
+        try:
+            size = os.path.getsize(o.path)
+        except OSError:
+            continue
+        kind = os.path.splitext(o.path)[1].lstrip(".").upper() or "file"
+        parts.append(f"{kind} {o.path} ({size} bytes)")
+    return "; " + ", ".join(parts) if parts else ""
+
+
+def summary_line(session: Session) -> str:
+    return (f"sniffer: {session.frames_out} frames, {session.bytes_in} bytes, {session.noise_bytes} noise bytes"
+            f"{written(session)}")
+
+
+def report(session: Session, *, label: str = "") -> int:
+    """Say how the run ended (damage, error) and give its exit code."""
+    where = f"{label}: " if label else ""
+    if session.damage:
+        first = session.damage[0]
+        more = f" (and {len(session.damage) - 1} more)" if len(session.damage) > 1 else ""
+        say(f"error: {where}input damaged: {first}{more}; everything readable was decoded, "
+            f"frames after a hole are marked source.gap")
+        if session.error:
+            say(f"error: {session.error}")
+        return EXIT_USAGE
+    if session.error:
+        say(f"error: {session.error}")
+        return EXIT_FAILED if session.storage_error else EXIT_USAGE
+    return EXIT_OK
+
+
+def tui_wanted(spec: CaptureSpec) -> bool:
+    """The TUI is the default on a terminal; --headless, --quiet, --format jsonl or a pipe keep the stream."""
+    return (not spec.headless and spec.stream == "text" and sys.stdout.isatty() and sys.stdin.isatty())

@@ -1,0 +1,29 @@
+"""`sniffer repair FILE`: a finished copy of an MCAP capture that was cut short or damaged."""
+
+from __future__ import annotations
+
+import os
+
+from ..mcap_repair import default_output, repair
+from ..outputs import Output, readable, shown
+from ..session import CaptureSpec
+from ..sources import CaptureError
+from .common import EXIT_OK, say
+
+
+def cmd_repair(spec: CaptureSpec, args) -> int:
+    src, note = readable(args.file)
+    if not os.path.exists(src):
+        raise CaptureError(f"{shown(src)}: no such file")
+    if note:
+        say(f"note: {note}")
+    out = Output(args.out or default_output(args.file), inputs=[src], what="--out")
+    try:
+        st = repair(src, out.part)
+    except BaseException:
+        out.discard()
+        raise
+    out.commit()
+    problem = f" ({st['problem']})" if st.get("problem") else ""
+    say(f"wrote {out.path}: {st['messages']} messages kept, {st['bytes_dropped']} bytes dropped{problem}")
+    return EXIT_OK

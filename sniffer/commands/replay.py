@@ -1,0 +1,100 @@
+"""`sniffer replay FILE` (a capture file, decoded again) and `sniffer decode HEX...` (frames typed in)."""
+
+from __future__ import annotations
+
+import sys
+
+from ..events import CaptureInfo, Chunk
+from ..session import CaptureSpec, Session
+from .common import UsageError, report, say, stream_sink
+
+
+def file_source(spec: CaptureSpec):
+    """The capture file of a replay-like command (a killed capture's part file when only that is there)."""
+    from ..outputs import readable
+    from ..sources.replay import FileSource
+
+    path, note = readable(spec.input)
+    if note:
+        say(f"note: {note}")
+    return FileSource(path, spec.input_format)
+
+
+def cmd_replay(spec: CaptureSpec, args) -> int:
+    source = file_source(spec)
+    if args.tui:
+        if not (sys.stdout.isatty() and sys.stdin.isatty()):
+            raise UsageError("replay --tui needs a terminal (stdin and stdout); without one, leave out --tui")
+        from ..tui.run import run_session_tui
+        from ..tui.sink import TuiSink
+
+        sink = TuiSink()
+        session = Session(spec, source, [sink])
+        session.open()
+        _note_unfinished(session)
+        rc = run_session_tui(session, sink, source_label=spec.input)
+        return rc or report(session, label=spec.input)
+    bar = None
+    session = Session(spec, source, [stream_sink(spec, line_buffered=False)])
+    if args.progress:
+        from ..progress import ReplayProgress
+
+        bar = ReplayProgress(spec.input, source=source, frames=lambda: session.frames_out)
+        session.on_event = bar.update
+    try:
+        session.open()
+        _note_unfinished(session)
+        session.run()
+    finally:
+        if bar is not None:
+            bar.close()
+    return report(session, label=spec.input)
+
+
+def _note_unfinished(session: Session) -> None:
+    if session.info.extra.get("mcap_unfinished"):
+        path = session.spec.input
+        say(f"note: {path} was not closed cleanly (capture killed?); read up to its last complete record. "
+            f"'sniffer repair {path}' writes a clean copy.")
+
+
+class HexSource:
+    """Frames typed as hex (or ASCII text), each one burst on the line with silence between."""
+
+    def __init__(self, frames: list[bytes], spec: CaptureSpec) -> None:
+        self.frames = frames
+        self.line = spec.resolve(None, need_baud=False).line
+
+    def open(self) -> CaptureInfo:
+        line = self.line
+        return CaptureInfo(source="decode", baud=line.baud, parity=line.parity, stopbits=line.stopbits)
+
+    def events(self):
+        line = self.line
+        t = 0
+        gap = 10 * line.t35_ns
+        for data in self.frames:
+            times = tuple(t + i * line.char_ns for i in range(len(data)))
+            yield Chunk(t, data, times)
+            t = times[-1] + line.char_ns + gap
+
+
+def cmd_decode(spec: CaptureSpec, args) -> int:
+    text = spec.resolve(None, need_baud=False).protocol.text
+    frames = []
+    for h in args.hex:
+        if text:  # the frame as its characters: ':0103...' (CR LF added if missing)
+            t = h.strip()
+            data = (t if t.startswith(":") else ":" + t).encode("ascii", "replace")
+            data += b"" if data.endswith(b"\r\n") else b"\r\n"
+        else:
+            t = h.replace(" ", "").replace(":", "")
+            try:
+                data = bytes.fromhex(t)
+            except ValueError:
+                raise UsageError(f"not hex: {h[:60]!r}") from None
+        if data:
+            frames.append(data)
+    session = Session(spec, HexSource(frames, spec), [stream_sink(spec, line_buffered=False)], need_baud=False)
+    session.run()
+    return report(session)

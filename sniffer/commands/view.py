@@ -1,0 +1,32 @@
+"""`sniffer attach SOCKET` (a viewer of a capture running elsewhere) and `sniffer serve` (viewers in browsers)."""
+
+from __future__ import annotations
+
+from ..session import CaptureSpec
+from .common import UsageError, tui_wanted
+
+
+def cmd_attach(spec: CaptureSpec, args) -> int:
+    from ..attach import Attachment, attach_tui, run_headless
+
+    att = Attachment(args.socket)  # no capture there: CaptureError, one line, exit 2
+    if args.tui or tui_wanted(spec):
+        return attach_tui(att)
+    return run_headless(att, args.format)
+
+
+def cmd_serve(spec: CaptureSpec, args) -> int:
+    from ..serve import ServeUsageError, run_serve
+
+    if args.demo:
+        given = [flag for flag, v in (("PORT", spec.port), ("--baud", spec.flags.baud), ("--parity", spec.flags.parity),
+                                      ("--stopbits", spec.flags.stopbits), ("--bus", spec.bus_file)) if v]
+        if given:
+            raise UsageError(f"--demo sets its own line; {', '.join(given)} is for a serial PORT")
+        spec = spec.with_(scenario=args.scenario, out=None if args.no_out else (spec.out or "demo.mcap"))
+    elif not spec.port:
+        raise UsageError("give a serial PORT to capture, or --demo")
+    try:
+        return run_serve(spec, args)
+    except ServeUsageError as e:
+        raise UsageError(str(e)) from None

@@ -1,0 +1,86 @@
+"""Rows of the CSV and Parquet exports: one per frame, one per decoded point.
+
+Column types are plain (int64, float64, bool, string, nullable) so DuckDB
+(`SELECT * FROM 'x.parquet'`), pandas (`read_parquet`/`read_csv`) and a
+spreadsheet read them without a schema.  `t` is seconds from capture start,
+`t_wall_ns` the wall-clock time (Unix ns, from the capture's anchor).
+
+A point comes with its frame's `crc_ok` and `role`: values decoded from a
+frame whose CRC failed are shown (they are what the line carried) but are not
+the device's values; filter on `crc_ok` before aggregating
+(`SELECT max(value) FROM pts WHERE crc_ok`).  Rows are tuples in column order:
+the writers transpose batches of them.
+"""
+
+from __future__ import annotations
+
+from os import PathLike
+from pathlib import Path
+
+import orjson
+
+from ..frame import Frame
+
+FRAME_COLUMNS = (
+    "index", "t", "t_end", "t_wall_ns", "protocol", "role", "unit", "function", "crc_ok", "exception_code",
+    "model", "pair", "latency_ms", "n_points", "annotations", "summary", "raw", "channel", "time_source",
+    "noise_reason",
+)
+POINT_COLUMNS = (
+    "frame", "t", "unit", "function", "role", "crc_ok", "model", "address", "name", "id", "raw", "value",
+    "value_text", "eng_unit",
+)
+
+
+def points_path(out: str | PathLike[str], suffix: str) -> Path:
+    """OUT.csv -> OUT.points.csv (the second table of an export)."""
+    p = Path(out)
+    return p.with_name(p.stem + ".points" + suffix)
+
+
+def frame_row(f: Frame, t0_ns: int, anchor_ns: int) -> tuple:
+    lat = f.latency_ms
+    exc = f.exception
+    return (
+        f.index, (f.t_ns - t0_ns) / 1e9, (f.t_end_ns - t0_ns) / 1e9,
+        anchor_ns + (f.t_ns - t0_ns) if anchor_ns else None,
+        f.protocol, f.role, f.unit, f.function, f.crc_ok, exc.get("code") if exc else None,
+        f.model, f.pair, None if lat is None else round(lat, 3), len(f.points),
+        " ".join([a.code for a in f.annotations]), f.summary, f.raw.hex(), f.channel, f.time_source,
+        f.noise_reason,
+    )
+
+
+def _num(v):
+    """A point's value as a number column: numbers (and bits) as float, anything else null."""
+    t = type(v)
+    if t is int or t is float or t is bool:
+        return float(v)
+    return None
+
+
+def _text(v) -> str | None:
+    if v is None:
+        return None
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (int, float, bool)):
+        return str(v)
+    return orjson.dumps(v).decode()
+
+
+def point_rows(f: Frame, t0_ns: int) -> list[tuple]:
+    pts = f.points
+    if not pts:
+        return []
+    t = (f.t_ns - t0_ns) / 1e9
+    head = (f.index, t, f.unit, f.function, f.role, f.crc_ok, f.model)
+    rows = []
+    for p in pts:
+        raw = p.get("raw")
+        v = p.get("value")
+        rows.append(head + (
+            p.get("address"), p.get("name") or "", p.get("id") or "",
+            raw if type(raw) is int else None, _num(v), p.get("text") or _text(v), p.get("unit"),
+        ))
+    return rows
