@@ -57,7 +57,7 @@ def finite(value, what: str, *, upper: float) -> float:
     except (TypeError, ValueError):
         raise SettingsError(f"{what} {str(value)[:60]!r} is not a number") from None
     if not math.isfinite(v) or v < 0 or v > upper:
-        raise SettingsError(f"{what} {str(value)[:60]} must be a finite number from 0 to {upper:g}")
+        raise SettingsError(f"{what} {str(value)[:60]} must be a finite number from 0 to {upper:.0f}")
     return v
 
 
@@ -301,6 +301,8 @@ class Session:
         self.storage_error = False
         self.interrupted = False
         self.ended = False
+        self._started = False
+        self._frames: Iterator[Frame] | None = None
 
     # ------------------------------------------------------------ results
     @property
@@ -339,10 +341,8 @@ class Session:
             self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
         except BaseException as e:
             self._abandon()
-            if isinstance(e, CaptureStorageError):
-                raise CaptureError(str(e)) from None
-            if isinstance(e, OSError):
-                raise CaptureError(f"{e.filename + ': ' if e.filename else ''}{e.strerror or e}") from None
+            if isinstance(e, (CaptureStorageError, OSError)):  # e.g. the disk is full already
+                raise CaptureError(self._storage_text(e)) from None
             raise
         self.info = info
         return info
@@ -359,10 +359,16 @@ class Session:
         self._close_source()
 
     def __iter__(self) -> Iterator[Frame]:
-        return self.frames()
+        """The session's one stream of frames (iterating again continues it)."""
+        if self._frames is None:
+            self._frames = self.frames()
+        return self._frames
 
     def frames(self) -> Iterator[Frame]:
-        """Every settled, decoded frame, in order, as the sinks get them (flat memory)."""
+        """Every settled, decoded frame, in order, as the sinks get them (flat memory); one pass."""
+        if self._started:
+            raise RuntimeError("a session runs once")
+        self._started = True
         self.open()
         p = self.pipeline
         flushers = [s.maybe_flush for s in self.sinks if hasattr(s, "maybe_flush")]
@@ -381,9 +387,9 @@ class Session:
                         yield from out
                     if stop.is_set():
                         break
-            except CaptureStorageError as e:
+            except (CaptureStorageError, OSError) as e:  # an output cannot be written (disk full, I/O error)
                 self.storage_error = True
-                self.error = f"{e} (capture stopped)"
+                self.error = f"{self._storage_text(e)} (stopped there)"
             except CaptureError as e:
                 self.error = str(e)
             yield from p.flush()
@@ -399,7 +405,7 @@ class Session:
 
     def run(self) -> Session:
         """Drive the whole source; returns self (see the class doc for the results)."""
-        for _ in self.frames():
+        for _ in self:
             pass
         return self
 
@@ -429,6 +435,8 @@ class Session:
         return t
 
     def _end(self, completed: bool) -> None:
+        if self.ended:
+            return
         p = self.pipeline
         try:
             if not completed:  # interrupted: what is pending still reaches the sinks
@@ -438,9 +446,9 @@ class Session:
                     pass
             try:
                 p.close()
-            except CaptureStorageError as e:
+            except (CaptureStorageError, OSError) as e:
                 self.storage_error = True
-                self.error = self.error or str(e)
+                self.error = self.error or self._storage_text(e)
         finally:
             self._close_source()
             self.ended = True
@@ -451,6 +459,20 @@ class Session:
                     o.commit()
                 else:
                     o.discard()
+
+    def _storage_text(self, e: Exception) -> str:
+        """One line for an output that cannot be written, naming the user's file (not its part file)."""
+        if isinstance(e, CaptureStorageError) and self.keep_partial:
+            text = str(e)  # a capture: what it kept is what matters
+        else:
+            reason = (e.strerror or str(e)) if isinstance(e, OSError) else (getattr(e, "reason", "") or str(e))
+            where = ", ".join(o.path for o in self.outputs)
+            if not where and isinstance(e, OSError) and isinstance(e.filename, str):
+                where = e.filename
+            text = f"{where or 'output'}: cannot write: {reason}"
+        for o in self.outputs:
+            text = text.replace(o.part, o.path)
+        return text
 
     def _close_source(self) -> None:
         for name in ("stop", "close"):

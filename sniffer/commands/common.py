@@ -86,7 +86,10 @@ def report(session: Session, *, label: str = "") -> int:
             say(f"error: {session.error}")
         return EXIT_USAGE
     if session.error:
-        say(f"error: {session.error}")
+        unchanged = ""
+        if session.storage_error and not session.keep_partial and session.outputs:
+            unchanged = "; nothing written (a file that was there is unchanged)"
+        say(f"error: {session.error}{unchanged}")
         return EXIT_FAILED if session.storage_error else EXIT_USAGE
     return EXIT_OK
 

@@ -31,12 +31,6 @@ def cmd_export(spec: CaptureSpec, args) -> int:
         if bar is not None:
             bar.close()
     rc = report(session, label=spec.input)
-    if all(o.done and _exists(o.path) for o in session.outputs):
+    if rc == 0:
         say(f"wrote {', '.join(o.path for o in session.outputs)} ({session.frames_out} frames)")
     return rc
-
-
-def _exists(path: str) -> bool:
-    import os
-
-    return os.path.exists(path)

@@ -37,6 +37,8 @@ def cmd_simulate(spec: CaptureSpec, args) -> int:
     # the simulated bus is what it is: the flags set its line, the scenario its protocol and drives
     session = Session(spec.with_(duration_s=0.0), source, [sink], keep_partial=True)
     session.run()
+    if session.error:
+        return report(session)
     if fmt == "bytecsv":
         flags = f"--baud {line.baud} --parity {line.parity} --stopbits {line.stopbits}"
         if scenario.protocol != "modbus-rtu":

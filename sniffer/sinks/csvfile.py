@@ -34,6 +34,8 @@ class CsvSink(Sink):
         self._t0, self._anchor = info.t0_ns, info.wall_anchor_ns
         self._wf.writerow(FRAME_COLUMNS)
         self._wp.writerow(POINT_COLUMNS)
+        self._ff.flush()  # a disk that is full already fails now, before the input is read
+        self._fp.flush()
 
     def frame(self, f: Frame) -> None:
         self._rf.append(frame_row(f, self._t0, self._anchor))

@@ -41,7 +41,11 @@ from .base import Sink
 
 
 class CaptureStorageError(Exception):
-    """The capture file cannot be written (disk full, file too large, I/O error): one line."""
+    """The capture file cannot be written (disk full, file too large, I/O error): one line.
+
+    `reason` is the operating system's word for it (e.g. "No space left on device")."""
+
+    reason = ""
 
 
 class _AppendFile:
@@ -249,4 +253,5 @@ class McapSink(Sink):
         self.error = CaptureStorageError(
             f"{self.path}: cannot write capture ({what}); stopped with {self._file.on_disk} bytes on disk"
         )
+        self.error.reason = what
         return self.error

@@ -83,6 +83,7 @@ class PcapSink(Sink):
         self._t0 = info.t0_ns
         self._anchor = info.wall_anchor_ns or 0
         self._fh.write(pcapng_header(info) if self.ng else global_header())
+        self._fh.flush()  # a disk that is full already fails now, before the input is read
 
     def frame(self, f: Frame) -> None:
         if f.is_noise and not self.include_noise:

@@ -275,6 +275,10 @@ class PublishSink(Sink):
             await writer.wait_closed()  # the transport has sent what it holds
         except (ConnectionError, OSError):
             pass  # the viewer went away
+        except asyncio.CancelledError:
+            # cancelled by close() after linger_s (a viewer that stopped reading): the task ends normally,
+            # or asyncio's stream callback reports the cancellation as an error with a traceback
+            pass
         finally:
             self._viewers.discard(v)
             self._tasks.discard(asyncio.current_task())
