@@ -47,7 +47,8 @@ def synthetic(n: int):
         src = pool[i % span]
         k = i // span
         f = copy.copy(src)
-        f.index = src.index + k * 100_000 if i % span < len(replay_frames("errors.mcap")[1]) else src.index + k * 100_000 + 50_000
+        first_half = i % span < len(replay_frames("errors.mcap")[1])
+        f.index = src.index + k * 100_000 + (0 if first_half else 50_000)
         if src.pair is not None:
             f.pair = f.index - src.index + src.pair
         f.t_ns = src.t_ns + k * period
@@ -147,7 +148,8 @@ def million(n: int) -> None:
     dt = time.perf_counter() - t
     print(f"  add:            {dt:6.2f} s  ({n / dt:,.0f} frames/s)  peak RSS +{rss_mb() - r0:.0f} MB "
           f"(frames themselves were built before)")
-    for label, kw in (("errors only", {"errors_only": True}), ("unit 2", {"errors_only": False, "units": frozenset({2})}),
+    for label, kw in (("errors only", {"errors_only": True}),
+                      ("unit 2", {"errors_only": False, "units": frozenset({2})}),
                       ("text 'ILLEGAL'", {"units": None, "text": "ILLEGAL"}), ("clear", {"text": ""})):
         t = time.perf_counter()
         s.update_filter(**kw)

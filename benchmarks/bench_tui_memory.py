@@ -183,7 +183,10 @@ def run_child(kind: str, folder: Path, limit: int | None = None) -> dict:
 def _line(label: str, r: dict) -> str:
     n = r["frames"]
     grown = max(r["rss_peak"] - r["rss_before"], 0.0)
-    rate = f"{n / r['add_s']:,.0f} frames/s into the store" if r.get("add_s") else f"{n / r['wall']:,.0f} frames/s end to end"
+    if r.get("add_s"):
+        rate = f"{n / r['add_s']:,.0f} frames/s into the store"
+    else:
+        rate = f"{n / r['wall']:,.0f} frames/s end to end"
     return (f"{label:<34} {n:>10,} {r['rss_peak']:>9.1f} {r['rss_before']:>9.1f} {grown * 2**20 / n:>9.0f} "
             f"{r['wall']:>7.1f}s  {rate}")
 

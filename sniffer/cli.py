@@ -34,7 +34,8 @@ def _number(kind, what: str, lo, hi):
         try:
             v = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{what} {text[:40]!r} is not a {'whole ' if kind is int else ''}number")
+            whole = "whole " if kind is int else ""
+            raise argparse.ArgumentTypeError(f"{what} {text[:40]!r} is not a {whole}number") from None
         if not lo <= v <= hi:
             raise argparse.ArgumentTypeError(f"{what} {text[:40]} is outside {lo}..{hi}")
         return v

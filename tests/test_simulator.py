@@ -191,7 +191,7 @@ def test_drive_values_evolve_plausibly():
     assert len(out_hz) > 50
     assert len({o for _, o, _ in out_hz}) > 10  # it ramps, not a constant
     assert any(c == o and c > 0 for c, o, _ in out_hz)  # and reaches its setpoint
-    for (c0, o0, _), (c1, o1, _) in zip(out_hz, out_hz[1:]):
+    for (_c0, o0, _), (_c1, o1, _) in zip(out_hz, out_hz[1:]):
         assert abs(o1 - o0) <= 600  # no jumps: at most a few Hz between two polls
     assert all(5000 < dc < 7000 for _, _, dc in out_hz)
 
