@@ -387,6 +387,8 @@ class Session:
                         yield from out
                     if stop.is_set():
                         break
+            except BrokenPipeError:
+                raise  # stdout piped into `head`: the command ends quietly (cli.main)
             except (CaptureStorageError, OSError) as e:  # an output cannot be written (disk full, I/O error)
                 self.storage_error = True
                 self.error = f"{self._storage_text(e)} (stopped there)"
@@ -394,8 +396,8 @@ class Session:
                 self.error = str(e)
             yield from p.flush()
             completed = True
-        except KeyboardInterrupt:
-            self.interrupted = True
+        except (KeyboardInterrupt, BrokenPipeError):
+            self.interrupted = True  # the user's doing: what was written is kept
             raise
         finally:
             self.stop.set()
@@ -446,6 +448,8 @@ class Session:
                     pass
             try:
                 p.close()
+            except BrokenPipeError:
+                raise
             except (CaptureStorageError, OSError) as e:
                 self.storage_error = True
                 self.error = self.error or self._storage_text(e)

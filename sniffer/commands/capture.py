@@ -30,7 +30,8 @@ def cmd_demo(spec: CaptureSpec, args) -> int:
     scenario = scenario_named(spec.scenario or "default")
     source = DemoSource(scenario, spec.seed, spec.duration_s)
     # the bus ends the demo (DemoSource stops after the scenario's duration): no deadline of the session's own
-    rc = _capture(spec.with_(duration_s=0.0), source, f"demo {scenario.name}")
+    rc = _capture(spec.with_(duration_s=0.0), source, f"demo {scenario.name}",
+                  what=lambda: f"demo '{scenario.name}' on simulated bus {source.port}")
     if source.stats is not None:
         say(f"simulator sent {source.stats.frames} frames ({source.stats.bytes} bytes); "
             f"sniffer wrote {source.bytes_written_back} bytes to the bus")
@@ -46,7 +47,7 @@ def capture_session(spec: CaptureSpec, source, label: str, *, tui_sink=None, inp
     return Session(spec, source, sinks, keep_partial=True, need_baud=False)
 
 
-def _capture(spec: CaptureSpec, source, label: str, inputs=()) -> int:
+def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None) -> int:
     tui = tui_wanted(spec)
     tui_sink = None
     if tui:
@@ -57,7 +58,7 @@ def _capture(spec: CaptureSpec, source, label: str, inputs=()) -> int:
     on_signals(session.stop)
     session.open()  # a missing port, a bad setting: one line, and nothing created
     where = f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)" if spec.out else ""
-    say(f"capturing {getattr(source, 'port', None) or label} at {session.resolved.describe()} (read-only){where}")
+    say(f"{what() if what else 'capturing ' + label} at {session.resolved.describe()} (read-only){where}")
     if tui:
         from ..tui.run import run_session_tui
 
