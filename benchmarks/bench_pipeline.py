@@ -358,14 +358,14 @@ def child_pymodbus_stream(folder: Path, _limit, _repeat: int = 1) -> dict:
     return out
 
 
-def child_pymodbus_split(folder: Path, _limit, repeat: int = 1) -> dict:
+def child_pymodbus_split(folder: Path, limit, repeat: int = 1) -> dict:
     """pymodbus' best case: frames already split, requests to a server-side decoder, responses to a client-side one."""
     from pymodbus.exceptions import ModbusIOException
     from pymodbus.framer import FramerRTU
     from pymodbus.pdu import DecodePDU
 
     _quiet_pymodbus()
-    frames = [(d, raw) for d, _v, raw in read_truth(folder / "truth.bin")]
+    frames = [(d, raw) for d, _v, raw in read_truth(folder / "truth.bin")][:limit]
     n_bytes = sum(len(raw) for _d, raw in frames)
     handle = (FramerRTU(DecodePDU(is_server=True)).handleFrame, FramerRTU(DecodePDU(is_server=False)).handleFrame)
     times = []
@@ -406,6 +406,36 @@ CHILDREN = {
     "pymodbus-stream": child_pymodbus_stream, "pymodbus-split": child_pymodbus_split,
     "profile": child_profile,
 }
+
+
+def instructions(kind: str, folder: Path, limit: int) -> int:
+    """Instructions (valgrind's Ir) of one child run: deterministic, whatever else the machine is doing."""
+    import re
+
+    cmd = ["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", sys.executable,
+           str(Path(__file__).resolve()), "--child", kind, "--dir", str(folder), "--repeat", "1", "--limit", str(limit)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    m = re.search(r"Collected : (\d+)", r.stderr)
+    if r.returncode != 0 or m is None:
+        sys.stderr.write(r.stderr[-2000:])
+        raise SystemExit(f"bench: valgrind run of {kind!r} failed ({r.returncode})")
+    return int(m.group(1))
+
+
+def per_frame_instructions(folder: Path, frames: int, chunks: int) -> dict:
+    """Ir per frame of (b) and of pymodbus' best case: a run of N minus a run of none, over N.
+
+    (b) is limited by chunks read, pymodbus by frames; both children load their input the same way
+    with and without the limit, so start-up, imports and the registry cancel out.
+    """
+    out = {}
+    full_n, full_0 = instructions("full", folder, chunks), instructions("full", folder, 0)
+    n = run_child("full", folder, chunks)["frames"]
+    out["ours"] = (full_n - full_0) / n
+    py_n, py_0 = instructions("pymodbus-split", folder, frames), instructions("pymodbus-split", folder, 0)
+    out["pymodbus"] = (py_n - py_0) / frames
+    out["frames_ours"], out["frames_pymodbus"] = n, frames
+    return out
 
 
 def run_child(kind: str, folder: Path, limit: int | None = None, repeat: int = 1) -> dict:
@@ -618,6 +648,9 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3,
                     help="timed runs of (a), (b) and pymodbus' best case; the best is reported (default 3)")
     ap.add_argument("--sigrok-capture", help="a sigrok .sr capture to time sigrok-cli on (if installed)")
+    ap.add_argument("--instructions", action="store_true",
+                    help="valgrind instruction counts per frame of (b) and pymodbus' best case (20,000 frames): "
+                         "a ratio that does not move when the machine is shared")
     ap.add_argument("--child", choices=sorted(CHILDREN), help=argparse.SUPPRESS)
     ap.add_argument("--dir", help=argparse.SUPPRESS)
     ap.add_argument("--limit", type=int, help=argparse.SUPPRESS)
@@ -629,7 +662,8 @@ def main(argv=None) -> int:
         print(json.dumps(res))
         return 0
 
-    n = args.frames or (50_000 if args.quick else 100_000 if args.profile else 1_000_000)
+    n = args.frames or (50_000 if args.quick else 100_000 if args.profile else 20_000 if args.instructions
+                        else 1_000_000)
     now = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
     print(f"bench_pipeline {now}: {' '.join(sys.argv[1:]) or '(defaults)'}; {n:,} frames; {revision()}; "
           f"load average at start {os.getloadavg()[0]:.2f}")
@@ -639,6 +673,12 @@ def main(argv=None) -> int:
         print(f"generated {meta['truth_frames']:,} frames in {meta['gen_s']} s", flush=True)
         if args.profile:
             print_profile(run_child("profile", folder), 30)
+            return 0
+        if args.instructions:
+            r = per_frame_instructions(folder, meta["truth_frames"], meta["chunks"])
+            print(f"instructions per frame (valgrind Ir, {MIX} mix): full decode -> JSONL {r['ours']:,.0f} "
+                  f"({r['frames_ours']:,} frames); pymodbus best case {r['pymodbus']:,.0f} "
+                  f"({r['frames_pymodbus']:,} frames); ours / pymodbus speed: {r['pymodbus'] / r['ours']:.2f}x")
             return 0
         res = {}
         for kind in ("split", "full", "verify", "pymodbus-stream", "pymodbus-split"):
