@@ -62,7 +62,7 @@ class RtuFramer(Crc16Framing, LineBuffer):
         out: list[Frame] = []
         # rule A for per-read bytes first; a flagged byte needs the rule-by-rule path. When
         # _fast stops where _step would wait too (the rest of a frame), _step is not asked
-        if self.flags or self.protocol != "modbus-rtu" or not self._fast(out):  # not for subclasses' framings
+        if self.flags or not self._fast(out):
             step = self._step
             while (fr := step(self.pos)) is not None:
                 out.append(fr)
