@@ -71,7 +71,7 @@ class HexLineFraming:
         if binary is None or len(binary) < 3:
             fr = self._emit_noise(p, e)
             if binary is None:
-                fr.annotations.append(note(self.bad_hex_code, _hex_problem(raw, tail), 1, max(2, len(raw) - tail)))
+                fr.annotations.append(note(self.bad_hex_code, *_hex_problem(raw, tail)))
             return fr
         adu, got = binary[:-1], binary[-1]
         fr = self._new_frame(p, e, self.protocol, raw)
@@ -95,7 +95,7 @@ class HexLineFraming:
         tail = _tail(raw)
         binary = _hex_pairs(raw[1 : len(raw) - tail])
         if binary is None:
-            return f"':' frame whose characters are not hex pairs ({_hex_problem(raw, tail)})"
+            return f"':' frame whose characters are not hex pairs ({_hex_problem(raw, tail)[0]})"
         return f"{len(binary)} byte(s) after ':': too short for {self.header_words}"
 
 
@@ -115,10 +115,11 @@ def _hex_pairs(text: bytes) -> bytes | None:
         return None
 
 
-def _hex_problem(raw: bytes, tail: int) -> str:
-    """What keeps a line's characters from being hex pairs, with positions counted in `raw`."""
-    body = raw[1 : len(raw) - tail]
-    for k, c in enumerate(body):
-        if c not in _HEX:
-            return f"{chr(c)!r} at character {k + 1} is not a hex digit"
-    return f"an odd number ({len(body)}) of hex digits"
+def _hex_problem(raw: bytes, tail: int) -> tuple[str, int, int]:
+    """What keeps a line's characters from being hex pairs, and its span in `raw` (the first
+    non-hex character, or all the digits when their number is odd)."""
+    stop = len(raw) - tail
+    for k in range(1, stop):
+        if raw[k] not in _HEX:
+            return f"{chr(raw[k])!r} at character {k} is not a hex digit", k, k + 1
+    return f"an odd number ({stop - 1}) of hex digits", 1, stop
