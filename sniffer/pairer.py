@@ -59,15 +59,17 @@ class Pairer:
         return self.unit_timeouts.get(unit, self.timeout_ns)
 
     def push(self, f: Frame) -> list[Frame]:
-        can = f.can
-        if f.protocol == "noise" or not can & _ROLES or f.unit is None or f.function is None:
+        if f.protocol == "noise" or f.function is None or f.unit is None:
             return self._pass_through(f)
+        can = f.can
         if can == CAN_RSP:
             f.role = RESPONSE
             return self._response(f)
         if can == CAN_REQ:
             f.role = REQUEST
             return self._request(f)
+        if not can & _ROLES:  # fits no role
+            return self._pass_through(f)
         pending = self.pending  # the shape fits both: context decides
         if (pending is not None and _same_transaction(pending, f)
                 and f.t_ns - pending.t_end_ns <= self._timeout(pending.unit)):
@@ -197,12 +199,10 @@ def _same_transaction(req: Frame, f: Frame) -> bool:
 
 def response_mismatch(req: bytes, rsp: bytes) -> str | None:
     """Why a CRC-good response does not answer its CRC-good request, or None (ADUs, no checksum)."""
-    if len(req) < 2 or len(rsp) < 2:
-        return None  # no function code to compare (a framer never pairs such ADUs; built frames may)
-    fc = req[1]
-    if rsp[1] & 0x80:
-        return None
     try:
+        fc = req[1]
+        if rsp[1] & 0x80:
+            return None
         if fc in (0x01, 0x02):
             qty = (req[4] << 8) | req[5]
             want = (qty + 7) // 8
@@ -228,6 +228,8 @@ def response_mismatch(req: bytes, rsp: bytes) -> str | None:
             if rsp[2] != 2 * qty:
                 return f"byte count {rsp[2]}, expected {2 * qty} for {qty} registers"
     except IndexError:
+        if len(req) < 2 or len(rsp) < 2:
+            return None  # no function code to compare (a framer never pairs such ADUs; built frames may)
         return "response too short for its request"
     return None
 
