@@ -16,11 +16,9 @@ from __future__ import annotations
 
 from .codes import ASCII_BAD_HEX, ASCII_NO_CRLF, CRC_MISMATCH, LINE_CODES
 from .frame import CAN_REQ, CAN_RSP, Frame
-from .hexline import MAX_LINE, HexLineFraming
+from .hexline import HexLineFraming
 from .linebuf import LineBuffer
 from .rtu_layout import Need, candidates
-
-MAX_ASCII = MAX_LINE  # ':' + 2 * (ADU + LRC) + CR LF
 
 
 class AsciiFramer(HexLineFraming, LineBuffer):
@@ -44,4 +42,4 @@ def _roles(adu: bytes) -> int:
     return can or (CAN_REQ | CAN_RSP)
 
 
-__all__ = ["AsciiFramer", "MAX_ASCII"]
+__all__ = ["AsciiFramer"]

@@ -267,17 +267,11 @@ class LineBuffer:
         """Decide what the bytes so far allow: the frames, in order."""
         self._need = 0
         out: list[Frame] = []
-        self._steps(out)
+        step = self._step
+        while (fr := step(self.pos)) is not None:
+            out.append(fr)
         self._compact()
         return out
-
-    def _steps(self, out: list[Frame]) -> None:
-        step = self._step
-        while True:
-            fr = step(self.pos)
-            if fr is None:
-                return
-            out.append(fr)
 
     def _step(self, p: int) -> Frame | None:  # pragma: no cover - each framing decides its frames
         """The frame that starts at p (and moves `pos` past it), or None while it waits for bytes."""
