@@ -2,7 +2,7 @@
 
 Sans-I/O: `feed(chunk)`, `tick(t_ns)` and `flush()` return finished Frames.
 
-What the framer knows about each byte boundary:
+What the framer knows about each byte boundary (linebuf.LineBuffer):
   HARD  silence >= t3.5 (per-byte times), a large gap between reads, a line
         (channel) change, or a tick that proved silence: frames never span it.
   SOFT  silence >= 1.5 characters (per-byte times), or the start of a new USB
@@ -10,20 +10,26 @@ What the framer knows about each byte boundary:
         frames across reads; a sloppy master pauses mid-frame).
   none  bytes known back to back, or inside one read (unknown timing).
 
-At each frame start the framer tries, in this order (see `_step`):
-  A. the lengths implied by unit, function code and byte count, shortest
-     first, with a valid CRC: that is a frame (cuts glued frames, rejoins
-     split ones, and a frame followed by 0x00 bytes is not swallowed);
-  B1. the run of bytes up to the next boundary, if its CRC is valid (a
-     frame whose length contradicts its function code, or an unknown code);
-  B2. if a CRC-valid structural frame starts later, before the boundary,
-     and its end is plausible too (boundary, end of data, or another valid
-     frame), the bytes before it are noise (noise glued to a frame in one read);
-  B3. a structural length that ends exactly at the next boundary, bad CRC
-     (a corrupted frame);
-  B4. a whole burst between two t3.5 silences with a plausible header is a
-     malformed frame (the Modbus definition of a frame), bad CRC;
-  B5. otherwise noise up to the next boundary.
+At each frame start the framer tries, in this order (`Crc16Framing._step`),
+each rule a method named for it:
+  A. `_rule_a_structural`: the lengths implied by unit, function code and
+     byte count, shortest first, with a valid CRC: that is a frame (cuts
+     glued frames, rejoins split ones, and a frame followed by 0x00 bytes is
+     not swallowed).  `_fast` is the same rule in one tight loop for per-read
+     bytes, the bulk of a USB capture;
+  B1. `_rule_b1_crc_run`: the run of bytes up to the next boundary, if its
+     CRC is valid (a frame whose length contradicts its function code, or an
+     unknown code);
+  B2. `_rule_b2_noise_before_frame`: if a CRC-valid structural frame starts
+     later, before the boundary, and its end is plausible too (boundary, end
+     of data, or another valid frame), the bytes before it are noise (noise
+     glued to a frame in one read);
+  B3. `_rule_b3_damaged_frame`: a structural length that ends exactly at the
+     next boundary, bad CRC (a corrupted frame);
+  B4. `_rule_b4_malformed_burst`: a whole burst between two t3.5 silences
+     with a plausible header is a malformed frame (the Modbus definition of
+     a frame), bad CRC;
+  B5. `_rule_b5_noise`: otherwise noise up to the next boundary.
 Decisions depend only on bytes and boundaries, never on how reads were cut,
 so feeding a capture whole, byte by byte or in random chunks gives the same
 frames (a property test checks it).
@@ -33,7 +39,8 @@ from __future__ import annotations
 
 from . import codes
 from .codes import note
-from .crc import _modbus, crc_expected, crc_found, crc_ok
+from .crc import _modbus, crc_ok
+from .crc_framing import NEXT, Crc16Framing
 from .frame import CAN_REQ, CAN_RSP, Frame
 from .linebuf import _WAIT, HARD, MAX_NOISE, NONE, SOFT, LineBuffer
 from .rtu_layout import KNOWN_FUNCTIONS, Need, candidates
@@ -43,7 +50,7 @@ _READS = frozenset((0x01, 0x02, 0x03, 0x04))  # request 8 bytes, response byte c
 _ECHOES = frozenset((0x05, 0x06, 0x08))  # 8 bytes both ways
 
 
-class RtuFramer(LineBuffer):
+class RtuFramer(Crc16Framing, LineBuffer):
     protocol = "modbus-rtu"
     codes = codes.RTU_CODES
 
@@ -53,14 +60,12 @@ class RtuFramer(LineBuffer):
     def _run(self) -> list[Frame]:
         self._need = 0
         out: list[Frame] = []
-        if not self.flags and self.protocol == "modbus-rtu" and self._fast(out):  # not for subclasses' framings
-            self._compact()
-            return out  # waiting for the rest of a frame: _step would say _WAIT too
-        while True:
-            step = self._step(self.pos)
-            if step is None:
-                break
-            out.append(step)
+        # rule A for per-read bytes first; a flagged byte needs the rule-by-rule path. When
+        # _fast stops where _step would wait too (the rest of a frame), _step is not asked
+        if self.flags or not self._fast(out):
+            step = self._step
+            while (fr := step(self.pos)) is not None:
+                out.append(fr)
         self._compact()
         return out
 
@@ -104,7 +109,7 @@ class RtuFramer(LineBuffer):
             if cands is None:
                 break
             length = 0
-            for n, can in cands:
+            for n, can in cands:  # noqa: B007 - `can` (the roles of the length found) is used after the break
                 if i + n > lim:
                     if not final:
                         self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
@@ -178,139 +183,106 @@ class RtuFramer(LineBuffer):
                 return length, can, raw
         return False
 
-    def _step(self, p: int):
-        end, final = self._avail(p)
-        if p >= end:
-            if final and end < self.base + len(self.buf):
-                return None  # nothing before the hard boundary; cannot happen
-            return None
-        # A. structural length + CRC
+    # --------------------------------------------------------------- rules
+    def _rule_a_structural(self, p: int, end: int, final: bool):
+        """A: a structural length (unit, function, byte count) with a good CRC, shortest first."""
         hit = self._crc_candidate(p, end, final)
         if hit is _WAIT:
-            return None
+            return _WAIT
         if hit:
             return self._emit(p, p + hit[0], hit[1], crc_good=True, raw=hit[2])
-        b = self._next_boundary(p, end, final)
-        if b is _WAIT:
-            return None
+        return NEXT
+
+    def _rule_b1_crc_run(self, p: int, b: int, end: int, final: bool):
+        """B1: the run up to the boundary carries a valid CRC: a frame of the wrong length or an
+        unknown / user-defined function (annotated so)."""
+        seg = bytes(self.buf[p - self.base : b - self.base])
+        if not (len(seg) >= 4 and seg[0] <= 247 and crc_ok(seg)):
+            return NEXT
+        fc = seg[1]
+        fr = self._emit(p, b, CAN_REQ | CAN_RSP, crc_good=True, raw=seg)
+        base_fc = fc & 0x7F
+        if base_fc in KNOWN_FUNCTIONS and fc != 0x80:
+            fr.annotations.append(
+                note(codes.LENGTH_MISMATCH, f"{len(seg)} bytes do not fit function 0x{fc:02X}", 0, len(seg))
+            )
+        else:
+            user = 65 <= base_fc <= 72 or 100 <= base_fc <= 110
+            fr.annotations.append(
+                note(codes.FUNCTION_USER if user else codes.FUNCTION_UNKNOWN,
+                     f"function 0x{fc:02X} ({fc}) shown raw", 1, 2)
+            )
+        return fr
+
+    def _rule_b3_damaged_frame(self, p: int, b: int, end: int, final: bool):
+        """B3: a structural length ending exactly at the boundary, bad CRC; with per-read times
+        also one that runs over read boundaries to a later boundary (`_damaged_ends_at`)."""
         buf, base = self.buf, self.base
-        seg = bytes(buf[p - base : b - base])
-        # B1. the run up to the boundary carries a valid CRC
-        if len(seg) >= 4 and crc_ok(seg) and seg[0] <= 247:
-            fc = seg[1]
-            fr = self._emit(p, b, CAN_REQ | CAN_RSP, crc_good=True)
-            base_fc = fc & 0x7F
-            if base_fc in KNOWN_FUNCTIONS and fc != 0x80:
-                fr.annotations.append(
-                    note(codes.LENGTH_MISMATCH,
-                         f"{len(seg)} bytes do not fit function 0x{fc:02X}", 0, len(seg))
-                )
-            else:
-                user = 65 <= base_fc <= 72 or 100 <= base_fc <= 110
-                fr.annotations.append(
-                    note(codes.FUNCTION_USER if user else codes.FUNCTION_UNKNOWN,
-                         f"function 0x{fc:02X} ({fc}) shown raw", 1, 2)
-                )
-            return fr
-        # B2. a strong frame starts before the boundary: what precedes it is noise
-        q = self._resync(p, b, end, final)
-        if q is _WAIT:
-            return None
-        if q < b:
-            return self._emit_noise(p, q)
-        # B3. a structural length ending exactly at the boundary, bad CRC; with
-        # per-read times also one that runs over read boundaries (an adapter
-        # splits a damaged frame as readily as a good one) to a later boundary
         per_read = not self._per_byte_at(p)
         for length, can in candidates(buf, p - base, (end if per_read else b) - base):
             if type(length) is not int:
                 if per_read and not final:
-                    return None  # its length is not known yet
+                    return _WAIT  # its length is not known yet
                 continue
             e = p + length
             if e == b:
                 return self._emit(p, b, can, crc_good=False)
-            if per_read and b < e <= end:
-                at = self._is_boundary(e, end, final)
-                if at is None:
-                    return None
-                if at and self._resync(b - 1, e, end, final) == e:
-                    return self._emit(p, e, can, crc_good=False)
-        # B4. a whole burst between two silences of t3.5 is a frame by the
-        # Modbus definition: if its header is plausible, show it as a
-        # malformed frame (bad CRC, wrong length), not as noise
-        if (
-            b - p >= 4 and buf[p - base] <= 247 and (buf[p + 1 - base] & 0x7F) in KNOWN_FUNCTIONS
-            and self._class_at(p) == HARD and self._is_hard(b, end, final)
-        ):
-            fr = self._emit(p, b, CAN_REQ | CAN_RSP, crc_good=False)
-            fr.annotations.append(
-                note(codes.LENGTH_MISMATCH, f"{b - p} bytes do not fit function 0x{buf[p + 1 - base]:02X}",
-                     0, b - p)
-            )
-            return fr
-        # B5. noise up to the boundary
-        return self._emit_noise(p, b)
-
-    def _resync(self, p: int, b: int, end: int, final: bool):
-        base = self.base
-        buf = self.buf
-        for q in range(p + 1, b):
-            u = buf[q - base]
-            if u > 247 or q + 1 >= end:
-                if q + 1 >= end and not final:
+            if per_read:
+                at = self._damaged_ends_at(e, b, end, final)
+                if at is _WAIT:
                     return _WAIT
-                continue
-            fc = buf[q + 1 - base]
-            if (fc & 0x7F) not in KNOWN_FUNCTIONS:
-                continue
-            hit = self._crc_candidate(q, end, final)
-            if hit is _WAIT:
-                return _WAIT
-            if not hit:
-                continue
-            e = q + hit[0]
-            at = self._is_boundary(e, end, final)
-            if at is None:
-                return _WAIT
-            if at:
-                return q
-            nxt = self._crc_candidate(e, end, final)
-            if nxt is _WAIT:
-                return _WAIT
-            if nxt:
-                return q
-        return b
+                if at:
+                    return self._emit(p, e, can, crc_good=False)
+        return NEXT
+
+    def _rule_b4_malformed_burst(self, p: int, b: int, end: int, final: bool):
+        """B4: a whole burst between two t3.5 silences is a frame by the Modbus definition: with a
+        plausible header (unit, known function) it is a malformed frame (bad CRC, wrong length)."""
+        buf, base = self.buf, self.base
+        if not (b - p >= 4 and buf[p - base] <= 247 and (buf[p + 1 - base] & 0x7F) in KNOWN_FUNCTIONS
+                and self._whole_burst(p, b, end, final)):
+            return NEXT
+        fr = self._emit(p, b, CAN_REQ | CAN_RSP, crc_good=False)
+        fr.annotations.append(
+            note(codes.LENGTH_MISMATCH, f"{b - p} bytes do not fit function 0x{buf[p + 1 - base]:02X}", 0, b - p)
+        )
+        return fr
+
+    def _frame_starts_at(self, q: int, b: int, end: int, final: bool):
+        """B2's test at q: a plausible header, a structural frame with a good CRC, and a plausible
+        end (a boundary, or another such frame right after it)."""
+        buf, base = self.buf, self.base
+        if q + 1 >= end:
+            return False if final else _WAIT
+        if buf[q - base] > 247 or (buf[q + 1 - base] & 0x7F) not in KNOWN_FUNCTIONS:
+            return False
+        hit = self._crc_candidate(q, end, final)
+        if hit is _WAIT:
+            return _WAIT
+        if not hit:
+            return False
+        e = q + hit[0]
+        at = self._is_boundary(e, end, final)
+        if at is None:
+            return _WAIT
+        if at:
+            return True
+        nxt = self._crc_candidate(e, end, final)
+        if nxt is _WAIT:
+            return _WAIT
+        return bool(nxt)
 
     # -------------------------------------------------------------- output
-    def _emit(self, p: int, e: int, can: int, crc_good: bool, raw: bytes | None = None) -> Frame:
-        if raw is None:
-            raw = bytes(self.buf[p - self.base : e - self.base])
-        fr = self._new_frame(p, e, self.protocol, raw)
-        fr.unit = raw[0]
-        fr.function = raw[1]
-        fr.adu = raw[:-2]
-        fr.can = can
-        fr.crc_ok = crc_good
-        if raw[0] > 247:
-            fr.annotations.append(note(codes.UNIT_RESERVED, f"unit {raw[0]}", 0, 1))
-        if not crc_good:
-            exp = crc_expected(raw)
-            fr.crc_expected = exp
-            fr.annotations.append(
-                note(codes.CRC_MISMATCH,
-                     f"CRC is 0x{crc_found(raw):04X}, expected 0x{exp:04X} "
-                     f"(bytes {exp & 0xFF:02x} {exp >> 8:02x})",
-                     len(raw) - 2, len(raw))
-            )
-        if fr.time_source == "byte" and fr.idle_before_ns is not None and fr.idle_before_ns < self.hard_ns:
-            fr.annotations.append(
-                note(codes.T35_SHORT,
-                     f"{fr.idle_before_ns / self.char_ns:.2f} characters of silence before the frame",
-                     0, 1)
-            )
-        self.pos = e
-        return fr
+    def _header(self, fr: Frame, adu: bytes, crc_good: bool) -> None:
+        fr.unit = adu[0]
+        fr.function = adu[1]
+        fr.adu = adu
+        if adu[0] > 247:
+            fr.annotations.append(note(codes.UNIT_RESERVED, f"unit {adu[0]}", 0, 1))
+
+    def _short_silence_note(self, idle_ns: int):
+        return note(codes.T35_SHORT, f"{idle_ns / self.char_ns:.2f} characters of silence before the frame", 0, 1)
+
 
 def _read_cands(lr: int) -> tuple:
     if lr < 8:

@@ -1,7 +1,9 @@
 """The line as the framers see it: bytes, their times, and the silences between them.
 
-Sans-I/O.  `feed(chunk)`, `tick(t_ns)` and `flush()` take input; a subclass
-decides frames in `_run()` (RtuFramer, AsciiFramer, the PD framers).
+Sans-I/O.  `feed(chunk)`, `tick(t_ns)` and `flush()` take input and return
+the frames decided; a subclass decides one frame at a time in `_step(p)`
+(RtuFramer, AsciiFramer, the PD framers; `Crc16Framing` and `HexLineFraming`
+hold what the binary and the ':' ... CR LF framings share).
 
 What the buffer knows about each byte boundary:
   HARD  silence >= t3.5 (per-byte times), a large gap between reads, a line
@@ -142,7 +144,7 @@ class LineBuffer:
         return self.base + len(self.buf), self.closed
 
     def _next_boundary(self, p: int, end: int, final: bool):
-        for b, c in self.bounds:
+        for b, _c in self.bounds:
             if b > p:
                 if b <= end:
                     return b
@@ -157,7 +159,7 @@ class LineBuffer:
         """Is there a boundary (SOFT/HARD/end of data) at e? None while unknown."""
         if e >= end:
             return True if final else None
-        for b, c in self.bounds:
+        for b, _c in self.bounds:
             if b == e:
                 return True
             if b > e:
@@ -257,7 +259,20 @@ class LineBuffer:
             self.base = pos
 
     def noise_reason(self, raw: bytes) -> str:
+        """Why these bytes form no frame, in the framing's own words (the framers override it)."""
         return f"{len(raw)} byte(s) that form no frame"
 
-    def _run(self) -> list[Frame]:  # pragma: no cover - subclasses decide frames
+    # ------------------------------------------------------------ deciding
+    def _run(self) -> list[Frame]:
+        """Decide what the bytes so far allow: the frames, in order."""
+        self._need = 0
+        out: list[Frame] = []
+        step = self._step
+        while (fr := step(self.pos)) is not None:
+            out.append(fr)
+        self._compact()
+        return out
+
+    def _step(self, p: int) -> Frame | None:  # pragma: no cover - each framing decides its frames
+        """The frame that starts at p (and moves `pos` past it), or None while it waits for bytes."""
         raise NotImplementedError

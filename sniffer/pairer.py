@@ -4,20 +4,38 @@ Sans-I/O.  `push(frame)` returns the frames that are settled, in capture
 order; a request is held until its response, the next request, a timeout
 tick, or the end of the capture settles it (one transaction of delay).
 
-Rules (one master, RTU):
-  * a frame that can only be a response (exception, byte-count shape) is one;
-  * a frame whose shape fits both (05/06/08/16 echoes, unknown codes) is the
-    response if it matches the pending request's unit and function within
-    the response timeout, else a new request;
-  * a new request while one is pending: the pending one got no response
-    (pair.no_response, and pair.timeout past the unit's timeout); identical
-    bytes mark the new one a retry;
-  * broadcast (unit 0) expects no answer; an answer right after it is an error;
-  * a response with nothing pending (or from another unit) is an orphan.
+Rules (one master; each has a test of its name in tests/test_pairer.py):
+  * pass-through: noise, and a frame the pairer cannot read (no unit or no
+    function, or `can` = 0: its shape fits no role) is never paired; it
+    keeps its place in capture order and settles nothing;
+  * response-only shapes (`can` = CAN_RSP: exception, byte-count shape) are
+    responses, request-only shapes (CAN_REQ) requests;
+  * a shape that fits both (05/06/08/16 echoes, unknown codes): context
+    decides; the response if it matches the pending request's unit and
+    function within the response timeout, else the answer to a broadcast
+    just before it, else a new request;
+  * a new request while one is pending: the pending one is unanswered
+    (`_unanswered`: pair.no_response "next request after X ms", and
+    pair.timeout when X is past the unit's timeout); identical bytes mark
+    the new one pair.retry;
+  * a timeout tick past the unit's timeout: the pending request is
+    unanswered the same way ("timeout tick after X ms", pair.timeout);
+  * end of capture: the pending request gets pair.end_of_capture instead of
+    pair.no_response (its answer may simply not have been captured);
+  * broadcast (unit 0) expects no answer (pair.broadcast, not held); a
+    response right after it is pair.broadcast_response;
+  * a response with nothing pending, or for another unit or function, is an
+    orphan (pair.orphan_response);
+  * a response past the unit's timeout is still paired, and flagged
+    pair.late_response (no tick settled the request first);
+  * a CRC-good Modbus response that does not answer its CRC-good request
+    (byte count, echo, address) is paired and flagged pair.mismatch
+    (`response_mismatch`).
+The pairer never raises on a frame a framer can produce: whatever its unit,
+function, adu, crc_ok or `can` bits.
 """
 
 from __future__ import annotations
-
 
 from . import codes
 from .codes import note
@@ -26,6 +44,7 @@ from .protocols import PROTOCOLS
 
 DEFAULT_TIMEOUT_MS = 1000.0
 _MODBUS = frozenset(name for name, p in PROTOCOLS.items() if p.family == "modbus")  # Modbus echo/count rules
+_ROLES = CAN_REQ | CAN_RSP
 
 
 class Pairer:
@@ -40,11 +59,8 @@ class Pairer:
         return self.unit_timeouts.get(unit, self.timeout_ns)
 
     def push(self, f: Frame) -> list[Frame]:
-        if f.protocol == "noise":
-            if self.held:
-                self.held.append(f)
-                return []
-            return [f]
+        if f.protocol == "noise" or f.function is None or f.unit is None:
+            return self._pass_through(f)
         can = f.can
         if can == CAN_RSP:
             f.role = RESPONSE
@@ -52,6 +68,8 @@ class Pairer:
         if can == CAN_REQ:
             f.role = REQUEST
             return self._request(f)
+        if not can & _ROLES:  # fits no role
+            return self._pass_through(f)
         pending = self.pending  # the shape fits both: context decides
         if (pending is not None and _same_transaction(pending, f)
                 and f.t_ns - pending.t_end_ns <= self._timeout(pending.unit)):
@@ -62,6 +80,13 @@ class Pairer:
             return self._response(f)
         f.role = REQUEST
         return self._request(f)
+
+    def _pass_through(self, f: Frame) -> list[Frame]:
+        """Not paired: settled now, or held behind the pending request to keep capture order."""
+        if self.held:
+            self.held.append(f)
+            return []
+        return [f]
 
     def _answers_broadcast(self, f: Frame) -> bool:
         """A unit's echo of the broadcast write just before it (a bug to flag, not a new request)."""
@@ -111,20 +136,14 @@ class Pairer:
                 f"pending request #{req.index} is for unit {req.unit} function 0x{req.function:02X}"
             )
             f.annotations.append(note(codes.ORPHAN_RESPONSE, why, 0, len(f.raw)))
-        if self.held:
-            self.held.append(f)
-            return []
-        return [f]
+        return self._pass_through(f)
 
     def _request(self, f: Frame) -> list[Frame]:
         req = self.pending
         if req is not None:  # held is empty unless a request is pending
-            self._unanswered(req, f.t_ns)
+            out = self._unanswered("next request", f.t_ns - req.t_end_ns)
             if req.raw == f.raw:
                 f.annotations.append(note(codes.RETRY, f"repeats frame #{req.index}", 0, len(f.raw)))
-            out = self.held
-            self.held = []
-            self.pending = None
         else:
             out = []
         self.last_request = f
@@ -136,17 +155,25 @@ class Pairer:
         self.held.append(f)
         return out
 
-    def _unanswered(self, req: Frame, now_ns: int) -> None:
-        waited = now_ns - req.t_end_ns
-        req.annotations.append(
-            note(codes.NO_RESPONSE, f"no response ({waited / 1e6:.1f} ms until the next request)",
-                 0, len(req.raw))
-        )
-        if waited > self._timeout(req.unit):
+    def _unanswered(self, ended_by: str, waited_ns: int | None, code=codes.NO_RESPONSE) -> list[Frame]:
+        """Settle the pending request without a response; the held frames, in capture order.
+
+        One annotation says what ended the wait ("next request", "timeout
+        tick", "end of capture") and after how long; pair.timeout follows
+        when that wait is known to be past the unit's timeout.
+        """
+        req = self.pending
+        after = "" if waited_ns is None else f" after {waited_ns / 1e6:.1f} ms"
+        req.annotations.append(note(code, f"no response: {ended_by}{after}", 0, len(req.raw)))
+        limit = self._timeout(req.unit)
+        if waited_ns is not None and waited_ns > limit:
             req.annotations.append(
-                note(codes.TIMEOUT, f"unit {req.unit}: no response within "
-                     f"{self._timeout(req.unit) / 1e6:.0f} ms", 0, len(req.raw))
+                note(codes.TIMEOUT, f"unit {req.unit}: no response within {limit / 1e6:.0f} ms", 0, len(req.raw))
             )
+        self.pending = None
+        out = self.held
+        self.held = []
+        return out
 
     def would_time_out(self, t_ns: int) -> bool:
         """True if tick(t_ns) would settle the pending request (used to record effective ticks)."""
@@ -156,24 +183,11 @@ class Pairer:
     def tick(self, t_ns: int) -> list[Frame]:
         if not self.would_time_out(t_ns):
             return []
-        req = self.pending
-        req.annotations.append(
-            note(codes.TIMEOUT, f"unit {req.unit}: no response within "
-                 f"{self._timeout(req.unit) / 1e6:.0f} ms", 0, len(req.raw))
-        )
-        req.annotations.append(note(codes.NO_RESPONSE, "no response", 0, len(req.raw)))
-        self.pending = None
-        out = self.held
-        self.held = []
-        return out
+        return self._unanswered("timeout tick", t_ns - self.pending.t_end_ns)
 
     def flush(self) -> list[Frame]:
-        req = self.pending
-        if req is not None:
-            req.annotations.append(
-                note(codes.END_OF_CAPTURE, "capture ended while waiting for the response", 0, len(req.raw))
-            )
-            self.pending = None
+        if self.pending is not None:
+            return self._unanswered("end of capture", None, codes.END_OF_CAPTURE)
         out = self.held
         self.held = []
         return out
@@ -185,10 +199,10 @@ def _same_transaction(req: Frame, f: Frame) -> bool:
 
 def response_mismatch(req: bytes, rsp: bytes) -> str | None:
     """Why a CRC-good response does not answer its CRC-good request, or None (ADUs, no checksum)."""
-    fc = req[1]
-    if rsp[1] & 0x80:
-        return None
     try:
+        fc = req[1]
+        if rsp[1] & 0x80:
+            return None
         if fc in (0x01, 0x02):
             qty = (req[4] << 8) | req[5]
             want = (qty + 7) // 8
@@ -214,6 +228,8 @@ def response_mismatch(req: bytes, rsp: bytes) -> str | None:
             if rsp[2] != 2 * qty:
                 return f"byte count {rsp[2]}, expected {2 * qty} for {qty} registers"
     except IndexError:
+        if len(req) < 2 or len(rsp) < 2:
+            return None  # no function code to compare (a framer never pairs such ADUs; built frames may)
         return "response too short for its request"
     return None
 

@@ -4,8 +4,10 @@ The PD-series protocol (shared/manuals/pd-series-protocol.txt, "l.N" = line N)
 only looks like Modbus.  Every frame is ADDR FUNC LEN DATA + check (l.64,
 l.203); LEN counts the bytes between LEN and the check (our reading of l.181 /
 l.107, see decoders/pd_series/NOTES.md), so the frame length is LEN + 5 in
-RTU.  Sans-I/O and the same interface as RtuFramer / AsciiFramer, whose
-buffer, timestamps and silences these classes reuse.
+RTU.  Sans-I/O and the same interface as RtuFramer / AsciiFramer: both are
+LineBuffers; `PdHeader` reads the header for both, the RTU framer takes its
+rule order from `Crc16Framing` and the ASCII framer its cutting from
+`HexLineFraming`, not the Modbus rules.
 
 RTU (`PdRtuFramer`, protocol "pd-rtu"):
   * the quiet time between frames is > 50 ms (l.203-206), not t3.5: it is the
@@ -13,7 +15,8 @@ RTU (`PdRtuFramer`, protocol "pd-rtu"):
     shorter silence (>= 1.5 characters, or a new USB read) is SOFT: a likely
     boundary that a frame may span.  The manual has no inter-character rule,
     so `modbus.timing.t15` is never emitted (t15_ns = the quiet time).
-  * at each frame start, in this order (`_step`):
+  * at each frame start, in this order (`Crc16Framing._step`), each rule a
+    method named for it (`_rule_a_structural`, `_rule_b1_crc_run`, ...):
       A. LEN + 5 bytes with a good CRC (known function): a frame.  This cuts
          glued frames and rejoins frames split across reads.  (A frame ending
          in 00 also checks one byte shorter: `_settle_zero_end` decides.)
@@ -30,9 +33,10 @@ RTU (`PdRtuFramer`, protocol "pd-rtu"):
       B4. a whole burst between two quiets with a known function: a
          malformed frame (bad CRC, `pd.len.mismatch` when LEN disagrees).
       B5. otherwise noise up to the boundary.
-ASCII (`PdAsciiFramer`, protocol "pd-ascii"): ':' ... LF as in Modbus ASCII;
-`raw` keeps the characters, `adu` the binary ADDR..DATA without the LRC.  The
-LRC is the manual's (l.187): 100H minus the byte sum of ADDR..DATA, mod 256.
+ASCII (`PdAsciiFramer`, protocol "pd-ascii"): ':' ... LF cut as in Modbus
+ASCII (`HexLineFraming`); `raw` keeps the characters, `adu` the binary
+ADDR..DATA without the LRC.  The LRC is the manual's (l.187): 100H minus the
+byte sum of ADDR..DATA, mod 256.
 
 Both framers set unit, function, adu and can (CAN_REQ/CAN_RSP).  Error replies
 81H/83H can only be responses; unit 0 (broadcast, l.71) only a request.  The
@@ -46,24 +50,20 @@ value in `crc_expected`.
 
 from __future__ import annotations
 
-from binascii import Error as HexError
-from binascii import unhexlify
-
 from fastcrc.crc16 import modbus as crc16_modbus  # incremental: `initial` = the running register
 
-from . import codes
-from .ascii_framer import AsciiFramer
-from .codes import LINE_CODES, note
-from .codes import CRC_MISMATCH
+from .codes import CRC_MISMATCH, LINE_CODES, note
 from .codes import PD_BAD_HEX as BAD_HEX
 from .codes import PD_FUNCTION_UNKNOWN as FUNCTION_UNKNOWN
 from .codes import PD_LEN_MISMATCH as LEN_MISMATCH
 from .codes import PD_NO_CRLF as NO_CRLF
 from .codes import PD_QUIET_SHORT as QUIET_SHORT
 from .codes import PD_WRITE_ERROR as WRITE_ERROR
-from .crc import crc_expected, crc_found, crc_ok, lrc
+from .crc import crc_ok
+from .crc_framing import NEXT, Crc16Framing
 from .frame import CAN_REQ, CAN_RSP, Frame
-from .framer import _WAIT, HARD, RtuFramer
+from .hexline import HexLineFraming
+from .linebuf import _WAIT, LineBuffer
 
 QUIET_NS = 50_000_000  # l.203-206: "the time of no data is more than 50 ms"
 MIN_FRAME = 5  # ADDR FUNC LEN + CRC (LEN = 0)
@@ -88,8 +88,9 @@ def roles(unit: int, fc: int) -> int:
     return CAN_REQ | CAN_RSP
 
 
-class _PdCommon:
-    """What both PD framers add to their Modbus base: the header, LEN check, pairing key, noise text."""
+class PdHeader:
+    """Mixin for both PD framers: the quiet time, the header (unit, function, roles), the LEN check,
+    the 81H pairing key."""
 
     def __init__(self, line, *, read_slack_ns: int = 50_000_000) -> None:
         super().__init__(line, read_slack_ns=read_slack_ns)
@@ -101,7 +102,7 @@ class _PdCommon:
         """Byte span of ADU bytes [i, j) inside raw (identity for RTU)."""
         return i, j
 
-    def _fill(self, fr: Frame, adu: bytes, crc_good: bool) -> None:
+    def _header(self, fr: Frame, adu: bytes, crc_good: bool) -> None:
         unit, fc = adu[0], adu[1]
         fr.unit, fr.function, fr.adu = unit, fc, adu
         fr.can = roles(unit, fc)
@@ -122,20 +123,70 @@ class _PdCommon:
             what = "reserved (l.87-89)" if fc in RESERVED else "not in l.77-91"
             fr.annotations.append(note(FUNCTION_UNKNOWN, f"function {fc:02X}H is {what}", *self._span(1, 2)))
 
-    def _emit_noise(self, p: int, q: int) -> Frame:
-        raw = bytes(self.buf[p - self.base : q - self.base])
-        fr = self._new_frame(p, q, "noise", raw)
-        fr.noise_reason = self._noise_reason(raw)
-        fr.annotations.append(note(codes.NOISE, fr.noise_reason, 0, len(raw)))
-        self.pos = q
-        return fr
 
-
-class PdRtuFramer(_PdCommon, RtuFramer):
+class PdRtuFramer(PdHeader, Crc16Framing, LineBuffer):
     protocol = "pd-rtu"
     codes = RTU_CODES
 
-    # ------------------------------------------------------------- decisions
+    # --------------------------------------------------------------- rules
+    def _rule_a_structural(self, p: int, end: int, final: bool):
+        """A: LEN + 5 bytes with a good CRC and a known function (`_settle_zero_end` for a 00 end)."""
+        hit = self._good_at(p, end, final)
+        if hit is _WAIT:
+            return _WAIT
+        if not hit:
+            return NEXT
+        e = self._settle_zero_end(p, p + hit, end, final)
+        if e is _WAIT:
+            return _WAIT
+        return self._emit(p, e, 0, crc_good=True)
+
+    def _rule_b1_crc_run(self, p: int, b: int, end: int, final: bool):
+        """B1, lenient LEN: the shortest CRC-good run that ends plausibly (`_lenient_cut`)."""
+        e = self._lenient_cut(p, b, end, final)
+        if e is _WAIT:
+            return _WAIT
+        if e:
+            return self._emit(p, e, 0, crc_good=True)
+        return NEXT
+
+    def _rule_b3_damaged_frame(self, p: int, b: int, end: int, final: bool):
+        """B3: LEN + 5 ends exactly at the boundary (or, per read, at a later read boundary): bad CRC."""
+        buf, base = self.buf, self.base
+        if not (b - p >= 3 and buf[p + 1 - base] in KNOWN):
+            return NEXT
+        e = p + buf[p + 2 - base] + MIN_FRAME
+        if e == b:
+            return self._emit(p, b, 0, crc_good=False)
+        if not self._per_byte_at(p):
+            at = self._damaged_ends_at(e, b, end, final)
+            if at is _WAIT:
+                return _WAIT
+            if at:
+                return self._emit(p, e, 0, crc_good=False)
+        return NEXT
+
+    def _rule_b4_malformed_burst(self, p: int, b: int, end: int, final: bool):
+        """B4: a whole burst between two quiets, known function and unit: malformed (bad CRC, LEN noted)."""
+        buf, base = self.buf, self.base
+        if (b - p >= MIN_FRAME and buf[p + 1 - base] in KNOWN and buf[p - base] <= MAX_UNIT
+                and self._whole_burst(p, b, end, final)):
+            return self._emit(p, b, 0, crc_good=False)
+        return NEXT
+
+    def _frame_starts_at(self, q: int, b: int, end: int, final: bool):
+        """B2's test at q: a good frame (or a CRC-good run with a known header, ending plausibly)
+        whose end is plausible."""
+        hit = self._good_at(q, end, final, MAX_UNIT)
+        if hit is _WAIT:
+            return _WAIT
+        if not hit:  # a frame whose LEN is off, ending where a frame may end
+            cut = self._lenient_cut(q, b, end, final, strict=True)
+            return _WAIT if cut is _WAIT else bool(cut)
+        at = self._plausible_end(q + hit, end, final)
+        return _WAIT if at is _WAIT else bool(at)
+
+    # ------------------------------------------------------------- helpers
     def _good_at(self, q: int, end: int, final: bool, max_unit: int = 255):
         """Length of a LEN-consistent, CRC-good frame of a known function at q; False; or _WAIT."""
         buf, base = self.buf, self.base
@@ -204,67 +255,6 @@ class PdRtuFramer(_PdCommon, RtuFramer):
                     return c
         return False
 
-    def _step(self, p: int):
-        end, final = self._avail(p)
-        if p >= end:
-            return None
-        hit = self._good_at(p, end, final)  # A
-        if hit is _WAIT:
-            return None
-        if hit:
-            e = self._settle_zero_end(p, p + hit, end, final)
-            return None if e is _WAIT else self._emit(p, e, 0, crc_good=True)
-        b = self._next_boundary(p, end, final)
-        if b is _WAIT:
-            return None
-        e = self._lenient_cut(p, b, end, final)  # B1
-        if e is _WAIT:
-            return None
-        if e:
-            return self._emit(p, e, 0, crc_good=True)
-        q = self._resync(p, b, end, final)  # B2
-        if q is _WAIT:
-            return None
-        if q < b:
-            return self._emit_noise(p, q)
-        buf, base = self.buf, self.base
-        known = b - p >= 3 and buf[p + 1 - base] in KNOWN
-        if known:  # B3
-            e = p + buf[p + 2 - base] + MIN_FRAME
-            if e == b:
-                return self._emit(p, b, 0, crc_good=False)
-            if not self._per_byte_at(p) and b < e <= end:
-                at = self._is_boundary(e, end, final)
-                if at is None:
-                    return None
-                if at and self._resync(b - 1, e, end, final) == e:
-                    return self._emit(p, e, 0, crc_good=False)
-        if (known and b - p >= MIN_FRAME and buf[p - base] <= MAX_UNIT  # B4
-                and self._class_at(p) == HARD and self._is_hard(b, end, final)):
-            return self._emit(p, b, 0, crc_good=False)
-        return self._emit_noise(p, b)  # B5
-
-    def _resync(self, p: int, b: int, end: int, final: bool):
-        """B2: first q in (p, b) where a good frame (or a CRC-good run with a known header,
-        ending plausibly) starts and its end is plausible; b if none."""
-        for q in range(p + 1, b):
-            hit = self._good_at(q, end, final, MAX_UNIT)
-            if hit is _WAIT:
-                return _WAIT
-            if not hit:  # a frame whose LEN is off, ending where a frame may end
-                cut = self._lenient_cut(q, b, end, final, strict=True)
-                if cut is _WAIT:
-                    return _WAIT
-                if cut:
-                    return q
-                continue
-            at = self._plausible_end(q + hit, end, final)
-            if at is _WAIT:
-                return _WAIT
-            if at:
-                return q
-        return b
-
     def _plausible_end(self, e: int, end: int, final: bool):
         """After a frame ending at e: a boundary, a good frame, or a CRC-good run (lenient LEN)?"""
         at = self._is_boundary(e, end, final)
@@ -281,29 +271,10 @@ class PdRtuFramer(_PdCommon, RtuFramer):
         return self._lenient_cut(e, b, end, final, strict=True)
 
     # -------------------------------------------------------------- output
-    def _emit(self, p: int, e: int, can: int = 0, crc_good: bool = True) -> Frame:
-        raw = bytes(self.buf[p - self.base : e - self.base])
-        fr = self._new_frame(p, e, self.protocol, raw)
-        self._fill(fr, raw[:-2], crc_good)
-        fr.crc_ok = crc_good
-        if not crc_good:
-            exp = crc_expected(raw)
-            fr.crc_expected = exp
-            fr.annotations.append(
-                note(codes.CRC_MISMATCH,
-                     f"CRC is 0x{crc_found(raw):04X}, expected 0x{exp:04X} (bytes {exp & 0xFF:02x} {exp >> 8:02x})",
-                     len(raw) - 2, len(raw))
-            )
-        idle = fr.idle_before_ns
-        if fr.time_source == "byte" and idle is not None and idle < QUIET_NS:
-            fr.annotations.append(
-                note(QUIET_SHORT, f"{idle / 1e6:.1f} ms of quiet before the frame (l.203-206: > 50 ms)", 0, 1)
-            )
-        self.pos = e
-        return fr
+    def _short_silence_note(self, idle_ns: int):
+        return note(QUIET_SHORT, f"{idle_ns / 1e6:.1f} ms of quiet before the frame (l.203-206: > 50 ms)", 0, 1)
 
-    @staticmethod
-    def _noise_reason(raw: bytes) -> str:
+    def noise_reason(self, raw: bytes) -> str:
         if len(raw) < MIN_FRAME:
             return f"{len(raw)} byte(s): too short for a PD frame"
         if raw[1] not in KNOWN:
@@ -311,55 +282,17 @@ class PdRtuFramer(_PdCommon, RtuFramer):
         return f"no frame: function {raw[1]:02X}H but LEN/CRC do not fit"
 
 
-class PdAsciiFramer(_PdCommon, AsciiFramer):
-    """':' ADDR FUNC LEN DATA LRC CR LF (l.64); cut like Modbus ASCII (AsciiFramer._step)."""
+class PdAsciiFramer(PdHeader, HexLineFraming, LineBuffer):
+    """':' ADDR FUNC LEN DATA LRC CR LF (l.64); cut like Modbus ASCII (`HexLineFraming`)."""
 
     protocol = "pd-ascii"
     codes = ASCII_CODES
+    no_crlf_code = NO_CRLF
+    bad_hex_code = BAD_HEX
+    header_words = "ADDR FUNC + LRC"
 
     def _span(self, i: int, j: int) -> tuple[int, int]:
         return 1 + 2 * i, 1 + 2 * j
-
-    def _emit_ascii(self, p: int, e: int, terminated: bool) -> Frame:
-        raw = bytes(self.buf[p - self.base : e - self.base])
-        text = raw[1:]
-        tail = 2 if text.endswith(b"\r\n") else 1 if text.endswith((b"\r", b"\n")) else 0
-        text = text[: len(text) - tail]
-        try:
-            binary = unhexlify(text) if len(text) % 2 == 0 else None
-        except (HexError, ValueError):
-            binary = None
-        if binary is None or len(binary) < 3:
-            # no unit or function can be read: a noise frame (sinks expect a unit on frames)
-            fr = self._emit_noise(p, e)
-            if binary is None:
-                fr.annotations.append(note(BAD_HEX, "odd length or non-hex characters", 1, len(raw)))
-            return fr
-        adu, got = binary[:-1], binary[-1]
-        fr = self._new_frame(p, e, self.protocol, raw)
-        want = lrc(adu)
-        fr.crc_ok = got == want
-        self._fill(fr, adu, fr.crc_ok)
-        if not fr.crc_ok:
-            fr.crc_expected = want
-            stop = len(raw) - tail
-            fr.annotations.append(note(codes.CRC_MISMATCH, f"LRC is 0x{got:02X}, expected 0x{want:02X}",
-                                       stop - 2, stop))
-        if not (terminated and raw.endswith(b"\r\n")):
-            fr.annotations.append(note(NO_CRLF, "frame ends without CR LF", len(raw) - 1, len(raw)))
-        self.pos = e
-        return fr
-
-    @staticmethod
-    def _noise_reason(raw: bytes) -> str:
-        if not raw.startswith(b":"):
-            return f"{len(raw)} byte(s) outside ':' ... CR LF"
-        body = raw[1:].rstrip(b"\r\n")
-        try:
-            unhexlify(body)
-        except (HexError, ValueError):
-            return "':' frame whose characters are not hex pairs"
-        return f"{len(body) // 2} byte(s) after ':': too short for ADDR FUNC + LRC"
 
 
 __all__ = ["PdRtuFramer", "PdAsciiFramer", "FUNCTIONS", "ERRORS", "QUIET_NS", "roles"]
