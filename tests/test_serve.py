@@ -225,7 +225,9 @@ def test_demo_tui_publishes_to_a_viewer(tmp_path):
                 assert time.monotonic() < deadline, "the demo never ended"
                 await pilot.pause(0.05)
             assert app.feed_error is None
-            return [f.raw.hex() for f in app.store.frames]
+            shown = [f.raw.hex() for f in app.store.frames]
+        app.stop_feed()  # as run_tui does: the capture's files are closed and in place before the App is gone
+        return shown
 
     shown = asyncio.run(go())
     viewer.join(HANG_S)
