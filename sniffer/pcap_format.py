@@ -39,7 +39,10 @@ PCAP_MAGIC = {  # first 4 bytes -> (struct byte order, ns per sub-second unit)
 }
 PCAPNG_SHB = b"\x0a\x0d\x0d\x0a"
 PCAPNG_BYTE_ORDER_LE = b"\x4d\x3c\x2b\x1a"
-BLOCK_SHB, BLOCK_IDB, BLOCK_SPB, BLOCK_EPB = 0x0A0D0D0A, 1, 3, 6
+BLOCK_SHB, BLOCK_IDB, BLOCK_PB, BLOCK_SPB, BLOCK_EPB = 0x0A0D0D0A, 1, 2, 3, 6
+# blocks a reader skips quietly: name resolution, interface statistics, systemd journal, decryption
+# secrets, custom blocks (and the hex codes of a few more the pcapng draft assigns)
+BLOCKS_WITHOUT_PACKETS = frozenset({4, 5, 7, 8, 9, 0x0A, 0x0B, 0x0BAD, 0x40000BAD})
 GLOBAL_HEADER = 24
 RECORD_HEADER = 16
 MAX_RECORD = 262_144  # Wireshark's largest snap length: a longer record is a damaged length field

@@ -30,10 +30,9 @@ from collections.abc import Iterator
 
 from ..events import CaptureInfo, Chunk, Gap, Tick
 from ..pcap_format import (
-    BLOCK_EPB, BLOCK_IDB, BLOCK_SHB, BLOCK_SPB, GLOBAL_HEADER, LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0, MAX_BLOCK,
-    PCAP_MAGIC,
-    PCAPNG_BYTE_ORDER_LE, PCAPNG_SHB, RECORD_HEADER, RTAC_HEADER, SUPPORTED_LINKTYPES, parse_global_header,
-    pcap_record_problem, pcapng_block_problem, tsresol,
+    BLOCK_EPB, BLOCK_IDB, BLOCK_PB, BLOCK_SHB, BLOCK_SPB, BLOCKS_WITHOUT_PACKETS, GLOBAL_HEADER, LINKTYPE_RTAC_SERIAL,
+    LINKTYPE_USER0, MAX_BLOCK, PCAP_MAGIC, PCAPNG_BYTE_ORDER_LE, PCAPNG_SHB, RECORD_HEADER, RTAC_HEADER,
+    SUPPORTED_LINKTYPES, parse_global_header, pcap_record_problem, pcapng_block_problem, tsresol,
 )
 from . import CaptureError, DamageLog, gap_before, open_regular
 
@@ -244,7 +243,6 @@ class PcapSource:
         end = "<"
         ifaces: list[tuple[int, int]] = []  # (link type, ns per unit)
         self._iface_types: tuple[int, ...] = ()
-        undeclared = 0
 
         def block_at(q: int, order: str | None) -> tuple[int, int, str] | str:
             """(type, length, byte order) of a plausible block at q, or why it is not one."""
@@ -305,22 +303,37 @@ class PcapSource:
                 lt = struct.unpack_from(end + "H", body, 0)[0]
                 ifaces.append((lt, tsresol(body[8:], end)))
                 self._iface_types = (*self._iface_types, lt)
-            elif btype == BLOCK_EPB and len(body) >= 20:
-                iid, hi, lo, incl, _orig = struct.unpack_from(end + "IIIII", body, 0)
-                if iid >= len(ifaces):
-                    undeclared += 1
-                    if undeclared == 1:
-                        self._log.add("undeclared", f"{self.path}: packet at byte {pos - blen} on undeclared "
-                                                    f"interface {iid} skipped")
-                    yield _Hole(f"packet on undeclared interface {iid} skipped")
-                    continue
-                lt, ns = ifaces[iid]
-                yield lt, ((hi << 32) | lo) * ns, body[20:20 + incl]
-            elif btype == BLOCK_SPB and len(body) >= 4 and ifaces:  # simple packet: no time
-                lt, _ns = ifaces[0]
-                yield lt, 0, body[4:4 + struct.unpack_from(end + "I", body, 0)[0]]
-        if undeclared > 1:
-            self._log.add("undeclared", f"{self.path}: {undeclared} packets on undeclared interfaces skipped in all")
+            elif btype in (BLOCK_EPB, BLOCK_PB, BLOCK_SPB):
+                pkt = _packet(btype, body, end, ifaces)
+                if isinstance(pkt, str):
+                    self._log.add("skipped blocks", f"{self.path}: packet block at byte {pos - blen} {pkt}: skipped")
+                    yield _Hole(f"damaged packet block skipped at byte {pos - blen}")
+                else:
+                    yield pkt
+            elif btype not in BLOCKS_WITHOUT_PACKETS:
+                self._log.add("skipped blocks", f"{self.path}: block of unknown type 0x{btype:08x} at byte "
+                                                f"{pos - blen} skipped ({blen} bytes)")
+                yield _Hole(f"unknown pcapng block skipped at byte {pos - blen}")
+
+
+def _packet(btype: int, body: bytes, end: str, ifaces: list[tuple[int, int]]) -> tuple[int, int, bytes] | str:
+    """(link type, t_ns, captured bytes) of an enhanced / obsolete / simple packet block, or why not."""
+    if btype == BLOCK_SPB:  # simple packet: no time, always interface 0
+        if len(body) < 4 or not ifaces:
+            return "is too short" if ifaces else "comes before any interface description"
+        return ifaces[0][0], 0, body[4:4 + struct.unpack_from(end + "I", body, 0)[0]]
+    if len(body) < 20:
+        return "is too short"
+    if btype == BLOCK_EPB:
+        iid, hi, lo, incl, _orig = struct.unpack_from(end + "IIIII", body, 0)
+    else:  # obsolete packet block: 16-bit interface id, drops count
+        iid, _drops, hi, lo, incl, _orig = struct.unpack_from(end + "HHIIII", body, 0)
+    if iid >= len(ifaces):
+        return f"is on undeclared interface {iid}"
+    if incl > len(body) - 20:
+        return f"claims {incl} captured bytes in a {len(body) - 20}-byte block"
+    lt, ns = ifaces[iid]
+    return lt, ((hi << 32) | lo) * ns, body[20:20 + incl]
 
 
 def _scan(fh, start: int, size: int, quick, ok, step: int = 1) -> int | None:
