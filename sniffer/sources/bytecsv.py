@@ -24,7 +24,7 @@ __all__ = ["HEADER", "PER_BYTE_CHUNK", "ByteCsvSource", "chunks_from_rows", "ope
 
 HEADER = ["t_s", "channel", "byte_hex", "flags"]
 _FLAGS = {"": None, "framing": FLAG_FRAMING, "parity": FLAG_PARITY}
-_HEX = frozenset("0123456789abcdefABCDEF")
+_BYTES = {form: v for v in range(256) for form in (f"{v:02x}", f"{v:02X}", f"{v:x}", f"{v:X}")}
 
 
 def sniff(path: str | os.PathLike[str]) -> bool:
@@ -48,13 +48,17 @@ class ByteCsvSource(CsvRowSource):
         t = seconds_to_ns(row[0])
         if t < 0:
             raise ValueError("negative time")
-        text = row[2].strip()
-        if not 1 <= len(text) <= 2 or not _HEX.issuperset(text):
-            raise ValueError("the byte is not 00..ff")
-        flag_text = row[3].strip().lower() if len(row) > 3 else ""
+        b = _BYTES.get(row[2])
+        if b is None:
+            b = _BYTES.get(row[2].strip())
+            if b is None:
+                raise ValueError("the byte is not 00..ff")
+        flag_text = row[3] if len(row) > 3 else ""
         if flag_text not in _FLAGS:
-            raise ValueError(f"unknown flag {quote(flag_text, 40)} (framing, parity or empty)")
-        return t, row[1].strip(), int(text, 16), _FLAGS[flag_text]
+            flag_text = flag_text.strip().lower()
+            if flag_text not in _FLAGS:
+                raise ValueError(f"unknown flag {quote(flag_text, 40)} (framing, parity or empty)")
+        return t, row[1].strip(), b, _FLAGS[flag_text]
 
     def make_info(self) -> CaptureInfo:
         info = CaptureInfo(source=f"byte-csv:{self.path}", time_source="read" if self.per_read else "byte", t0_ns=0)

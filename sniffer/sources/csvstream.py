@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import codecs
 import csv
-import heapq
+from bisect import insort_right
+from operator import itemgetter
 import os
 from collections.abc import Iterator
 
@@ -39,6 +40,7 @@ REORDER_WINDOW = 8192  # rows held back to merge channels recorded as separate c
 MAX_LINE = 1 << 20  # a longer "line" is read in pieces (each one a bad row)
 
 Row = tuple[int, str, int, "str | None"]  # (t_ns, channel, byte, flag)
+_time = itemgetter(0)
 
 
 class _Lines:
@@ -172,6 +174,7 @@ class CsvRowSource:
         if lines.bad_text == 1:
             raise CaptureError(f"{path}: not a text CSV file (its first line is not UTF-8)")
         self.parse_header([h.strip().lower() for h in header or []])
+        ncols = len(header or [])
         seq = 0
         bad_since: int | None = None
         offset = self.t_offset
@@ -198,6 +201,8 @@ class CsvRowSource:
                 continue
             try:
                 parsed = self.parse_row(row)
+                if len(row) < ncols and lines.bytes_read == self._size and not _ends_line(fh):
+                    raise ValueError(f"{len(row)} of {ncols} columns")
             except (ValueError, IndexError) as e:
                 bad_since = bad_since or lineno
                 why = "too few columns" if isinstance(e, IndexError) else (str(e) or "not understood")
@@ -232,14 +237,16 @@ def _ends_line(fh) -> bool:
 
 
 def _merge(items: Iterator[tuple], log: DamageLog, path: str) -> Iterator[tuple]:
-    """Rows in time order (stable: equal times keep file order) through a bounded heap.
+    """Rows in time order (stable: equal times keep file order) through a bounded window.
 
-    A row earlier than one already yielded is replayed at that later time and reported.
-    A trailing marker (time None: bad rows at the very end) comes out last.
+    The window is a sorted list: a row in order is appended, one out of order
+    is inserted after the rows of its time.  A row earlier than one already
+    yielded is replayed at that later time and reported.  A trailing marker
+    (time None: bad rows at the very end) comes out last.
     """
-    heap: list[tuple] = []
+    buf: list[tuple] = []
+    head = 0  # buf[:head] were yielded
     last = None
-    push, pop = heapq.heappush, heapq.heappop
     tail = None
     for item in items:
         t = item[0]
@@ -251,14 +258,21 @@ def _merge(items: Iterator[tuple], log: DamageLog, path: str) -> Iterator[tuple]
                 log.add("rows out of order",
                         f"{path}:{item[5]}: row at {t / 1e9:.9f} s comes after rows up to {last / 1e9:.9f} s "
                         f"(beyond the {REORDER_WINDOW}-row reorder window): replayed at {last / 1e9:.9f} s")
+            t = last
             item = (last, *item[1:])
-        push(heap, item)
-        if len(heap) > REORDER_WINDOW:
-            out = pop(heap)
+        if len(buf) == head or buf[-1][0] <= t:
+            buf.append(item)
+        else:
+            insort_right(buf, item, head, key=_time)
+        if len(buf) - head > REORDER_WINDOW:
+            out = buf[head]
+            head += 1
             last = out[0]
             yield out
-    while heap:
-        yield pop(heap)
+            if head >= 4 * REORDER_WINDOW:
+                del buf[:head]
+                head = 0
+    yield from buf[head:]
     if tail is not None:
         yield tail
 
