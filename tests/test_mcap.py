@@ -251,7 +251,7 @@ def test_damaged_chunk_is_skipped_announced_and_repair_keeps_the_rest(tmp_path):
     assert got[:3] == events[:3] and got[4:] == events[4:]
     assert isinstance(gap, Gap) and (gap.t_ns, gap.t_end_ns) == (events[2].t_ns, events[4].byte_t_ns[0])
     assert f"at byte {start}" in gap.reason
-    assert len(src.damage) == 1 and src.damage[0].startswith(f"{p}: damaged MCAP data at byte {start} (chunk")
+    assert len(src.damage) == 1 and src.damage[0].startswith(f"{p}: damaged chunk record at byte {start} (")
     assert f"skipped {length} bytes" in src.damage[0]
 
     out = tmp_path / "fixed.mcap"

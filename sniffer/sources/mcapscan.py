@@ -143,11 +143,6 @@ class Scan:
         ch = self.channels.get(msg.channel_id)
         return None if ch is None else ch.topic
 
-    @property
-    def damage(self) -> list[str]:
-        """One sentence per hole."""
-        return [f"damaged MCAP data at byte {off} ({why}): skipped {n} bytes" for off, n, why in self.holes]
-
     def records(self) -> Iterator[McapRecord | Hole]:
         """Header, Schema, Channel, Message, Metadata, Attachment, DataEnd/Footer records in file order,
         and a Hole where damaged bytes were skipped.
@@ -174,7 +169,7 @@ class Scan:
                         raise ValueError("the file does not start with a header record")
                     recs = _parse(opcode, fh.read(length))
                 except Exception as e:  # parsing foreign bytes: any failure means damage
-                    why = str(e) or type(e).__name__
+                    why = (str(e) or type(e).__name__)[:200]
             first = False
             if why is None:
                 pos += 9 + length
@@ -194,9 +189,9 @@ class Scan:
                 self._cut(pos, "the last record is cut off")
                 return
             hole_end = size if q is None else q
-            what = f"{_name(opcode)} record at byte {pos}: {why}"
+            what = f"damaged {_name(opcode)} record at byte {pos} ({why})"
             if q is None:
-                what += "; no readable record after it"
+                what += ", no readable record after it"
             self.holes.append((pos, hole_end - pos, what))
             self.end = hole_end
             yield Hole(pos, hole_end - pos, what)

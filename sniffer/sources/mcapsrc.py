@@ -127,8 +127,7 @@ class McapSource:
         try:
             for rec in _chain(early, records):
                 if isinstance(rec, Hole):
-                    self._log.add("holes", f"{self.path}: damaged MCAP data at byte {rec.offset} "
-                                           f"({rec.reason}): skipped {rec.length} bytes")
+                    self._log.add("holes", f"{self.path}: {rec.reason}: skipped {rec.length} bytes")
                     hole = hole or f"damaged capture file: {rec.length} bytes skipped at byte {rec.offset}"
                     continue
                 if not isinstance(rec, Message) or scan.topic(rec) != RAW_TOPIC:

@@ -63,6 +63,7 @@ class FileSource:
         self._info: CaptureInfo | None = None
         self._stop = threading.Event()
         self._started = False
+        self._closed = False
 
     def open(self) -> CaptureInfo:
         """The capture's CaptureInfo; CaptureError (one line) if it cannot be replayed.  Idempotent."""
@@ -99,9 +100,12 @@ class FileSource:
         it = self._reader.events()
         try:
             for ev in it:
-                if stopped():
+                if stopped() or self._closed:
                     return
                 yield ev
+        except ValueError:
+            if not self._closed:  # the file was closed under a read in progress: that is the end
+                raise
         finally:
             it.close()
             self.close()
@@ -111,7 +115,8 @@ class FileSource:
         self._stop.set()
 
     def close(self) -> None:
-        """Release the file.  Safe to call twice."""
+        """Release the file (events() then ends).  Safe to call twice."""
+        self._closed = True
         r = self._reader
         if r is not None:
             r.close()
