@@ -44,10 +44,15 @@ class ByteCsvSource(CsvRowSource):
             raise CaptureError(f"{self.path}: not a byte CSV (header must start with t_s,channel,byte_hex; "
                                f"found {quote(','.join(header))})")
 
+    _last_time = ("", 0)  # rows of one read share their time text: parse it once
+
     def parse_row(self, row: list[str]) -> Row:
-        t = seconds_to_ns(row[0])
-        if t < 0:
-            raise ValueError("negative time")
+        text, t = self._last_time
+        if row[0] != text:
+            t = seconds_to_ns(row[0])
+            if t < 0:
+                raise ValueError("negative time")
+            self._last_time = (row[0], t)
         b = _BYTES.get(row[2])
         if b is None:
             b = _BYTES.get(row[2].strip())

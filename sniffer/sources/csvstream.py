@@ -197,13 +197,15 @@ class CsvRowSource:
                 bad_since = bad_since or lineno
                 self._bad(log, f"{path}:{lineno}: bad row (not UTF-8 text)")
                 continue
-            if not row or not "".join(row).strip():
+            if not row:
                 continue
             try:
                 parsed = self.parse_row(row)
                 if len(row) < ncols and lines.bytes_read == self._size and not _ends_line(fh):
                     raise ValueError(f"{len(row)} of {ncols} columns")
             except (ValueError, IndexError) as e:
+                if not "".join(row).strip():
+                    continue  # a blank row
                 bad_since = bad_since or lineno
                 why = "too few columns" if isinstance(e, IndexError) else (str(e) or "not understood")
                 if lines.bytes_read == self._size and not _ends_line(fh):
@@ -213,7 +215,8 @@ class CsvRowSource:
             if parsed is None:
                 continue
             t, ch, b, flag = parsed
-            t += offset
+            if offset:
+                t += offset
             if bad_since is not None:
                 yield (t, seq, None, bad_since, None, lineno)
                 seq += 1

@@ -21,10 +21,14 @@ _NUMBER = re.compile(r"([+-]?)([0-9]*)(?:\.([0-9]*))?(?:[eE]([+-]?[0-9]+))?")
 
 def seconds_to_ns(text: str) -> int:
     """Integer nanoseconds of a decimal number of seconds, rounded half up; ValueError if not one."""
+    whole, _dot, frac = text.partition(".")
+    if len(whole) <= 9 and len(frac) <= 9 and whole.isdigit() and whole.isascii() \
+            and (frac.isdigit() and frac.isascii() or not frac and whole):
+        # the common case, e.g. 12.000937: below 10**9 s, so no range check
+        return int(whole + frac + "000000000"[len(frac):])
     text = text.strip()
     whole, _dot, frac = text.partition(".")
     if whole.isdigit() and whole.isascii() and len(text) <= 30 and (frac.isdigit() and frac.isascii() or not frac):
-        # the common case, e.g. 12.000937 (isascii: isdigit also accepts other scripts' digits)
         ns = int(whole) * 1_000_000_000 + int((frac + "000000000")[:9])
         if len(frac) > 9 and frac[9] >= "5":
             ns += 1
