@@ -18,7 +18,7 @@ and reading goes on):
   character limit; a line that is not UTF-8; an export cut mid-row at the
   end), and a row whose time is earlier than rows already replayed more
   than the reorder window ago (it is replayed at the last time replayed:
-  its byte is kept, its time is not).
+  its byte is kept, its time is not; no Gap, as nothing is missing).
 An I/O error in the middle of the file ends the replay with a damage line;
 what was read stays.
 """
@@ -111,6 +111,9 @@ class CsvRowSource:
             self._size = os.fstat(fh.fileno()).st_size
             for item in _merge(self._rows(fh, log), log, self.path):
                 if item[2] is None:  # a gap marker: bad rows before this one
+                    continue
+                if item[1] < 0:  # replayed late at an earlier row's time: says nothing about reads
+                    prev = None
                     continue
                 if good == 0:
                     self.t_offset = self.first_time_offset(item[0])
@@ -262,7 +265,7 @@ def _merge(items: Iterator[tuple], log: DamageLog, path: str) -> Iterator[tuple]
                         f"{path}:{item[5]}: row at {t / 1e9:.9f} s comes after rows up to {last / 1e9:.9f} s "
                         f"(beyond the {REORDER_WINDOW}-row reorder window): replayed at {last / 1e9:.9f} s")
             t = last
-            item = (last, *item[1:])
+            item = (last, -1, *item[2:])  # seq -1: replayed late (not a read sharing its time)
         if len(buf) == head or buf[-1][0] <= t:
             buf.append(item)
         else:
@@ -272,7 +275,7 @@ def _merge(items: Iterator[tuple], log: DamageLog, path: str) -> Iterator[tuple]
             head += 1
             last = out[0]
             yield out
-            if head >= 4 * REORDER_WINDOW:
+            if head >= REORDER_WINDOW:
                 del buf[:head]
                 head = 0
     yield from buf[head:]
