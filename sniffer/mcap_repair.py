@@ -69,9 +69,13 @@ def _copy(fh, size: int, tail_ok: bool, out) -> dict:
         if isinstance(rec, Hole):
             continue
         if isinstance(rec, Header):
-            w.start(profile=rec.profile, library=rec.library)
-            started = True
+            if not started:
+                w.start(profile=rec.profile, library=rec.library)
+                started = True
             continue
+        if not started:  # the header was lost in damage
+            w.start(profile="", library="sniffer repair")
+            started = True
         if isinstance(rec, Schema):
             if rec.id not in schema_ids:  # other writers repeat schemas in every chunk
                 schema_ids[rec.id] = w.register_schema(rec.name, rec.encoding, rec.data)
@@ -82,6 +86,8 @@ def _copy(fh, size: int, tail_ok: bool, out) -> dict:
                 )
         elif isinstance(rec, Message):
             cid = channel_ids.get(rec.channel_id)
+            if cid is None:  # its definition was in damaged bytes: a finished file repeats it in its summary
+                cid = _recover(scan, w, rec.channel_id, schema_ids, channel_ids)
             if cid is None:
                 counts["orphans"] += 1
                 continue
@@ -116,6 +122,19 @@ def _copy(fh, size: int, tail_ok: bool, out) -> dict:
         "was_finished": tail_ok and scan.finished and not skipped,
         "problem": "; ".join(problems) or None,
     }
+
+
+def _recover(scan: Scan, w: Writer, cid: int, schema_ids: dict, channel_ids: dict) -> int | None:
+    ch = scan.lost_channel(cid)
+    if ch is None:
+        return None
+    if ch.schema_id not in schema_ids:
+        sc = scan.lost_schema(ch.schema_id)
+        if sc is None:
+            return None
+        schema_ids[sc.id] = w.register_schema(sc.name, sc.encoding, sc.data)
+    channel_ids[cid] = w.register_channel(ch.topic, ch.message_encoding, schema_ids[ch.schema_id], dict(ch.metadata))
+    return channel_ids[cid]
 
 
 def _remove(path: str) -> None:

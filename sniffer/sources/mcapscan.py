@@ -138,10 +138,59 @@ class Scan:
         self.holes: list[tuple[int, int, str]] = []
         self.channels: dict[int, Channel] = {}
         self._chunked = False
+        self._summary: dict | None = None
 
     def topic(self, msg: Message) -> str | None:
-        ch = self.channels.get(msg.channel_id)
+        ch = self.channels.get(msg.channel_id) or self.lost_channel(msg.channel_id)
         return None if ch is None else ch.topic
+
+    def lost_channel(self, cid: int) -> Channel | None:
+        """A channel whose definition was in damaged bytes, from the summary of a finished file (or None)."""
+        if self._summary is None:
+            self._summary = self._read_summary()
+        ch = self._summary.get(("channel", cid))
+        if isinstance(ch, Channel):
+            self.channels[cid] = ch
+            return ch
+        return None
+
+    def lost_schema(self, sid: int) -> Schema | None:
+        if self._summary is None:
+            self._summary = self._read_summary()
+        sc = self._summary.get(("schema", sid))
+        return sc if isinstance(sc, Schema) else None
+
+    def _read_summary(self) -> dict:
+        """{("channel" | "schema", id): record} of the summary section, found through the footer."""
+        fh, size, out = self._fh, self._size, {}
+        if not self._tail_ok or size < 8 + 29 + 8:
+            return out
+        here = fh.tell()
+        try:
+            fh.seek(size - 8 - 29)
+            head = fh.read(29)
+            opcode, length = struct.unpack_from("<BQ", head)
+            start = struct.unpack_from("<Q", head, 9)[0]
+            if opcode != Opcode.FOOTER or length != 20 or not 8 <= start < size - 37:
+                return out
+            pos = start
+            while pos + 9 <= size - 37:
+                fh.seek(pos)
+                opcode, length = struct.unpack("<BQ", fh.read(9))
+                if length > min(MAX_RECORD, size - 37 - pos - 9):
+                    break
+                if opcode in (Opcode.CHANNEL, Opcode.SCHEMA):
+                    try:
+                        (rec,) = _parse(opcode, fh.read(length))
+                    except Exception:  # noqa: BLE001 - a damaged summary: use what came before
+                        break
+                    out[("channel" if opcode == Opcode.CHANNEL else "schema", rec.id)] = rec
+                pos += 9 + length
+        except (OSError, struct.error):
+            pass
+        finally:
+            fh.seek(here)
+        return out
 
     def records(self) -> Iterator[McapRecord | Hole]:
         """Header, Schema, Channel, Message, Metadata, Attachment, DataEnd/Footer records in file order,

@@ -124,13 +124,20 @@ class McapSource:
         last: int | None = None
         hole: str | None = None
         early, self._early = self._early, []
+        orphans: dict[int, int] = {}
         try:
             for rec in _chain(early, records):
                 if isinstance(rec, Hole):
                     self._log.add("holes", f"{self.path}: {rec.reason}: skipped {rec.length} bytes")
                     hole = hole or f"damaged capture file: {rec.length} bytes skipped at byte {rec.offset}"
                     continue
-                if not isinstance(rec, Message) or scan.topic(rec) != RAW_TOPIC:
+                if not isinstance(rec, Message):
+                    continue
+                topic = scan.topic(rec)
+                if topic is None:
+                    orphans[rec.channel_id] = orphans.get(rec.channel_id, 0) + 1
+                    continue
+                if topic != RAW_TOPIC:
                     continue
                 if rec.channel_id not in checked:
                     fmt = scan.channels[rec.channel_id].metadata.get("sniffer.format", RAW_FORMAT)
@@ -157,6 +164,9 @@ class McapSource:
         except OSError as e:
             self._log.add("read errors", f"{self.path}: read error: {e.strerror or e}; the rest was not read")
         finally:
+            if orphans:
+                self._log.add("orphans", f"{self.path}: {sum(orphans.values())} messages skipped: the definition "
+                                         f"of their channel ({', '.join(map(str, sorted(orphans)))}) was lost")
             self._log.finish(self.path)
             self.close()
 
