@@ -454,3 +454,39 @@ def test_triggered_saleae_export_is_shifted_to_start_at_zero(tmp_path):
     assert src.format == "saleae" and src.damage == []
     assert events == [Chunk(0, b"\x01\x03\x05", (0, 1_000_000, 750_000_000), (), "s")]
     assert info.extra["saleae_time_offset_ns"] == 500_000_000
+
+
+def test_mcap_channels_lost_with_the_first_chunk_come_from_the_summary(tmp_path):
+    from sniffer.mcap_repair import repair
+    from test_mcap import _chunk_offsets, make_event, write_capture
+
+    p = tmp_path / "first.mcap"
+    events = [make_event(i) for i in range(8)]
+    write_capture(p, events, flush_interval_s=0)  # chunk 0: schemas, channels and /capture
+    start, length = _chunk_offsets(p)[0]
+    data = bytearray(p.read_bytes())
+    data[start + length - 6] ^= 0xFF
+    p.write_bytes(bytes(data))
+    src, _info, got = replay(p)
+    assert [e for e in got if type(e) is not Gap or "damaged" not in e.reason] == events
+    assert len(src.damage) == 1 and "damaged chunk record at byte" in src.damage[0]
+    counts = repair(p, tmp_path / "fixed.mcap")
+    assert counts["topics"] == {"/raw": 8} and counts["orphans"] == 0
+    assert replay(tmp_path / "fixed.mcap")[2] == events
+
+
+def test_mcap_channels_lost_in_an_unfinished_file_are_reported(tmp_path):
+    from test_mcap import _chunk_offsets, make_event, write_capture
+
+    p = tmp_path / "first.mcap"
+    events = [make_event(i) for i in range(8)]
+    write_capture(p, events, flush_interval_s=0)
+    start, length = _chunk_offsets(p)[0]
+    (last_start, _len) = _chunk_offsets(p)[-1]
+    data = bytearray(p.read_bytes()[:last_start + 20])  # killed: no summary
+    data[start + length - 6] ^= 0xFF
+    p.write_bytes(bytes(data))
+    src, _info, got = replay(p)
+    assert got == []
+    assert len(src.damage) == 2
+    assert src.damage[1] == f"{p}: 7 messages skipped: the definition of their channel (2) was lost"
