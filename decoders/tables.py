@@ -174,7 +174,7 @@ class _Check:
         count, stride = row.pop("count", 1), row.pop("stride", 1)
         unknown = set(row) - set(Register.__slots__)
         if unknown or "addr" not in row or "name" not in row:
-            self.fail(where, f"bad keys {sorted(unknown) or 'addr/name missing'}")
+            self.fail(where, f"bad keys {_show(sorted(unknown)) if unknown else 'addr/name missing'}")
         self.int_in(row, "addr", where, 0, MAX_ADDR)
         where = f"register row {i + 1} (0x{row['addr']:04X})"
         for f in _STR_FIELDS:
@@ -246,7 +246,7 @@ def load_map(path: str | Path) -> RegisterMap:
     c = _Check(path)
     unknown = sorted(set(doc) - set(TOP_LEVEL))
     if unknown:
-        c.fail("top level", f"unknown keys {unknown} (known: {', '.join(TOP_LEVEL)})")
+        c.fail("top level", f"unknown keys {_show(unknown)} (known: {', '.join(TOP_LEVEL)})")
     model = c.model(doc.get("model"))
     rows = doc.get("registers", [])
     if not isinstance(rows, list):

@@ -74,7 +74,7 @@ def _serial(path: str, serial: dict, bus: BusFile) -> None:
 
     unknown = sorted(set(serial) - set(SERIAL_KEYS))
     if unknown:
-        raise BusFileError(f"{path}: [serial] unknown keys {unknown} (known: {', '.join(SERIAL_KEYS)})")
+        raise BusFileError(f"{path}: [serial] unknown keys {_show(unknown)} (known: {', '.join(SERIAL_KEYS)})")
     baud = serial.get("baud")
     if baud is not None and (not _is_int(baud) or not BAUD_RANGE[0] <= baud <= BAUD_RANGE[1]):
         raise BusFileError(f"{path}: [serial] baud must be an integer {BAUD_RANGE[0]}..{BAUD_RANGE[1]}, "
@@ -98,7 +98,7 @@ def load_bus_file(path: str) -> BusFile:
     doc = read_toml(path, BusFileError)
     unknown = sorted(set(doc) - set(TABLES))
     if unknown:
-        raise BusFileError(f"{path}: unknown tables or keys {unknown} (known: {', '.join(TABLES)})")
+        raise BusFileError(f"{path}: unknown tables or keys {_show(unknown)} (known: {', '.join(TABLES)})")
     bus = BusFile()
     _serial(path, _table(path, doc, "serial"), bus)
     for key, model in _table(path, doc, "units").items():

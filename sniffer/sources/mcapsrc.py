@@ -30,7 +30,7 @@ from ..mcap_format import (
     info_from_metadata,
 )
 from ..records import loads
-from . import CaptureError, DamageLog, gap_before, open_regular
+from . import CaptureError, DamageLog, gap_before, open_regular, quote
 from .mcapscan import Corrupt, Hole, Scan, open_file
 
 __all__ = ["Corrupt", "McapSource", "Scan", "open_file", "open_mcap", "read_frames", "sniff"]
@@ -142,8 +142,8 @@ class McapSource:
                 if rec.channel_id not in checked:
                     fmt = scan.channels[rec.channel_id].metadata.get("sniffer.format", RAW_FORMAT)
                     if fmt != RAW_FORMAT:
-                        raise CaptureError(f"{self.path}: /raw format {fmt!r} is newer than this sniffer reads "
-                                           f"({RAW_FORMAT})")
+                        raise CaptureError(f"{self.path}: /raw format {quote(str(fmt), 40)} is newer than this "
+                                           f"sniffer reads ({RAW_FORMAT})")
                     checked.add(rec.channel_id)
                 try:
                     ev = decode_event(rec.data)

@@ -22,7 +22,7 @@ import threading
 from collections.abc import Iterator
 
 from ..events import CaptureInfo, Chunk, Gap, Tick
-from . import CaptureError, not_regular
+from . import CaptureError, not_regular, quote
 
 FORMATS = ("auto", "mcap", "csv", "saleae", "pcap")
 
@@ -47,7 +47,7 @@ def _reader(path: str, fmt: str, damage: list[str]):
     makers = {"mcap": mcapsrc.McapSource, "csv": bytecsv.ByteCsvSource, "saleae": saleae.SaleaeSource,
               "pcap": pcapsrc.PcapSource}
     if fmt not in makers:
-        raise CaptureError(f"unknown input format {fmt!r} (one of {', '.join(FORMATS)})")
+        raise CaptureError(f"unknown input format {quote(fmt, 40)} (one of {', '.join(FORMATS)})")
     return fmt, makers[fmt](path, damage)
 
 
@@ -70,7 +70,7 @@ class FileSource:
         if self._info is not None:
             return self._info
         if self._requested not in FORMATS:
-            raise CaptureError(f"unknown input format {self._requested!r} (one of {', '.join(FORMATS)})")
+            raise CaptureError(f"unknown input format {quote(str(self._requested), 40)} (one of {', '.join(FORMATS)})")
         p = self.path
         try:
             st = os.stat(p)
