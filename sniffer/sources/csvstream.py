@@ -73,7 +73,6 @@ class CsvRowSource:
     """Base of the CSV readers: a subclass parses the header and the rows."""
 
     kind = "CSV"
-    source_prefix = "csv"
 
     def __init__(self, path: str | os.PathLike[str], damage: list[str] | None = None) -> None:
         self.path = os.fspath(path)

@@ -73,6 +73,7 @@ class PcapSource:
         self._first: tuple[int, int, bytes] | None = None
         self._hole_first: str | None = None
         self._foreign: dict[int, int] = {}  # link type -> packets skipped
+        self._iface_types: tuple[int, ...] = ()  # link types declared (pcap: the global one)
 
     def position(self) -> tuple[int, int] | None:
         fh = self._fh
@@ -108,7 +109,7 @@ class PcapSource:
             self.close()
             why = f" ({self.damage[0]})" if self.damage else ""
             raise CaptureError(f"{self.path}: no serial packets in this capture{why}")
-        lts = sorted({self._first[0], *getattr(self, "_iface_types", ())} & set(SUPPORTED_LINKTYPES))
+        lts = sorted({self._first[0], *self._iface_types} & set(SUPPORTED_LINKTYPES))
         self.info = CaptureInfo(source=f"pcap:{os.path.basename(self.path)}", time_source="read",
                                 t0_ns=0, wall_anchor_ns=self._first[1], extra={"pcap_linktypes": lts})
         return self.info
@@ -242,7 +243,6 @@ class PcapSource:
         fh, size = self._fh, self._size
         end = "<"
         ifaces: list[tuple[int, int]] = []  # (link type, ns per unit)
-        self._iface_types: tuple[int, ...] = ()
 
         def block_at(q: int, order: str | None) -> tuple[int, int, str] | str:
             """(type, length, byte order) of a plausible block at q, or why it is not one."""
