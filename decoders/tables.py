@@ -6,6 +6,7 @@ One loader for the built-in drive models and for `--model-file`; the lint
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -82,56 +83,196 @@ class RegisterMap:
         return ", ".join(parts) if parts else "-"
 
 
+MAX_ADDR = 0xFFFF
+MAX_REGISTERS = 0x10000  # every address once: a map can hold no more
+TOP_LEVEL = ("registers", "model", "enums", "bits", "exceptions")
+WORD_ORDERS = ("big", "little")
+_STR_FIELDS = ("id", "name", "unit", "enum", "bits", "scale_rule", "section", "note")
+_INT_FIELDS = ("min", "max", "default")
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_number(v) -> bool:
+    return (_is_int(v) or isinstance(v, float)) and math.isfinite(v)
+
+
+def _show(v) -> str:
+    text = repr(v)
+    return text if len(text) <= 60 else text[:60] + "..."
+
+
 def _int(key) -> int:
-    return int(key, 0) if isinstance(key, str) else int(key)
+    """A table key or value that names a number: an int, or a string "12" / "-3" / "0x0C"; ValueError if not."""
+    if _is_int(key):
+        return key
+    if isinstance(key, str):
+        t = key.strip()
+        body = t[1:] if t[:1] == "-" else t
+        if body[:2].lower() == "0x" and 2 < len(body) <= 18 and all(c in "0123456789abcdefABCDEF" for c in body[2:]):
+            return int(t, 16)
+        if body.isascii() and body.isdigit() and len(body) <= 18:
+            return int(t, 10)
+    raise ValueError(f"{_show(key)} is not a number (decimal or 0x.. hex)")
 
 
-def _parse_bits(table: dict) -> list[dict]:
-    out = []
-    for key, spec in table.items():
-        lo_s, _, hi_s = str(key).partition("-")
-        lo = int(lo_s)
-        hi = int(hi_s) if hi_s else lo
-        if isinstance(spec, str):
-            out.append({"lo": lo, "hi": hi, "name": spec})
-        else:
-            vals = {_int(k): v for k, v in (spec.get("values") or {}).items()}
+class _Check:
+    """Type and range checks of one file, each failure one MapError line naming the place."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+
+    def fail(self, where: str, what: str):
+        raise MapError(f"{self.path}: {where}: {what}")
+
+    def table(self, v, where: str) -> dict:
+        if not isinstance(v, dict):
+            self.fail(where, f"must be a table, not {_show(v)}")
+        return v
+
+    def key(self, k, where: str, lo: int, hi: int) -> int:
+        try:
+            n = _int(k)
+        except ValueError as e:
+            self.fail(where, f"key {e}")
+        if not lo <= n <= hi:
+            self.fail(where, f"key {_show(k)} is outside {lo}..{hi}")
+        return n
+
+    def text(self, d: dict, field: str, where: str, required: bool = False) -> None:
+        if field not in d:
+            if required:
+                self.fail(where, f"{field} missing")
+            return
+        if not isinstance(d[field], str) or (required and not d[field].strip()):
+            self.fail(where, f"{field} must be a{' non-empty' if required else ''} string, not {_show(d[field])}")
+
+    def int_in(self, d: dict, field: str, where: str, lo: int, hi: int) -> None:
+        if field in d and (not _is_int(d[field]) or not lo <= d[field] <= hi):
+            self.fail(where, f"{field} must be an integer in {lo}..{hi}, not {_show(d[field])}")
+
+    def model(self, model) -> dict:
+        if not isinstance(model, dict) or not model.get("id"):
+            raise MapError(f"{self.path}: no [model] table with an id")
+        self.text(model, "id", "[model]", required=True)
+        for f in ("name", "manual", "revision"):
+            self.text(model, f, "[model]")
+        self.int_in(model, "max_registers_per_request", "[model]", 1, MAX_REGISTERS)
+        for f, ok in (("protocols", lambda x: isinstance(x, str)), ("bauds", _is_int),
+                      ("broadcast_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR)):
+            if f in model and (not isinstance(model[f], list) or not all(ok(x) for x in model[f])):
+                self.fail("[model]", f"{f} must be a list of {'strings' if f == 'protocols' else 'integers'}, "
+                                     f"not {_show(model[f])}")
+        return model
+
+    def row(self, i: int, row) -> tuple[dict, int, int]:
+        """A register row's fields (count/stride removed) after every check, and its count and stride."""
+        where = f"register row {i + 1}"
+        row = dict(self.table(row, where))
+        count, stride = row.pop("count", 1), row.pop("stride", 1)
+        unknown = set(row) - set(Register.__slots__)
+        if unknown or "addr" not in row or "name" not in row:
+            self.fail(where, f"bad keys {_show(sorted(unknown)) if unknown else 'addr/name missing'}")
+        self.int_in(row, "addr", where, 0, MAX_ADDR)
+        where = f"register row {i + 1} (0x{row['addr']:04X})"
+        for f in _STR_FIELDS:
+            self.text(row, f, where, required=f == "name")
+        for f in _INT_FIELDS:
+            self.int_in(row, f, where, -(1 << 32), 1 << 32)
+        if row.get("type", "u16") not in WIDTH:
+            self.fail(where, f"unknown type {_show(row['type'])} (one of {', '.join(WIDTH)})")
+        if row.get("access", "RW") not in ACCESS:
+            self.fail(where, f"access {_show(row['access'])} (one of {', '.join(sorted(ACCESS))})")
+        if row.get("word_order", "big") not in WORD_ORDERS:
+            self.fail(where, f"word_order {_show(row['word_order'])} (big or little)")
+        if "scale" in row and not _is_number(row["scale"]):
+            self.fail(where, f"scale must be a finite number, not {_show(row['scale'])}")
+        if "scale_by" in row:
+            sb = self.table(row["scale_by"], f"{where} scale_by")
+            self.int_in(sb, "addr", f"{where} scale_by", 0, MAX_ADDR)
+            if "addr" not in sb or not _is_number(sb.get("full")) or sb["full"] <= 0:
+                self.fail(where, "scale_by needs addr and a positive number full")
+        if not _is_int(count) or not 1 <= count <= MAX_REGISTERS:
+            self.fail(where, f"count must be an integer in 1..{MAX_REGISTERS}, not {_show(count)}")
+        if not _is_int(stride) or not 1 <= stride <= MAX_ADDR:
+            self.fail(where, f"stride must be an integer in 1..{MAX_ADDR}, not {_show(stride)}")
+        last = row["addr"] + (count - 1) * stride + WIDTH[row.get("type", "u16")] - 1
+        if last > MAX_ADDR:
+            what = f"count {count} x stride {stride}" if count > 1 else f"a {row.get('type', 'u16')} here"
+            self.fail(where, f"{what} runs past register 0xFFFF")
+        return row, count, stride
+
+    def entry(self, v, where: str, need: str, required: bool) -> dict:
+        """An enum / exception entry: a string (its `need` field), or a table of strings."""
+        if isinstance(v, str):
+            return {need: v}
+        self.table(v, where)
+        if required and need not in v:
+            self.fail(where, f"{need} missing")
+        for f in (need, "text", "detail", "name"):
+            self.text(v, f, where)
+        return dict(v)
+
+    def bits(self, name: str, table) -> list[dict]:
+        where = f"[bits.{name}]"
+        out = []
+        for key, spec in self.table(table, where).items():
+            lo_s, _, hi_s = str(key).partition("-")
+            if not all(p.isascii() and p.isdigit() and len(p) <= 2 for p in ([lo_s, hi_s] if hi_s else [lo_s])):
+                self.fail(where, f"key {_show(key)} is not a bit number or lo-hi range")
+            lo, hi = int(lo_s), int(hi_s or lo_s)
+            if not lo <= hi <= 31:
+                self.fail(where, f"key {_show(key)}: bits must be 0..31, low first")
+            if isinstance(spec, str):
+                out.append({"lo": lo, "hi": hi, "name": spec})
+                continue
+            self.table(spec, f"{where} {key}")
+            self.text(spec, "name", f"{where} {key}")
+            values = self.table(spec.get("values") or {}, f"{where} {key} values")
+            vals = {self.key(k, f"{where} {key} values", -(1 << 32), 1 << 32): v for k, v in values.items()}
+            if not all(isinstance(v, str) for v in vals.values()):
+                self.fail(f"{where} {key} values", "every value must be a string")
             out.append({"lo": lo, "hi": hi, "name": spec.get("name", f"bit{lo}"), "values": vals})
-    out.sort(key=lambda d: d["lo"])
-    return out
+        out.sort(key=lambda d: d["lo"])
+        return out
 
 
 def load_map(path: str | Path) -> RegisterMap:
+    """The map in `path`, every row and table checked first; MapError (one line: file and place) if not usable."""
     path = str(path)
     doc = read_toml(path, MapError)
-    model = doc.get("model")
-    if not isinstance(model, dict) or not model.get("id"):
-        raise MapError(f"{path}: no [model] table with an id")
+    c = _Check(path)
+    unknown = sorted(set(doc) - set(TOP_LEVEL))
+    if unknown:
+        c.fail("top level", f"unknown keys {_show(unknown)} (known: {', '.join(TOP_LEVEL)})")
+    model = c.model(doc.get("model"))
+    rows = doc.get("registers", [])
+    if not isinstance(rows, list):
+        c.fail("registers", f"must be an array of tables, not {_show(rows)}")
+    checked = [c.row(i, row) for i, row in enumerate(rows)]
+    total = sum(count for _row, count, _stride in checked)
+    if total > MAX_REGISTERS:
+        c.fail("registers", f"{total} registers: more than the {MAX_REGISTERS} addresses a unit has")
     regs: dict[int, Register] = {}
-    fields = set(Register.__slots__)
-    for i, row in enumerate(doc.get("registers", [])):
-        row = dict(row)
-        count = int(row.pop("count", 1))
-        stride = int(row.pop("stride", 1))
-        unknown = set(row) - fields
-        if unknown or "addr" not in row or "name" not in row:
-            raise MapError(f"{path}: register row {i + 1}: bad keys {sorted(unknown) or 'addr/name missing'}")
+    for row, count, stride in checked:
         row.setdefault("id", "")
         for k in range(count):
             r = Register(**{**row, "addr": row["addr"] + k * stride})
             if count > 1:
                 r.name = f"{row['name']} [{k}]"
-            if r.type not in WIDTH:
-                raise MapError(f"{path}: register 0x{r.addr:04X}: unknown type {r.type!r}")
             if r.addr in regs:
                 raise MapError(f"{path}: register 0x{r.addr:04X} listed twice")
             regs[r.addr] = r
-    enums = {
-        name: {_int(k): ({"text": v} if isinstance(v, str) else dict(v)) for k, v in table.items()}
-        for name, table in (doc.get("enums") or {}).items()
-    }
-    bits = {name: _parse_bits(table) for name, table in (doc.get("bits") or {}).items()}
-    exc = {_int(k): ({"name": v} if isinstance(v, str) else dict(v)) for k, v in (doc.get("exceptions") or {}).items()}
+    enums = {}
+    for name, table in c.table(doc.get("enums") or {}, "[enums]").items():
+        where = f"[enums.{name}]"
+        enums[name] = {c.key(k, where, -(1 << 32), 1 << 32): c.entry(v, f"{where} {k}", "text", True)
+                       for k, v in c.table(table, where).items()}
+    bits = {name: c.bits(name, table) for name, table in c.table(doc.get("bits") or {}, "[bits]").items()}
+    exc = {c.key(k, "[exceptions]", 0, 255): c.entry(v, f"[exceptions] {k}", "name", False)
+           for k, v in c.table(doc.get("exceptions") or {}, "[exceptions]").items()}
     m = RegisterMap(model, regs, enums, bits, exc, path)
     m.by_id = {r.id: r for r in regs.values() if r.id}
     return m

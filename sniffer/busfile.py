@@ -1,23 +1,35 @@
 """Bus file: the serial settings, unit -> model map and timeouts of one line, in TOML.
 
     [serial]
-    baud = 19200
-    parity = "E"
-    stopbits = 1
+    baud = 19200        # integer, 50..4000000
+    parity = "E"        # N, E or O
+    stopbits = 1        # 1 or 2
+    protocol = "modbus-rtu"   # one of sniffer.protocols.NAMES (optional)
 
-    [units]          # unit = model id
+    [units]          # unit (0..255) = model id
     1 = "a510"
     2 = "tds-v8"
 
-    [timeouts_ms]    # optional, per unit
+    [timeouts_ms]    # optional, per unit: a finite number >= 0
     1 = 250
+
+Every field is checked before use; a bad one is BusFileError("<path>: <what>"),
+one line.  Unknown tables and keys are errors too, naming what was found: a
+typo such as `[unit]` or `buad = 9600` would otherwise be silently ignored
+and the capture decoded with the wrong settings.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from .tomlfile import read_toml
+
+BAUD_RANGE = (50, 4_000_000)
+TABLES = ("serial", "units", "timeouts_ms")
+SERIAL_KEYS = ("baud", "parity", "stopbits", "protocol")
+MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo
 
 
 class BusFileError(ValueError):
@@ -34,17 +46,71 @@ class BusFile:
     timeouts_ms: dict[int, float] = field(default_factory=dict)
 
 
+def _show(v) -> str:
+    text = repr(v)
+    return text if len(text) <= 60 else text[:60] + "..."
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _unit(path: str, table: str, key: str) -> int:
+    k = key.strip()
+    if not (k.isascii() and k.isdigit() and len(k) <= 3 and int(k) <= 255):
+        raise BusFileError(f"{path}: [{table}] key {_show(key)} is not a unit number 0..255")
+    return int(k)
+
+
+def _table(path: str, doc: dict, name: str) -> dict:
+    t = doc.get(name, {})
+    if not isinstance(t, dict):
+        raise BusFileError(f"{path}: {name} must be a table [{name}], not {_show(t)}")
+    return t
+
+
+def _serial(path: str, serial: dict, bus: BusFile) -> None:
+    from .protocols import NAMES
+
+    unknown = sorted(set(serial) - set(SERIAL_KEYS))
+    if unknown:
+        raise BusFileError(f"{path}: [serial] unknown keys {_show(unknown)} (known: {', '.join(SERIAL_KEYS)})")
+    baud = serial.get("baud")
+    if baud is not None and (not _is_int(baud) or not BAUD_RANGE[0] <= baud <= BAUD_RANGE[1]):
+        raise BusFileError(f"{path}: [serial] baud must be an integer {BAUD_RANGE[0]}..{BAUD_RANGE[1]}, "
+                           f"not {_show(baud)}")
+    parity = serial.get("parity")
+    if parity is not None:
+        if not isinstance(parity, str) or parity.strip().upper() not in ("N", "E", "O"):
+            raise BusFileError(f"{path}: [serial] parity must be \"N\", \"E\" or \"O\", not {_show(parity)}")
+        parity = parity.strip().upper()
+    stopbits = serial.get("stopbits")
+    if stopbits is not None and (not _is_int(stopbits) or stopbits not in (1, 2)):
+        raise BusFileError(f"{path}: [serial] stopbits must be 1 or 2, not {_show(stopbits)}")
+    protocol = serial.get("protocol")
+    if protocol is not None and protocol not in NAMES:
+        raise BusFileError(f"{path}: [serial] protocol {_show(protocol)} is not one of {', '.join(NAMES)}")
+    bus.baud, bus.parity, bus.stopbits, bus.protocol = baud, parity, stopbits, protocol
+
+
 def load_bus_file(path: str) -> BusFile:
+    """The bus file at `path`, every field checked; BusFileError (one line) if any is wrong."""
     doc = read_toml(path, BusFileError)
+    unknown = sorted(set(doc) - set(TABLES))
+    if unknown:
+        raise BusFileError(f"{path}: unknown tables or keys {_show(unknown)} (known: {', '.join(TABLES)})")
     bus = BusFile()
-    serial = doc.get("serial", {})
-    bus.baud = serial.get("baud")
-    bus.parity = serial.get("parity")
-    bus.stopbits = serial.get("stopbits")
-    bus.protocol = serial.get("protocol")
-    try:
-        bus.devices = {int(k): str(v) for k, v in doc.get("units", {}).items()}
-        bus.timeouts_ms = {int(k): float(v) for k, v in doc.get("timeouts_ms", {}).items()}
-    except (TypeError, ValueError):
-        raise BusFileError(f"{path}: [units] and [timeouts_ms] keys must be unit numbers") from None
+    _serial(path, _table(path, doc, "serial"), bus)
+    for key, model in _table(path, doc, "units").items():
+        unit = _unit(path, "units", key)
+        if not isinstance(model, str) or not model.strip():
+            raise BusFileError(f"{path}: [units] {key} must be a model id string (e.g. \"a510\"), not {_show(model)}")
+        bus.devices[unit] = model.strip()
+    for key, ms in _table(path, doc, "timeouts_ms").items():
+        unit = _unit(path, "timeouts_ms", key)
+        ok = (_is_int(ms) or isinstance(ms, float)) and math.isfinite(ms) and 0 <= ms <= MAX_TIMEOUT_MS
+        if not ok:
+            raise BusFileError(f"{path}: [timeouts_ms] {key} must be a number of milliseconds "
+                               f"0..{MAX_TIMEOUT_MS:.0f}, not {_show(ms)}")
+        bus.timeouts_ms[unit] = float(ms)
     return bus

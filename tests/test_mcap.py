@@ -24,7 +24,7 @@ from sniffer.mcap_format import RAW_SCHEMA, info_to_metadata
 from sniffer.sinks.mcap import CaptureStorageError, McapSink
 from sniffer.records import FRAME_SCHEMA, frame_record, loads
 from sniffer.sources import CaptureError
-from sniffer.sources.mcapsrc import open_mcap, read_frames, sniff
+from sniffer.sources.mcapsrc import McapSource, open_mcap, read_frames, sniff
 
 TESTS = os.path.dirname(os.path.abspath(__file__))
 T0 = 7_000_000_000
@@ -233,7 +233,7 @@ def _chunk_offsets(path):
         return [(c.chunk_start_offset, c.chunk_length) for c in make_reader(fh).get_summary().chunk_indexes]
 
 
-def test_damaged_chunk_is_an_error_and_repair_keeps_the_rest(tmp_path):
+def test_damaged_chunk_is_skipped_announced_and_repair_keeps_the_rest(tmp_path):
     p = tmp_path / "damaged.mcap"
     events = [make_event(i) for i in range(10)]
     write_capture(p, events, flush_interval_s=0)  # one chunk per event: chunk k+1 holds event k
@@ -242,19 +242,25 @@ def test_damaged_chunk_is_an_error_and_repair_keeps_the_rest(tmp_path):
     data[start + length - 6] ^= 0xFF
     p.write_bytes(bytes(data))
 
-    info, it = open_mcap(p)
-    got = []
-    with pytest.raises(CaptureError, match=r"damaged chunk record at byte \d+.*sniffer repair"):
-        for ev in it:
-            got.append(ev)
-    assert got == events[:3]
+    src = McapSource(p)
+    info = src.open()
+    got = list(src.events())
+    assert info.baud == INFO.baud and "mcap_unfinished" not in info.extra
+    # everything readable, a Gap where event 3 was, from the last good time to the next good byte
+    gap = got[3]
+    assert got[:3] == events[:3] and got[4:] == events[4:]
+    assert isinstance(gap, Gap) and (gap.t_ns, gap.t_end_ns) == (events[2].t_ns, events[4].byte_t_ns[0])
+    assert f"at byte {start}" in gap.reason
+    assert len(src.damage) == 1 and src.damage[0].startswith(f"{p}: damaged chunk record at byte {start} (")
+    assert f"skipped {length} bytes" in src.damage[0]
 
     out = tmp_path / "fixed.mcap"
     counts = repair(p, out)
-    assert counts["messages"] == 1 + 3 and counts["topics"] == {"/capture": 1, "/raw": 3}
-    assert "damaged chunk" in counts["problem"] and counts["bytes_dropped"] > 0
-    assert list(open_mcap(out)[1]) == events[:3]
-    assert len(messages(out)) == 4
+    assert counts["messages"] == 1 + 9 and counts["topics"] == {"/capture": 1, "/raw": 9}
+    assert counts["skipped"] == [(start, length)] and counts["bytes_dropped"] == length
+    assert "chunk record at byte" in counts["problem"] and not counts["was_finished"]
+    assert list(open_mcap(out)[1]) == events[:3] + events[4:]
+    assert len(messages(out)) == 10
 
 
 def test_cut_files_read_a_prefix(tmp_path):

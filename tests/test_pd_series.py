@@ -2,11 +2,16 @@
 
 The manual (shared/manuals/pd-series-protocol.txt) contradicts itself about
 LEN; decoders/pd_series/NOTES.md has our reading.  Wrong bytes in the manual
-stay wrong in examples.toml and the sniffer must flag them.
+stay wrong in examples.toml and the sniffer must flag them.  The lines the
+tests hold the tables against are kept in tests/data/pd-series-manual-lines.json,
+so a clone without ../shared runs them too; with the manual beside the
+repository, the copy is checked against it.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import tomllib
 from pathlib import Path
 
@@ -32,6 +37,7 @@ from sniffer.records import frame_record
 LINE = LineSettings(9600, "N", 1)
 PKG = Path(__file__).resolve().parent.parent / "decoders" / "pd_series"
 MANUAL = Path(__file__).resolve().parents[2] / "shared" / "manuals" / "pd-series-protocol.txt"
+EXCERPT = json.loads((Path(__file__).resolve().parent / "data" / "pd-series-manual-lines.json").read_text("utf-8"))
 EXAMPLES = tomllib.loads((PKG / "examples.toml").read_text())["examples"]
 BY_LINE = {ex["line"]: ex for ex in EXAMPLES}
 CODEBOOK = default_registry().codebook
@@ -73,11 +79,30 @@ def check_invariants(frames, data: bytes):
         frame_record(f, 0)
 
 
+def manual_lines() -> list[str]:
+    """The manual's lines (text[n - 1] is line n): the kept excerpt, "" for lines it does not hold."""
+    text = [""] * EXCERPT["source_lines"]
+    for n, line in EXCERPT["lines"].items():
+        text[int(n) - 1] = line
+    return text
+
+
+@pytest.mark.skipif(not MANUAL.exists(), reason="the shared manuals folder is not beside this checkout")
+def test_manual_excerpt_matches_the_manual():
+    raw = MANUAL.read_bytes()
+    text = raw.decode("utf-8").splitlines()
+    assert len(text) == EXCERPT["source_lines"]
+    for n, line in EXCERPT["lines"].items():
+        assert text[int(n) - 1] == line, n
+    if hashlib.sha256(raw).hexdigest() != EXCERPT["source_sha256"]:
+        pytest.fail("the manual changed since the excerpt was taken: re-check the lines and the hash")
+
+
 # ---------------------------------------------------------------- manual examples
 def test_examples_cover_the_manual():
     assert len(EXAMPLES) == 7
     assert sorted(BY_LINE) == [173, 175, 192, 193, 199, 228, 230]
-    text = MANUAL.read_text().splitlines()
+    text = manual_lines()
     for ex in EXAMPLES:
         printed = text[ex["line"] - 1]
         assert printed.strip(), ex["line"]
@@ -342,7 +367,7 @@ def test_decoder_spans_map_onto_ascii_characters():
 
 # ---------------------------------------------------------------- schema
 def test_schema_rows_cite_the_manual():
-    text = MANUAL.read_text().splitlines()
+    text = manual_lines()
     for p in PARAMS.values():
         if p.number != 3:
             assert p.id in text[p.line - 1] or p.id in " ".join(text[p.line - 3 : p.line + 1]), p

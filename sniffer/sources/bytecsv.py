@@ -2,94 +2,79 @@
 
 The format of sigrok's UART output in ../shared/refcaptures and of our own
 CSV export.  If every byte has its own time, timestamps are per byte.  If
-consecutive bytes share one `t_s` (a USB adapter delivering a chunk), the
-whole file is taken as per-read: each run of equal times is one read.
+consecutive bytes of one channel share one `t_s` (a USB adapter delivering a
+chunk), the whole file is taken as per-read: each run of equal times is one
+read.  Rows are read as a stream (sniffer.sources.csvstream says what is
+fatal and what is damage); a time must be a non-negative decimal number of
+seconds, a byte two hex digits, a flag empty, `framing` or `parity`.
 """
 
 from __future__ import annotations
 
-import csv
+import os
 from collections.abc import Iterator
 
 from ..events import FLAG_FRAMING, FLAG_PARITY, CaptureInfo, Chunk
-from . import CaptureError
+from . import CaptureError, open_regular, quote
+from .csvstream import PER_BYTE_CHUNK, CsvRowSource, Row, chunks_from_rows
 from .timeparse import seconds_to_ns
+
+__all__ = ["HEADER", "PER_BYTE_CHUNK", "ByteCsvSource", "chunks_from_rows", "open_byte_csv", "sniff",
+           "write_byte_csv"]
 
 HEADER = ["t_s", "channel", "byte_hex", "flags"]
 _FLAGS = {"": None, "framing": FLAG_FRAMING, "parity": FLAG_PARITY}
-PER_BYTE_CHUNK = 4096
+_BYTES = {form: v for v in range(256) for form in (f"{v:02x}", f"{v:02X}", f"{v:x}", f"{v:X}")}
 
 
-def sniff(path: str) -> bool:
+def sniff(path: str | os.PathLike[str]) -> bool:
     try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            first = fh.readline().strip().lower()
-    except (OSError, UnicodeDecodeError):
+        with open_regular(path) as fh:
+            first = fh.readline(4096).decode("utf-8").strip().lower()
+    except (CaptureError, OSError, UnicodeDecodeError):
         return False
     return first.replace(" ", "").split(",")[:3] == HEADER[:3]
 
 
-def read_rows(path: str) -> list[tuple[int, str, int, str | None]]:
-    rows = []
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
-            header = [h.strip().lower() for h in next(reader, [])]
-            if header[:3] != HEADER[:3]:
-                raise CaptureError(f"{path}: not a byte CSV (header must start with t_s,channel,byte_hex)")
-            for lineno, row in enumerate(reader, start=2):
-                if not row or not "".join(row).strip():
-                    continue
-                try:
-                    t = seconds_to_ns(row[0])
-                    ch = row[1].strip()
-                    b = int(row[2], 16)
-                    if not 0 <= b <= 255:
-                        raise ValueError
-                    flag = _FLAGS[(row[3].strip().lower() if len(row) > 3 else "")]
-                except (ValueError, IndexError, KeyError):
-                    raise CaptureError(f"{path}:{lineno}: bad row {','.join(row)!r}") from None
-                rows.append((t, ch, b, flag))
-    except UnicodeDecodeError:
-        raise CaptureError(f"{path}: not a text CSV file") from None
-    except OSError as e:
-        raise CaptureError(f"{path}: {e.strerror or e}") from None
-    rows.sort(key=lambda r: r[0])  # two-channel captures: merge by time (stable)
-    return rows
+class ByteCsvSource(CsvRowSource):
+    kind = "byte CSV"
+
+    def parse_header(self, header: list[str]) -> None:
+        if [h.replace(" ", "") for h in header[:3]] != HEADER[:3]:
+            raise CaptureError(f"{self.path}: not a byte CSV (header must start with t_s,channel,byte_hex; "
+                               f"found {quote(','.join(header))})")
+
+    _last_time = ("", 0)  # rows of one read share their time text: parse it once
+
+    def parse_row(self, row: list[str]) -> Row:
+        text, t = self._last_time
+        if row[0] != text:
+            t = seconds_to_ns(row[0])
+            if t < 0:
+                raise ValueError("negative time")
+            self._last_time = (row[0], t)
+        b = _BYTES.get(row[2])
+        if b is None:
+            b = _BYTES.get(row[2].strip())
+            if b is None:
+                raise ValueError("the byte is not 00..ff")
+        flag_text = row[3] if len(row) > 3 else ""
+        if flag_text not in _FLAGS:
+            flag_text = flag_text.strip().lower()
+            if flag_text not in _FLAGS:
+                raise ValueError(f"unknown flag {quote(flag_text, 40)} (framing, parity or empty)")
+        return t, row[1].strip(), b, _FLAGS[flag_text]
+
+    def make_info(self) -> CaptureInfo:
+        info = CaptureInfo(source=f"byte-csv:{self.path}", time_source="read" if self.per_read else "byte", t0_ns=0)
+        info.extra["channels"] = sorted(self.channels)
+        return info
 
 
-def chunks_from_rows(rows) -> tuple[str, list[Chunk]]:
-    per_read = any(
-        rows[i][0] == rows[i - 1][0] and rows[i][1] == rows[i - 1][1] for i in range(1, len(rows))
-    )
-    out: list[Chunk] = []
-    i = 0
-    n = len(rows)
-    while i < n:
-        j = i + 1
-        if per_read:
-            while j < n and rows[j][0] == rows[i][0] and rows[j][1] == rows[i][1]:
-                j += 1
-        else:
-            while j < n and j - i < PER_BYTE_CHUNK and rows[j][1] == rows[i][1]:
-                j += 1
-        part = rows[i:j]
-        data = bytes(r[2] for r in part)
-        flags = tuple((k, r[3]) for k, r in enumerate(part) if r[3])
-        if per_read:
-            out.append(Chunk(part[0][0], data, None, flags, part[0][1]))
-        else:
-            out.append(Chunk(part[0][0], data, tuple(r[0] for r in part), flags, part[0][1]))
-        i = j
-    return ("read" if per_read else "byte"), out
-
-
-def open_byte_csv(path: str) -> tuple[CaptureInfo, Iterator[Chunk]]:
-    rows = read_rows(path)
-    time_source, chunks = chunks_from_rows(rows)
-    info = CaptureInfo(source=f"byte-csv:{path}", time_source=time_source, t0_ns=0)
-    info.extra["channels"] = sorted({r[1] for r in rows})
-    return info, iter(chunks)
+def open_byte_csv(path: str | os.PathLike[str]) -> tuple[CaptureInfo, Iterator[Chunk]]:
+    """(CaptureInfo, events) of a byte CSV.  What was skipped is only in ByteCsvSource.damage: use FileSource."""
+    src = ByteCsvSource(path)
+    return src.open(), src.events()
 
 
 def write_byte_csv(path: str, chunks) -> int:

@@ -1,22 +1,35 @@
-"""Open any capture file for replay: MCAP, byte CSV or Saleae CSV."""
+"""Open any capture file for replay: MCAP, byte CSV, Saleae CSV, pcap/pcapng.
+
+`FileSource` is the one object every file capture goes through:
+
+    src = FileSource(path, fmt)
+    info = src.open()            # CaptureError: one line, nothing to replay
+    for ev in src.events():      # lazy; memory does not grow with the file
+        ...
+    src.damage                   # what was skipped or lost on the way, one sentence each
+
+Refused at open(): a missing or unreadable path, a directory, a FIFO,
+device or socket (replaying one would block or never end), an empty file,
+an unknown format.  Damage found while reading does not stop the replay:
+the reader skips what it cannot read, yields a Gap there and says so in
+`damage` (see each reader's docstring for what is damage and what is fatal).
+"""
 
 from __future__ import annotations
 
 import os
+import threading
+from collections.abc import Iterator
 
-from . import CaptureError
+from ..events import CaptureInfo, Chunk, Gap, Tick
+from . import CaptureError, not_regular, quote
 
 FORMATS = ("auto", "mcap", "csv", "saleae", "pcap")
 
 
-def open_replay(path: str, fmt: str = "auto"):
-    """(CaptureInfo, events iterator) or CaptureError with one clear line."""
+def _reader(path: str, fmt: str, damage: list[str]):
     from . import bytecsv, mcapsrc, pcapsrc, saleae
 
-    if not os.path.exists(path):
-        raise CaptureError(f"{path}: no such file")
-    if os.path.isdir(path):
-        raise CaptureError(f"{path}: is a directory, not a capture file")
     if fmt == "auto":
         if mcapsrc.sniff(path):
             fmt = "mcap"
@@ -31,47 +44,90 @@ def open_replay(path: str, fmt: str = "auto"):
                 f"{path}: unknown capture format (expected MCAP from this tool, a byte CSV "
                 "t_s,channel,byte_hex,flags, a Saleae async-serial CSV export, or pcap/pcapng)"
             )
-    if fmt == "mcap":
-        return mcapsrc.open_mcap(path)
-    if fmt == "csv":
-        return bytecsv.open_byte_csv(path)
-    if fmt == "saleae":
-        return saleae.open_saleae_csv(path)
-    if fmt == "pcap":
-        return pcapsrc.open_pcap(path)
-    raise CaptureError(f"unknown input format {fmt!r} (one of {', '.join(FORMATS)})")
+    makers = {"mcap": mcapsrc.McapSource, "csv": bytecsv.ByteCsvSource, "saleae": saleae.SaleaeSource,
+              "pcap": pcapsrc.PcapSource}
+    if fmt not in makers:
+        raise CaptureError(f"unknown input format {quote(fmt, 40)} (one of {', '.join(FORMATS)})")
+    return fmt, makers[fmt](path, damage)
 
 
 class FileSource:
-    """A capture file as a session source (TEMPORARY: wraps open_replay until the streaming readers land)."""
+    """A capture file as a stream of events (see the module docstring)."""
 
-    def __init__(self, path: str, fmt: str = "auto") -> None:
-        self.path = path
+    def __init__(self, path: str | os.PathLike[str], fmt: str = "auto") -> None:
+        self.path = os.fspath(path)
         self.format = fmt
         self.damage: list[str] = []
-        self._info = None
-        self._events = None
-        self._stop = False
+        self._requested = fmt
+        self._reader = None
+        self._info: CaptureInfo | None = None
+        self._stop = threading.Event()
+        self._started = False
+        self._closed = False
 
-    def open(self):
-        if self._info is None:
-            self._info, self._events = open_replay(self.path, self.format)
+    def open(self) -> CaptureInfo:
+        """The capture's CaptureInfo; CaptureError (one line) if it cannot be replayed.  Idempotent."""
+        if self._info is not None:
+            return self._info
+        if self._requested not in FORMATS:
+            raise CaptureError(f"unknown input format {quote(str(self._requested), 40)} (one of {', '.join(FORMATS)})")
+        p = self.path
+        try:
+            st = os.stat(p)
+        except OSError as e:
+            raise CaptureError(f"{p}: {'no such file' if isinstance(e, FileNotFoundError) else e.strerror or e}") \
+                from None
+        why = not_regular(p, st.st_mode)
+        if why is not None:
+            raise CaptureError(why)
+        if st.st_size == 0:
+            raise CaptureError(f"{p}: empty file")
+        self.format, reader = _reader(p, self._requested, self.damage)
+        self._info = reader.open()
+        self._reader = reader
         return self._info
 
-    def events(self):
+    def events(self) -> Iterator[Chunk | Tick | Gap]:
+        """The events, read lazily; ends early after stop().  May be called once."""
+        if self._started:
+            raise RuntimeError("FileSource.events() may be called once")
+        self._started = True
         self.open()
-        for ev in self._events:
-            if self._stop:
-                return
-            yield ev
+        return self._events()
+
+    def _events(self) -> Iterator[Chunk | Tick | Gap]:
+        stopped = self._stop.is_set
+        it = self._reader.events()
+        try:
+            for ev in it:
+                if stopped() or self._closed:
+                    return
+                yield ev
+        except ValueError:
+            if not self._closed:  # the file was closed under a read in progress: that is the end
+                raise
+        finally:
+            it.close()
+            self.close()
 
     def stop(self) -> None:
-        self._stop = True
+        """Ask events() to end (from any thread): it checks before every event."""
+        self._stop.set()
 
     def close(self) -> None:
-        close = getattr(self._events, "close", None)
-        if close is not None:
-            close()
+        """Release the file (events() then ends).  Safe to call twice."""
+        self._closed = True
+        r = self._reader
+        if r is not None:
+            r.close()
 
-    def position(self):
-        return None
+    def position(self) -> tuple[int, int] | None:
+        """(bytes read so far, file size) for a progress bar, or None before open()."""
+        r = self._reader
+        return None if r is None else r.position()
+
+
+def open_replay(path: str, fmt: str = "auto") -> tuple[CaptureInfo, Iterator[Chunk | Tick | Gap]]:
+    """(CaptureInfo, events iterator) or CaptureError with one clear line (FileSource.damage is not seen here)."""
+    src = FileSource(path, fmt)
+    return src.open(), src.events()

@@ -7,16 +7,22 @@ Error,Framing Error`.  Columns are found by name, values may be hex, decimal
 or a quoted character (the display radix the user picked).  Times are the
 start of each byte: per-byte timestamps.  Several analyzers in one export
 (column `name`) become channels.
+
+Rows are read as a stream (sniffer.sources.csvstream says what is fatal and
+what is damage).  Times before the trigger are negative in a triggered
+Logic 2 export: if the first row is before 0, every time is shifted so the
+capture starts at 0 (info.extra["saleae_time_offset_ns"] says by how much).
 """
 
 from __future__ import annotations
 
 import csv
+import os
 from collections.abc import Iterator
 
 from ..events import FLAG_FRAMING, FLAG_PARITY, CaptureInfo, Chunk
-from . import CaptureError
-from .bytecsv import chunks_from_rows
+from . import CaptureError, open_regular, quote
+from .csvstream import CsvRowSource, Row
 from .timeparse import seconds_to_ns
 
 _TIME = ("start_time", "time [s]", "time", "start time")
@@ -30,17 +36,20 @@ def _find(header: list[str], names) -> int | None:
     return None
 
 
-def sniff(path: str) -> bool:
+def sniff(path: str | os.PathLike[str]) -> bool:
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            header = [h.strip().lower() for h in next(csv.reader(fh), [])]
-    except (OSError, UnicodeDecodeError, csv.Error):
+        with open_regular(path) as fh:
+            first = fh.readline(4096).decode("utf-8-sig")
+        header = [h.strip().lower() for h in next(csv.reader([first]), [])]
+    except (CaptureError, OSError, UnicodeDecodeError, csv.Error):
         return False
     return _find(header, _TIME) is not None and _find(header, _DATA) is not None
 
 
 def _value(text: str) -> int:
     t = text.strip().strip('"')
+    if len(t) > 12:
+        raise ValueError("the data is not one byte")
     if t.lower().startswith("0x"):
         v = int(t, 16)
     elif t.startswith("'") and t.endswith("'") and len(t) == 3:
@@ -50,9 +59,9 @@ def _value(text: str) -> int:
     elif len(t) == 1:
         v = ord(t)
     else:
-        raise ValueError(t)
+        raise ValueError("the data is not one byte")
     if not 0 <= v <= 255:
-        raise ValueError(t)
+        raise ValueError("the data is not one byte")
     return v
 
 
@@ -67,39 +76,44 @@ def _flag(row: dict) -> str | None:
     return None
 
 
-def open_saleae_csv(path: str) -> tuple[CaptureInfo, Iterator[Chunk]]:
-    rows = []
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            reader = csv.reader(fh)
-            header = [h.strip().lower() for h in next(reader, [])]
-            ti, di = _find(header, _TIME), _find(header, _DATA)
-            if ti is None or di is None:
-                raise CaptureError(f"{path}: not a Saleae async-serial export (no time/data columns)")
-            ni = header.index("name") if "name" in header else None
-            tyi = header.index("type") if "type" in header else None
-            for lineno, row in enumerate(reader, start=2):
-                if not row or not "".join(row).strip():
-                    continue
-                if tyi is not None and row[tyi].strip().lower() not in ("data", ""):
-                    continue
-                if di >= len(row) or not row[di].strip():
-                    continue
-                try:
-                    t = seconds_to_ns(row[ti])
-                    b = _value(row[di])
-                except (ValueError, IndexError):
-                    raise CaptureError(f"{path}:{lineno}: bad row {','.join(row)!r}") from None
-                extra = {header[k]: row[k] for k in range(min(len(header), len(row))) if k not in (ti, di)}
-                ch = row[ni].strip() if ni is not None else ""
-                rows.append((t, ch, b, _flag(extra)))
-    except UnicodeDecodeError:
-        raise CaptureError(f"{path}: not a text CSV file") from None
-    except OSError as e:
-        raise CaptureError(f"{path}: {e.strerror or e}") from None
-    if not rows:
-        raise CaptureError(f"{path}: no serial bytes in this export")
-    rows.sort(key=lambda r: r[0])
-    time_source, chunks = chunks_from_rows(rows)
-    info = CaptureInfo(source=f"saleae-csv:{path}", time_source=time_source, t0_ns=0)
-    return info, iter(chunks)
+class SaleaeSource(CsvRowSource):
+    kind = "Saleae export"
+
+    def parse_header(self, header: list[str]) -> None:
+        self.header = header
+        self.ti, self.di = _find(header, _TIME), _find(header, _DATA)
+        if self.ti is None or self.di is None:
+            raise CaptureError(f"{self.path}: not a Saleae async-serial export (no time/data columns; "
+                               f"header {quote(','.join(header))})")
+        self.ni = header.index("name") if "name" in header else None
+        self.tyi = header.index("type") if "type" in header else None
+        self.other = [k for k in range(len(header)) if k not in (self.ti, self.di)]
+
+    def parse_row(self, row: list[str]) -> Row | None:
+        if self.tyi is not None and self.tyi < len(row) and row[self.tyi].strip().lower() not in ("data", ""):
+            return None
+        if self.di >= len(row):
+            raise IndexError  # a row cut short
+        if not row[self.di].strip():
+            return None
+        t = seconds_to_ns(row[self.ti])
+        b = _value(row[self.di])
+        header = self.header
+        extra = {header[k]: row[k] for k in self.other if k < len(row)}
+        ch = row[self.ni].strip() if self.ni is not None and self.ni < len(row) else ""
+        return t, ch, b, _flag(extra)
+
+    def first_time_offset(self, t_first: int) -> int:
+        return -t_first if t_first < 0 else 0
+
+    def make_info(self) -> CaptureInfo:
+        info = CaptureInfo(source=f"saleae-csv:{self.path}", time_source="read" if self.per_read else "byte", t0_ns=0)
+        if self.t_offset:
+            info.extra["saleae_time_offset_ns"] = self.t_offset
+        return info
+
+
+def open_saleae_csv(path: str | os.PathLike[str]) -> tuple[CaptureInfo, Iterator[Chunk]]:
+    """(CaptureInfo, events) of a Saleae export.  What was skipped is only in SaleaeSource.damage."""
+    src = SaleaeSource(path)
+    return src.open(), src.events()

@@ -1,0 +1,340 @@
+"""Streaming reader shared by the byte CSV and the Saleae CSV: one row per byte.
+
+Memory stays flat whatever the file's length: rows are read line by line,
+merged by time through a bounded reorder window and cut into Chunks as they
+come.  Two passes over the file: `open()` reads until it knows whether times
+are per byte or per read (consecutive rows of one channel sharing a time
+are a USB adapter's reads), `events()` reads again and yields.
+
+What is fatal (CaptureError from open(), one line) and what is damage (the
+row is skipped, a sentence goes to `damage`, a Gap is yielded in its place
+and reading goes on):
+
+* fatal: the file cannot be opened, the header is not this format's, the
+  header line is not UTF-8 text, or no row at all is readable (a garbage
+  file: the message quotes its first bad row with file:line);
+* damage: any single row that does not parse (a time that is not a number,
+  out of range, NaN/inf; a byte outside 00..ff; a field over csv's 131,072
+  character limit; a line that is not UTF-8; an export cut mid-row at the
+  end), and a row whose time is earlier than rows already replayed more
+  than the reorder window ago (it is replayed at the last time replayed:
+  its byte is kept, its time is not; no Gap, as nothing is missing).
+An I/O error in the middle of the file ends the replay with a damage line;
+what was read stays.
+"""
+
+from __future__ import annotations
+
+import codecs
+import csv
+from bisect import insort_right
+from operator import itemgetter
+import os
+from collections.abc import Iterator
+
+from ..events import CaptureInfo, Chunk, Gap
+from . import CaptureError, DamageLog, gap_before, open_regular, quote
+
+PER_BYTE_CHUNK = 4096  # per-byte chunks: up to this many bytes of one channel
+REORDER_WINDOW = 8192  # rows held back to merge channels recorded as separate columns of time
+MAX_LINE = 1 << 20  # a longer "line" is read in pieces (each one a bad row)
+
+Row = tuple[int, str, int, "str | None"]  # (t_ns, channel, byte, flag)
+_time = itemgetter(0)
+
+
+class _Lines:
+    """Decoded lines of a binary file, counting bytes read; a line that is not UTF-8 is flagged."""
+
+    def __init__(self, fh) -> None:
+        self.fh = fh
+        self.bytes_read = 0
+        self.bad_text: int | None = None  # line number of the last line that was not UTF-8
+
+    def __iter__(self) -> Iterator[str]:
+        lineno = 0
+        readline = self.fh.readline
+        while True:
+            raw = readline(MAX_LINE)
+            if not raw:
+                return
+            self.bytes_read += len(raw)
+            lineno += 1
+            if lineno == 1 and raw.startswith(codecs.BOM_UTF8):
+                raw = raw[3:]
+            try:
+                yield raw.decode("utf-8")
+            except UnicodeDecodeError:
+                self.bad_text = lineno
+                yield "\n"  # an empty row in its place: the caller reports it
+
+
+class CsvRowSource:
+    """Base of the CSV readers: a subclass parses the header and the rows."""
+
+    kind = "CSV"
+
+    def __init__(self, path: str | os.PathLike[str], damage: list[str] | None = None) -> None:
+        self.path = os.fspath(path)
+        self.damage: list[str] = [] if damage is None else damage
+        self.info: CaptureInfo | None = None
+        self.per_read = False
+        self.t_offset = 0
+        self.channels: set[str] = set()
+        self._lines: _Lines | None = None
+        self._fh = None
+        self._size = 0
+        self._first_bad: str | None = None
+
+    # -- to be provided by the format -------------------------------------------------------
+    def parse_header(self, header: list[str]) -> None:
+        """Check the header row (lower-cased, stripped) and note the columns; CaptureError if foreign."""
+        raise NotImplementedError
+
+    def parse_row(self, row: list[str]) -> Row | None:
+        """One data row -> (t_ns, channel, byte, flag), None to skip it quietly; ValueError if bad."""
+        raise NotImplementedError
+
+    def make_info(self) -> CaptureInfo:
+        raise NotImplementedError
+
+    # -- the reader -----------------------------------------------------------------------------
+    def open(self) -> CaptureInfo:
+        """First pass: header, time source, first rows.  CaptureError for what cannot be replayed."""
+        if self.info is not None:
+            return self.info
+        log = DamageLog([])
+        good = 0
+        prev: tuple[int, str] | None = None
+        with open_regular(self.path) as fh:
+            self._size = os.fstat(fh.fileno()).st_size
+            for item in _merge(self._rows(fh, log), log, self.path):
+                if item[2] is None:  # a gap marker: bad rows before this one
+                    continue
+                if item[1] < 0:  # replayed late at an earlier row's time: says nothing about reads
+                    prev = None
+                    continue
+                if good == 0:
+                    self.t_offset = self.first_time_offset(item[0])
+                good += 1
+                self.channels.add(item[2])
+                key = (item[0], item[2])
+                if key == prev:
+                    self.per_read = True
+                    break
+                prev = key
+        if good == 0:
+            if self._first_bad:
+                raise CaptureError(f"{self._first_bad}; no row of this {self.kind} is readable")
+            raise CaptureError(f"{self.path}: no serial bytes in this {self.kind} (no data rows)")
+        self.info = self.make_info()
+        return self.info
+
+    def first_time_offset(self, t_first: int) -> int:
+        """Added to every time (Saleae shifts a triggered capture that starts before 0)."""
+        return 0
+
+    def position(self) -> tuple[int, int] | None:
+        return None if self._lines is None else (self._lines.bytes_read, self._size)
+
+    def events(self) -> Iterator[Chunk | Gap]:
+        """Second pass: the Chunks (and a Gap where rows were skipped), lazily."""
+        self.open()
+        log = DamageLog(self.damage)
+        fh = open_regular(self.path)
+        self._fh = fh
+        try:
+            yield from _chunks(_merge(self._rows(fh, log), log, self.path), self.per_read, self.channels)
+        finally:
+            log.finish(self.path)
+            self.close()
+            if self.info is not None and "channels" in self.info.extra:
+                self.info.extra["channels"] = sorted(self.channels)
+
+    def close(self) -> None:
+        fh, self._fh = self._fh, None
+        if fh is not None:
+            fh.close()
+
+    def _bad(self, log: DamageLog, sentence: str) -> None:
+        if self._first_bad is None:
+            self._first_bad = sentence
+        log.add("bad rows", sentence + ": skipped")
+
+    def _rows(self, fh, log: DamageLog) -> Iterator[tuple]:
+        """(t_ns, seq, channel, byte, flag, lineno) in file order; channel None = bad rows before."""
+        lines = _Lines(fh)
+        self._lines = lines
+        reader = csv.reader(lines)
+        path = self.path
+        try:
+            header = next(reader, None)
+        except csv.Error as e:
+            raise CaptureError(f"{path}:1: not a {self.kind} ({e})") from None
+        except OSError as e:
+            raise CaptureError(f"{path}: {e.strerror or e}") from None
+        if lines.bad_text == 1:
+            raise CaptureError(f"{path}: not a text CSV file (its first line is not UTF-8)")
+        self.parse_header([h.strip().lower() for h in header or []])
+        ncols = len(header or [])
+        seq = 0
+        bad_since: int | None = None
+        offset = self.t_offset
+        while True:
+            try:
+                row = next(reader)
+            except StopIteration:
+                break
+            except csv.Error as e:
+                bad_since = bad_since or reader.line_num
+                self._bad(log, f"{path}:{reader.line_num}: bad row ({e})")
+                continue
+            except OSError as e:
+                log.add("read errors", f"{path}: read error after byte {lines.bytes_read}: {e.strerror or e}; "
+                        "the rest of the file was not read")
+                bad_since = bad_since or reader.line_num
+                break
+            lineno = reader.line_num
+            if lines.bad_text == lineno:
+                bad_since = bad_since or lineno
+                self._bad(log, f"{path}:{lineno}: bad row (not UTF-8 text)")
+                continue
+            if not row:
+                continue
+            try:
+                parsed = self.parse_row(row)
+                if len(row) < ncols and lines.bytes_read == self._size and not _ends_line(fh):
+                    raise ValueError(f"{len(row)} of {ncols} columns")
+            except (ValueError, IndexError) as e:
+                if not "".join(row).strip():
+                    continue  # a blank row
+                bad_since = bad_since or lineno
+                why = "too few columns" if isinstance(e, IndexError) else (str(e) or "not understood")
+                if lines.bytes_read == self._size and not _ends_line(fh):
+                    why += "; the file ends mid-row (export cut short?)"
+                self._bad(log, f"{path}:{lineno}: bad row {quote(','.join(row))} ({why})")
+                continue
+            if parsed is None:
+                continue
+            t, ch, b, flag = parsed
+            if offset:
+                t += offset
+            if bad_since is not None:
+                yield (t, seq, None, bad_since, None, lineno)
+                seq += 1
+                bad_since = None
+            yield (t, seq, ch, b, flag, lineno)
+            seq += 1
+        if bad_since is not None:
+            yield (None, seq, None, bad_since, None, None)
+
+
+def _ends_line(fh) -> bool:
+    """Does the file end with a newline?  (Tells a row cut by a killed export from a bad one.)"""
+    try:
+        pos = fh.tell()
+        fh.seek(-1, os.SEEK_END)
+        last = fh.read(1)
+        fh.seek(pos)
+        return last in (b"\n", b"\r")
+    except OSError:
+        return True
+
+
+def _merge(items: Iterator[tuple], log: DamageLog, path: str) -> Iterator[tuple]:
+    """Rows in time order (stable: equal times keep file order) through a bounded window.
+
+    The window is a sorted list: a row in order is appended, one out of order
+    is inserted after the rows of its time.  A row earlier than one already
+    yielded is replayed at that later time and reported.  A trailing marker
+    (time None: bad rows at the very end) comes out last.
+    """
+    buf: list[tuple] = []
+    head = 0  # buf[:head] were yielded
+    last = None
+    tail = None
+    for item in items:
+        t = item[0]
+        if t is None:
+            tail = item
+            break
+        if last is not None and t < last:
+            if item[2] is not None:
+                log.add("rows out of order",
+                        f"{path}:{item[5]}: row at {t / 1e9:.9f} s comes after rows up to {last / 1e9:.9f} s "
+                        f"(beyond the {REORDER_WINDOW}-row reorder window): replayed at {last / 1e9:.9f} s")
+            t = last
+            item = (last, -1, *item[2:])  # seq -1: replayed late (not a read sharing its time)
+        if len(buf) == head or buf[-1][0] <= t:
+            buf.append(item)
+        else:
+            insort_right(buf, item, head, key=_time)
+        if len(buf) - head > REORDER_WINDOW:
+            out = buf[head]
+            head += 1
+            last = out[0]
+            yield out
+            if head >= REORDER_WINDOW:
+                del buf[:head]
+                head = 0
+    yield from buf[head:]
+    if tail is not None:
+        yield tail
+
+
+def _chunks(items: Iterator[tuple], per_read: bool, channels: set[str]) -> Iterator[Chunk | Gap]:
+    """Merged rows -> Chunks exactly as chunks_from_rows cuts a sorted list; a Gap where rows were skipped."""
+    data = bytearray()
+    times: list[int] = []
+    flags: list[tuple[int, str]] = []
+    run_t = 0
+    run_ch: str | None = None
+    last_t: int | None = None  # time of the last row before the current run
+    hole: str | None = None  # rows were skipped before the current run
+    hole_last: int | None = None
+
+    def flush() -> Iterator[Chunk | Gap]:
+        nonlocal hole
+        c = Chunk(run_t, bytes(data), None if per_read else tuple(times), tuple(flags), run_ch or "")
+        data.clear()
+        times.clear()
+        flags.clear()
+        if hole is not None:
+            yield gap_before(hole_last, c, hole)
+            hole = None
+        yield c
+
+    for t, _seq, ch, b, flag, lineno in items:
+        if ch is None:  # bad rows were skipped before this point
+            if data:
+                last_t = times[-1]
+                yield from flush()
+            if lineno is None:
+                where = f"line {b} to the end"
+            else:
+                where = f"line {b}" if lineno - 1 <= b else f"lines {b}-{lineno - 1}"
+            hole = hole or f"unreadable rows skipped ({where})"
+            hole_last = last_t
+            continue
+        if data and (ch != run_ch or (t != run_t if per_read else len(data) >= PER_BYTE_CHUNK)):
+            last_t = times[-1]
+            yield from flush()
+        if not data:
+            run_t, run_ch = t, ch
+            if ch not in channels and len(channels) < 256:
+                channels.add(ch)
+        if flag:
+            flags.append((len(data), flag))
+        data.append(b)
+        times.append(t)
+    if data:
+        yield from flush()
+    elif hole is not None and last_t is not None:
+        yield Gap(last_t, last_t, hole)
+
+
+def chunks_from_rows(rows: list[Row]) -> tuple[str, list[Chunk]]:
+    """A list of rows (already in time order) -> ("byte" | "read", Chunks); kept for small callers."""
+    per_read = any(rows[i][0] == rows[i - 1][0] and rows[i][1] == rows[i - 1][1] for i in range(1, len(rows)))
+    items = ((t, i, ch, b, flag, None) for i, (t, ch, b, flag) in enumerate(rows))
+    return ("read" if per_read else "byte"), list(_chunks(items, per_read, set()))

@@ -1,0 +1,231 @@
+"""Seeded fuzzing of every input file at the command line: never a traceback, one line when refused.
+
+Malformed captures (MCAP, pcap, pcapng, byte CSV, Saleae CSV, random bytes),
+bus files and register maps are made from good ones by a seeded random
+generator (bit flips, cuts, deleted / inserted / overwritten / repeated
+spans; for TOML also nasty values, renamed keys, deep nesting, non-UTF-8)
+and driven through sniffer.cli.main in-process.  Deterministic: the same
+cases on every run (SNIFFER_FUZZ_SEED and SNIFFER_FUZZ_CASES explore others
+locally).
+
+What is asserted, per case:
+* no "Traceback" anywhere, exit code 0 or 2;
+* exit 2: exactly one stderr line, starting "sniffer: error: ";
+* FileSource refuses the capture (CaptureError at open) <=> the CLI exits 2
+  with one line (captures whose recorded settings the CLI refuses are
+  also exit 2, one line);
+* FileSource reads it with damage: a Gap is among the events, and the CLI
+  still replays it (exit 0 today, see the TODO below).
+"""
+
+from __future__ import annotations
+
+import os
+import random
+from pathlib import Path
+
+import pytest
+from refdata import SIGROK
+
+from sniffer.cli import main
+from sniffer.events import Chunk, Gap
+from sniffer.export import export
+from sniffer.regress import DecodeOptions
+from sniffer.sinks.mcap import McapSink
+from sniffer.sources import CaptureError
+from sniffer.sources.replay import FileSource, open_replay
+
+SEED = int(os.environ.get("SNIFFER_FUZZ_SEED", "20240611"))
+CASES_PER_FORMAT = int(os.environ.get("SNIFFER_FUZZ_CASES", "30"))
+TOML_CASES = 2 * CASES_PER_FORMAT
+WIZ = SIGROK / "wizmodbus.bytes.csv"
+
+BUS = """[serial]
+baud = 9600
+parity = "N"
+stopbits = 1
+protocol = "modbus-rtu"
+
+[units]
+1 = "generic"
+2 = "a510"
+
+[timeouts_ms]
+1 = 250
+"""
+
+MAP = """registers = [
+  { addr = 0x0000, id = "P-01", name = "Speed", type = "u16", scale = 0.1, unit = "Hz", access = "RW", section = "1" },
+  { addr = 0x0001, id = "", name = "Status", type = "u16", bits = "status", access = "R", section = "2" },
+  { addr = 0x0002, id = "", name = "Fault", type = "u16", enum = "fault", access = "R", section = "3" },
+  { addr = 0x0010, id = "", name = "Slot", type = "u32", count = 4, stride = 2, access = "R", section = "4" },
+]
+
+[model]
+id = "fuzz"
+name = "Fuzz drive"
+max_registers_per_request = 16
+broadcast_registers = [0]
+
+[exceptions]
+0x41 = { name = "BUSY", text = "busy" }
+
+[enums.fault]
+"0" = "none"
+"0x01" = { text = "OC", detail = "over current" }
+
+[bits.status]
+"0" = "run"
+"1-2" = { name = "mode", values = { "0" = "a", "1" = "b" } }
+"""
+
+NASTY = ["nan", "inf", "-inf", "-1", "0", "1e308", "100000000", '"x"', '""', "true", "[5]", "[]", "{}",
+         "{ a = 1 }", '"0x10"', "0x10", "1.5", "99999999999999999999", '"' + "x" * 300 + '"',
+         "[" * 40 + "]" * 40, '"a510"', "65535", "4294967296"]
+
+
+# -- the seed files -------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def seeds(tmp_path_factory) -> dict[str, bytes]:
+    d = tmp_path_factory.mktemp("seeds")
+    out = {"csv": WIZ.read_bytes()}
+    info, events = open_replay(str(WIZ))
+    info.baud = 9600
+    sink = McapSink(d / "wiz.mcap", flush_interval_s=0)  # a chunk per event: damage loses little
+    sink.start(info)
+    for ev in events:
+        sink.raw(ev)
+    sink.close()
+    out["mcap"] = (d / "wiz.mcap").read_bytes()
+    for ext in ("pcap", "pcapng"):
+        export(WIZ, "pcap", d / f"wiz.{ext}", DecodeOptions(baud=9600))
+        out[ext] = (d / f"wiz.{ext}").read_bytes()
+    rows = WIZ.read_text().splitlines()[1:]
+    out["saleae"] = ("name,type,start_time,duration,data\n" + "".join(
+        f'"Async Serial {ch}","data",{t},0.000937,0x{b.upper()}\n'
+        for t, ch, b, _f in (r.split(",") for r in rows))).encode()
+    return out
+
+
+def mutate(data: bytes, rng: random.Random) -> bytes:
+    d = bytearray(data)
+    kind = rng.randrange(6)
+    i = rng.randrange(len(d))
+    n = rng.randint(1, 300)
+    if kind == 0:
+        for _ in range(rng.randint(1, 6)):
+            d[rng.randrange(len(d))] ^= 1 << rng.randrange(8)
+    elif kind == 1:
+        del d[i:]
+    elif kind == 2:
+        del d[i:i + n]
+    elif kind == 3:
+        d[i:i] = rng.randbytes(n)
+    elif kind == 4:
+        d[i:i + n] = rng.randbytes(min(n, len(d) - i))
+    else:
+        j = rng.randrange(len(d))
+        d[j:j] = d[i:i + n]
+    return bytes(d)
+
+
+def mutate_toml(text: str, rng: random.Random) -> bytes:
+    lines = text.splitlines()
+    kind = rng.randrange(8)
+    k = rng.randrange(len(lines))
+    if kind == 0 and "=" in lines[k]:
+        key, _, _value = lines[k].partition("=")
+        lines[k] = f"{key}= {rng.choice(NASTY)}"
+    elif kind == 1 and "=" in lines[k]:
+        lines[k] = lines[k].replace(lines[k].split("=")[0].strip(), rng.choice(["x", "1", "300", "-1", "unit"]), 1)
+    elif kind == 2:
+        del lines[k]
+    elif kind == 3:
+        lines.insert(k, lines[rng.randrange(len(lines))])
+    elif kind == 4:
+        lines.insert(rng.randrange(len(lines) + 1), rng.choice(["[unit]", "[serial]", "[x.y]", "junk", "= 1"]))
+    elif kind == 5:
+        lines.append("z = " + "[" * 3000 + "]" * 3000)
+    elif kind == 6:
+        return mutate(("\n".join(lines) + "\n").encode(), rng)
+    else:
+        return ("\n".join(lines[:k]) + "\n").encode() + b"\xff\xfe" + ("\n".join(lines[k:]) + "\n").encode()
+    return ("\n".join(lines) + "\n").encode()
+
+
+# -- running them ---------------------------------------------------------------------------------
+def cli(capsys, args) -> tuple[int, list[str]]:
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    assert "Traceback" not in out + err
+    assert code in (0, 2), (code, err)
+    lines = [line for line in err.splitlines() if line.strip()]
+    if code == 2:
+        assert len(lines) == 1 and lines[0].startswith("sniffer: error: "), lines
+    else:
+        assert all(line.startswith("sniffer: ") for line in lines), lines
+    return code, lines
+
+
+# losses that need no Gap: nothing readable comes after them, or no byte was lost
+NO_GAP_NEEDED = ("cut off", "ends inside", "reorder window", "not a serial capture", "not listed")
+
+
+def source_verdict(path: Path) -> str:
+    """'refused', 'damaged' (read with damage: a Gap was yielded where input was lost) or 'clean'."""
+    src = FileSource(path)
+    try:
+        src.open()
+        events = list(src.events())
+    except CaptureError:
+        return "refused"
+    if not src.damage:
+        return "clean"
+    if not any(type(e) is Gap for e in events) and any(type(e) is Chunk for e in events):
+        assert all(any(w in line for w in NO_GAP_NEEDED) for line in src.damage), src.damage
+    return "damaged"
+
+
+@pytest.mark.parametrize("fmt", ["mcap", "pcap", "pcapng", "csv", "saleae", "random"])
+def test_malformed_captures(tmp_path, capsys, seeds, fmt):
+    rng = random.Random(f"{SEED}-{fmt}")
+    verdicts: dict[str, int] = {}
+    for case in range(CASES_PER_FORMAT):
+        path = tmp_path / f"case{case}.{'bin' if fmt == 'random' else fmt}"
+        data = rng.randbytes(rng.randint(1, 3000)) if fmt == "random" else mutate(seeds[fmt], rng)
+        path.write_bytes(data)
+        verdict = source_verdict(path)
+        code, lines = cli(capsys, ["replay", path, "--baud", "9600"])
+        if verdict == "refused":
+            assert code == 2, (case, lines)
+        # TODO(session reports FileSource.damage): once the lead's session prints FileSource.damage and
+        # exits 2 after replaying everything readable, a "damaged" verdict must give code == 2 with the
+        # damage lines; today's cli.py replays it and exits 0.
+        verdicts[verdict] = verdicts.get(verdict, 0) + 1
+    if fmt != "random":  # the mutations reach damage, or the test proves little
+        assert verdicts.get("damaged", 0) > 0, verdicts
+    if fmt == "random":
+        assert verdicts == {"refused": CASES_PER_FORMAT}
+
+
+def test_malformed_bus_files(tmp_path, capsys):
+    rng = random.Random(f"{SEED}-bus")
+    codes = []
+    for case in range(TOML_CASES):
+        bus = tmp_path / f"bus{case}.toml"
+        bus.write_bytes(mutate_toml(BUS, rng))
+        code, _lines = cli(capsys, ["replay", WIZ, "--baud", "9600", "--bus", bus])
+        codes.append(code)
+    assert 0 in codes and 2 in codes
+
+
+def test_malformed_register_maps(tmp_path, capsys):
+    rng = random.Random(f"{SEED}-map")
+    codes = []
+    for case in range(TOML_CASES):
+        m = tmp_path / f"map{case}.toml"
+        m.write_bytes(mutate_toml(MAP, rng))
+        code, _lines = cli(capsys, ["decode", "010300000002C40B", "010304000100022A32",
+                                    "--model-file", m, "--device", "1=fuzz"])
+        codes.append(code)
+    assert 0 in codes and 2 in codes
