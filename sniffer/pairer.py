@@ -112,7 +112,9 @@ class Pairer:
             # with its request has no measurable turnaround (latency stays null; the
             # frame's time_source "read" says why)
             if not (f.time_source == "read" and lat <= 0):
-                f.latency_ms = lat / 1e6
+                # to the microsecond, as the frame record has it: a viewer that reads the record and
+                # one that has the frame show the same figure (rounding twice could differ)
+                f.latency_ms = round(lat / 1e6, 3)
             if lat > self.unit_timeouts.get(req.unit, self.timeout_ns):
                 f.annotations.append(
                     note(codes.LATE_RESPONSE, f"{lat / 1e6:.1f} ms after the request", 0, len(f.raw))

@@ -29,7 +29,7 @@ def frame_record(f: Frame, t0_ns: int) -> dict:
         "model": f.model,
         "points": f.points,
         "annotations": [a.to_dict() for a in f.annotations] if f.annotations else [],
-        "latency_ms": None if f.latency_ms is None else round(f.latency_ms, 3),
+        "latency_ms": f.latency_ms,  # microsecond resolution (the pairer rounds it)
         "pair": f.pair,
         "summary": f.summary,
         "time_source": f.time_source,

@@ -15,7 +15,8 @@ What is asserted, per case:
   with one line (captures whose recorded settings the CLI refuses are
   also exit 2, one line);
 * FileSource reads it with damage: a Gap is among the events, and the CLI
-  still replays it (exit 0 today, see the TODO below).
+  replays everything readable, then says it in one line and exits 2;
+* a clean read exits 0.
 """
 
 from __future__ import annotations
@@ -27,10 +28,10 @@ from pathlib import Path
 import pytest
 from refdata import SIGROK
 
+from helpers import export
+
 from sniffer.cli import main
 from sniffer.events import Chunk, Gap
-from sniffer.export import export
-from sniffer.regress import DecodeOptions
 from sniffer.sinks.mcap import McapSink
 from sniffer.sources import CaptureError
 from sniffer.sources.replay import FileSource, open_replay
@@ -98,7 +99,7 @@ def seeds(tmp_path_factory) -> dict[str, bytes]:
     sink.close()
     out["mcap"] = (d / "wiz.mcap").read_bytes()
     for ext in ("pcap", "pcapng"):
-        export(WIZ, "pcap", d / f"wiz.{ext}", DecodeOptions(baud=9600))
+        export(WIZ, "pcap", d / f"wiz.{ext}", "--baud", "9600")
         out[ext] = (d / f"wiz.{ext}").read_bytes()
     rows = WIZ.read_text().splitlines()[1:]
     out["saleae"] = ("name,type,start_time,duration,data\n" + "".join(
@@ -196,11 +197,12 @@ def test_malformed_captures(tmp_path, capsys, seeds, fmt):
         path.write_bytes(data)
         verdict = source_verdict(path)
         code, lines = cli(capsys, ["replay", path, "--baud", "9600"])
-        if verdict == "refused":
+        if verdict in ("refused", "damaged"):  # damaged: everything readable replayed, then one line, exit 2
             assert code == 2, (case, lines)
-        # TODO(session reports FileSource.damage): once the lead's session prints FileSource.damage and
-        # exits 2 after replaying everything readable, a "damaged" verdict must give code == 2 with the
-        # damage lines; today's cli.py replays it and exits 0.
+        if verdict == "damaged":
+            assert "input damaged" in lines[0], lines
+        if verdict == "clean":
+            assert code == 0, (case, lines)
         verdicts[verdict] = verdicts.get(verdict, 0) + 1
     if fmt != "random":  # the mutations reach damage, or the test proves little
         assert verdicts.get("damaged", 0) > 0, verdicts

@@ -328,3 +328,20 @@ def test_every_protocol_per_read_chunks_conserved(protocol, pieces, cuts):
         i, k = j, k + 1
     frames = _pipe(protocol, events)
     assert b"".join(f.raw for f in frames) == data
+
+
+def test_latency_is_kept_to_the_microsecond_the_record_holds():
+    """A viewer rebuilding frames from records prints the same latency as the capture (no double rounding)."""
+    from sniffer.records import frame_record
+    from sniffer.sinks.text import frame_line
+    from sniffer.tui.model import frame_from_record
+
+    p = Pairer()
+    req = Frame(0, 0, 1_000_000, bytes.fromhex("010300000001840a"), "modbus-rtu", 1, 3, can=CAN_REQ)
+    rsp = Frame(1, 1_000_000 + 1_049_510, 1_000_000 + 2_000_000, bytes.fromhex("0103020001"), "modbus-rtu", 1, 3,
+                can=CAN_RSP)
+    p.push(req)
+    p.push(rsp)
+    assert rsp.latency_ms == 1.05  # 1.049510 ms, to the microsecond
+    back = frame_from_record(frame_record(rsp, 0), 0)
+    assert frame_line(back, 0) == frame_line(rsp, 0) and "1.1ms" in frame_line(rsp, 0)

@@ -13,7 +13,7 @@ from helpers import decoded
 from helpers import export as _export
 
 from sniffer.crc import crc_bytes
-from sniffer.sinks.pcap import TSHARK_ARGS, global_header, packet
+from sniffer.pcap_format import TSHARK_ARGS, global_header, packet
 from sniffer.session import CaptureSpec
 from sniffer.sources import CaptureError
 from sniffer.sources.pcapsrc import open_pcap, read_packets, sniff

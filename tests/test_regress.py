@@ -131,7 +131,7 @@ def test_diff_names_registers_from_the_model():
 
 def _pcap(path, value: int, period_s: float = 0.1, n: int = 5, exception: bool = False):
     from sniffer.crc import crc_bytes
-    from sniffer.sinks.pcap import global_header, packet
+    from sniffer.pcap_format import global_header, packet
 
     req = bytes.fromhex("010300100001")
     rsp = bytes.fromhex("018302") if exception else bytes([1, 3, 2]) + value.to_bytes(2, "big")

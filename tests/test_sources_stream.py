@@ -18,14 +18,12 @@ import tracemalloc
 from pathlib import Path
 
 import pytest
-from helpers import run_events
+from helpers import export, run_events
 from refdata import SIGROK, SIGROK_NAMES
 
 from sniffer.events import Chunk, Gap
-from sniffer.export import export
 from sniffer.line import LineSettings
 from sniffer.pcap_format import global_header, packet, pcapng_header, pcapng_packet
-from sniffer.regress import DecodeOptions
 from sniffer.sources import CaptureError
 from sniffer.sources.bytecsv import write_byte_csv
 from sniffer.sources.csvstream import PER_BYTE_CHUNK, REORDER_WINDOW
@@ -219,7 +217,7 @@ def test_open_is_idempotent_events_once_close_twice(tmp_path):
 def test_stop_from_another_thread_ends_events(tmp_path, fmt):
     path = {"csv": WIZ, "mcap": CAPTURES / "sim" / "fast.mcap", "pcap": tmp_path / "w.pcap"}[fmt]
     if fmt == "pcap":
-        export(WIZ, "pcap", path, DecodeOptions(baud=9600))
+        export(WIZ, "pcap", path, "--baud", "9600")
     src = FileSource(path)
     src.open()
     got = []
@@ -304,7 +302,7 @@ def test_what_cannot_be_replayed_is_one_line(tmp_path, case, words):
 # -- damage: skipped, announced, a Gap, the rest still read ------------------------------------
 def _wiz_pcap(tmp_path, ext="pcap") -> tuple[Path, list[int]]:
     p = tmp_path / f"wiz.{ext}"
-    export(WIZ, "pcap", p, DecodeOptions(baud=9600))
+    export(WIZ, "pcap", p, "--baud", "9600")
     data = p.read_bytes()
     offsets = []
     if ext == "pcap":

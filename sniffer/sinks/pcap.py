@@ -3,8 +3,8 @@
 One packet per frame (noise frames included, so every byte is in the file),
 classic pcap with nanosecond timestamps (magic a1b23c4d) or, for an OUT
 ending in .pcapng, pcapng (nanosecond if_tsresol, line settings in the
-interface description); link type 147 (LINKTYPE_USER0).  Wireshark maps a user DLT to a dissector through its
-"user_dlts" table; for Modbus/RTU that is the `mbrtu` dissector:
+interface description); link type 147 (LINKTYPE_USER0); the format itself is
+sniffer/pcap_format.py.  Wireshark maps a user DLT to a dissector through its "user_dlts" table; for Modbus/RTU that is the `mbrtu` dissector:
 
     tshark -r out.pcap -o 'uat:user_dlts:"User 0 (DLT=147)","mbrtu","0","","0",""'
 
@@ -18,53 +18,13 @@ the frame's start time (t0 = Unix epoch when the capture has no anchor).
 from __future__ import annotations
 
 import os
-import struct
 
 from ..events import CaptureInfo
 from ..frame import Frame
+from ..pcap_format import TSHARK_ARGS, global_header, packet, pcapng_header, pcapng_packet
 from .base import Sink
 
-LINKTYPE_USER0 = 147
-LINKTYPE_RTAC_SERIAL = 250
-MAGIC_NS = 0xA1B23C4D
-MAGIC_US = 0xA1B2C3D4
-SNAPLEN = 65535
-TSHARK_ARGS = ["-o", 'uat:user_dlts:"User 0 (DLT=147)","mbrtu","0","","0",""']
-
-
-def global_header(linktype: int = LINKTYPE_USER0) -> bytes:
-    return struct.pack("<IHHiIII", MAGIC_NS, 2, 4, 0, 0, SNAPLEN, linktype)
-
-
-def packet(t_ns: int, data: bytes) -> bytes:
-    sec, ns = divmod(max(t_ns, 0), 1_000_000_000)
-    return struct.pack("<IIII", sec, ns, len(data), len(data)) + data
-
-
-def _block(btype: int, body: bytes) -> bytes:
-    body += b"\0" * (-len(body) % 4)
-    return struct.pack("<II", btype, len(body) + 12) + body + struct.pack("<I", len(body) + 12)
-
-
-def _opt(code: int, value: bytes) -> bytes:
-    return struct.pack("<HH", code, len(value)) + value + b"\0" * (-len(value) % 4)
-
-
-def pcapng_header(info: CaptureInfo, linktype: int = LINKTYPE_USER0) -> bytes:
-    """Section header + one interface (nanosecond timestamps, the capture's source as its name)."""
-    shb = _block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1)
-                 + _opt(4, b"rs485-sniffer") + _opt(0, b""))  # shb_userappl
-    line = f"{info.baud or '?'} {8}{info.parity or 'N'}{info.stopbits or 1}"
-    idb = _block(1, struct.pack("<HHI", linktype, 0, SNAPLEN)
-                 + _opt(2, (info.source or "rs485").encode()[:200])  # if_name
-                 + _opt(3, f"RS-485 {info.protocol} {line}".encode())  # if_description
-                 + _opt(9, b"\x09") + _opt(0, b""))  # if_tsresol: 10^-9
-    return shb + idb
-
-
-def pcapng_packet(t_ns: int, data: bytes) -> bytes:
-    t = max(t_ns, 0)
-    return _block(6, struct.pack("<IIIII", 0, t >> 32, t & 0xFFFFFFFF, len(data), len(data)) + data)
+__all__ = ["PcapSink", "TSHARK_ARGS", "global_header", "packet"]
 
 
 class PcapSink(Sink):
