@@ -12,6 +12,7 @@ from sniffer.sources.replay import open_replay
 from sniffer.tui.sink import TuiSink
 
 SIM = Path(__file__).resolve().parent.parent / "captures" / "sim"
+SIM_CAPTURES = sorted(p.name for p in SIM.glob("*.mcap"))
 
 
 @functools.cache
@@ -37,6 +38,11 @@ def replay_frames(name: str = "errors.mcap"):
 def replay_shadow(name: str = "errors.mcap") -> list:
     """The register-shadow entries the decode's TuiSink recorded (TuiSink.drain_shadow)."""
     return _decode(name)[3]
+
+
+def registry_shadow(registry) -> dict:
+    """{(unit, table, address): raw} of the decoders' final register shadow (every unit's UnitState)."""
+    return {(unit, table, a): v for unit, st in registry.states.items() for (table, a), v in st.snapshot().items()}
 
 
 def filled_sink(name: str = "errors.mcap") -> TuiSink:
