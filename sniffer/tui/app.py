@@ -48,7 +48,8 @@ Colours: [bold bright_red]errors / bad CRC[/], [bold magenta]exceptions[/], [yel
 """
 
 
-LIST_HEADER = f"   {'time (s)':>12} {'dir':5} {'unit':4} {'model':<8} {'fc':4} {'frame→pair':<14} {'latency':>9} summary  [problems]"
+LIST_HEADER = (f"   {'time (s)':>12} {'dir':5} {'unit':4} {'model':<8} {'fc':4} {'frame→pair':<14} {'latency':>9} "
+               "summary  [problems]")
 
 
 class HelpScreen(ModalScreen):
