@@ -329,7 +329,7 @@ def _modbus(index, t_ms, role, pair=None, points=(), writes=(), unit=1, function
     return f
 
 
-def test_the_watch_applies_writes_named_by_the_latest_point_with_that_raw():
+def test_the_watch_applies_writes_named_by_a_point_with_that_raw():
     pt = {"name": "Frequency command", "address": 8192, "raw": 7, "value": 0.07, "unit": "Hz", "id": "F"}
     s = FrameStore()
     s.add([_modbus(0, 0, "request", points=[pt])])

@@ -6,9 +6,11 @@ decoders.base.UnitState.commit).  `RegisterBook` applies those writes as the
 frame enters the store, so a local capture, a replay and a viewer attached
 over a socket (frames rebuilt from their records) build the same watch, and
 it is the decoders' shadow.  A written value takes its name, scaled value,
-unit and text from the latest point seen at that (unit, table, address) whose
-raw value is the one written (usually on the same frame, or on the write
-request a response confirmed); without one it shows the raw number.
+unit and text from a point at that (unit, table, address) whose raw value is
+the one written: the frame's own (a read response, a single write's echo),
+else the latest one of a frame that wrote nothing (the write request a
+response confirmed); without one it shows the raw number, or keeps the value
+shown if the raw number did not change.
 """
 
 from __future__ import annotations
@@ -53,31 +55,48 @@ class RegisterBook:
 
     def __init__(self) -> None:
         self.values: dict[tuple[int, str, int], RegisterValue] = {}
-        self.points: dict[tuple[int, str, int], dict] = {}  # the latest point seen per register
+        # the latest point per register of a frame that wrote nothing itself (a write request, whose
+        # response confirms it without points of its own)
+        self.points: dict[tuple[int, str, int], dict] = {}
         self.version = 0  # bumped on every update
 
     def frame(self, f: Frame) -> None:
-        """Apply one frame (in arrival order): remember its points, then apply its writes."""
+        """Apply one frame (in arrival order): its writes, named by its own points or earlier ones."""
         unit = f.unit
         if unit is None:
             return
-        seen = self.points
         pts = f.points
-        if pts and f.crc_ok is not False:
-            table = table_of(f)
-            if table is not None:
+        table = table_of(f) if pts and f.crc_ok is not False else None
+        writes = f.writes
+        if not writes:
+            if table is not None:  # a request's points name what its response may confirm
+                seen = self.points
                 for p in pts:
                     a = p.get("address")
                     if a is not None:
                         seen[(unit, table, a)] = p
-        if not f.writes:
             return
-        t_ns = f.t_ns
-        for table, start, raws in f.writes:
+        own = {p.get("address"): p for p in pts} if table is not None else {}
+        seen, values, t_ns = self.points, self.values, f.t_ns
+        for wtable, start, raws in writes:
+            mine = own if wtable == table else {}
             for a, raw in enumerate(raws, start):
-                key = (unit, table, a)
-                p = seen.get(key)
-                self.set(key, raw, p if p is not None and p.get("raw") == raw else None, t_ns)
+                key = (unit, wtable, a)
+                p = mine.get(a)
+                if p is None or p.get("raw") != raw:
+                    p = seen.get(key)
+                    if p is not None and p.get("raw") != raw:
+                        p = None
+                if p is not None:
+                    rv = values.get(key)
+                    if rv is not None and rv.raw == raw:  # polled again, unchanged (most writes): set() inline
+                        v = p.get("value", raw)
+                        rv.name, rv.id = p.get("name") or rv.name, p.get("id") or ""
+                        rv.value, rv.eng_unit, rv.text, rv.t_ns = v, p.get("unit"), p.get("text") or "", t_ns
+                        if type(v) in _NUMBER:
+                            rv.history.append(v)
+                        continue
+                self.set(key, raw, p, t_ns)
         self.version += 1
 
     def set(self, key: tuple[int, str, int], raw, p: dict | None, t_ns: int) -> None:
