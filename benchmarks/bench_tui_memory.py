@@ -7,8 +7,8 @@
 2. Measure, each in a fresh subprocess so one run's peak RSS does not hide another's:
    - app: what `sniffer replay FILE --tui` runs, without a terminal: SnifferApp headless
      (`run_test`, 120x40, its 15 Hz poll) with a session decoding the streamed capture on the
-     feed thread (default registry, TuiSink tapped to its register shadow), until every frame
-     is in the store.  Then the filters are timed on that store.
+     feed thread (default registry; the register watch applies the frames' `writes`), until every
+     frame is in the store.  Then the filters are timed on that store.
    - store: the same pipeline and TuiSink on one thread, drained into a FrameStore every 5,000
      frames (the App's max_batch), so the time in FrameStore.add is measured alone.
    - old: as `store`, but every Frame is also kept in a list with a dict index -> row, which is
@@ -94,8 +94,7 @@ def child_store(folder: Path, keep_frames: bool, limit_frames: int | None) -> di
 
     registry = default_registry()
     sink = TuiSink()
-    sink.tap_registry(registry)
-    store = FrameStore(registers_from_shadow=True)
+    store = FrameStore()
     kept: list = []
     row_of: dict = {}
     gc.collect()
@@ -107,9 +106,8 @@ def child_store(folder: Path, keep_frames: bool, limit_frames: int | None) -> di
     def drain():
         nonlocal t_add
         batch = sink.drain()
-        shadow = sink.drain_shadow()
         t = time.perf_counter()
-        store.add(batch, shadow)
+        store.add(batch)
         t_add += time.perf_counter() - t
         if keep_frames:
             for f in batch:

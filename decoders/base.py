@@ -9,9 +9,14 @@ from sniffer.frame import Frame
 
 
 class UnitState:
-    """Per-unit memory across frames: the register shadow and anything a model tracks."""
+    """Per-unit memory across frames: the register shadow and anything a model tracks.
 
-    __slots__ = ("unit", "holding", "input", "coils", "discrete", "extra")
+    The shadow (holding, input, coils, discrete) is written only through
+    `commit`, which records the same write on the frame (`Frame.writes`):
+    what a viewer reads there is what the decoder keeps here.
+    """
+
+    __slots__ = ("unit", "holding", "input", "coils", "discrete", "extra", "tables")
 
     def __init__(self, unit: int) -> None:
         self.unit = unit
@@ -20,6 +25,27 @@ class UnitState:
         self.coils: dict[int, int] = {}
         self.discrete: dict[int, int] = {}
         self.extra: dict = {}
+        # the protocol's table words (sniffer.protocols.TABLES) -> the shadow dict
+        self.tables: dict[str, dict[int, int]] = {
+            "holding": self.holding, "input": self.input, "coil": self.coils, "discrete": self.discrete,
+        }
+
+    def commit(self, f: Frame, table: str, start: int, values: list[int]) -> None:
+        """Put `values` (consecutive from address `start`) into the shadow and record them on `f`.
+
+        `values` is kept, not copied, as the frame's record: the caller hands over a list
+        nothing changes afterwards.
+        """
+        d = self.tables[table]
+        if len(values) == 1:
+            d[start] = values[0]
+        else:
+            d.update(zip(range(start, start + len(values)), values))
+        f.writes.append([table, start, values])
+
+    def snapshot(self) -> dict[tuple[str, int], int]:
+        """{(table, address): raw} of the whole shadow (tests compare it with what frames recorded)."""
+        return {(t, a): v for t, d in self.tables.items() for a, v in d.items()}
 
 
 class Decoder(Protocol):
@@ -27,4 +53,7 @@ class Decoder(Protocol):
     codes: tuple[Code, ...]
 
     def decode(self, frame: Frame, request: Frame | None, state: UnitState) -> None:
-        """Fill frame.points / fields / summary / exception / annotations. Never raise."""
+        """Fill frame.points / fields / summary / exception / annotations / writes. Never raise.
+
+        Every write to the unit's register shadow goes through `state.commit(frame, ...)`.
+        """

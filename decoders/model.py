@@ -107,9 +107,9 @@ class TableDecoder(GenericModbus):
                 f.annotations.append(note(TOO_MANY, f"{qty} registers (manual: at most {self.max_regs})", 4, 6))
         if fc not in (0x06, 0x10):
             return
-        for k, pt in enumerate(f.points):
+        for pt in f.points:
             a = pt["address"]
-            span = (4, 6) if fc == 0x06 else (7 + 2 * k, 9 + 2 * k)
+            span = pt["span"]
             r = self.map.registers.get(a)
             if r is None:
                 f.annotations.append(note(UNKNOWN_REG, f"0x{a:04X} is not in the {self.model} map", *span))

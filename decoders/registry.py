@@ -17,8 +17,6 @@ from sniffer.protocols import PROTOCOLS
 from .base import Decoder, UnitState
 
 
-
-
 class DeviceMapError(ValueError):
     pass
 
@@ -126,12 +124,20 @@ _TEXT = {name: p for name, p in PROTOCOLS.items() if p.text}
 
 
 def _spans_to_text(f: Frame, n0: int) -> None:
-    """Decoder spans count ADU bytes: on a text (ASCII) frame, map them onto its characters."""
+    """Decoder spans count ADU bytes: on a text (ASCII) frame, map them onto its characters.
+
+    The annotations the decoder added (from `n0` on) and every point's span; a point gets a
+    new span list (the decoders share theirs between frames).
+    """
     span = _TEXT[f.protocol].raw_span
     n = len(f.raw)
     for k in range(n0, len(f.annotations)):
         a = f.annotations[k]
         f.annotations[k] = type(a)(a.code, a.severity, a.detail, *span(a.start, a.end, n))
+    for p in f.points:
+        s = p.get("span")
+        if s is not None:
+            p["span"] = list(span(s[0], s[1], n))
 
 
 def parse_device_args(items: list[str] | None) -> dict[int, str]:

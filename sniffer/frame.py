@@ -2,7 +2,8 @@
 
 Every input byte ends up in exactly one Frame; bytes that form no frame make a
 noise frame (protocol "noise", with a reason).  The framer fills the wire
-facts, the pairer the role / pair / latency, the decoder the meaning.
+facts, the pairer the role / pair / latency, the decoder the meaning (and
+which registers the frame wrote into its unit's shadow, `writes`).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ class Frame:
         "index", "t_ns", "t_end_ns", "raw", "protocol", "unit", "function",
         "can", "role", "crc_ok", "crc_expected", "time_source", "idle_before_ns",
         "annotations", "pair", "latency_ms", "model", "points", "exception",
-        "fields", "summary", "noise_reason", "channel", "peer", "adu", "encoded",
+        "fields", "summary", "noise_reason", "channel", "peer", "adu", "encoded", "writes",
     )
 
     def __init__(
@@ -61,7 +62,7 @@ class Frame:
         self.pair: int | None = None
         self.latency_ms: float | None = None
         self.model: str | None = None
-        self.points: list[dict] = []
+        self.points: list[dict] = []  # each with "span": [start, end) of its value's bytes in raw
         self.exception: dict | None = None
         self.fields: list | None = None  # decoded tree: [(name, value, start, end, children)]
         self.summary: str = ""
@@ -71,6 +72,9 @@ class Frame:
         # unit + PDU without CRC/LRC, in binary whatever the wire encoding (ASCII is hex text)
         self.adu: bytes = b""
         self.encoded: tuple[int, bytes] | None = None  # (t0_ns, JSON record): records.frame_json
+        # what decoding this frame put into its unit's register shadow: [[table, start, [raw, ...]], ...]
+        # (decoders.base.UnitState.commit writes both)
+        self.writes: list[list] = []
 
     @property
     def is_noise(self) -> bool:

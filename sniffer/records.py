@@ -2,7 +2,18 @@
 
 One object per frame with at least: t, raw, protocol, unit, function, role,
 crc_ok, exception, model, points, annotations, latency_ms, pair.  The same
-record is the MCAP `/frames` message, described by FRAME_SCHEMA.
+record is the MCAP `/frames` message, described by FRAME_SCHEMA.  Fields are
+only ever added, never renamed.
+
+| `points` | `[{name, address, raw, value, unit, span, ...}]`; `span` = `[start, end)` of the value's bytes in `raw` |
+| `writes` | `[[table, start, [raw, ...]], ...]`: what the frame wrote into its unit's register shadow |
+
+`writes` is exactly what the decoder put into the unit's register shadow when
+it decoded this frame (table: "holding", "input", "coil" or "discrete"; raw
+values of consecutive addresses from `start`): a CRC-good read response's
+values, a write once its response confirms it (on the response), a broadcast
+write at once; never anything from a CRC-bad frame or an exception.  Applying
+every frame's `writes` in order rebuilds the decoders' shadow.
 """
 
 from __future__ import annotations
@@ -10,7 +21,7 @@ from __future__ import annotations
 import orjson
 
 from .frame import Frame
-from .protocols import NAMES
+from .protocols import NAMES, TABLES
 
 
 def frame_record(f: Frame, t0_ns: int) -> dict:
@@ -28,6 +39,7 @@ def frame_record(f: Frame, t0_ns: int) -> dict:
         "exception": f.exception,
         "model": f.model,
         "points": f.points,
+        "writes": f.writes,
         "annotations": [a.to_dict() for a in f.annotations] if f.annotations else [],
         "latency_ms": f.latency_ms,  # microsecond resolution (the pairer rounds it)
         "pair": f.pair,
@@ -94,7 +106,27 @@ FRAME_SCHEMA = {
                     "raw": {},
                     "value": {},
                     "unit": {"type": ["string", "null"]},
+                    "span": {"type": "array", "items": {"type": "integer"}, "minItems": 2, "maxItems": 2,
+                             "description": "[start, end): the value's bytes in raw (wire bytes, ASCII "
+                                            "characters for modbus-ascii / pd-ascii)"},
                 },
+            },
+        },
+        "writes": {
+            "type": "array",
+            "description": "what decoding this frame wrote into its unit's register shadow, in order: "
+                           "[table, start address, [raw values of consecutive addresses]] runs "
+                           "(a read response's values, a write confirmed by this response, a broadcast "
+                           "write; none from a CRC-bad frame or an exception)",
+            "items": {
+                "type": "array",
+                "prefixItems": [
+                    {"type": "string", "enum": list(TABLES)},
+                    {"type": "integer"},
+                    {"type": "array", "items": {"type": "integer"}},
+                ],
+                "minItems": 3,
+                "maxItems": 3,
             },
         },
         "annotations": {

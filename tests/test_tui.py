@@ -3,11 +3,10 @@
 import asyncio
 
 import pytest
-from tui_helpers import filled_sink, replay_frames
+from tui_helpers import filled_sink, registry_shadow, replay_frames
 
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.model import F_PROBLEM
-from sniffer.tui.shadow import SHADOW_TABLES
 from sniffer.tui.sink import TuiSink
 
 SIZE = (140, 45)
@@ -198,10 +197,8 @@ def test_replay_feed_thread_end_to_end():
                     break
             assert app.feed_error is None
             assert len(app.store) == len(replay_frames()[1])
-            # the register watch is the decoders' shadow, read on the feed thread frame by frame
-            assert app.sink.tap is not None and app.store.book.from_shadow
-            shadow = {(u, table, a): v for u, st in reg.states.items() for attr, table in SHADOW_TABLES
-                      for a, v in getattr(st, attr).items()}
+            # the register watch is the decoders' shadow: the writes the decoders recorded on the frames
+            shadow = registry_shadow(reg)
             assert {k: rv.raw for k, rv in app.store.registers.items()} == shadow
             await pilot.press("3")
             await pilot.pause()
@@ -210,19 +207,21 @@ def test_replay_feed_thread_end_to_end():
     run(go())
 
 
-def test_register_watch_without_registry_builds_the_shadow_from_points():
-    """A viewer that only gets frames (records over a socket, say) has no registry to read."""
+def test_register_watch_of_an_attached_viewer_is_the_decoders_shadow():
+    """A viewer attached to a capture gets frame records over a socket, no registry: the records' writes."""
+    from sniffer.records import frame_json, loads
+    from sniffer.tui.model import frame_from_record
 
     async def go():
         info, frames, registry = replay_frames("a510.mcap")
         sink = TuiSink()
         sink.start(info)
-        sink.frames(frames)
+        sink.frames(frame_from_record(loads(frame_json(f, info.t0_ns)), info.t0_ns) for f in frames)
         sink.close()
         app = SnifferApp(sink, None, clock=lambda: 0.0)
         async with app.run_test(size=SIZE) as pilot:
             await loaded(app, pilot)
-            assert not app.store.book.from_shadow
+            assert {k: rv.raw for k, rv in app.store.registers.items()} == registry_shadow(registry)
             await pilot.press("3")
             regs = app.query_one("#regs")
             regs.focus()

@@ -4,11 +4,10 @@ import random
 import threading
 
 import pytest
-from tui_helpers import replay_frames, replay_shadow
+from tui_helpers import SIM_CAPTURES, registry_shadow, replay_frames
 
 from sniffer.tui.filters import filter_expr, parse_filter
 from sniffer.tui.model import F_EXC, F_NOISE, F_PROBLEM, F_TIMEOUT, Filter, FrameStore, frame_flags
-from sniffer.tui.shadow import SHADOW_TABLES
 from sniffer.tui.sink import TuiSink
 
 
@@ -293,109 +292,61 @@ def test_row_index_takes_frames_out_of_order():
     assert ix.get(4) is None and 8 not in ix and ix[9] == 7
 
 
-# ---------------------------------------------------------------- register watch from the shadow
-SHADOW_CAPTURES = ["errors.mcap", "a510.mcap", "tds-v8.mcap", "pd-series.mcap", "spl-ascii.mcap"]
+# ---------------------------------------------------------------- register watch from the frames' writes
+def _watch(store) -> dict:
+    return {k: (rv.name, rv.id, rv.value, rv.eng_unit, rv.text, rv.raw, rv.changes, rv.t_ns, rv.changed_ns,
+                list(rv.history)) for k, rv in store.registers.items()}
 
 
-def _registry_shadow(registry) -> dict:
-    out = {}
-    for unit, st in registry.states.items():
-        for attr, table in SHADOW_TABLES:
-            for a, v in getattr(st, attr).items():
-                out[(unit, table, a)] = v
-    return out
+@pytest.mark.parametrize("name", SIM_CAPTURES)
+def test_register_watch_is_the_decoders_shadow_locally_and_from_records(name):
+    """Local frames and the same frames' JSON records (what an attached viewer gets) build one watch,
+    and it is the registry's final shadow."""
+    from sniffer.records import frame_json, loads
 
-
-@pytest.mark.parametrize("name", SHADOW_CAPTURES)
-def test_register_watch_is_the_registry_shadow(name):
     info, frames, registry = replay_frames(name)
-    s = FrameStore(info.t0_ns, registers_from_shadow=True)
-    shadow = replay_shadow(name)
-    s.add(frames[:57], [e for e in shadow if e[0] < 57])  # entries arrive with (or after) their frames
-    s.add(frames[57:], [e for e in shadow if e[0] >= 57])
-    assert {k: rv.raw for k, rv in s.registers.items()} == _registry_shadow(registry)
-    rows = s.register_rows()
+    local = FrameStore(info.t0_ns)
+    local.add(frames[:57])
+    local.add(frames[57:])
+    attached = FrameStore(info.t0_ns)
+    attached.add_records(loads(frame_json(f, info.t0_ns)) for f in frames)
+    shadow = registry_shadow(registry)
+    assert shadow and {k: rv.raw for k, rv in local.registers.items()} == shadow
+    assert _watch(attached) == _watch(local)
+    rows = local.register_rows()
     assert any(rv.changes for rv in rows) and any(len(rv.history) > 1 for rv in rows)
     for rv in rows:  # a value decoded from the shadow's raw, never a stale one
         if rv.history:
             assert rv.history[-1] == float(rv.value)
 
 
-@pytest.mark.parametrize("name", SHADOW_CAPTURES)
-def test_without_a_registry_the_points_give_the_same_shadow(name):
-    info, frames, registry = replay_frames(name)
-    a = FrameStore(info.t0_ns)
-    a.add(frames)
-    b = FrameStore(info.t0_ns, registers_from_shadow=True)
-    b.add(frames, replay_shadow(name))
-    assert {k: rv.raw for k, rv in a.registers.items()} == _registry_shadow(registry)
-    # the generic decoder also shadows a read response that failed its CRC (the points mode does not):
-    # those registers may count more changes in the shadow's watch
-    mangled = {(u, table, a) for seq, u, _t, entries in replay_shadow(name) for table, a, _raw, _p in entries
-               if frames[seq].crc_ok is False}
-    for k, rv in b.registers.items():
-        if k in mangled:
-            continue
-        ra = a.registers[k]
-        assert (ra.name, ra.value, ra.eng_unit, ra.text, ra.changes, list(ra.history)) == \
-               (rv.name, rv.value, rv.eng_unit, rv.text, rv.changes, list(rv.history))
-
-
-def _modbus(index, t_ms, raw_hex, role, pair=None, points=(), unit=1, function=0x10, crc_ok=True):
+def _modbus(index, t_ms, role, pair=None, points=(), writes=(), unit=1, function=0x10, crc_ok=True):
     from sniffer.frame import Frame
 
-    f = Frame(index, t_ms * 1_000_000, t_ms * 1_000_000 + 500_000, bytes.fromhex(raw_hex), "modbus-rtu", unit,
-              function, crc_ok=crc_ok)
-    f.role, f.pair, f.points = role, pair, [dict(p) for p in points]
+    f = Frame(index, t_ms * 1_000_000, t_ms * 1_000_000 + 500_000, b"\x00", "modbus-rtu", unit, function,
+              crc_ok=crc_ok)
+    f.role, f.pair, f.points, f.writes = role, pair, [dict(p) for p in points], [list(w) for w in writes]
     return f
 
 
-def test_a_write_enters_the_watch_when_its_response_confirms_it():
-    pts = [{"name": "holding[8192]", "address": 8192, "raw": 7, "value": 7, "unit": None}]
+def test_the_watch_applies_writes_named_by_a_point_with_that_raw():
+    pt = {"name": "Frequency command", "address": 8192, "raw": 7, "value": 0.07, "unit": "Hz", "id": "F"}
     s = FrameStore()
-    s.add([_modbus(0, 0, "00", "request", points=pts)])
-    assert not s.registers  # not written yet as far as anyone knows
-    s.add([_modbus(1, 5, "00", "response", pair=0)])
-    assert s.registers[(1, "holding", 8192)].raw == 7
-    s.add([_modbus(2, 10, "00", "request", points=[dict(pts[0], raw=9, value=9)]),
-           _modbus(3, 15, "00", "response", pair=2, crc_ok=False)])  # a mangled answer confirms nothing
-    assert s.registers[(1, "holding", 8192)].raw == 7
-    s.add([_modbus(4, 20, "00", "request", unit=0, points=[dict(pts[0], raw=11, value=11)])])  # broadcast
-    assert s.registers[(0, "holding", 8192)].raw == 11
-
-
-def test_shadow_tap_reports_what_the_decoder_kept_and_sweeps_the_rest():
-    from decoders.base import UnitState
-    from sniffer.tui.shadow import ShadowTap
-
-    st = UnitState(1)
-    tap = ShadowTap({1: st}, clock=lambda: 0.0)
-    pt = {"name": "holding[5]", "address": 5, "raw": 3, "value": 3, "unit": None}
-    read = _modbus(1, 0, "00", "response", pair=0, points=[pt], function=3)
-    st.holding[5] = 3
-    assert tap.observe(read) == [("holding", 5, 3, pt)]
-    st.holding[5] = 4  # the decoder kept another value than the point says: the shadow wins
-    assert tap.observe(read) == [("holding", 5, 4, None)]
-    assert tap.observe(read) is None  # unchanged and not what the point says: nothing new
-    st.holding[6] = 1  # set by something the tap does not look at (a mask write)
-    st.coils[0] = 1
-    assert sorted(tap.sweep()[0][1]) == [("coil", 0, 1, None), ("holding", 6, 1, None)]
-    assert tap.sweep() == []
-
-
-def test_sink_hands_shadow_entries_out_with_their_frames():
-    _, frames, _ = replay_frames("a510.mcap")
-    shadow = replay_shadow("a510.mcap")
-    sink = TuiSink()
-    sink.frames(frames)
-    sink.shadow_entries(shadow)
-    got = []
-    while sink.backlog:
-        sink.drain(50)
-        entries = sink.drain_shadow()
-        assert all(seq < sink._drained for seq, *_ in entries)
-        got += entries
-    assert got == shadow
+    s.add([_modbus(0, 0, "request", points=[pt])])
+    assert not s.registers  # a request writes nothing: its points only name what a write may bring
+    s.add([_modbus(1, 5, "response", pair=0, writes=[["holding", 8192, [7]]])])
+    rv = s.registers[(1, "holding", 8192)]
+    assert (rv.name, rv.value, rv.eng_unit, rv.raw, rv.changes) == ("Frequency command", 0.07, "Hz", 7, 0)
+    s.add([_modbus(2, 10, "response", function=0x16, writes=[["holding", 8192, [9]]])])  # no point says 9
+    assert (rv.name, rv.value, rv.eng_unit, rv.raw, rv.changes, rv.changed_ns) == \
+           ("Frequency command", 9, None, 9, 1, 10_000_000)
+    s.add([_modbus(3, 15, "request", points=[dict(pt, raw=9, value=0.09)], crc_ok=False),  # a mangled frame
+           _modbus(4, 20, "response", function=0x16, writes=[["holding", 8192, [9]]])])  # names nothing
+    assert (rv.value, rv.raw, rv.changes, list(rv.history)) == (9, 9, 1, [0.07, 9, 9])
+    s.add([_modbus(5, 25, "response", function=0x03, points=[dict(pt, raw=9, value=0.09)],
+                   writes=[["holding", 8192, [9]], ["coil", 3, [1, 0]]])])
+    assert (rv.value, rv.raw, rv.changes) == (0.09, 9, 1)
+    assert {k: v.raw for k, v in s.registers.items() if k[1] == "coil"} == {(1, "coil", 3): 1, (1, "coil", 4): 0}
 
 
 def test_store_maps_rows_when_frames_arrive_out_of_order():

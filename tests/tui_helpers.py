@@ -12,6 +12,7 @@ from sniffer.sources.replay import open_replay
 from sniffer.tui.sink import TuiSink
 
 SIM = Path(__file__).resolve().parent.parent / "captures" / "sim"
+SIM_CAPTURES = sorted(p.name for p in SIM.glob("*.mcap"))
 
 
 @functools.cache
@@ -19,33 +20,31 @@ def _decode(name: str):
     info, events = open_replay(str(SIM / name))
     registry = default_registry(info.devices)
     sink = TuiSink()
-    sink.tap_registry(registry)  # as the App does: the register shadow after each frame
     p = Pipeline(info, LineSettings(info.baud, info.parity or "N", info.stopbits or 1), registry, [sink],
                  protocol=info.protocol)
     for ev in events:
         p.feed(ev)
     p.finish()
     frames = sink.drain()
-    return info, frames, registry, sink.drain_shadow()
+    return info, frames, registry
 
 
 def replay_frames(name: str = "errors.mcap"):
     """(CaptureInfo, frames, registry) of a simulated capture; frames are shared, do not mutate them."""
-    return _decode(name)[:3]
+    return _decode(name)
 
 
-def replay_shadow(name: str = "errors.mcap") -> list:
-    """The register-shadow entries the decode's TuiSink recorded (TuiSink.drain_shadow)."""
-    return _decode(name)[3]
+def registry_shadow(registry) -> dict:
+    """{(unit, table, address): raw} of the decoders' final register shadow (every unit's UnitState)."""
+    return {(unit, table, a): v for unit, st in registry.states.items() for (table, a), v in st.snapshot().items()}
 
 
 def filled_sink(name: str = "errors.mcap") -> TuiSink:
-    """A sink as a finished replay leaves it: every frame (and its shadow entries) pending, closed."""
+    """A sink as a finished replay leaves it: every frame pending, closed."""
     info, frames, _ = replay_frames(name)
     sink = TuiSink()
     sink.start(info)
     sink.frames(frames)
-    sink.shadow_entries(replay_shadow(name))
     sink.bytes_in = sum(len(f.raw) for f in frames)
     sink.close()
     return sink

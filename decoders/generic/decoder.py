@@ -8,6 +8,7 @@ of requests, responses, exceptions and the register shadow stays here.
 from __future__ import annotations
 
 import functools
+from struct import unpack_from
 
 from construct import ConstructError
 
@@ -36,17 +37,29 @@ class GenericModbus:
         name = f"{space}[{address}]" if address is not None else f"{space}[?]"
         return {"name": name, "address": address, "raw": raw, "value": raw, "unit": None}
 
-    def make_points(self, space: str, addr: int | None, values: list[int], state: UnitState) -> list[dict]:
-        """Points for consecutive registers or bits of one space (a model may override it to join 32-bit values)."""
-        point = self.point
+    def make_points(self, space: str, addr: int | None, values: list[int], state: UnitState,
+                    offset: int) -> list[dict]:
+        """Points for consecutive registers or bits of one space, each with its span.
+
+        `offset` is the ADU offset of the first value's bytes: register i is at
+        [offset + 2i, offset + 2i + 2), bit i in the byte offset + i // 8.  A model
+        may override it (to join 32-bit values: that point's span covers both words).
+        """
+        spans = _spans(offset, len(values), space in _BIT_SPACES)
         if addr is None:
-            return [point(space, None, v, state) for v in values]
-        if type(self).point is GenericModbus.point:  # no model: skip the per-register call
+            pts = [self.point(space, None, v, state) for v in values]
+        elif type(self).point is GenericModbus.point:  # no model: skip the per-register call
             return [
-                {"name": nm, "address": a, "raw": v, "value": v, "unit": None}
-                for nm, a, v in zip(_names(space, addr, len(values)), range(addr, addr + len(values)), values)
+                {"name": nm, "address": a, "raw": v, "value": v, "unit": None, "span": sp}
+                for nm, a, v, sp in zip(_names(space, addr, len(values)), range(addr, addr + len(values)),
+                                        values, spans)
             ]
-        return [point(space, addr + i, v, state) for i, v in enumerate(values)]
+        else:
+            point = self.point
+            pts = [point(space, a, v, state) for a, v in zip(range(addr, addr + len(values)), values)]
+        for pt, sp in zip(pts, spans):
+            pt["span"] = sp
+        return pts
 
     # ---- decode ----------------------------------------------------------
     def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
@@ -94,6 +107,9 @@ class GenericModbus:
         f.annotations.append(note_in(EXCEPTION, f"{code} {name}", 2, 3, len(f.raw)))
 
     # ---- per-function handlers ---------------------------------------------
+    # Spans below are ADU offsets: unit fc | address(2) quantity(2) | ... ; a read response's
+    # values start at 3 (after the byte count), a multiple write's at 7, 0x17's written ones at 11.
+    # The shadow is written only through state.commit, which records the write on the frame.
     def _read_req(self, f, role, p, request, state):
         fc = f.function
         a, q = p["address"], p["quantity"]
@@ -110,10 +126,9 @@ class GenericModbus:
             addr = (request.adu[2] << 8) | request.adu[3]
         else:
             f.annotations.append(note(NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.adu)))
-        shadow = state.holding if fc in (0x03, 0x17) else state.input
-        if addr is not None and f.crc_ok:  # the shadow holds what CRC-good frames said
-            shadow.update(zip(range(addr, addr + len(values)), values))
-        pts = self.make_points(space, addr, values, state)
+        if addr is not None and f.crc_ok and values:  # the shadow holds what CRC-good frames said
+            state.commit(f, space, addr, values)
+        pts = self.make_points(space, addr, values, state, 3)
         f.points = pts
         f.summary = _points_summary(pts)
 
@@ -127,28 +142,25 @@ class GenericModbus:
             qty = min(qty, (request.adu[4] << 8) | request.adu[5])
         else:
             f.annotations.append(note(NO_REQUEST_CONTEXT, "bit numbers unknown", 2, len(f.adu)))
-        shadow = state.coils if fc == 0x01 else state.discrete
         bits = [(status[i >> 3] >> (i & 7)) & 1 for i in range(qty)]
-        if addr is not None and f.crc_ok:
-            shadow.update(zip(range(addr, addr + qty), bits))
-        pts = self.make_points(space, addr, bits, state)
+        if addr is not None and f.crc_ok and bits:
+            state.commit(f, space, addr, bits)
+        pts = self.make_points(space, addr, bits, state, 3)
         f.points = pts
         f.summary = _points_summary(pts)
 
     def _write_single(self, f, role, p, request, state):
         fc = f.function
         a, v = p["address"], p["value"]
+        space = SPACE[fc]
         if fc == 0x05:
             if v not in (0xFF00, 0x0000):
                 f.annotations.append(note(COIL_VALUE, f"value 0x{v:04X}", 4, 6))
-            bit = 1 if v == 0xFF00 else 0
-            pt = self.point("coil", a, bit, state)
-            if f.crc_ok and (role == RESPONSE or f.unit == 0):
-                state.coils[a] = bit
-        else:
-            pt = self.point("holding", a, v, state)
-            if f.crc_ok and (role == RESPONSE or f.unit == 0):
-                state.holding[a] = v
+            v = 1 if v == 0xFF00 else 0
+        pt = self.point(space, a, v, state)
+        pt["span"] = [4, 6]
+        if f.crc_ok and (role == RESPONSE or f.unit == 0):  # the response echoes what was written
+            state.commit(f, space, a, [v])
         f.points = [pt]
         verb = "write" if role == REQUEST else "wrote"
         f.summary = f"{verb} {_pt_text(pt)}"
@@ -157,15 +169,10 @@ class GenericModbus:
         fc = f.function
         a, q = p["address"], p["quantity"]
         self._check_qty(f, fc, q)
-        pts = []
-        if fc == 0x0F:
-            vals = p["values"]
-            for i in range(min(q, len(vals) * 8)):
-                pts.append(self.point("coil", a + i, (vals[i >> 3] >> (i & 7)) & 1, state))
-        else:
-            pts = self.make_points("holding", a, list(p["values"]), state)
-        if f.unit == 0 and f.crc_ok:
-            self._commit(pts, fc, state)
+        space, values = _written(fc, p)
+        pts = self.make_points(space, a, values, state, 7)
+        if f.unit == 0 and f.crc_ok and values:  # a broadcast is answered by nobody: written at once
+            state.commit(f, space, a, values)
         f.points = pts
         f.summary = "write " + _points_summary(pts)
 
@@ -173,34 +180,34 @@ class GenericModbus:
         fc = f.function
         a, q = p["address"], p["quantity"]
         f.summary = f"wrote {SPACE[fc]} {a}..{a + q - 1} ({q})"
-        if request is not None and request.points and request.crc_ok and f.crc_ok:
-            self._commit(request.points, fc, state)
-
-    def _commit(self, pts, fc, state):
-        shadow = state.coils if fc == 0x0F else state.holding
-        for pt in pts:
-            if pt["address"] is not None:
-                shadow[pt["address"]] = pt["raw"]
+        if request is not None and request.crc_ok and f.crc_ok:
+            written = _request_writes(request, fc)  # the request's values, confirmed here
+            if written is not None:
+                state.commit(f, *written)
 
     def _other(self, f, role, p, request, state):
         fc = f.function
         items = ", ".join(f"{k}={_short(v)}" for k, v in p.items() if not k.startswith("_"))
         f.summary = f"{FUNCTION_NAMES[fc]} {role}: {items}" if items else f"{FUNCTION_NAMES[fc]} {role}"
-        if fc == 0x16 and role == RESPONSE and f.crc_ok:
+        if fc == 0x16 and f.crc_ok and (role == RESPONSE or f.unit == 0):
             a = p["address"]
             old = state.holding.get(a)
-            if old is not None:
-                state.holding[a] = (old & p["and_mask"]) | (p["or_mask"] & ~p["and_mask"] & 0xFFFF)
+            if old is not None:  # the result needs the register's value before the mask
+                state.commit(f, "holding", a, [(old & p["and_mask"]) | (p["or_mask"] & ~p["and_mask"] & 0xFFFF)])
         if fc == 0x17 and role == REQUEST:
-            f.points = [self.point("holding", p["write_address"] + i, v, state) for i, v in enumerate(p["values"])]
+            f.points = self.make_points("holding", p["write_address"], list(p["values"]), state, 11)
 
     def _rw_rsp(self, f, role, p, request, state):
         if request is not None and request.crc_ok and len(request.adu) >= 6:
             addr = (request.adu[2] << 8) | request.adu[3]
-            f.points = [self.point("holding", addr + i, v, state) for i, v in enumerate(p["values"])]
-            if f.crc_ok:
-                for pt in f.points:
-                    state.holding[pt["address"]] = pt["raw"]
+            values = list(p["values"])
+            if f.crc_ok:  # 0x17 writes first, then reads (Modbus 6.17): both parts, in that order
+                written = _request_writes(request, 0x17)
+                if written is not None:
+                    state.commit(f, *written)
+                if values:
+                    state.commit(f, "holding", addr, values)
+            f.points = self.make_points("holding", addr, values, state, 3)
             f.summary = _points_summary(f.points)
         else:
             self._read_regs_rsp(f, role, p, None, state)
@@ -240,6 +247,57 @@ def _construct_reader(layout):
             return None
 
     return read
+
+
+def _written(fc: int, p) -> tuple[str, list[int]]:
+    """(table, values) a parsed 0x0F / 0x10 request writes: coils as 0/1 (as many as both the
+    quantity and the bytes give), registers as the words present."""
+    vals = p["values"]
+    if fc == 0x0F:
+        return SPACE[fc], [(vals[i >> 3] >> (i & 7)) & 1 for i in range(min(p["quantity"], len(vals) * 8))]
+    return SPACE[fc], list(vals)
+
+
+def _request_writes(request: Frame, fc: int) -> tuple[str, int, list[int]] | None:
+    """(table, start, values) a CRC-good write request (0x0F, 0x10, 0x17) asked for, read from its bytes."""
+    if request.function != fc:
+        return None
+    body = request.adu[2:]
+    if fc == 0x17:
+        if len(body) < 9:
+            return None
+        n = body[8] // 2
+        if len(body) < 9 + 2 * n or not n:
+            return None
+        return "holding", (body[4] << 8) | body[5], list(unpack_from(f">{n}H", body, 9))
+    p = FAST[(fc, REQUEST)](body)
+    if p is None:
+        return None
+    table, values = _written(fc, p)
+    return (table, p["address"], values) if values else None
+
+
+_BIT_SPACES = frozenset({"coil", "discrete"})
+_SPAN_CACHE: dict[tuple[int, int, bool], list[list[int]]] = {}
+
+
+def _spans(offset: int, n: int, bits: bool) -> list[list[int]]:
+    """Cached spans of n registers (2 bytes each) or bits (their byte) from ADU offset `offset`.
+
+    The span lists are shared between frames, as the names are: nothing may change one in place
+    (the registry gives ASCII frames new ones).
+    """
+    key = (offset, n, bits)
+    spans = _SPAN_CACHE.get(key)
+    if spans is None:
+        if len(_SPAN_CACHE) > 4096:
+            _SPAN_CACHE.clear()
+        if bits:
+            spans = [[offset + (i >> 3), offset + (i >> 3) + 1] for i in range(n)]
+        else:
+            spans = [[offset + 2 * i, offset + 2 * i + 2] for i in range(n)]
+        _SPAN_CACHE[key] = spans
+    return spans
 
 
 _NAME_CACHE: dict[tuple[str, int, int], list[str]] = {}

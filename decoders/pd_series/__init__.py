@@ -38,6 +38,7 @@ from sniffer.codes import PD_RUNNING as RUNNING
 from sniffer.codes import PD_LOOP_ECHO as LOOP_ECHO
 from sniffer.codes import Code, note_in
 from sniffer.frame import REQUEST, RESPONSE, Frame
+from sniffer.protocols import PD_TABLES
 
 from ..base import UnitState
 from .schema import (
@@ -101,14 +102,14 @@ class PdSeriesDecoder:
             self._note(f, DATA_EXTRA, f"{len(data) - k} byte(s) after the {name} {role} layout: "
                        f"{data[k:].hex()}", 3 + k, 3 + len(data))
         if fc in (0x01, 0x02):
-            self._param(f, fc, role, parsed, state)
+            self._param(f, fc, role, parsed, state, k)
         elif fc == 0x03:
             self._control(f, role, parsed, state)
         elif fc == 0x04:
-            self._status(f, role, parsed, request, state)
+            self._status(f, role, parsed, request, state, k)
         elif fc == 0x05:
             pt = {"name": "frequency", "address": None, "raw": parsed.frequency,
-                  "value": round(parsed.frequency * 0.01, 2), "unit": "Hz"}
+                  "value": round(parsed.frequency * 0.01, 2), "unit": "Hz", "span": [3, 5] if k == 2 else [4, 6]}
             f.points = [pt]
             f.summary = f"{'write frequency' if role == REQUEST else 'frequency'} {pt['value']:.2f} Hz"
         else:
@@ -116,15 +117,15 @@ class PdSeriesDecoder:
         if f.unit == 0 and role == REQUEST:
             f.summary += " (broadcast)"
 
-    def _point(self, f: Frame, number: int, raw: int) -> dict:
+    def _point(self, f: Frame, number: int, raw: int, span: list[int]) -> dict:
         par = PARAMS.get(number)
         if par is None:
             self._note(f, PARAM_UNKNOWN, f"PD{number:03d} is not described in the manual", 3, 4)
             return {"name": f"PD{number:03d}", "address": number, "raw": raw, "value": raw, "unit": None,
-                    "id": f"PD{number:03d}"}
+                    "id": f"PD{number:03d}", "span": span}
         value = raw if par.scale == 1 else round(raw * par.scale, 2)
         pt = {"name": f"{par.id} {par.name}", "address": number, "raw": raw, "value": value,
-              "unit": par.unit, "id": par.id}
+              "unit": par.unit, "id": par.id, "span": span}
         text = enum_text(par, raw)
         if text is not None:
             pt["text"] = text
@@ -132,7 +133,7 @@ class PdSeriesDecoder:
             pt["text"] = f"unknown code {raw}"
         return pt
 
-    def _param(self, f, fc, role, p, state) -> None:
+    def _param(self, f, fc, role, p, state, k) -> None:
         number = p.param
         par = PARAMS.get(number)
         label = f"{par.id} {par.name}" if par else f"PD{number:03d}"
@@ -146,14 +147,14 @@ class PdSeriesDecoder:
         if fc == 0x01 and role == REQUEST:  # the value bytes of a read are placeholders
             f.summary = f"read {label}"
             return
-        pt = self._point(f, number, p.value)
+        pt = self._point(f, number, p.value, [4, 3 + k])  # PARAM at 3, then a byte or a word
         f.points = [pt]
         verb = {(0x01, RESPONSE): "", (0x02, REQUEST): "write ", (0x02, RESPONSE): "wrote "}[(fc, role)]
         f.summary = verb + _pt_text(pt)
         if fc == 0x02 and role == REQUEST and f.crc_ok and par is not None:
             self._check_write(f, par, p.value, state)
-        if role == RESPONSE or f.unit == 0:
-            state.holding[number] = p.value
+        if f.crc_ok and (role == RESPONSE or f.unit == 0):  # a reply, or a broadcast nobody answers
+            state.commit(f, PD_TABLES[fc], number, [p.value])
 
     def _check_write(self, f: Frame, par: Param, raw: int, state: UnitState) -> None:
         span = (4, len(f.adu))
@@ -168,17 +169,17 @@ class PdSeriesDecoder:
         if role == REQUEST:
             v = _byte(p.cntr, CNTR_BITS)
             f.points = [{"name": "CNTR", "address": None, "raw": v, "value": v, "unit": None,
-                         "text": bits_text(CNTR_BITS, v)}]
+                         "text": bits_text(CNTR_BITS, v), "span": [3, 4]}]
             f.summary = f"control CNTR={v:02X}H [{bits_text(CNTR_BITS, v)}]"
             return
         v = _byte(p.cnst, CNST_BITS)
         f.points = [{"name": "CNST", "address": None, "raw": v, "value": v, "unit": None,
-                     "text": bits_text(CNST_BITS, v)}]
+                     "text": bits_text(CNST_BITS, v), "span": [3, 4]}]
         f.summary = f"control status CNST={v:02X}H [{bits_text(CNST_BITS, v)}]"
         if f.crc_ok:
             state.extra["running"] = bool(p.cnst.running or p.cnst.jogging)
 
-    def _status(self, f, role, p, request, state) -> None:
+    def _status(self, f, role, p, request, state, k) -> None:
         if role == REQUEST:
             cfg = p.cfg
             st = STATUS.get(cfg)
@@ -195,16 +196,18 @@ class PdSeriesDecoder:
         if cfg is not None and st is None:
             self._note(f, STATUS_CFG, f"CFG={cfg}", 3, len(f.adu))
         raw = p.value
+        span = [4, 6] if k == 3 else [3, 3 + k]  # after the CFG echo, or the value alone
         if st is None:
             pt = {"name": f"status CFG {cfg}" if cfg is not None else "status", "address": cfg, "raw": raw,
-                  "value": raw, "unit": None}
+                  "value": raw, "unit": None, "span": span}
         else:
             value = raw if st.scale is None else round(raw * st.scale, 2)
             pt = {"name": st.label, "address": cfg, "raw": raw, "value": value, "unit": st.unit,
-                  "id": f"CFG{cfg}"}
+                  "id": f"CFG{cfg}", "span": span}
             if st.scale is None:
                 pt["text"] = f"{st.name}; scale not given by the manual"
-            state.input[cfg] = raw
+            if f.crc_ok:
+                state.commit(f, PD_TABLES[0x04], cfg, [raw])
         f.points = [pt]
         f.summary = _pt_text(pt)
 
@@ -228,7 +231,7 @@ class PdSeriesDecoder:
         else:
             what = f"CNST={data[0]:02X}H [{bits_text(CNST_BITS, data[0])}]"
             f.points = [{"name": "CNST", "address": None, "raw": data[0], "value": data[0], "unit": None,
-                         "text": bits_text(CNST_BITS, data[0])}]
+                         "text": bits_text(CNST_BITS, data[0]), "span": [3, 4]}]
         f.summary = f"error {fc:02X}H {err.name} ({to}): {what}"
         if len(data) > 1:
             self._note(f, DATA_EXTRA, f"{len(data) - 1} byte(s) after the error reply's data byte", 4, 3 + len(data))

@@ -53,9 +53,8 @@ class TdsV8Decoder(TableDecoder):
         super().check_request(f, state)
         if f.function not in (0x06, 0x10) or state.extra.get("mode") != "DRV":
             return
-        for k, pt in enumerate(f.points):
+        for pt in f.points:
             a = pt["address"]
             if any(lo <= a <= hi for lo, hi in self.prg_ranges):
-                span = (4, 6) if f.function == 0x06 else (7 + 2 * k, 9 + 2 * k)
                 f.annotations.append(note(PRG_ONLY, f"{pt.get('id') or hex(a)} written in DRV mode "
-                                          "(switch to PRG first: 0000H bit 9)", *span))
+                                          "(switch to PRG first: 0000H bit 9)", *pt["span"]))

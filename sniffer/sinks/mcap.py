@@ -88,6 +88,7 @@ class _AppendFile:
         if self.failed is not None:
             raise self.failed
         assert self._fd is not None, "file is closed"
+        start = self.on_disk  # a flush is whole or not at all: a chunk without its message index is not kept
         while self._pending:
             piece = self._pending[0]
             view = memoryview(piece)
@@ -100,6 +101,7 @@ class _AppendFile:
                     done += n
             except OSError as e:
                 self.failed = e
+                self.on_disk = start
                 try:
                     os.ftruncate(self._fd, self.on_disk)
                 except OSError:

@@ -48,7 +48,8 @@ Colours: [bold bright_red]errors / bad CRC[/], [bold magenta]exceptions[/], [yel
 """
 
 
-LIST_HEADER = f"   {'time (s)':>12} {'dir':5} {'unit':4} {'model':<8} {'fc':4} {'frame→pair':<14} {'latency':>9} summary  [problems]"
+LIST_HEADER = (f"   {'time (s)':>12} {'dir':5} {'unit':4} {'model':<8} {'fc':4} {'frame→pair':<14} {'latency':>9} "
+               "summary  [problems]")
 
 
 class HelpScreen(ModalScreen):
@@ -103,12 +104,10 @@ class SnifferApp(App):
         self.stop_event = threading.Event()
         self.source_label = source_label
         self.capture_path = capture_path
-        self.registry = registry
+        self.registry = registry  # read only, for the units table's given / guessed models
         self.poll_hz = poll_hz
         self.max_batch = max_batch
-        if registry is not None and sink.tap is None and not sink.frames_in:
-            sink.tap_registry(registry)  # the register watch reads the decoders' shadow
-        self.store = FrameStore(registers_from_shadow=sink.shadow)
+        self.store = FrameStore()  # its register watch applies the frames' `writes`
         self.feed_error: BaseException | None = None
         self.feed_result = None
         self._thread: threading.Thread | None = None
@@ -177,10 +176,8 @@ class SnifferApp(App):
         if self.sink.info is not None and not len(self.store):
             self.store.t0_ns = self.sink.info.t0_ns
         batch = self.sink.drain(self.max_batch)
-        shadow = self.sink.drain_shadow() if self.sink.shadow else None
-        if batch or shadow:
-            self.store.add(batch, shadow)
         if batch:
+            self.store.add(batch)
             self.frame_list.refresh_rows()
         self._ticks += 1
         now = self.clock()

@@ -1,7 +1,8 @@
 """Detail pane: the selected frame as a tree, a hex dump and its annotations in words.
 
 Selecting a tree node (a point, a field or an annotation) highlights its
-bytes in the hex dump.
+bytes in the hex dump: the spans the decoders recorded (a point's `span`, an
+annotation's start..end), never guessed here.
 """
 
 from __future__ import annotations
@@ -14,33 +15,6 @@ from textual.widgets import Static, Tree
 from ..frame import Frame
 
 HL = "black on yellow"
-_READ_RSP = {3, 4}
-
-
-def point_spans(f: Frame) -> list[tuple[int, int] | None]:
-    """Byte spans of f.points where the layout is plain registers (fc03/04 response, fc06/16 request)."""
-    pts = f.points
-    out: list[tuple[int, int] | None] = [None] * len(pts)
-    if not pts or f.protocol != "modbus-rtu" or f.function is None or f.exception:
-        return out
-    addrs = [p.get("address") for p in pts]
-    if any(a is None for a in addrs):
-        return out
-    base = min(addrs)
-    if f.role == "response" and f.function in _READ_RSP:
-        off = 3
-    elif f.role == "request" and f.function == 16:
-        off = 7
-    elif f.role == "request" and f.function == 6 or f.role == "response" and f.function == 6:
-        return [(4, 6) for _ in pts]
-    else:
-        return out
-    for i, a in enumerate(addrs):
-        nxt = sorted(x for x in addrs if x > a)
-        words = (nxt[0] - a) if nxt else 1
-        s, e = off + 2 * (a - base), off + 2 * (a - base + words)
-        out[i] = (s, e) if e <= len(f.raw) - 2 else None
-    return out
 
 
 def hex_dump(raw: bytes, span: tuple[int, int] | None = None, width: int = 16) -> Text:
@@ -60,6 +34,14 @@ def hex_dump(raw: bytes, span: tuple[int, int] | None = None, width: int = 16) -
             text.append(chr(b) if 32 <= b < 127 else ".", style)
         text.append("\n")
     return text
+
+
+def _span(span, size: int) -> tuple[int, int] | None:
+    """A point's recorded span as the tree's node data (None if it has none or it does not fit the frame)."""
+    if not span or len(span) != 2:
+        return None
+    s, e = span
+    return (s, e) if 0 <= s < e <= size else None
 
 
 def _fmt_value(p: dict) -> str:
@@ -126,7 +108,8 @@ class DetailPane(Vertical):
             self._add_fields(tree.root.add("fields", expand=True), f.fields)
         if f.points:
             node = tree.root.add(f"points ({len(f.points)})", expand=True)
-            for p, span in zip(f.points, point_spans(f)):
+            for p in f.points:
+                span = _span(p.get("span"), len(f.raw))
                 addr = p.get("address")
                 pid = f" {p['id']}" if p.get("id") else ""
                 label = Text(f"{addr if addr is not None else '-'}{pid} {p.get('name', '')} = ")

@@ -48,7 +48,14 @@ def row_style(fl: int) -> Style | None:
 
 def format_row(f: Frame, fl: int, t0_ns: int, marked: bool) -> Text:
     t = (f.t_ns - t0_ns) / 1e9
-    mark = "!!" if fl & F_ERROR else ("E " if fl & F_EXC else ("T " if fl & F_TIMEOUT else ("! " if fl & (F_WARN | F_NOISE) else "  ")))
+    if fl & F_ERROR:
+        mark = "!!"
+    elif fl & F_EXC:
+        mark = "E "
+    elif fl & F_TIMEOUT:
+        mark = "T "
+    else:
+        mark = "! " if fl & (F_WARN | F_NOISE) else "  "
     role = ROLE_TAG.get(f.role, " ??? ")
     unit = "  -" if f.unit is None else f"{f.unit:3d}"
     model = (f.model or "")[:8]

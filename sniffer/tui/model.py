@@ -74,6 +74,7 @@ def frame_from_record(rec: dict, t0_ns: int = 0) -> Frame:
     f.role = rec.get("role", f.role)
     f.pair, f.latency_ms, f.model = rec.get("pair"), rec.get("latency_ms"), rec.get("model")
     f.points, f.exception, f.summary = rec.get("points") or [], rec.get("exception"), rec.get("summary", "")
+    f.writes = rec.get("writes") or []  # records written before `writes` existed: the watch stays empty
     f.annotations = [Annotation(a["code"], a["severity"], a["detail"], a["span"][0], a["span"][1])
                      for a in rec.get("annotations") or []]
     return f
@@ -139,8 +140,7 @@ class UnitStats:
 class FrameStore:
     """All frames of a capture plus what the views need to find them quickly."""
 
-    def __init__(self, t0_ns: int = 0, *, registers_from_shadow: bool = False, block: int = BLOCK,
-                 frame_cache: int = FRAME_CACHE) -> None:
+    def __init__(self, t0_ns: int = 0, *, block: int = BLOCK, frame_cache: int = FRAME_CACHE) -> None:
         self.t0_ns = t0_ns
         self.blocks = FrameBlocks(block, frame_cache)
         self.frames = FrameSeq(self.blocks)
@@ -156,9 +156,8 @@ class FrameStore:
         self.view = array("q")  # rows passing the filter (up to the pause point)
         self.problems = array("q")  # rows with any problem flag (unfiltered)
         self.units: dict[int, UnitStats] = {}
-        self.book = RegisterBook(from_shadow=registers_from_shadow)
+        self.book = RegisterBook()  # the frames' `writes` applied: the decoders' register shadow
         self.registers = self.book.values  # (unit, table, address) -> RegisterValue
-        self._shadow: list = []  # shadow entries waiting for their frame
         self.bookmarks: set[int] = set()
         self.paused_at: int | None = None  # row count when the view was paused
         self.bytes_total = 0
@@ -177,26 +176,13 @@ class FrameStore:
     def last_t_ns(self) -> int:
         return self.t_ns[-1] if self.t_ns else 0
 
-    def add(self, frames, shadow=None) -> int:
-        """Append settled frames (UI thread); returns how many were added.
-
-        `shadow`: TuiSink.drain_shadow() entries (seq, unit, t_ns, entries), applied once the
-        frame with row seq is in."""
+    def add(self, frames) -> int:
+        """Append settled frames (UI thread); returns how many were added."""
         n = 0
-        sh = self._shadow + list(shadow) if shadow else self._shadow
-        k = 0
-        book = self.book
         for f in frames:
-            while k < len(sh) and sh[k][0] < len(self.flags):
-                book.shadow(*sh[k][1:])
-                k += 1
             self._add_one(f)
             n += 1
-        while k < len(sh) and sh[k][0] < len(self.flags):
-            book.shadow(*sh[k][1:])
-            k += 1
-        self._shadow = sh[k:]
-        if n or k:
+        if n:
             self.generation += 1
         return n
 

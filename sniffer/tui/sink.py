@@ -10,10 +10,9 @@ frames wait, the UI has started draining and the frames' capture time runs
 ahead of the wall clock (a live line never does), `frame()` waits until the UI has drained half of them, so a
 million-frame replay does not pile up a million Frame objects in the sink.
 
-With a registry attached (`tap_registry`), the sink also reads the decoders'
-register shadow right after each frame (a ShadowTap, see shadow.py): the
-entries travel with the frame's sequence number and come out of
-`drain_shadow()` once their frame has been drained.
+The register watch needs nothing else: each frame carries what it wrote into
+its unit's register shadow (`Frame.writes`), so the sink never looks at the
+decoders' state.
 """
 
 from __future__ import annotations
@@ -23,7 +22,6 @@ import time
 
 from ..events import CaptureInfo, Chunk
 from ..frame import Frame
-from .shadow import ShadowTap
 
 MAX_BACKLOG = 30_000  # frames waiting for the UI before a replay waits (the App drains 5,000 a tick)
 
@@ -37,11 +35,6 @@ class TuiSink:
         self._ui = False  # someone drains (a UI polls): only then may a replay wait
         self._t_first: tuple[int, float] | None = None  # (capture t_ns, wall time) of the first frame
         self._pending: list[Frame] = []
-        self._shadow: list[tuple] = []  # (seq, unit, t_ns, entries), seq ascending
-        self._drained = 0  # frames handed out by drain()
-        self._last_t_ns = 0
-        self.tap: ShadowTap | None = None
-        self.shadow = False  # shadow entries come with the frames (a tap, or a test's copy)
         self.info: CaptureInfo | None = None
         self.started = threading.Event()
         self.closed = threading.Event()
@@ -54,11 +47,6 @@ class TuiSink:
         self.earlier_frames = 0  # before the backlog it was sent (they are in the MCAP)
         self.skipped_frames = 0  # dropped while it fell behind
 
-    def tap_registry(self, registry) -> None:
-        """Read `registry`'s register shadow after each frame (call before the capture starts)."""
-        self.tap = ShadowTap(registry.states)
-        self.shadow = True
-
     # ---- Sink protocol (capture thread)
     def start(self, info: CaptureInfo) -> None:
         self.info = info
@@ -70,25 +58,10 @@ class TuiSink:
             self.bytes_in += len(event.data)  # single writer; readers tolerate a stale int
 
     def frame(self, frame: Frame) -> None:
-        tap = self.tap
-        if tap is None:
-            with self._lock:
-                self._pending.append(frame)
-                self.frames_in += 1
-                full = len(self._pending) >= self.max_backlog
-        else:
-            seen = tap.observe(frame)
-            swept = tap.sweep() if tap.due() else ()
-            self._last_t_ns = frame.t_ns
-            with self._lock:
-                seq = self.frames_in
-                self._pending.append(frame)
-                if seen:
-                    self._shadow.append((seq, frame.unit, frame.t_ns, seen))
-                for unit, entries in swept:
-                    self._shadow.append((seq, unit, frame.t_ns, entries))
-                self.frames_in = seq + 1
-                full = len(self._pending) >= self.max_backlog
+        with self._lock:
+            self._pending.append(frame)
+            self.frames_in += 1
+            full = len(self._pending) >= self.max_backlog
         if self._t_first is None:
             self._t_first = (frame.t_ns, time.monotonic())
         if full:
@@ -110,24 +83,13 @@ class TuiSink:
             self._room.notify_all()
 
     def frames(self, frames) -> None:
-        """Bulk variant (benchmarks, tests; frames decoded earlier, so no shadow is read)."""
+        """Bulk variant (benchmarks, tests, a viewer attached to a capture: frames decoded elsewhere)."""
         frames = list(frames)
         with self._lock:
             self._pending.extend(frames)
             self.frames_in += len(frames)
 
-    def shadow_entries(self, entries) -> None:
-        """Shadow entries recorded by another sink's tap for the same frames (tests replaying a decode)."""
-        with self._lock:
-            self._shadow.extend(entries)
-        self.shadow = True
-
     def close(self) -> None:
-        tap = self.tap
-        if tap is not None and self.frames_in:  # whatever the last frames changed beyond their points
-            with self._lock:
-                for unit, entries in tap.sweep():
-                    self._shadow.append((self.frames_in - 1, unit, self._last_t_ns, entries))
         self.closed.set()
 
     # ---- UI thread
@@ -138,19 +100,8 @@ class TuiSink:
                 out, self._pending = self._pending, []
             else:
                 out, self._pending = self._pending[:limit], self._pending[limit:]
-            self._drained += len(out)
             self._ui = True
             self._room.notify_all()
-        return out
-
-    def drain_shadow(self) -> list[tuple]:
-        """Shadow entries of the frames drained so far: [(seq, unit, t_ns, [(table, address, raw, point)])]."""
-        with self._lock:
-            sh, upto = self._shadow, self._drained
-            k = len(sh)
-            while k and sh[k - 1][0] >= upto:
-                k -= 1
-            out, self._shadow = sh[:k], sh[k:]
         return out
 
     @property
