@@ -4,7 +4,8 @@ One packet per frame (noise frames included, so every byte is in the file),
 classic pcap with nanosecond timestamps (magic a1b23c4d) or, for an OUT
 ending in .pcapng, pcapng (nanosecond if_tsresol, line settings in the
 interface description); link type 147 (LINKTYPE_USER0); the format itself is
-sniffer/pcap_format.py.  Wireshark maps a user DLT to a dissector through its "user_dlts" table; for Modbus/RTU that is the `mbrtu` dissector:
+sniffer/pcap_format.py.  Wireshark maps a user DLT to a dissector through its
+"user_dlts" table; for Modbus/RTU that is the `mbrtu` dissector:
 
     tshark -r out.pcap -o 'uat:user_dlts:"User 0 (DLT=147)","mbrtu","0","","0",""'
 
