@@ -296,3 +296,16 @@ def test_quit_stops_a_running_capture(tmp_path):
         assert app.sink.closed.is_set() and app.feed_error is None
 
     run(go())
+
+
+def test_status_bar_shows_the_size_of_a_capture_being_written(tmp_path):
+    """While a capture runs its MCAP is NAME.part: the App reports that file's size."""
+    from sniffer.tui.sink import TuiSink
+
+    part = tmp_path / "cap.mcap.part"
+    part.write_bytes(b"x" * 1234)
+    app = SnifferApp(TuiSink(), None, capture_path=str(tmp_path / "cap.mcap"))
+    assert app.capture_size() == 1234
+    (tmp_path / "cap.mcap").write_bytes(b"y" * 10)  # renamed into place at the end
+    part.unlink()
+    assert app.capture_size() == 10

@@ -199,8 +199,12 @@ class SnifferApp(App):
 
     def capture_size(self) -> int | None:
         path = self.capture_path or self.sink.capture_path
+        if not path:
+            return None
+        from ..outputs import readable
+
         try:
-            return os.path.getsize(path) if path else None
+            return os.path.getsize(readable(path)[0])  # its part file while the capture writes it
         except OSError:
             return None
 

@@ -22,11 +22,12 @@ import time
 
 from ..events import CaptureInfo, Chunk
 from ..frame import Frame
+from ..sinks.base import Sink
 
 MAX_BACKLOG = 30_000  # frames waiting for the UI before a replay waits (the App drains 5,000 a tick)
 
 
-class TuiSink:
+class TuiSink(Sink):
     def __init__(self, max_backlog: int = MAX_BACKLOG) -> None:
         self._lock = threading.Lock()
         self._room = threading.Condition(self._lock)
