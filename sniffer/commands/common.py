@@ -79,6 +79,8 @@ def report(session: Session, *, label: str = "") -> int:
     where = f"{label}: " if label else ""
     if session.damage:
         first = session.damage[0]
+        if label and first.startswith(label):  # the reader names the file already
+            where = ""
         more = f" (and {len(session.damage) - 1} more)" if len(session.damage) > 1 else ""
         say(f"error: {where}input damaged: {first}{more}; everything readable was decoded, "
             f"frames after a hole are marked source.gap")

@@ -25,5 +25,5 @@ def cmd_repair(spec: CaptureSpec, args) -> int:
         raise
     out.commit()
     problem = f" ({st['problem']})" if st.get("problem") else ""
-    say(f"wrote {out.path}: {st['messages']} messages kept, {st['bytes_dropped']} bytes dropped{problem}")
+    say(f"wrote {out.path}: {st['messages']} message(s) kept, {st['bytes_dropped']} bytes dropped{problem}")
     return EXIT_OK

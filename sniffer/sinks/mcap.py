@@ -40,6 +40,9 @@ from ..records import frame_json
 from .base import Sink
 
 
+CHUNK_SIZE = 128 * 1024  # uncompressed bytes per chunk (mcap's default is 1 MiB)
+
+
 class CaptureStorageError(Exception):
     """The capture file cannot be written (disk full, file too large, I/O error): one line.
 
@@ -158,7 +161,8 @@ class McapSink(Sink):
     def start(self, info: CaptureInfo) -> None:
         self._t0 = info.t0_ns
         self._anchor = info.wall_anchor_ns
-        w = Writer(self._file, compression=self._compression)  # type: ignore[arg-type]
+        # chunks of at most CHUNK_SIZE: a damaged byte loses one chunk (`replay` and `repair` go on after it)
+        w = Writer(self._file, compression=self._compression, chunk_size=CHUNK_SIZE)  # type: ignore[arg-type]
         self._writer = w
         try:
             w.start(profile="", library=f"sniffer/{__version__}; {LIBRARY_IDENTIFIER}")
