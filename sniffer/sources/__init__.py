@@ -40,6 +40,13 @@ def not_regular(path: str, mode: int) -> str | None:
     return f"{path}: not a regular file ({kind}): replaying it would block forever or never end"
 
 
+def file_position(fh, size: int) -> tuple[int, int] | None:
+    """(bytes read so far, file size) of an open reader's file, for a progress bar; None once closed."""
+    if fh is None or fh.closed:
+        return None
+    return fh.tell(), size
+
+
 def open_regular(path: str | os.PathLike[str]) -> BinaryIO:
     """Open a capture file for binary reading, refusing anything but a regular file.
 

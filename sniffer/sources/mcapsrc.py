@@ -30,7 +30,7 @@ from ..mcap_format import (
     info_from_metadata,
 )
 from ..records import loads
-from . import CaptureError, DamageLog, gap_before, open_regular, quote
+from . import CaptureError, DamageLog, file_position, gap_before, open_regular, quote
 from .mcapscan import Corrupt, Hole, Scan, open_file
 
 __all__ = ["Corrupt", "McapSource", "Scan", "open_file", "open_mcap", "read_frames", "sniff"]
@@ -69,10 +69,7 @@ class McapSource:
         self._early: list = []
 
     def position(self) -> tuple[int, int] | None:
-        fh = self._fh
-        if fh is None or fh.closed:
-            return None
-        return fh.tell(), self._size
+        return file_position(self._fh, self._size)
 
     def open(self) -> CaptureInfo:
         if self.info is not None:

@@ -34,7 +34,7 @@ from ..pcap_format import (
     LINKTYPE_USER0, MAX_BLOCK, PCAP_MAGIC, PCAPNG_BYTE_ORDER_LE, PCAPNG_SHB, RECORD_HEADER, RTAC_HEADER,
     SUPPORTED_LINKTYPES, parse_global_header, pcap_record_problem, pcapng_block_problem, tsresol,
 )
-from . import CaptureError, DamageLog, gap_before, open_regular
+from . import CaptureError, DamageLog, file_position, gap_before, open_regular
 
 __all__ = ["LINKTYPE_RTAC_SERIAL", "LINKTYPE_USER0", "PcapSource", "open_pcap", "read_packets", "sniff"]
 
@@ -76,10 +76,7 @@ class PcapSource:
         self._iface_types: tuple[int, ...] = ()  # link types declared (pcap: the global one)
 
     def position(self) -> tuple[int, int] | None:
-        fh = self._fh
-        if fh is None or fh.closed:
-            return None
-        return fh.tell(), self._size
+        return file_position(self._fh, self._size)
 
     def open(self) -> CaptureInfo:
         if self.info is not None:
