@@ -313,8 +313,13 @@ def child_run(result: Path, argv: list[str], mem_limit_mb: int) -> int:
 
     t_import = time.perf_counter() - t0
     err = None
+    prof = None
+    if os.environ.get("BENCH_PROFILE"):
+        import cProfile
+
+        prof = cProfile.Profile()
     try:
-        rc = main(argv)
+        rc = main(argv) if prof is None else prof.runcall(main, argv)
     except SystemExit as e:  # argparse's --version and --help
         rc = e.code if isinstance(e.code, int) else 0
     except MemoryError:
@@ -327,18 +332,50 @@ def child_run(result: Path, argv: list[str], mem_limit_mb: int) -> int:
     result.write_text(json.dumps({
         "rc": rc, "error": err, "wall": wall, "import_s": t_import, "cpu": ru.ru_utime + ru.ru_stime,
         "rss_mb": peak_rss_mb(), "ru_maxrss_mb": ru.ru_maxrss * 1024 / 1e6, "sessions": sessions,
+        "profile": _profile_rows(prof) if prof is not None else None,
     }))
     return 0
 
 
-def run_measured(argv: list[str], mem_limit_mb: int) -> dict:
+def _profile_rows(prof) -> dict:
+    """The top functions of a cProfile run, by cumulative and by own time (percent of the command)."""
+    import pstats
+
+    st = pstats.Stats(prof)
+    total = max(v[3] for v in st.stats.values()) or 1.0
+    root = str(HERE.parent) + os.sep
+
+    def name(file: str, line: int, fn: str) -> str:
+        short = file[len(root):] if file.startswith(root) else Path(file).name
+        return f"{short}:{line}({fn})"
+
+    rows = [(100 * ct / total, 100 * tt / total, nc, name(*key)) for key, (_cc, nc, tt, ct, _c) in st.stats.items()]
+    return {"total_s": total, "cum": sorted(rows, reverse=True)[:30],
+            "own": sorted(rows, key=lambda r: -r[1])[:15]}
+
+
+def print_profile(row_name: str, res: dict) -> None:
+    p = res.get("profile")
+    if not p:
+        print(f"{row_name}: no profile ({'; '.join(res['problems']) or 'none recorded'})")
+        return
+    print(f"\ncProfile of `sniffer {' '.join(res['argv'])}` ({res['frames']:,} frames, {p['total_s']:.1f} s "
+          f"under the profiler)")
+    for title, key in (("by cumulative time", "cum"), ("by own time", "own")):
+        print(f"  {title}:\n  {'cum %':>6} {'own %':>6} {'calls':>11}  function")
+        for cum, own, calls, fn in p[key]:
+            print(f"  {cum:6.1f} {own:6.1f} {calls:11,}  {fn}")
+
+
+def run_measured(argv: list[str], mem_limit_mb: int, profile: bool = False) -> dict:
     with tempfile.NamedTemporaryFile(prefix="bench-cmd-", suffix=".json", delete=False) as tf:
         res_path = Path(tf.name)
     try:
         cmd = [sys.executable, str(Path(__file__).resolve()), "--run", str(res_path),
                "--mem-limit-mb", str(mem_limit_mb), "--", *argv]
         load = os.getloadavg()[0]
-        p = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        env = {**os.environ, "BENCH_PROFILE": "1"} if profile else None
+        p = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
         try:
             res = json.loads(res_path.read_text())
         except (OSError, ValueError):
@@ -485,10 +522,11 @@ def tshark_peer(pcap: Path, out_dir: Path) -> dict:
 
 
 # ------------------------------------------------------------- running and reporting
-def measure(row: Row, size: str, folder: Path, out: Path, meta: dict, mem_limit_mb: int) -> dict:
+def measure(row: Row, size: str, folder: Path, out: Path, meta: dict, mem_limit_mb: int,
+            profile: bool = False) -> dict:
     caps = meta["captures"]
     argv = row.argv(size)
-    res = run_measured(argv, mem_limit_mb)
+    res = run_measured(argv, mem_limit_mb, profile)
     res["argv"] = argv
     res["size"] = size
     res["decoded"] = sum(s["frames"] for s in res["sessions"])
@@ -576,6 +614,9 @@ def report(results: list[tuple[Row, dict, dict]], peers: dict, startup: dict) ->
         print(line)
     print(f"\nstart-up alone (`sniffer --version` in a fresh process): {startup['wall']:.2f} s, "
           f"{_mb(startup['rss_mb'])} MB peak RSS")
+    print("rows:")
+    for row, _q, _n in results:
+        print(f"  {row.name:22} {row.what}")
 
     prow = [["peer", "what it measures", "peak MB", "frames/s", "seconds", "vs ours"]]
     ours = {row.name: n for row, _q, n in results if n and not n["problems"]}
@@ -592,7 +633,8 @@ def report(results: list[tuple[Row, dict, dict]], peers: dict, startup: dict) ->
             fps = _fps(pm["frames"], pm["seconds"])
             prow.append(["pymodbus best case",
                          f"FramerRTU.handleFrame on the {pm['frames']:,} wire frames, pre-split, direction known "
-                         f"({pm['decoded']:,} decoded); no pairing, no output; loop timed, file load not",
+                         f"({pm['decoded']:,} decoded, held in a list); no pairing, no output; the loop is timed "
+                         f"(the whole process: {pm['wall']:.1f} s)",
                          _mb(pm["rss_mb"]), f"{fps / 1000:,.1f}k", f"{pm['seconds']:.2f}",
                          vs("replay jsonl", fps)])
     ts = peers.get("tshark")
@@ -649,6 +691,8 @@ def main(argv=None) -> int:
                     help="run only this row (e.g. 'export parquet', 'replay'; repeatable; 'peers' for the peers)")
     ap.add_argument("--keep", metavar="DIR", help="generate the captures in DIR and reuse them next time")
     ap.add_argument("--no-peers", action="store_true", help="skip the peers")
+    ap.add_argument("--profile", action="store_true",
+                    help="instead: run the --only rows on the N/4 capture under cProfile and print the top functions")
     ap.add_argument("--mem-limit-mb", type=int, default=8000,
                     help="address-space limit of each measured process (MB; 0 = none): a runaway is a failed row, "
                          "not a machine out of memory (default 8000)")
@@ -698,6 +742,14 @@ def main(argv=None) -> int:
         if unknown:
             raise SystemExit(f"bench: unknown --only {', '.join(sorted(unknown))} (one of: {', '.join(sorted(names))}, "
                              "peers)")
+        if args.profile:
+            for row in rows:
+                if only and row.name not in only:
+                    continue
+                if row.needs:
+                    run_measured(next(r for r in rows if r.name == row.needs).argv("quarter"), args.mem_limit_mb)
+                print_profile(row.name, measure(row, "quarter", folder, out, meta, args.mem_limit_mb, profile=True))
+            return 0
         startup = run_measured(["--version"], args.mem_limit_mb)
         results = []
         for row in rows:
