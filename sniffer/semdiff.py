@@ -123,6 +123,8 @@ class Summary:
         for a in f.annotations:
             if a.severity != "info":
                 codes[a.code] += 1
+        if f.crc_ok is False:  # damaged on the line: its unit, function and values are not what was sent
+            return
         if f.exception:
             codes[f"exception.{int(f.exception.get('code') or 0):02x}"] += 1
         if f.is_noise or f.unit is None:
@@ -151,8 +153,6 @@ class Summary:
             q.add(f.latency_ms)
         elif f.role == "response":
             u["responses"] += 1
-        if f.crc_ok is False:
-            return
         for pt in f.points:
             self._value((f.unit, pt.get("address"), pt.get("name") or ""), pt.get("value"))
 
