@@ -168,3 +168,20 @@ def test_an_inserted_frame_is_one_diff_line(tmp_path, a510_golden):
     assert rc == EXIT_DIFFERENT
     changed = [x for x in text.splitlines()[2:] if x[:1] in "+-"]
     assert len(changed) == 1 and changed[0].startswith("+")
+
+
+def test_summary_ignores_what_a_crc_bad_frame_claims():
+    """A frame damaged on the line says nothing reliable about units, requests or exceptions: only its
+    error codes count (diffs of two captures of one bus must not list phantom units)."""
+    from sniffer.codes import CRC_MISMATCH, note
+    from sniffer.frame import Frame
+    from sniffer.semdiff import summarize
+
+    good = Frame(0, 0, 1, bytes.fromhex("0103000a0001a408"), "modbus-rtu", 1, 3, crc_ok=True)
+    good.role = "request"
+    bad = Frame(1, 10, 11, bytes.fromhex("4d83021234"), "modbus-rtu", 0x4D, 0x83, crc_ok=False)
+    bad.role, bad.exception = "response", {"code": 2, "name": "ILLEGAL DATA ADDRESS"}
+    bad.annotations.append(note(CRC_MISMATCH, "bad", 3, 5))
+    s = summarize([good, bad])
+    assert list(s["units"]) == ["1"] and len(s["requests"]) == 1
+    assert s["codes"] == {"modbus.crc.mismatch": 1}  # counted as an error, not as unit 77's exception
