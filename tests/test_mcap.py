@@ -413,3 +413,23 @@ def test_full_disk_stops_cleanly_and_keeps_a_readable_file(tmp_path):
 def test_unwritable_path_is_a_storage_error(tmp_path):
     with pytest.raises(CaptureStorageError, match="cannot create capture file"):
         McapSink(tmp_path / "no" / "such" / "dir.mcap")
+
+
+def test_scan_skipping_a_topic_yields_the_same_other_messages():
+    """A replay reads /raw only: the scan does not build the /frames messages, and loses nothing else."""
+    from mcap.records import Message
+
+    from sniffer.sources.mcapscan import Scan, open_file
+
+    path = Path(__file__).resolve().parent.parent / "captures" / "sim" / "errors.mcap"
+
+    def messages(skip):
+        fh, size, tail_ok = open_file(path)
+        with fh:
+            scan = Scan(fh, size, tail_ok=tail_ok, skip_topics=skip)
+            return [(scan.topic(m), m.sequence, m.log_time, m.data) for m in scan.records() if isinstance(m, Message)]
+
+    every = messages(frozenset())
+    raw_only = messages(frozenset({"/frames"}))
+    assert {t for t, *_ in every} == {"/capture", "/raw", "/frames"}
+    assert raw_only == [m for m in every if m[0] != "/frames"] and len(raw_only) > 100

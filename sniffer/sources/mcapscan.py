@@ -33,7 +33,7 @@ from mcap.records import (
     Metadata,
     Schema,
 )
-from mcap.stream_reader import breakup_chunk
+from mcap.stream_reader import breakup_chunk, get_chunk_data_stream
 
 from ..mcap_format import MAGIC
 from . import CaptureError, open_regular
@@ -128,8 +128,11 @@ class Scan:
     for old callers and changes nothing.
     """
 
-    def __init__(self, fh: BinaryIO, size: int, *, tail_ok: bool, salvage: bool = False) -> None:
+    def __init__(self, fh: BinaryIO, size: int, *, tail_ok: bool, salvage: bool = False,
+                 skip_topics: frozenset[str] = frozenset()) -> None:
         self._fh = fh
+        self.skip_topics = skip_topics  # messages of these topics are not parsed nor yielded (a replay
+        # needs /raw only, and /frames holds most of the messages)
         self._size = size
         self._tail_ok = tail_ok
         self.end = len(MAGIC)
@@ -216,7 +219,10 @@ class Scan:
                 try:
                     if first and opcode != Opcode.HEADER:
                         raise ValueError("the file does not start with a header record")
-                    recs = _parse(opcode, fh.read(length))
+                    if opcode == Opcode.CHUNK and self.skip_topics:
+                        recs = _walk_chunk(fh.read(length), self.channels, self.skip_topics)
+                    else:
+                        recs = _parse(opcode, fh.read(length))
                 except Exception as e:  # parsing foreign bytes: any failure means damage
                     why = (str(e) or type(e).__name__)[:200]
             first = False
@@ -300,19 +306,65 @@ def _name(opcode: int) -> str:
         return f"opcode 0x{opcode:02x}"
 
 
+_MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
+
+
+def _walk_chunk(body: bytes, channels: dict[int, Channel], skip: frozenset[str]) -> list[McapRecord]:
+    """breakup_chunk (CRC checked) that does not build the messages of the `skip` topics.
+
+    Channels defined in the chunk count from where they stand; a message whose
+    channel is not known yet is kept (its reader decides what it is).
+    """
+    chunk = _chunk(body)
+    stream, n = get_chunk_data_stream(chunk, validate_crc=True)
+    data = stream.read(n)
+    out: list[McapRecord] = []
+    known = dict(channels)
+    skipped = {cid for cid, ch in known.items() if ch.topic in skip}
+    unpack_head, unpack_msg = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
+    pos = 0
+    while pos < n:
+        opcode, length = unpack_head(data, pos)
+        start, pos = pos + 9, pos + 9 + length
+        if pos > n:
+            raise ValueError("a record runs past the end of its chunk")
+        if opcode == Opcode.MESSAGE:
+            if length < 22:
+                raise ValueError("message record too short")
+            cid, seq, log_time, publish_time = unpack_msg(data, start)
+            if cid not in skipped:
+                out.append(Message(channel_id=cid, sequence=seq, log_time=log_time, publish_time=publish_time,
+                                   data=data[start + 22 : pos]))
+        elif opcode in (Opcode.CHANNEL, Opcode.SCHEMA):
+            rec = (Channel if opcode == Opcode.CHANNEL else Schema).read(ReadDataStream(io.BytesIO(data[start:pos])))
+            if isinstance(rec, Channel):
+                known[rec.id] = rec
+                if rec.topic in skip:
+                    skipped.add(rec.id)
+            out.append(rec)
+    return out
+
+
+_RECORD_HEAD = struct.Struct("<BQ")
+
+
+def _chunk(body: bytes) -> Chunk:
+    chunk = Chunk.read(ReadDataStream(io.BytesIO(body)))
+    if chunk.uncompressed_size > MAX_RECORD:
+        raise ValueError(f"chunk claims {chunk.uncompressed_size} bytes uncompressed")
+    if chunk.compression == "zstd":
+        import zstandard
+
+        declared = zstandard.frame_content_size(chunk.data)
+        if declared not in (-1, chunk.uncompressed_size):
+            raise ValueError("chunk sizes disagree")
+    return chunk
+
+
 def _parse(opcode: int, body: bytes) -> list[McapRecord]:
     stream = ReadDataStream(io.BytesIO(body))
     if opcode == Opcode.CHUNK:
-        chunk = Chunk.read(stream)
-        if chunk.uncompressed_size > MAX_RECORD:
-            raise ValueError(f"chunk claims {chunk.uncompressed_size} bytes uncompressed")
-        if chunk.compression == "zstd":
-            import zstandard
-
-            declared = zstandard.frame_content_size(chunk.data)
-            if declared not in (-1, chunk.uncompressed_size):
-                raise ValueError("chunk sizes disagree")
-        return breakup_chunk(chunk, validate_crc=True)
+        return breakup_chunk(_chunk(body), validate_crc=True)
     if opcode == Opcode.MESSAGE:
         if len(body) < 22:
             raise ValueError("message record too short")
