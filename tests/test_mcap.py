@@ -421,6 +421,8 @@ def test_scan_skipping_a_topic_yields_the_same_other_messages():
 
     from sniffer.sources.mcapscan import Scan, open_file
 
+    from pathlib import Path
+
     path = Path(__file__).resolve().parent.parent / "captures" / "sim" / "errors.mcap"
 
     def messages(skip):
