@@ -473,12 +473,35 @@ def test_mcap_channels_lost_with_the_first_chunk_come_from_the_summary(tmp_path)
     assert replay(tmp_path / "fixed.mcap")[2] == events
 
 
+def _library_capture(path, events) -> None:
+    """A capture as the mcap library's Writer lays it out: channel records inside the first chunk
+    (sniffer's own writer puts them before any chunk, where damage to a chunk cannot take them)."""
+    import orjson
+    from mcap.writer import Writer
+    from test_mcap import INFO
+
+    from sniffer.mcap_format import CHANNELS, METADATA_NAME, RAW_FORMAT, encode_event, info_to_metadata
+
+    with open(path, "wb") as fh:
+        w = Writer(fh)
+        w.start(profile="", library="mcap library")
+        w.add_metadata(METADATA_NAME, info_to_metadata(INFO))
+        ids = {topic: w.register_channel(topic, "json", w.register_schema(name, "jsonschema", orjson.dumps(schema)),
+                                         {"sniffer.format": RAW_FORMAT})
+               for topic, name, schema in CHANNELS}
+        w.add_message(ids["/capture"], 0, orjson.dumps(INFO.to_dict()), 0, 0)
+        for i, ev in enumerate(events):
+            w.flush()  # one chunk per event
+            w.add_message(ids["/raw"], ev.t_ns, encode_event(ev), ev.t_ns, i)
+        w.finish()
+
+
 def test_mcap_channels_lost_in_an_unfinished_file_are_reported(tmp_path):
-    from test_mcap import _chunk_offsets, make_event, write_capture
+    from test_mcap import _chunk_offsets, make_event
 
     p = tmp_path / "first.mcap"
     events = [make_event(i) for i in range(8)]
-    write_capture(p, events, flush_interval_s=0)
+    _library_capture(p, events)
     start, length = _chunk_offsets(p)[0]
     (last_start, _len) = _chunk_offsets(p)[-1]
     data = bytearray(p.read_bytes()[:last_start + 20])  # killed: no summary
