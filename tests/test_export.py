@@ -31,13 +31,13 @@ def test_csv_frames_and_points(tmp_path, a510):
     rows = list(csv.DictReader(out.open()))
     assert len(rows) == len(frames)
     assert [int(r["index"]) for r in rows] == [f.index for f in frames]
-    assert rows[1]["role"] == "response" and rows[1]["latency_ms"] == "11.757" and rows[1]["crc_ok"] == "True"
+    assert rows[1]["role"] == "response" and rows[1]["latency_ms"] == "11.757" and rows[1]["crc_ok"] == "true"
     assert rows[0]["raw"] == frames[0].raw.hex()
     points = list(csv.DictReader((tmp_path / "a510.points.csv").open()))
     assert len(points) == sum(len(f.points) for f in frames)
     freq = next(p for p in points if p["name"] == "Frequency command")
     assert freq["eng_unit"] == "Hz" and float(freq["value"]) == 32.5 and freq["raw"] == "3250"
-    assert {p["crc_ok"] for p in points} == {"True"}  # every point says whether its frame's CRC held
+    assert {p["crc_ok"] for p in points} == {"true"}  # every point says whether its frame's CRC held
 
 
 def test_parquet_reads_in_duckdb_and_pyarrow(tmp_path, a510):

@@ -133,7 +133,7 @@ def test_export_replaces_the_old_output_only_when_complete(tmp_path):
     out = tmp_path / "a.csv"
     out.write_text("old\n")
     assert export(A510, "csv", out) == 0
-    assert out.read_text().startswith("index,t,") and not list(tmp_path.glob("*.part"))
+    assert out.read_text().startswith('"index","t",') and not list(tmp_path.glob("*.part"))
 
 
 def _with_file_size_limit(limit: int, *argv: str, cwd) -> subprocess.CompletedProcess:
