@@ -20,13 +20,13 @@ from .frame import Frame
 from .protocols import MODBUS_TABLES
 
 FIRST_VALUES = 8  # distinct values listed per register
-MAX_DISTINCT = 4096  # distinct values counted per register (beyond: "4096+")
+MAX_DISTINCT = 1024  # distinct values counted per register (beyond: "1024+")
 
 
 class Quantiles:
     """Median / percentiles of a stream: exact for the first EXACT samples, then a 0.1 % histogram."""
 
-    EXACT = 50_000
+    EXACT = 10_000  # samples kept exactly (80 kB a request key); beyond, a 0.1 % log histogram
     _LOG = math.log1p(0.001)
 
     def __init__(self) -> None:

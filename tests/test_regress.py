@@ -185,3 +185,27 @@ def test_summary_ignores_what_a_crc_bad_frame_claims():
     s = summarize([good, bad])
     assert list(s["units"]) == ["1"] and len(s["requests"]) == 1
     assert s["codes"] == {"modbus.crc.mismatch": 1}  # counted as an error, not as unit 77's exception
+
+
+def test_quantiles_are_exact_then_within_a_tenth_of_a_percent():
+    """diff keeps latencies and poll gaps in bounded memory: exact up to EXACT samples, a 0.1 % histogram beyond."""
+    import random
+    import statistics
+
+    from sniffer.semdiff import Quantiles
+
+    rng = random.Random(5)
+    xs = [rng.lognormvariate(1.5, 0.6) for _ in range(Quantiles.EXACT * 3)]
+    small, big = Quantiles(), Quantiles()
+    for x in xs[:1000]:
+        small.add(x)
+    for x in xs:
+        big.add(x)
+    assert small.median() == statistics.median(xs[:1000])
+    assert small.pct(0.95) == round(sorted(xs[:1000])[round(0.95 * 999)], 3)
+    assert big._xs is None  # switched to the histogram
+    exact = sorted(xs)
+    assert abs(big.median() - statistics.median(xs)) <= 0.001 * statistics.median(xs)
+    for q in (0.05, 0.5, 0.95, 0.999):
+        want = exact[round(q * (len(xs) - 1))]
+        assert abs(big.pct(q) - want) <= 0.001 * want + 0.0005, q
