@@ -204,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
         if not args.cmd:
             parser.print_help(sys.stderr)
             return EXIT_USAGE
-        from .session import CaptureSpec
+        from .settings import CaptureSpec
 
         spec = CaptureSpec.from_args(args)
         return command(args.cmd)(spec, args)

@@ -53,7 +53,7 @@ class SnifferChecker:
                  latency_tol_ms=None) -> str:
         """Check; returns the golden text path's message on update. Fails the test on a difference."""
         from .golden import EXIT_DIFFERENT, EXIT_SAME, Tolerances, check
-        from .session import CaptureSpec
+        from .settings import CaptureSpec
 
         defaults = Tolerances()
         tol = Tolerances(

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import sys
 
-from ..session import CaptureSpec, Session, on_signals
+from ..session import Session, on_signals
+from ..settings import CaptureSpec
 from .common import capture_sinks, default_capture_name, report, say, summary_line, tui_wanted
 
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import sys
 
 from ..golden import Tolerances, check
-from ..session import CaptureSpec
+from ..settings import CaptureSpec
 
 
 def cmd_check(spec: CaptureSpec, args) -> int:
-    from ..session import finite
+    from ..settings import finite
 
     tol = Tolerances(finite(args.time_tol_ms, "--time-tol-ms", upper=1e9),
                      finite(args.latency_tol_ms, "--latency-tol-ms", upper=1e9))

@@ -6,7 +6,8 @@ import os
 import sys
 import time
 
-from ..session import CaptureSpec, Session
+from ..session import Session
+from ..settings import CaptureSpec
 from ..sinks import FileSink
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 from ..semdiff import diff
-from ..session import CaptureSpec
+from ..settings import CaptureSpec
 
 
 def cmd_diff(spec: CaptureSpec, args) -> int:

@@ -8,7 +8,8 @@ was written so far (a valid, shorter file).
 
 from __future__ import annotations
 
-from ..session import CaptureSpec, Session
+from ..session import Session
+from ..settings import CaptureSpec
 from ..sinks import FileSink
 from .common import report, say
 from .replay import file_source

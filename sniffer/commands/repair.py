@@ -6,7 +6,7 @@ import os
 
 from ..mcap_repair import default_output, repair
 from ..outputs import Output, readable, shown
-from ..session import CaptureSpec
+from ..settings import CaptureSpec
 from ..sources import CaptureError
 from .common import EXIT_OK, say
 

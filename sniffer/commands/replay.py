@@ -5,7 +5,8 @@ from __future__ import annotations
 import sys
 
 from ..events import CaptureInfo, Chunk
-from ..session import CaptureSpec, Session
+from ..session import Session
+from ..settings import CaptureSpec
 from .common import UsageError, report, say, stream_sink
 
 

@@ -10,7 +10,8 @@ protocol and drive models, so a replay decodes with them by default.
 from __future__ import annotations
 
 from ..line import LineSettings
-from ..session import CaptureSpec, Session
+from ..session import Session
+from ..settings import CaptureSpec
 from ..sinks import FileSink
 from .common import UsageError, report, say
 

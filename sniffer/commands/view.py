@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..session import CaptureSpec
+from ..settings import CaptureSpec
 from .common import UsageError, tui_wanted
 
 

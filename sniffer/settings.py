@@ -1,0 +1,249 @@
+"""What the user asked for, and what a capture runs with: one precedence rule for every command.
+
+A setting can come from four places; the first that says it wins:
+flags > bus file > the capture's own metadata > defaults (`layered`).  Device
+maps and per-unit timeouts merge unit by unit by the same rule.  `CaptureSpec`
+holds the flags and the bus file (built once, in cli.py, by `from_args`; the
+inverse, `to_argv`, gives `serve` the command line of its capture process);
+`resolve(info)` adds what the capture says and the defaults and checks the
+result (baud known, a protocol we speak, models that speak it), giving
+`Resolved`: line settings, protocol, device map, timeouts, and a fresh decoder
+registry.  sniffer.session runs a capture with it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+
+from . import protocols
+from .events import CaptureInfo
+from .line import LineSettings, SettingsError
+from .pairer import DEFAULT_TIMEOUT_MS
+from .pipeline import Pipeline
+
+MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo, not a response timeout
+MAX_DURATION_S = 366 * 86_400.0
+
+
+def finite(value, what: str, *, upper: float) -> float:
+    """A number that must be finite, >= 0 and <= upper (flags, bus files): SettingsError otherwise."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise SettingsError(f"{what} {str(value)[:60]!r} is not a number") from None
+    if not math.isfinite(v) or v < 0 or v > upper:
+        raise SettingsError(f"{what} {str(value)[:60]} must be a finite number from 0 to {upper:.0f}")
+    return v
+
+
+@dataclass(frozen=True)
+class LineChoice:
+    """What one place says about the line (flags, a bus file, a capture, the defaults); None = nothing."""
+
+    baud: int | None = None
+    parity: str | None = None
+    stopbits: int | None = None
+    databits: int | None = None
+    protocol: str | None = None
+    devices: Mapping[int, str] = field(default_factory=dict)
+    timeout_ms: float | None = None
+    unit_timeouts: Mapping[int, float] = field(default_factory=dict)
+
+    @classmethod
+    def from_info(cls, info: CaptureInfo | None) -> LineChoice:
+        if info is None:
+            return cls()
+        return cls(info.baud, info.parity, info.stopbits, info.databits, info.protocol, dict(info.devices or {}))
+
+    @classmethod
+    def from_bus(cls, bus) -> LineChoice:
+        if bus is None:
+            return cls()
+        return cls(bus.baud, bus.parity, bus.stopbits, None, bus.protocol, dict(bus.devices),
+                   None, dict(bus.timeouts_ms))
+
+
+DEFAULTS = LineChoice(parity="N", stopbits=1, databits=8, protocol=protocols.DEFAULT, timeout_ms=DEFAULT_TIMEOUT_MS)
+
+
+def layered(*layers: LineChoice) -> LineChoice:
+    """The one precedence rule: the first layer that says a thing wins; maps merge unit by unit."""
+    def first(name):
+        return next((getattr(x, name) for x in layers if getattr(x, name) is not None), None)
+
+    devices: dict[int, str] = {}
+    timeouts: dict[int, float] = {}
+    for x in reversed(layers):
+        devices.update(x.devices)
+        timeouts.update(x.unit_timeouts)
+    return LineChoice(first("baud"), first("parity"), first("stopbits"), first("databits"), first("protocol"),
+                      devices, first("timeout_ms"), timeouts)
+
+
+@dataclass(frozen=True)
+class Resolved:
+    """The settings a capture runs with, checked."""
+
+    line: LineSettings
+    protocol: protocols.Protocol
+    devices: dict[int, str]
+    model_files: tuple[str, ...]
+    timeout_ms: float
+    unit_timeouts: dict[int, float]
+
+    def registry(self):
+        """A fresh decoder registry (decoders keep per-unit state: one per pipeline)."""
+        from decoders.registry import default_registry
+
+        return default_registry(self.devices, list(self.model_files) or None, default=self.protocol.default_model)
+
+    def pipeline(self, info: CaptureInfo, sinks, registry=None) -> Pipeline:
+        return Pipeline(info, self.line, registry or self.registry(), sinks, protocol=self.protocol.name,
+                        timeout_ms=self.timeout_ms, unit_timeouts=self.unit_timeouts or None)
+
+    def record_in(self, info: CaptureInfo) -> None:
+        """The settings used travel with the capture (an MCAP written from it replays without flags)."""
+        info.baud, info.parity, info.stopbits = self.line.baud, self.line.parity, self.line.stopbits
+        info.databits = self.line.databits
+        info.protocol = self.protocol.name
+        info.devices = dict(self.devices)
+
+    def describe(self) -> str:
+        models = ", ".join(f"{u}={m}" for u, m in sorted(self.devices.items()))
+        return f"{self.line.label()} {self.protocol.name}" + (f" ({models})" if models else "")
+
+
+@dataclass(frozen=True)
+class CaptureSpec:
+    """What the user asked for, in one object: built once from the flags and the bus file.
+
+    `flags` and `bus` are the two top layers of the precedence rule; the capture's
+    metadata and DEFAULTS are added by `resolve`.  The rest says where the capture
+    comes from (port, input file, simulated scenario) and where it goes.
+    """
+
+    flags: LineChoice = LineChoice()
+    bus_file: str | None = None
+    bus: LineChoice = LineChoice()
+    model_files: tuple[str, ...] = ()
+    # where the capture comes from
+    port: str | None = None
+    input: str | None = None
+    input_format: str = "auto"
+    scenario: str | None = None
+    seed: int = 1
+    duration_s: float = 0.0
+    # where it goes
+    out: str | None = None  # the MCAP file a live capture or demo writes (None: none)
+    stream: str | None = "text"  # frames on stdout: "text", "jsonl" or None (quiet)
+    headless: bool = False
+    publish: str | None = None
+    publish_backlog: int = 100_000
+
+    @classmethod
+    def of(cls, *, baud=None, parity=None, stopbits=None, protocol=None, devices=None, timeout_ms=None,
+           unit_timeouts=None, model_files=(), bus_file: str | None = None, **kw) -> CaptureSpec:
+        """A spec from keyword arguments (the pytest plugin, tests): they are the flags layer."""
+        flags = LineChoice(baud, parity.upper() if parity else None, stopbits, None, protocol,
+                           {int(u): str(m) for u, m in (devices or {}).items()}, timeout_ms,
+                           dict(unit_timeouts or {}))
+        return cls(flags=flags, bus_file=bus_file, bus=_load_bus(bus_file), model_files=tuple(model_files), **kw)
+
+    @classmethod
+    def from_args(cls, args) -> CaptureSpec:
+        """The spec for parsed command-line flags (any subset: each command has the flags it needs)."""
+        from decoders.registry import parse_device_args
+
+        def opt(name, default=None):
+            return getattr(args, name, default)
+
+        timeout = opt("timeout_ms")
+        flags = LineChoice(opt("baud"), opt("parity"), opt("stopbits"), None, opt("protocol"),
+                           parse_device_args(opt("device")),
+                           None if timeout is None else finite(timeout, "--timeout-ms", upper=MAX_TIMEOUT_MS))
+        duration = opt("duration", 0.0) or 0.0
+        fmt = opt("format", "text")
+        return cls(
+            flags=flags, bus_file=opt("bus"), bus=_load_bus(opt("bus")), model_files=tuple(opt("model_file") or ()),
+            port=opt("port"), input=opt("file"), input_format=opt("input_format", "auto") or "auto",
+            scenario=opt("scenario"), seed=opt("seed", 1) or 1,
+            duration_s=finite(duration, "--duration", upper=MAX_DURATION_S),
+            out=None if opt("no_out") else opt("out"),
+            stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
+            headless=bool(opt("headless")), publish=opt("publish"),
+            publish_backlog=opt("publish_backlog", 100_000),
+        )
+
+    def with_(self, **changes) -> CaptureSpec:
+        return replace(self, **changes)
+
+    def resolve(self, info: CaptureInfo | None = None, *, need_baud: bool = True) -> Resolved:
+        """flags > bus file > `info` (the capture's metadata) > defaults, checked; SettingsError otherwise."""
+        c = layered(self.flags, self.bus, LineChoice.from_info(info), DEFAULTS)
+        where = f"{info.source or 'the capture'}" if info is not None else "the line"
+        if c.baud is None:
+            if need_baud:
+                raise SettingsError(f"{where} does not say its baud rate: give --baud (and --parity/--stopbits)")
+            c = replace(c, baud=9600)
+        line = LineSettings(_int(c.baud, "baud rate"), str(c.parity).upper(), _int(c.stopbits, "stop bits"),
+                            _int(c.databits, "data bits"))
+        protocol = protocols.get(c.protocol)
+        timeouts = {int(u): finite(ms, f"timeout of unit {u}", upper=MAX_TIMEOUT_MS)
+                    for u, ms in c.unit_timeouts.items()}
+        resolved = Resolved(line, protocol, dict(c.devices), self.model_files,
+                            finite(c.timeout_ms, "response timeout", upper=MAX_TIMEOUT_MS), timeouts)
+        registry = resolved.registry()  # unknown models and bad model files fail here, before anything opens
+        for unit, model in sorted(resolved.devices.items()):
+            fam = getattr(registry.decoders[model], "family", "pd" if model == "pd-series" else "modbus")
+            if fam != protocol.family:
+                speaks = ", ".join(n for n, p in protocols.PROTOCOLS.items() if p.family == fam)
+                raise SettingsError(f"unit {unit}: model {model} speaks {speaks}, not {protocol.name} "
+                                    f"(give --protocol, or another model)")
+        return resolved
+
+    def to_argv(self, command: str) -> list[str]:
+        """The `sniffer live|demo ...` arguments that run this capture (serve starts it as a process)."""
+        argv = [command]
+        if command == "live":
+            argv.append(self.port or "")
+        f = self.flags
+        for flag, value in (("--baud", f.baud), ("--parity", f.parity), ("--stopbits", f.stopbits),
+                            ("--protocol", f.protocol), ("--timeout-ms", f.timeout_ms), ("--bus", self.bus_file)):
+            if value is not None:
+                argv += [flag, str(value)]
+        for unit, model in sorted(f.devices.items()):
+            argv += ["--device", f"{unit}={model}"]
+        for path in self.model_files:
+            argv += ["--model-file", path]
+        if command == "demo":
+            argv += ["--scenario", self.scenario or "default", "--seed", str(self.seed)]
+        argv += ["--out", self.out] if self.out else ["--no-out"]
+        argv += ["--duration", repr(self.duration_s)]
+        if self.publish:
+            argv += ["--publish", self.publish, "--publish-backlog", str(self.publish_backlog)]
+        if self.headless:
+            argv.append("--headless")
+        if self.stream is None:
+            argv.append("--quiet")
+        elif self.stream == "jsonl":
+            argv += ["--format", "jsonl"]
+        return argv
+
+
+def _int(v, what: str) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+        raise SettingsError(f"{what} {str(v)[:60]!r} is not a whole number")
+    try:
+        return int(v)
+    except ValueError:
+        raise SettingsError(f"{what} {str(v)[:60]!r} is not a whole number") from None
+
+
+def _load_bus(path: str | None) -> LineChoice:
+    if not path:
+        return LineChoice()
+    from .busfile import load_bus_file
+
+    return LineChoice.from_bus(load_bus_file(path))
