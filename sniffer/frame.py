@@ -8,6 +8,8 @@ which registers the frame wrote into its unit's shadow, `writes`).
 
 from __future__ import annotations
 
+from typing import Protocol
+
 from .codes import Annotation
 
 REQUEST = "request"
@@ -20,11 +22,19 @@ CAN_REQ = 1
 CAN_RSP = 2
 
 
+class PointBlock(Protocol):
+    """Points kept compactly by a decoder until someone reads them (decoders.generic.block)."""
+
+    def points(self) -> list[dict]: ...
+
+    def json(self) -> bytes: ...
+
+
 class Frame:
     __slots__ = (
         "index", "t_ns", "t_end_ns", "raw", "protocol", "unit", "function",
         "can", "role", "crc_ok", "crc_expected", "time_source", "idle_before_ns",
-        "annotations", "pair", "latency_ms", "model", "points", "exception",
+        "annotations", "pair", "latency_ms", "model", "_points", "exception",
         "fields", "summary", "noise_reason", "channel", "peer", "adu", "encoded", "writes",
     )
 
@@ -62,7 +72,8 @@ class Frame:
         self.pair: int | None = None
         self.latency_ms: float | None = None
         self.model: str | None = None
-        self.points: list[dict] = []  # each with "span": [start, end) of its value's bytes in raw
+        # each with "span": [start, end) of its value's bytes in raw; see the `points` property
+        self._points: list[dict] | PointBlock = []
         self.exception: dict | None = None
         self.fields: list | None = None  # decoded tree: [(name, value, start, end, children)]
         self.summary: str = ""
@@ -75,6 +86,23 @@ class Frame:
         # what decoding this frame put into its unit's register shadow: [[table, start, [raw, ...]], ...]
         # (decoders.base.UnitState.commit writes both)
         self.writes: list[list] = []
+
+    @property
+    def points(self) -> list[dict]:
+        """The decoded values, a list of dicts (name, address, raw, value, unit, span, ...).
+
+        A decoder may set a PointBlock instead (a block of registers no model names, kept as its
+        values): it becomes the list of dicts the first time anyone reads `points`, and the JSON
+        record is written from the block without ever building them (sniffer.records).
+        """
+        pts = self._points
+        if type(pts) is not list:
+            pts = self._points = pts.points()
+        return pts
+
+    @points.setter
+    def points(self, value) -> None:
+        self._points = value
 
     @property
     def is_noise(self) -> bool:

@@ -18,6 +18,7 @@ every frame's `writes` in order rebuilds the decoders' shadow.
 
 from __future__ import annotations
 
+import msgspec
 import orjson
 
 from .frame import Frame
@@ -50,8 +51,41 @@ def frame_record(f: Frame, t0_ns: int) -> dict:
     }
 
 
+class _Record(msgspec.Struct):
+    """frame_record's keys, in its order: built positionally and encoded by msgspec in one C call.
+
+    Half the cost of building the dict and encoding it with orjson (measured with valgrind on the
+    bench mixes); the bytes are the same but for exponents (msgspec writes 1e16, orjson 1e+16).
+    """
+
+    index: int
+    t: float
+    t_end: float
+    raw: str
+    protocol: str
+    unit: int | None
+    function: int | None
+    role: str
+    crc_ok: bool | None
+    crc_expected: str | None
+    exception: dict | None
+    model: str | None
+    points: list | msgspec.Raw
+    writes: list
+    annotations: list
+    latency_ms: float | None
+    pair: int | None
+    summary: str
+    time_source: str
+    channel: str
+    noise_reason: str | None
+
+
+_encode = msgspec.json.Encoder().encode
+
+
 def frame_json(f: Frame, t0_ns: int) -> bytes:
-    """dumps(frame_record(f, t0_ns)), encoded once per frame for all the sinks that write it.
+    """The JSON of frame_record(f, t0_ns), encoded once per frame for all the sinks that write it.
 
     A frame is final when the sinks see it (decoded, paired), so the JSONL
     stream, the MCAP `/frames` channel and the viewers' socket share one encoding.
@@ -59,7 +93,16 @@ def frame_json(f: Frame, t0_ns: int) -> bytes:
     enc = f.encoded
     if enc is not None and enc[0] == t0_ns:
         return enc[1]
-    data = orjson.dumps(frame_record(f, t0_ns))
+    ce = f.crc_expected
+    pts = f._points  # a decoder's compact block is written as JSON without becoming dicts
+    if type(pts) is not list:
+        pts = msgspec.Raw(pts.json())
+    data = _encode(_Record(
+        f.index, (f.t_ns - t0_ns) / 1e9, (f.t_end_ns - t0_ns) / 1e9, f.raw.hex(), f.protocol, f.unit,
+        f.function, f.role, f.crc_ok, None if ce is None else f"{ce:04x}", f.exception, f.model, pts,
+        f.writes, [a.to_dict() for a in f.annotations] if f.annotations else [], f.latency_ms, f.pair,
+        f.summary, f.time_source, f.channel, f.noise_reason,
+    ))
     f.encoded = (t0_ns, data)
     return data
 

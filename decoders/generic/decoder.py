@@ -19,6 +19,7 @@ from sniffer.frame import REQUEST, RESPONSE, Frame
 from sniffer.protocols import MODBUS_TABLES
 
 from ..base import UnitState
+from .block import BIT_SPACES, RegisterBlock, spans
 from .fast import FAST
 from .schema import EXCEPTION_NAMES, FUNCTION_NAMES, LAYOUTS
 
@@ -45,21 +46,26 @@ class GenericModbus:
         [offset + 2i, offset + 2i + 2), bit i in the byte offset + i // 8.  A model
         may override it (to join 32-bit values: that point's span covers both words).
         """
-        spans = _spans(offset, len(values), space in _BIT_SPACES)
         if addr is None:
             pts = [self.point(space, None, v, state) for v in values]
-        elif type(self).point is GenericModbus.point:  # no model: skip the per-register call
-            return [
-                {"name": nm, "address": a, "raw": v, "value": v, "unit": None, "span": sp}
-                for nm, a, v, sp in zip(_names(space, addr, len(values)), range(addr, addr + len(values)),
-                                        values, spans)
-            ]
         else:
             point = self.point
             pts = [point(space, a, v, state) for a, v in zip(range(addr, addr + len(values)), values)]
-        for pt, sp in zip(pts, spans):
+        for pt, sp in zip(pts, spans(offset, len(values), space in BIT_SPACES)):
             pt["span"] = sp
         return pts
+
+    def _points(self, space: str, addr: int | None, values: list[int], state: UnitState, offset: int):
+        """make_points, or with no model (neither hook overridden) a RegisterBlock: the same points,
+        built only if someone reads them (decoders.generic.block)."""
+        if self._plain and addr is not None:
+            return RegisterBlock(space, addr, values, offset)
+        return self.make_points(space, addr, values, state, offset)
+
+    @functools.cached_property
+    def _plain(self) -> bool:
+        cls = type(self)
+        return cls.point is GenericModbus.point and cls.make_points is GenericModbus.make_points
 
     # ---- decode ----------------------------------------------------------
     def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
@@ -128,7 +134,7 @@ class GenericModbus:
             f.annotations.append(note(NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.adu)))
         if addr is not None and f.crc_ok and values:  # the shadow holds what CRC-good frames said
             state.commit(f, space, addr, values)
-        pts = self.make_points(space, addr, values, state, 3)
+        pts = self._points(space, addr, values, state, 3)
         f.points = pts
         f.summary = _points_summary(pts)
 
@@ -145,7 +151,7 @@ class GenericModbus:
         bits = [(status[i >> 3] >> (i & 7)) & 1 for i in range(qty)]
         if addr is not None and f.crc_ok and bits:
             state.commit(f, space, addr, bits)
-        pts = self.make_points(space, addr, bits, state, 3)
+        pts = self._points(space, addr, bits, state, 3)
         f.points = pts
         f.summary = _points_summary(pts)
 
@@ -170,7 +176,7 @@ class GenericModbus:
         a, q = p["address"], p["quantity"]
         self._check_qty(f, fc, q)
         space, values = _written(fc, p)
-        pts = self.make_points(space, a, values, state, 7)
+        pts = self._points(space, a, values, state, 7)
         if f.unit == 0 and f.crc_ok and values:  # a broadcast is answered by nobody: written at once
             state.commit(f, space, a, values)
         f.points = pts
@@ -195,7 +201,7 @@ class GenericModbus:
             if old is not None:  # the result needs the register's value before the mask
                 state.commit(f, "holding", a, [(old & p["and_mask"]) | (p["or_mask"] & ~p["and_mask"] & 0xFFFF)])
         if fc == 0x17 and role == REQUEST:
-            f.points = self.make_points("holding", p["write_address"], list(p["values"]), state, 11)
+            f.points = self._points("holding", p["write_address"], list(p["values"]), state, 11)
 
     def _rw_rsp(self, f, role, p, request, state):
         if request is not None and request.crc_ok and len(request.adu) >= 6:
@@ -207,8 +213,8 @@ class GenericModbus:
                     state.commit(f, *written)
                 if values:
                     state.commit(f, "holding", addr, values)
-            f.points = self.make_points("holding", addr, values, state, 3)
-            f.summary = _points_summary(f.points)
+            pts = f.points = self._points("holding", addr, values, state, 3)
+            f.summary = _points_summary(pts)
         else:
             self._read_regs_rsp(f, role, p, None, state)
 
@@ -277,43 +283,6 @@ def _request_writes(request: Frame, fc: int) -> tuple[str, int, list[int]] | Non
     return (table, p["address"], values) if values else None
 
 
-_BIT_SPACES = frozenset({"coil", "discrete"})
-_SPAN_CACHE: dict[tuple[int, int, bool], list[list[int]]] = {}
-
-
-def _spans(offset: int, n: int, bits: bool) -> list[list[int]]:
-    """Cached spans of n registers (2 bytes each) or bits (their byte) from ADU offset `offset`.
-
-    The span lists are shared between frames, as the names are: nothing may change one in place
-    (the registry gives ASCII frames new ones).
-    """
-    key = (offset, n, bits)
-    spans = _SPAN_CACHE.get(key)
-    if spans is None:
-        if len(_SPAN_CACHE) > 4096:
-            _SPAN_CACHE.clear()
-        if bits:
-            spans = [[offset + (i >> 3), offset + (i >> 3) + 1] for i in range(n)]
-        else:
-            spans = [[offset + 2 * i, offset + 2 * i + 2] for i in range(n)]
-        _SPAN_CACHE[key] = spans
-    return spans
-
-
-_NAME_CACHE: dict[tuple[str, int, int], list[str]] = {}
-
-
-def _names(space: str, addr: int, n: int) -> list[str]:
-    """Cached names of a register block: polls read the same blocks over and over."""
-    key = (space, addr, n)
-    names = _NAME_CACHE.get(key)
-    if names is None:
-        if len(_NAME_CACHE) > 4096:
-            _NAME_CACHE.clear()
-        names = _NAME_CACHE[key] = [f"{space}[{a}]" for a in range(addr, addr + n)]
-    return names
-
-
 def _pt_text(pt: dict) -> str:
     unit = pt["unit"]
     text = pt.get("text")
@@ -322,7 +291,9 @@ def _pt_text(pt: dict) -> str:
     return f"{pt['name']}={pt['value']}{' ' + unit if unit else ''}{' [' + text + ']' if text else ''}"
 
 
-def _points_summary(pts: list[dict], limit: int = 6) -> str:
+def _points_summary(pts, limit: int = 6) -> str:
+    if type(pts) is RegisterBlock:
+        return pts.summary(limit)
     text = " ".join([f"{p['name']}={p['value']}" if not p["unit"] and not p.get("text") else _pt_text(p)
                      for p in pts[:limit]])
     if len(pts) > limit:

@@ -33,8 +33,9 @@ FRAME_CACHE = 1024  # rebuilt frames kept (a screen is 40-100 rows)
 BLOCK_CACHE = 8  # unpacked blocks kept
 _LEVEL = 3  # zstd level: level 3 packs drive traffic about 12:1 in well under a microsecond a frame
 
-# peer is None once a frame is decoded; encoded (the JSON the sinks wrote) can be made again
-SLOTS = tuple(s for s in Frame.__slots__ if s not in ("peer", "encoded"))
+# peer is None once a frame is decoded; encoded (the JSON the sinks wrote) can be made again;
+# points through its property (a decoder's compact block becomes its list of dicts)
+SLOTS = tuple("points" if s == "_points" else s for s in Frame.__slots__ if s not in ("peer", "encoded"))
 _ANN = SLOTS.index("annotations")
 _get = operator.attrgetter(*SLOTS)
 _SEP = "\x1e"  # between frames in a block's search text (record separator)
