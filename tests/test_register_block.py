@@ -44,6 +44,24 @@ def test_block_points_json_and_summary_equal_the_dicts():
             assert block.summary(limit) == _points_summary(want, limit)
 
 
+def test_repeated_and_changed_values_never_get_stale_text():
+    """A block's shape remembers the last values' JSON and summary: each call still fits its values."""
+    generic, state = GenericModbus(), UnitState(1)
+    rng = random.Random(3)
+    seq = [[1, 2, 3, 4, 5, 6, 7, 8], [1, 2, 3, 4, 5, 6, 7, 9], [9, 2, 3, 4, 5, 6, 7, 8]]
+    for _ in range(300):
+        values = list(rng.choice(seq))
+        want = generic.make_points("holding", 40, values, state, 3)
+        block = RegisterBlock("holding", 40, values, 3)
+        order = ["json", "summary"] * 2
+        rng.shuffle(order)
+        for call in order:
+            if call == "json":
+                assert block.json() == orjson.dumps(want)
+            else:
+                assert block.summary() == _points_summary(want)
+
+
 def test_a_model_hook_gets_dicts_not_blocks():
     class Named(GenericModbus):
         def point(self, space, address, raw, state):

@@ -25,8 +25,8 @@ _TEMPLATE_PIECES = 200_000  # template pieces kept in all (about 15 MB): a captu
 _encode = msgspec.json.Encoder().encode
 _span_cache: dict[tuple[int, int, bool], list[list[int]]] = {}
 _name_cache: dict[tuple[str, int, int], list[str]] = {}
-_template_cache: dict[tuple[str, int, int, int], list[bytes | None]] = {}
-_template_pieces = 0
+_shapes: dict[tuple[str, int, int, int], _Shape] = {}
+_shape_pieces = 0  # JSON template pieces held by _shapes
 
 
 def spans(offset: int, n: int, bits: bool) -> list[list[int]]:
@@ -59,40 +59,64 @@ def names(space: str, addr: int, n: int) -> list[str]:
     return out
 
 
-def _template(space: str, addr: int, n: int, offset: int) -> list[bytes | None]:
-    """The block's JSON in 5 pieces a point: prefix, raw digits (None), ',"value":', value digits
-    (None), suffix; the values' digits are put in the None places."""
-    global _template_pieces
-    key = (space, addr, n, offset)
-    tpl = _template_cache.get(key)
-    if tpl is None:
-        if _template_pieces > _TEMPLATE_PIECES or len(_template_cache) > _CACHE_LIMIT:
-            _template_cache.clear()
-            _template_pieces = 0
-        tpl = []
+class _Shape:
+    """What every block of one (table, address, count, offset) shares: the constant parts of its JSON
+    and summary, and the last values written with their JSON and summary (a poll often reads what it
+    read before, from this unit or another: equal values give the same text)."""
+
+    __slots__ = ("space", "addr", "n", "offset", "pieces", "summary_tpl", "last", "last_json", "last_summary")
+
+    def __init__(self, space: str, addr: int, n: int, offset: int) -> None:
+        self.space, self.addr, self.n, self.offset = space, addr, n, offset
+        # the JSON in 5 pieces a point: prefix, raw digits (None), ',"value":', value digits (None), suffix
+        pieces: list[bytes | None] = []
         sep = "["
         for name, a, (s0, s1) in zip(names(space, addr, n), range(addr, addr + n),
                                      spans(offset, n, space in BIT_SPACES)):
-            tpl += [f'{sep}{{"name":"{name}","address":{a},"raw":'.encode(), None, b',"value":', None,
-                    f',"unit":null,"span":[{s0},{s1}]}}'.encode()]
+            pieces += [f'{sep}{{"name":"{name}","address":{a},"raw":'.encode(), None, b',"value":', None,
+                       f',"unit":null,"span":[{s0},{s1}]}}'.encode()]
             sep = ","
-        tpl[-1] += b"]"
-        _template_cache[key] = tpl
-        _template_pieces += len(tpl)
-    return tpl
+        if pieces:
+            pieces[-1] += b"]"
+        self.pieces = pieces
+        self.summary_tpl = _summary_template(space, addr, n, SUMMARY_LIMIT)
+        self.last: list[int] | None = None
+        self.last_json = self.last_summary = None
+
+
+SUMMARY_LIMIT = 6  # points a summary names (GenericModbus's _points_summary)
+
+
+def _summary_template(space: str, addr: int, n: int, limit: int) -> str:
+    tpl = " ".join([f"{nm}=%d" for nm in names(space, addr, min(n, limit))])
+    return tpl + f" ... (+{n - limit})" if n > limit else tpl
+
+
+def _shape(space: str, addr: int, n: int, offset: int) -> _Shape:
+    global _shape_pieces
+    key = (space, addr, n, offset)
+    shape = _shapes.get(key)
+    if shape is None:
+        if _shape_pieces > _TEMPLATE_PIECES or len(_shapes) > _CACHE_LIMIT:
+            _shapes.clear()
+            _shape_pieces = 0
+        shape = _shapes[key] = _Shape(space, addr, n, offset)
+        _shape_pieces += len(shape.pieces)
+    return shape
 
 
 class RegisterBlock:
     """Consecutive values of one table from `addr` on; value i's bytes start at ADU offset `offset`
     (register i at offset + 2i, bit i in the byte offset + i // 8)."""
 
-    __slots__ = ("space", "addr", "values", "offset")
+    __slots__ = ("space", "addr", "values", "offset", "shape")
 
     def __init__(self, space: str, addr: int, values: list[int], offset: int) -> None:
         self.space = space
         self.addr = addr
-        self.values = values
+        self.values = values  # kept, not copied: nothing changes a decoded frame's values
         self.offset = offset
+        self.shape = _shape(space, addr, len(values), offset)
 
     def __len__(self) -> int:
         return len(self.values)
@@ -106,20 +130,30 @@ class RegisterBlock:
         ]
 
     def json(self) -> bytes:
-        values = self.values
+        values, shape = self.values, self.shape
+        if values == shape.last and shape.last_json is not None:
+            return shape.last_json
         if not values:
             return b"[]"
         digits = _encode(values)[1:-1].split(b",")
-        out = _template(self.space, self.addr, len(values), self.offset).copy()
+        out = shape.pieces.copy()
         out[1::5] = digits
         out[3::5] = digits
-        return b"".join(out)
+        data = b"".join(out)
+        if values != shape.last:
+            shape.last, shape.last_summary = values, None
+        shape.last_json = data
+        return data
 
-    def summary(self, limit: int = 6) -> str:
+    def summary(self, limit: int = SUMMARY_LIMIT) -> str:
         """What _points_summary says of these points: "holding[8448]=1 holding[8449]=2 ... (+n)"."""
-        values = self.values
-        text = " ".join([f"{nm}={v}" for nm, v in zip(names(self.space, self.addr, min(len(values), limit)),
-                                                      values)])
-        if len(values) > limit:
-            text += f" ... (+{len(values) - limit})"
+        values, shape = self.values, self.shape
+        if limit != SUMMARY_LIMIT:
+            return _summary_template(self.space, self.addr, len(values), limit) % tuple(values[:limit])
+        if values == shape.last and shape.last_summary is not None:
+            return shape.last_summary
+        text = shape.summary_tpl % tuple(values[:limit])
+        if values != shape.last:
+            shape.last, shape.last_json = values, None
+        shape.last_summary = text
         return text

@@ -8,7 +8,7 @@ of requests, responses, exceptions and the register shadow stays here.
 from __future__ import annotations
 
 import functools
-from struct import unpack_from
+from struct import Struct, unpack_from
 
 from construct import ConstructError
 
@@ -20,7 +20,6 @@ from sniffer.protocols import MODBUS_TABLES
 
 from ..base import UnitState
 from .block import BIT_SPACES, RegisterBlock, spans
-from .fast import FAST
 from .schema import EXCEPTION_NAMES, FUNCTION_NAMES, LAYOUTS
 
 
@@ -73,36 +72,52 @@ class GenericModbus:
         fc = f.function
         if fc is None or len(adu) < 2:
             return
-        body = adu[2:]
         if fc & 0x80:
-            self._exception(f, fc, body)
+            self._exception(f, fc, adu[2:])
             return
-        role = RESPONSE if f.role == RESPONSE else REQUEST
-        hot = self._hot.get((fc, role))
-        if hot is None:  # no handler: a function code we only name
+        handler = (self._on_response if f.role == RESPONSE else self._on_request).get(fc)
+        if handler is None:  # no handler: a function code we only name
+            role = RESPONSE if f.role == RESPONSE else REQUEST
             f.summary = (f"{FUNCTION_NAMES[fc]} {role}" if fc in FUNCTION_NAMES
-                         else f"function 0x{fc:02X} ({len(body)} data bytes)")
+                         else f"function 0x{fc:02X} ({len(adu) - 2} data bytes)")
             return
-        reader, handler = hot
-        parsed = reader(body)
+        handler(f, adu, request, state)
+
+    @functools.cached_property
+    def _on_request(self) -> dict:
+        """function -> bound handler(f, adu, request, state) for requests (and unknown roles)."""
+        return self._handlers(REQUEST)
+
+    @functools.cached_property
+    def _on_response(self) -> dict:
+        return self._handlers(RESPONSE)
+
+    def _handlers(self, role: str) -> dict:
+        """The traffic of nearly every line (0x01-0x06, 0x0F, 0x10) is read from the ADU in place by
+        one method each; the other codes are parsed by their construct layout, then handled."""
+        out = {}
+        for (fc, r), layout in LAYOUTS.items():
+            if r != role or fc not in FUNCTION_NAMES:
+                continue
+            inline = _INLINE.get((fc, role))
+            out[fc] = getattr(self, inline) if inline else functools.partial(
+                self._parsed, _construct_reader(layout), getattr(self, _handler_name(fc, role)), role)
+        return out
+
+    def _parsed(self, reader, handler, role, f, adu, request, state):
+        parsed = reader(adu[2:])
         if parsed is None:
-            f.annotations.append(
-                note_in(DECODE_SHORT, f"{len(body)} data bytes too few for {FUNCTION_NAMES.get(fc, hex(fc))}",
-                        2, max(3, len(adu)), len(f.raw))
-            )
-            f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} (malformed)"
+            self._malformed(f, adu)
             return
         handler(f, role, parsed, request, state)
 
-    @functools.cached_property
-    def _hot(self) -> dict:
-        """(function, role) -> (body reader, bound handler): one lookup per frame, subclass overrides kept."""
-        out = {}
-        for (fc, role), layout in LAYOUTS.items():
-            name = _handler_name(fc, role)
-            if name is not None:
-                out[fc, role] = (FAST.get((fc, role)) or _construct_reader(layout), getattr(self, name))
-        return out
+    def _malformed(self, f: Frame, adu: bytes) -> None:
+        fc = f.function
+        f.annotations.append(
+            note_in(DECODE_SHORT, f"{len(adu) - 2} data bytes too few for {FUNCTION_NAMES.get(fc, hex(fc))}",
+                    2, max(3, len(adu)), len(f.raw))
+        )
+        f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} (malformed)"
 
     def _exception(self, f: Frame, fc: int, body: bytes) -> None:
         code = body[0] if body else None
@@ -116,75 +131,100 @@ class GenericModbus:
     # Spans below are ADU offsets: unit fc | address(2) quantity(2) | ... ; a read response's
     # values start at 3 (after the byte count), a multiple write's at 7, 0x17's written ones at 11.
     # The shadow is written only through state.commit, which records the write on the frame.
-    def _read_req(self, f, role, p, request, state):
+    # The hot handlers read the ADU in place, with the same length rules as fast.py's readers
+    # (test_generic_inline checks them against those on random bodies).
+    def _read_req(self, f, adu, request, state):  # 0x01-0x04 request: address, quantity
+        if len(adu) < 6:
+            self._malformed(f, adu)
+            return
         fc = f.function
-        a, q = p["address"], p["quantity"]
+        a, q = _HH.unpack_from(adu, 2)
         f.summary = f"read {SPACE[fc]} {a}..{a + q - 1} ({q})"
         if not 1 <= q <= _MAX_QTY[fc]:
             self._check_qty(f, fc, q)
 
-    def _read_regs_rsp(self, f, role, p, request, state):
-        fc = f.function
-        values = p["values"]
-        space = SPACE[fc]
+    def _read_regs_rsp(self, f, adu, request, state):  # 0x03 / 0x04 (and 0x17) response: count, words
+        n = len(adu)
+        k = adu[2] >> 1 if n > 2 else 0
+        if n < 3 or n < 3 + 2 * k:
+            self._malformed(f, adu)
+            return
+        values = list(_WORDS[k].unpack_from(adu, 3))
+        space = SPACE[f.function]
         addr = None
         if request is not None and request.crc_ok and len(request.adu) >= 6:
             addr = (request.adu[2] << 8) | request.adu[3]
+            if f.crc_ok and values:  # the shadow holds what CRC-good frames said
+                state.commit(f, space, addr, values)
         else:
-            f.annotations.append(note(NO_REQUEST_CONTEXT, "register numbers unknown", 2, len(f.adu)))
-        if addr is not None and f.crc_ok and values:  # the shadow holds what CRC-good frames said
-            state.commit(f, space, addr, values)
-        pts = self._points(space, addr, values, state, 3)
-        f.points = pts
+            f.annotations.append(note(NO_REQUEST_CONTEXT, "register numbers unknown", 2, n))
+        pts = f.points = self._points(space, addr, values, state, 3)
         f.summary = _points_summary(pts)
 
-    def _read_bits_rsp(self, f, role, p, request, state):
-        fc = f.function
-        space = SPACE[fc]
-        status = p["status"]
+    def _read_bits_rsp(self, f, adu, request, state):  # 0x01 / 0x02 response: count, packed bits
+        n = len(adu)
+        if n < 3 or n < 3 + adu[2]:
+            self._malformed(f, adu)
+            return
+        space = SPACE[f.function]
+        status = adu[3 : 3 + adu[2]]
         addr, qty = None, len(status) * 8
         if request is not None and request.crc_ok and len(request.adu) >= 6:
             addr = (request.adu[2] << 8) | request.adu[3]
             qty = min(qty, (request.adu[4] << 8) | request.adu[5])
         else:
-            f.annotations.append(note(NO_REQUEST_CONTEXT, "bit numbers unknown", 2, len(f.adu)))
-        bits = [(status[i >> 3] >> (i & 7)) & 1 for i in range(qty)]
+            f.annotations.append(note(NO_REQUEST_CONTEXT, "bit numbers unknown", 2, n))
+        bits = _bits(status, qty)
         if addr is not None and f.crc_ok and bits:
             state.commit(f, space, addr, bits)
-        pts = self._points(space, addr, bits, state, 3)
-        f.points = pts
+        pts = f.points = self._points(space, addr, bits, state, 3)
         f.summary = _points_summary(pts)
 
-    def _write_single(self, f, role, p, request, state):
+    def _write_single(self, f, adu, request, state):  # 0x05 / 0x06, both ways: address, value
+        if len(adu) < 6:
+            self._malformed(f, adu)
+            return
         fc = f.function
-        a, v = p["address"], p["value"]
+        a, v = _HH.unpack_from(adu, 2)
         space = SPACE[fc]
         if fc == 0x05:
             if v not in (0xFF00, 0x0000):
                 f.annotations.append(note(COIL_VALUE, f"value 0x{v:04X}", 4, 6))
             v = 1 if v == 0xFF00 else 0
+        response = f.role == RESPONSE
+        if f.crc_ok and (response or f.unit == 0):  # the response echoes what was written
+            state.commit(f, space, a, [v])
+        if self._plain:
+            f.points = [{"name": f"{space}[{a}]", "address": a, "raw": v, "value": v, "unit": None,
+                         "span": [4, 6]}]
+            f.summary = f"{'wrote' if response else 'write'} {space}[{a}]={v}"
+            return
         pt = self.point(space, a, v, state)
         pt["span"] = [4, 6]
-        if f.crc_ok and (role == RESPONSE or f.unit == 0):  # the response echoes what was written
-            state.commit(f, space, a, [v])
         f.points = [pt]
-        verb = "write" if role == REQUEST else "wrote"
-        f.summary = f"{verb} {_pt_text(pt)}"
+        f.summary = f"{'wrote' if response else 'write'} {_pt_text(pt)}"
 
-    def _write_multi_req(self, f, role, p, request, state):
+    def _write_multi_req(self, f, adu, request, state):  # 0x0F / 0x10 request: address, quantity, values
+        written = _request_values(adu)
+        if written is None:
+            self._malformed(f, adu)
+            return
         fc = f.function
-        a, q = p["address"], p["quantity"]
+        a, q, values = written
         self._check_qty(f, fc, q)
-        space, values = _written(fc, p)
+        space = SPACE[fc]
         pts = self._points(space, a, values, state, 7)
         if f.unit == 0 and f.crc_ok and values:  # a broadcast is answered by nobody: written at once
             state.commit(f, space, a, values)
         f.points = pts
         f.summary = "write " + _points_summary(pts)
 
-    def _write_multi_rsp(self, f, role, p, request, state):
+    def _write_multi_rsp(self, f, adu, request, state):  # 0x0F / 0x10 response: address, quantity
+        if len(adu) < 6:
+            self._malformed(f, adu)
+            return
         fc = f.function
-        a, q = p["address"], p["quantity"]
+        a, q = _HH.unpack_from(adu, 2)
         f.summary = f"wrote {SPACE[fc]} {a}..{a + q - 1} ({q})"
         if request is not None and request.crc_ok and f.crc_ok:
             written = _request_writes(request, fc)  # the request's values, confirmed here
@@ -215,8 +255,8 @@ class GenericModbus:
                     state.commit(f, "holding", addr, values)
             pts = f.points = self._points("holding", addr, values, state, 3)
             f.summary = _points_summary(pts)
-        else:
-            self._read_regs_rsp(f, role, p, None, state)
+        else:  # a 0x17 response is laid out as a 0x03 one
+            self._read_regs_rsp(f, f.adu, None, state)
 
     def _check_qty(self, f, fc, q):
         hi = _MAX_QTY.get(fc)
@@ -224,20 +264,49 @@ class GenericModbus:
             f.annotations.append(note(QUANTITY, f"quantity {q} (allowed 1..{hi})", 4, 6))
 
 
-def _handler_name(fc: int, role: str) -> str | None:
-    """The method that decodes a parsed body of this function and role (None: name it only)."""
-    if fc not in FUNCTION_NAMES:
+# (function, role) -> the method that reads it from the ADU in place
+_INLINE = {
+    **{(fc, REQUEST): "_read_req" for fc in (0x01, 0x02, 0x03, 0x04)},
+    (0x03, RESPONSE): "_read_regs_rsp", (0x04, RESPONSE): "_read_regs_rsp",
+    (0x01, RESPONSE): "_read_bits_rsp", (0x02, RESPONSE): "_read_bits_rsp",
+    **{(fc, r): "_write_single" for fc in (0x05, 0x06) for r in (REQUEST, RESPONSE)},
+    (0x0F, REQUEST): "_write_multi_req", (0x10, REQUEST): "_write_multi_req",
+    (0x0F, RESPONSE): "_write_multi_rsp", (0x10, RESPONSE): "_write_multi_rsp",
+}
+_HH = Struct(">HH")
+_WORDS = tuple(Struct(f">{k}H") for k in range(128))  # a byte count's words: 0..127
+_BITS = tuple(tuple((b >> i) & 1 for i in range(8)) for b in range(256))  # a byte's bits, LSB first
+
+
+def _bits(status: bytes, qty: int) -> list[int]:
+    """The first `qty` bits of packed coil / input status bytes, as 0/1."""
+    out: list[int] = []
+    for b in status:
+        out += _BITS[b]
+    del out[qty:]
+    return out
+
+
+def _request_values(adu: bytes) -> tuple[int, int, list[int]] | None:
+    """(address, quantity, values) of a 0x0F / 0x10 request ADU, or None where its body is too short:
+    coils as 0/1 (as many as both the quantity and the bytes give), registers as the words present."""
+    n = len(adu)
+    if n < 7:
         return None
-    if fc in (0x01, 0x02, 0x03, 0x04) and role == REQUEST:
-        return "_read_req"
-    if fc in (0x03, 0x04):
-        return "_read_regs_rsp"
-    if fc in (0x01, 0x02):
-        return "_read_bits_rsp"
-    if fc in (0x05, 0x06):
-        return "_write_single"
-    if fc in (0x0F, 0x10):
-        return "_write_multi_req" if role == REQUEST else "_write_multi_rsp"
+    nb = adu[6]
+    a, q = _HH.unpack_from(adu, 2)
+    if adu[1] == 0x0F:
+        if n < 7 + nb:
+            return None
+        return a, q, _bits(adu[7 : 7 + nb], min(q, nb * 8))
+    k = nb >> 1
+    if n < 7 + 2 * k:
+        return None
+    return a, q, list(_WORDS[k].unpack_from(adu, 7))
+
+
+def _handler_name(fc: int, role: str) -> str:
+    """The method that handles a body its construct layout parsed (codes without an inline reader)."""
     if fc == 0x17 and role == RESPONSE:
         return "_rw_rsp"
     return "_other"
@@ -255,32 +324,23 @@ def _construct_reader(layout):
     return read
 
 
-def _written(fc: int, p) -> tuple[str, list[int]]:
-    """(table, values) a parsed 0x0F / 0x10 request writes: coils as 0/1 (as many as both the
-    quantity and the bytes give), registers as the words present."""
-    vals = p["values"]
-    if fc == 0x0F:
-        return SPACE[fc], [(vals[i >> 3] >> (i & 7)) & 1 for i in range(min(p["quantity"], len(vals) * 8))]
-    return SPACE[fc], list(vals)
-
-
 def _request_writes(request: Frame, fc: int) -> tuple[str, int, list[int]] | None:
     """(table, start, values) a CRC-good write request (0x0F, 0x10, 0x17) asked for, read from its bytes."""
     if request.function != fc:
         return None
-    body = request.adu[2:]
+    adu = request.adu
     if fc == 0x17:
+        body = adu[2:]
         if len(body) < 9:
             return None
         n = body[8] // 2
         if len(body) < 9 + 2 * n or not n:
             return None
         return "holding", (body[4] << 8) | body[5], list(unpack_from(f">{n}H", body, 9))
-    p = FAST[(fc, REQUEST)](body)
-    if p is None:
+    written = _request_values(adu)
+    if written is None or not written[2]:
         return None
-    table, values = _written(fc, p)
-    return (table, p["address"], values) if values else None
+    return SPACE[fc], written[0], written[2]
 
 
 def _pt_text(pt: dict) -> str:
