@@ -51,7 +51,7 @@ def frame_record(f: Frame, t0_ns: int) -> dict:
     }
 
 
-class _Record(msgspec.Struct):
+class _Record(msgspec.Struct, gc=False):
     """frame_record's keys, in its order: built positionally and encoded by msgspec in one C call.
 
     Half the cost of building the dict and encoding it with orjson (measured with valgrind on the
