@@ -10,8 +10,6 @@ from __future__ import annotations
 import functools
 from struct import Struct, unpack_from
 
-from construct import ConstructError
-
 from sniffer.codes import (
     COIL_VALUE, DECODE_SHORT, EXCEPTION, NO_REQUEST_CONTEXT, QUANTITY, Code, note, note_in,
 )
@@ -20,7 +18,7 @@ from sniffer.protocols import MODBUS_TABLES
 
 from ..base import UnitState
 from .block import BIT_SPACES, RegisterBlock, spans
-from .schema import EXCEPTION_NAMES, FUNCTION_NAMES, LAYOUTS
+from .names import EXCEPTION_NAMES, FUNCTION_NAMES
 
 
 SPACE = MODBUS_TABLES  # function code -> "coil" / "discrete" / "holding" / "input"
@@ -96,12 +94,10 @@ class GenericModbus:
         """The traffic of nearly every line (0x01-0x06, 0x0F, 0x10) is read from the ADU in place by
         one method each; the other codes are parsed by their construct layout, then handled."""
         out = {}
-        for (fc, r), layout in LAYOUTS.items():
-            if r != role or fc not in FUNCTION_NAMES:
-                continue
+        for fc in FUNCTION_NAMES:  # each has a layout both ways (schema.py)
             inline = _INLINE.get((fc, role))
             out[fc] = getattr(self, inline) if inline else functools.partial(
-                self._parsed, _construct_reader(layout), getattr(self, _handler_name(fc, role)), role)
+                self._parsed, _construct_reader(fc, role), getattr(self, _handler_name(fc, role)), role)
         return out
 
     def _parsed(self, reader, handler, role, f, adu, request, state):
@@ -312,10 +308,19 @@ def _handler_name(fc: int, role: str) -> str:
     return "_other"
 
 
-def _construct_reader(layout):
-    """A construct layout as a reader: the parsed Container, or None where the body does not fit."""
+def _construct_reader(fc: int, role: str):
+    """The construct layout of (fc, role) as a reader: the parsed Container, or None where the body
+    does not fit.  construct is imported on the first call (schema.py)."""
+    layout = None
 
     def read(body: bytes):
+        nonlocal layout
+        from construct import ConstructError
+
+        if layout is None:
+            from .schema import LAYOUTS
+
+            layout = LAYOUTS[fc, role]
         try:
             return layout.parse(body)
         except (ConstructError, ValueError, IndexError, OverflowError):

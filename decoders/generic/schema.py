@@ -10,7 +10,10 @@ compiled `Bytes(this.n)` returns fewer bytes than asked without an error,
 which would hide exactly the short frames a sniffer must flag.  Interpreted
 parsing costs ~15 us, so the hot layouts (01-06, 0F, 10: nearly all traffic)
 are read with `struct` in `fast.py`; `test_generic_schema` asserts that both
-readings agree, on random bodies and on every reference frame.
+readings agree, on random bodies and on every reference frame.  The decoder
+imports this module when it first meets a function code without a fast
+reader (importing construct costs 8 MB of RSS and 40 ms: a capture of common
+traffic never pays it).
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ from construct import (
     Struct,
     this,
 )
+
+from .names import EXCEPTION_NAMES, FUNCTION_NAMES  # noqa: F401 - the names, with the layouts
 
 REQ, RSP = "request", "response"
 
@@ -73,41 +78,6 @@ DeviceIdResponse = Struct(
     ),
 )
 ExceptionBody = Struct("code" / Int8ub)
-
-FUNCTION_NAMES = {
-    0x01: "read coils",
-    0x02: "read discrete inputs",
-    0x03: "read holding registers",
-    0x04: "read input registers",
-    0x05: "write single coil",
-    0x06: "write single register",
-    0x07: "read exception status",
-    0x08: "diagnostics",
-    0x0B: "get comm event counter",
-    0x0C: "get comm event log",
-    0x0F: "write multiple coils",
-    0x10: "write multiple registers",
-    0x11: "report server id",
-    0x14: "read file record",
-    0x15: "write file record",
-    0x16: "mask write register",
-    0x17: "read/write multiple registers",
-    0x18: "read FIFO queue",
-    0x2B: "encapsulated interface (MEI)",
-}
-
-EXCEPTION_NAMES = {
-    0x01: "ILLEGAL FUNCTION",
-    0x02: "ILLEGAL DATA ADDRESS",
-    0x03: "ILLEGAL DATA VALUE",
-    0x04: "SERVER DEVICE FAILURE",
-    0x05: "ACKNOWLEDGE",
-    0x06: "SERVER DEVICE BUSY",
-    0x07: "NEGATIVE ACKNOWLEDGE",
-    0x08: "MEMORY PARITY ERROR",
-    0x0A: "GATEWAY PATH UNAVAILABLE",
-    0x0B: "GATEWAY TARGET DEVICE FAILED TO RESPOND",
-}
 
 _LAYOUTS = {
     (0x01, REQ): ReadRequest, (0x01, RSP): ReadBitsResponse,

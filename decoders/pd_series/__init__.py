@@ -20,8 +20,6 @@ in `schema.py`; our reading of the manual's contradictions is in NOTES.md.
 
 from __future__ import annotations
 
-from construct import ConstructError
-
 from sniffer import codes as core
 from sniffer.codes import PD_DATA_SHORT as DATA_SHORT
 from sniffer.codes import PD_DATA_EXTRA as DATA_EXTRA
@@ -43,7 +41,7 @@ from sniffer.protocols import PD_TABLES
 from ..base import UnitState
 from .schema import (
     BROADCAST_READS, CNST_BITS, CNTR_BITS, ERRORS, FUNCTIONS, MAX_DATA, PARAMS, STATUS, Param,
-    bits_text, enum_text, layout_for,
+    bits_text, enum_text,
 )
 
 DECODER_CODES = (DATA_SHORT, DATA_EXTRA, DATA_LONG, UNIT_RANGE, BROADCAST_READ, ERROR_REPLY, STATUS_CFG,
@@ -86,6 +84,10 @@ class PdSeriesDecoder:
         f.annotations.append(note_in(code, detail, start, end, len(f.adu)))
 
     def _function(self, f, fc, role, data, request, state) -> None:
+        from construct import ConstructError  # imported once, on the first PD frame (layouts.py)
+
+        from .layouts import layout_for
+
         name = FUNCTIONS[fc].name
         layout, k = layout_for(fc, role, len(data))
         parsed = None
