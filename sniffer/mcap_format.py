@@ -18,7 +18,7 @@ log_time = publish_time = wall_anchor_ns + (t_ns - t0_ns), clamped to >= 0.
 
 from __future__ import annotations
 
-import orjson
+import msgspec
 
 from .events import CaptureInfo, Chunk, Gap, Tick
 from .records import FRAME_SCHEMA
@@ -95,7 +95,7 @@ def encode_event(ev: Chunk | Tick | Gap) -> bytes:
     """The /raw message of one event (exactly invertible by `decode_event`)."""
     if type(ev) is Chunk:
         t = ev.t_ns
-        return orjson.dumps({
+        return msgspec.json.encode({
             "kind": "chunk",
             "t_ns": t,
             "data": ev.data.hex(),
@@ -104,9 +104,9 @@ def encode_event(ev: Chunk | Tick | Gap) -> bytes:
             "channel": ev.channel,
         })
     if type(ev) is Tick:
-        return orjson.dumps({"kind": "tick", "t_ns": ev.t_ns})
+        return msgspec.json.encode({"kind": "tick", "t_ns": ev.t_ns})
     if type(ev) is Gap:
-        return orjson.dumps({"kind": "gap", "t_ns": ev.t_ns, "t_end_ns": ev.t_end_ns, "reason": ev.reason})
+        return msgspec.json.encode({"kind": "gap", "t_ns": ev.t_ns, "t_end_ns": ev.t_end_ns, "reason": ev.reason})
     raise TypeError(f"not a source event: {ev!r}")
 
 
@@ -115,7 +115,7 @@ def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
 
     Raises ValueError (or KeyError/TypeError) on a malformed message.
     """
-    d = orjson.loads(data)
+    d = msgspec.json.decode(data)
     kind = d["kind"]
     t = int(d["t_ns"])
     if kind == "chunk":
@@ -135,8 +135,8 @@ def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
 
 def info_to_metadata(info: CaptureInfo) -> dict[str, str]:
     """MCAP metadata is a string map: each CaptureInfo field, JSON-encoded."""
-    return {k: orjson.dumps(v).decode() for k, v in info.to_dict().items()}
+    return {k: msgspec.json.encode(v).decode() for k, v in info.to_dict().items()}
 
 
 def info_from_metadata(meta: dict[str, str]) -> CaptureInfo:
-    return CaptureInfo.from_dict({k: orjson.loads(v) for k, v in meta.items()})
+    return CaptureInfo.from_dict({k: msgspec.json.decode(v) for k, v in meta.items()})

@@ -19,7 +19,6 @@ every frame's `writes` in order rebuilds the decoders' shadow.
 from __future__ import annotations
 
 import msgspec
-import orjson
 
 from .frame import Frame
 from .protocols import NAMES, TABLES
@@ -108,11 +107,15 @@ def frame_json(f: Frame, t0_ns: int) -> bytes:
 
 
 def dumps(record: dict) -> bytes:
-    return orjson.dumps(record)
+    return _encode(record)
 
 
 def loads(data: bytes | str) -> dict:
-    return orjson.loads(data)
+    """JSON -> Python; malformed JSON raises ValueError (msgspec.DecodeError)."""
+    return _decode(data)
+
+
+_decode = msgspec.json.Decoder().decode
 
 
 _NULLABLE_INT = {"type": ["integer", "null"]}

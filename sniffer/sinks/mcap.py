@@ -29,7 +29,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 
-import orjson
+import msgspec
 
 from .. import __version__
 from ..events import CaptureInfo, Chunk, Gap, Tick
@@ -174,10 +174,10 @@ class McapSink(Sink):
             meta = {"sniffer.format": RAW_FORMAT}
             ids = {}
             for topic, name, schema in CHANNELS:
-                sid = w.register_schema(name, "jsonschema", orjson.dumps(schema))
+                sid = w.register_schema(name, "jsonschema", msgspec.json.encode(schema))
                 ids[topic] = w.register_channel(topic, "json", sid, meta)
             self._ch_capture, self._ch_raw, self._ch_frames = ids[CAPTURE_TOPIC], ids[RAW_TOPIC], ids[FRAMES_TOPIC]
-            self._add(self._ch_capture, info.t0_ns, orjson.dumps(info.to_dict()))
+            self._add(self._ch_capture, info.t0_ns, msgspec.json.encode(info.to_dict()))
             self._flush_now()
         except OSError as e:
             raise self._fail(e) from None

@@ -17,7 +17,7 @@ from __future__ import annotations
 from os import PathLike
 from pathlib import Path
 
-import orjson
+import msgspec
 
 from ..frame import Frame
 
@@ -66,7 +66,7 @@ def _text(v) -> str | None:
         return v
     if isinstance(v, (int, float, bool)):
         return str(v)
-    return orjson.dumps(v).decode()
+    return msgspec.json.encode(v).decode()
 
 
 def point_rows(f: Frame, t0_ns: int) -> list[tuple]:
