@@ -208,8 +208,10 @@ def run_headless(att: Attachment, fmt: str) -> int:
             else:
                 for line in records:
                     text.frame(frame_from_record(loads(line), t0))
-            out.flush()
+            (text or out).flush()
     finally:
+        if text is not None:
+            text.flush()  # lines held back for a batched write
         att.close()
     if att.ended is None:
         print(f"sniffer: error: {att.lost()}", file=sys.stderr)

@@ -17,6 +17,8 @@ RESPONSE = "response"
 UNKNOWN = "unknown"
 NOISE_ROLE = "noise"
 
+_SEVERITY = {"info": 0, "warning": 1, "error": 2}
+
 # candidate-role bits, set by the framer from structure
 CAN_REQ = 1
 CAN_RSP = 2
@@ -109,10 +111,9 @@ class Frame:
         return self.protocol == "noise"
 
     def worst_severity(self) -> str | None:
-        order = {"info": 0, "warning": 1, "error": 2}
         worst = None
         for a in self.annotations:
-            if worst is None or order[a.severity] > order[worst]:
+            if worst is None or _SEVERITY[a.severity] > _SEVERITY[worst]:
                 worst = a.severity
         return worst
 

@@ -43,3 +43,20 @@ def test_flushed_sink_writes_each_line_as_its_frame_settles():
         sink.frame(f)
         assert [r["summary"] for r in _lines(buf)] == [f"frame {i}" for i in range(k)]
     sink.close()
+
+
+def test_text_lines_are_batched_too_and_a_viewer_flush_writes_them():
+    from sniffer.sinks.text import TextSink, frame_line
+
+    buf = io.StringIO()
+    sink = TextSink(buf)
+    sink.start(CaptureInfo())
+    frames = list(_frames(3))
+    for f in frames:
+        sink.frame(f)
+    assert buf.getvalue() == ""  # held for one write
+    sink.flush()  # what `sniffer attach` does after each batch it receives
+    assert buf.getvalue().splitlines() == [frame_line(f, 0) for f in frames]
+    sink.frame(frames[0])
+    sink.close()
+    assert buf.getvalue().splitlines()[-1] == frame_line(frames[0], 0)

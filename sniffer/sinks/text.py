@@ -10,22 +10,23 @@ from ..frame import Frame
 from .base import Sink
 
 _MARK = {"error": "!!", "warning": "! ", "info": "  ", None: "  "}
+_ROLE = {"request": "REQ", "response": "RSP"}
 
 
 def frame_line(f: Frame, t0_ns: int) -> str:
     t = (f.t_ns - t0_ns) / 1e9
-    mark = _MARK[f.worst_severity()]
+    mark = _MARK[f.worst_severity()] if f.annotations else "  "
     if f.protocol == "noise":
         more = "..." if len(f.raw) > 24 else ""
         return f"{t:12.6f} {mark} NOISE   {len(f.raw):3d}B {f.raw[:24].hex(' ')}{more}  [{f.noise_reason}]"
-    role = {"request": "REQ", "response": "RSP"}.get(f.role, "???")
+    role = _ROLE.get(f.role, "???")
     arrow = "->" if f.role == "request" else "<-"
     pair = f" #{f.pair}" if f.pair is not None else ""
     lat = f" {f.latency_ms:6.1f}ms" if f.latency_ms is not None else ""
     fc = f"{f.function:02X}" if f.function is not None else "--"
     unit = f"{f.unit:<3d}" if f.unit is not None else "?  "
     crc = "" if f.crc_ok else " CRC!"
-    notes = [a.code for a in f.annotations if a.severity != "info"]
+    notes = [a.code for a in f.annotations if a.severity != "info"] if f.annotations else None
     tail = f"  [{', '.join(notes)}]" if notes else ""
     model = f" {f.model}" if f.model and f.model != "generic" else ""
     return (
@@ -34,30 +35,66 @@ def frame_line(f: Frame, t0_ns: int) -> str:
     )
 
 
+BATCH = 256  # lines joined into one write when lines need not reach the reader one by one
+
+
 class StreamSink(Sink):
-    """A sink writing one line per frame to a stream; subclasses say how a frame reads."""
+    """A sink writing one line per frame to a stream; subclasses say how a frame reads (`line`).
+
+    With `flush` (a live capture on a terminal or pipe) each line is written and flushed as
+    its frame settles; otherwise lines are joined BATCH at a time: one write call instead of
+    256 (a buffered write costs 0.1-0.5 us a call, a tenth of what a frame costs end to end).
+    """
+
+    newline = "\n"
 
     def __init__(self, out, flush: bool = False, own: bool = False) -> None:
         self.out = out
         self.flush_each = flush
         self.own = own  # close the stream at the end (a file this sink opened)
         self.t0 = 0
+        self._lines: list = []
 
     def start(self, info: CaptureInfo) -> None:
         self.t0 = info.t0_ns
 
-    def close(self) -> None:
-        if self.own:
-            self.out.close()
-        else:
+    def line(self, f: Frame):  # pragma: no cover - each format says how a frame reads
+        raise NotImplementedError
+
+    def frame(self, f: Frame) -> None:
+        if self.flush_each:
+            self.out.write(self.line(f) + self.newline)
             self.out.flush()
+            return
+        lines = self._lines
+        lines.append(self.line(f))
+        if len(lines) >= BATCH:
+            self._write()
+
+    def _write(self) -> None:
+        lines, self._lines = self._lines, []
+        if lines:
+            lines.append(self.newline[:0])
+            self.out.write(self.newline.join(lines))
+
+    def flush(self) -> None:
+        """Write the lines held so far and flush the stream (a viewer's batch is complete)."""
+        self._write()
+        self.out.flush()
+
+    def close(self) -> None:
+        try:
+            self._write()
+        finally:
+            if self.own:
+                self.out.close()
+            else:
+                self.out.flush()
 
 
 class TextSink(StreamSink):
     def __init__(self, out: TextIO | None = None, flush: bool = False, own: bool = False) -> None:
         super().__init__(out or sys.stdout, flush, own)
 
-    def frame(self, f: Frame) -> None:
-        self.out.write(frame_line(f, self.t0) + "\n")
-        if self.flush_each:
-            self.out.flush()
+    def line(self, f: Frame) -> str:
+        return frame_line(f, self.t0)
