@@ -19,8 +19,8 @@ from __future__ import annotations
 import msgspec
 
 BIT_SPACES = frozenset({"coil", "discrete"})
-_CACHE_LIMIT = 4096  # entries per cache; polls repeat a few dozen blocks
-_TEMPLATE_PIECES = 200_000  # template pieces kept in all (about 15 MB): a capture with many blocks clears it
+_CACHE_LIMIT = 512  # entries per cache: polls repeat a few dozen blocks (damaged frames make one-off ones)
+_TEMPLATE_PIECES = 50_000  # template pieces kept in all (about 3 MB): a capture with many blocks clears it
 
 _encode = msgspec.json.Encoder().encode
 _span_cache: dict[tuple[int, int, bool], list[list[int]]] = {}
