@@ -58,6 +58,8 @@ class ByteCsvSource(CsvRowSource):
             b = _BYTES.get(row[2].strip())
             if b is None:
                 raise ValueError("the byte is not 00..ff")
+        if len(row) == 4 and not row[3]:  # the common row: no flag
+            return t, row[1].strip(), b, None
         flag_text = row[3] if len(row) > 3 else ""
         if flag_text not in _FLAGS:
             flag_text = flag_text.strip().lower()

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import codecs
 import csv
+from itertools import chain
 from bisect import insort_right
 from operator import itemgetter
 import os
@@ -38,35 +39,86 @@ from . import CaptureError, DamageLog, gap_before, open_regular, quote
 PER_BYTE_CHUNK = 4096  # per-byte chunks: up to this many bytes of one channel
 REORDER_WINDOW = 8192  # rows held back to merge channels recorded as separate columns of time
 MAX_LINE = 1 << 20  # a longer "line" is read in pieces (each one a bad row)
+BATCH = 512  # rows handed from stage to stage in one list
+BLOCK = 1 << 16  # bytes read at a time
 
 Row = tuple[int, str, int, "str | None"]  # (t_ns, channel, byte, flag)
 _time = itemgetter(0)
 
 
 class _Lines:
-    """Decoded lines of a binary file, counting bytes read; a line that is not UTF-8 is flagged."""
+    """Decoded lines of a binary file, read in blocks, counting bytes read.
+
+    A block is decoded in one call and split at "\n" (as readline splits); a block that is not
+    UTF-8 is decoded line by line and its bad lines become empty lines, their numbers in
+    `bad_lines`.  A line longer than MAX_LINE is handed over in pieces (each one a bad row).
+    `last_line` is the number of the file's last line once the end was read.
+    """
 
     def __init__(self, fh) -> None:
         self.fh = fh
         self.bytes_read = 0
-        self.bad_text: int | None = None  # line number of the last line that was not UTF-8
+        self.bad_lines: set[int] = set()
+        self.last_line: int | None = None
 
     def __iter__(self) -> Iterator[str]:
+        return chain.from_iterable(self._blocks())
+
+    def _blocks(self) -> Iterator[list[str]]:
+        read = self.fh.read
+        pending = b""
         lineno = 0
-        readline = self.fh.readline
+        first = True
         while True:
-            raw = readline(MAX_LINE)
-            if not raw:
+            block = read(BLOCK)
+            self.bytes_read += len(block)
+            if first and block:
+                first = False
+                if block.startswith(codecs.BOM_UTF8):
+                    block = block[3:]
+            data = pending + block if pending else block
+            if not block:  # the end: what is left is the last line, without its newline
+                if data:
+                    self.last_line = lineno + 1
+                    yield self._decode(data, lineno)
+                else:
+                    self.last_line = lineno
                 return
-            self.bytes_read += len(raw)
-            lineno += 1
-            if lineno == 1 and raw.startswith(codecs.BOM_UTF8):
-                raw = raw[3:]
+            cut = data.rfind(b"\n") + 1
+            if not cut:
+                if len(data) < MAX_LINE:
+                    pending = data
+                    continue
+                cut = MAX_LINE  # a piece of a very long line
+            pending = data[cut:]
+            lines = self._decode(data[:cut], lineno)
+            lineno += len(lines)
+            yield lines
+
+    def _decode(self, data: bytes, lineno: int) -> list[str]:
+        """Lines lineno + 1... of `data` (whole lines, but for a MAX_LINE piece) as text, each with
+        its newline: the block decoded in one call, else line by line (bad ones empty)."""
+        try:
+            lines = data.decode("utf-8").split("\n")
+        except UnicodeDecodeError:
+            lines = None
+        if lines is not None:
+            last = lines.pop()  # "" after the final newline, or a piece without one
+            lines = [x + "\n" for x in lines]
+            if last:
+                lines.append(last)
+            return lines
+        raws = data.split(b"\n")
+        last = raws.pop()
+        raws = [r + b"\n" for r in raws] + ([last] if last else [])
+        out = []
+        for k, r in enumerate(raws, lineno + 1):
             try:
-                yield raw.decode("utf-8")
+                out.append(r.decode("utf-8"))
             except UnicodeDecodeError:
-                self.bad_text = lineno
-                yield "\n"  # an empty row in its place: the caller reports it
+                self.bad_lines.add(k)
+                out.append("\n")  # an empty row in its place: the caller reports it
+        return out
 
 
 class CsvRowSource:
@@ -108,7 +160,7 @@ class CsvRowSource:
         prev: tuple[int, str] | None = None
         with open_regular(self.path) as fh:
             self._size = os.fstat(fh.fileno()).st_size
-            for item in _merge(self._rows(fh, log), log, self.path):
+            for item in _items(_merge(self._rows(fh, log), log, self.path)):
                 if item[2] is None:  # a gap marker: bad rows before this one
                     continue
                 if item[1] < 0:  # replayed late at an earlier row's time: says nothing about reads
@@ -161,8 +213,10 @@ class CsvRowSource:
             self._first_bad = sentence
         log.add("bad rows", sentence + ": skipped")
 
-    def _rows(self, fh, log: DamageLog) -> Iterator[tuple]:
-        """(t_ns, seq, channel, byte, flag, lineno) in file order; channel None = bad rows before."""
+    def _rows(self, fh, log: DamageLog) -> Iterator[list[tuple]]:
+        """Lists (up to BATCH) of (t_ns, seq, channel, byte, flag, lineno) in file order; channel None =
+        bad rows before.  Lists, not rows one by one: each stage after this one loops over a list
+        instead of resuming a generator for every byte (a third of the reader's time)."""
         lines = _Lines(fh)
         self._lines = lines
         reader = csv.reader(lines)
@@ -173,18 +227,57 @@ class CsvRowSource:
             raise CaptureError(f"{path}:1: not a {self.kind} ({e})") from None
         except OSError as e:
             raise CaptureError(f"{path}: {e.strerror or e}") from None
-        if lines.bad_text == 1:
+        if 1 in lines.bad_lines:
             raise CaptureError(f"{path}: not a text CSV file (its first line is not UTF-8)")
         self.parse_header([h.strip().lower() for h in header or []])
         ncols = len(header or [])
         seq = 0
+        out: list[tuple] = []
         bad_since: int | None = None
         offset = self.t_offset
-        while True:
+        parse = self.parse_row
+        next_yield = BATCH  # seq at which the list so far is handed on
+        bad_lines = lines.bad_lines
+        append = out.append
+        while True:  # the for loop below runs to the end; a csv.Error resumes it at the next row
             try:
-                row = next(reader)
-            except StopIteration:
-                break
+                for row in reader:
+                    lineno = reader.line_num
+                    if lineno in bad_lines:
+                        bad_since = bad_since or lineno
+                        self._bad(log, f"{path}:{lineno}: bad row (not UTF-8 text)")
+                        continue
+                    if not row:
+                        continue
+                    try:
+                        parsed = parse(row)
+                        if len(row) < ncols and lineno == lines.last_line and not _ends_line(fh):
+                            raise ValueError(f"{len(row)} of {ncols} columns")
+                    except (ValueError, IndexError) as e:
+                        if not "".join(row).strip():
+                            continue  # a blank row
+                        bad_since = bad_since or lineno
+                        why = "too few columns" if isinstance(e, IndexError) else (str(e) or "not understood")
+                        if lineno == lines.last_line and not _ends_line(fh):
+                            why += "; the file ends mid-row (export cut short?)"
+                        self._bad(log, f"{path}:{lineno}: bad row {quote(','.join(row))} ({why})")
+                        continue
+                    if parsed is None:
+                        continue
+                    t, ch, b, flag = parsed
+                    if offset:
+                        t += offset
+                    if bad_since is not None:
+                        append((t, seq, None, bad_since, None, lineno))
+                        seq += 1
+                        bad_since = None
+                    append((t, seq, ch, b, flag, lineno))
+                    seq += 1
+                    if seq >= next_yield:
+                        yield out
+                        out = []
+                        append = out.append
+                        next_yield = seq + BATCH
             except csv.Error as e:
                 bad_since = bad_since or reader.line_num
                 self._bad(log, f"{path}:{reader.line_num}: bad row ({e})")
@@ -193,40 +286,11 @@ class CsvRowSource:
                 log.add("read errors", f"{path}: read error after byte {lines.bytes_read}: {e.strerror or e}; "
                         "the rest of the file was not read")
                 bad_since = bad_since or reader.line_num
-                break
-            lineno = reader.line_num
-            if lines.bad_text == lineno:
-                bad_since = bad_since or lineno
-                self._bad(log, f"{path}:{lineno}: bad row (not UTF-8 text)")
-                continue
-            if not row:
-                continue
-            try:
-                parsed = self.parse_row(row)
-                if len(row) < ncols and lines.bytes_read == self._size and not _ends_line(fh):
-                    raise ValueError(f"{len(row)} of {ncols} columns")
-            except (ValueError, IndexError) as e:
-                if not "".join(row).strip():
-                    continue  # a blank row
-                bad_since = bad_since or lineno
-                why = "too few columns" if isinstance(e, IndexError) else (str(e) or "not understood")
-                if lines.bytes_read == self._size and not _ends_line(fh):
-                    why += "; the file ends mid-row (export cut short?)"
-                self._bad(log, f"{path}:{lineno}: bad row {quote(','.join(row))} ({why})")
-                continue
-            if parsed is None:
-                continue
-            t, ch, b, flag = parsed
-            if offset:
-                t += offset
-            if bad_since is not None:
-                yield (t, seq, None, bad_since, None, lineno)
-                seq += 1
-                bad_since = None
-            yield (t, seq, ch, b, flag, lineno)
-            seq += 1
+            break
         if bad_since is not None:
-            yield (None, seq, None, bad_since, None, None)
+            out.append((None, seq, None, bad_since, None, None))
+        if out:
+            yield out
 
 
 def _ends_line(fh) -> bool:
@@ -241,8 +305,14 @@ def _ends_line(fh) -> bool:
         return True
 
 
-def _merge(items: Iterator[tuple], log: DamageLog, path: str) -> Iterator[tuple]:
-    """Rows in time order (stable: equal times keep file order) through a bounded window.
+def _items(batches: Iterator[list[tuple]]) -> Iterator[tuple]:
+    """The rows of lists of rows, one by one."""
+    for batch in batches:
+        yield from batch
+
+
+def _merge(batches: Iterator[list[tuple]], log: DamageLog, path: str) -> Iterator[list[tuple]]:
+    """Rows in time order (stable: equal times keep file order) through a bounded window, as lists.
 
     The window is a sorted list: a row in order is appended, one out of order
     is inserted after the rows of its time.  A row earlier than one already
@@ -253,37 +323,61 @@ def _merge(items: Iterator[tuple], log: DamageLog, path: str) -> Iterator[tuple]
     head = 0  # buf[:head] were yielded
     last = None
     tail = None
-    for item in items:
-        t = item[0]
-        if t is None:
-            tail = item
-            break
-        if last is not None and t < last:
-            if item[2] is not None:
-                log.add("rows out of order",
-                        f"{path}:{item[5]}: row at {t / 1e9:.9f} s comes after rows up to {last / 1e9:.9f} s "
-                        f"(beyond the {REORDER_WINDOW}-row reorder window): replayed at {last / 1e9:.9f} s")
-            t = last
-            item = (last, -1, *item[2:])  # seq -1: replayed late (not a read sharing its time)
-        if len(buf) == head or buf[-1][0] <= t:
-            buf.append(item)
-        else:
-            insort_right(buf, item, head, key=_time)
-        if len(buf) - head > REORDER_WINDOW:
-            out = buf[head]
-            head += 1
-            last = out[0]
+    for batch in batches:
+        if batch[-1][0] is not None:  # a list in time order, after everything held: appended whole
+            times = [item[0] for item in batch]
+            if (times[0] >= (buf[-1][0] if len(buf) > head else (last or 0)) and (last is None or times[0] >= last)
+                    and times == sorted(times)):
+                buf.extend(batch)
+                n = len(buf) - head - REORDER_WINDOW
+                if n > 0:
+                    out = buf[head : head + n]
+                    head += n
+                    last = out[-1][0]
+                    if head >= REORDER_WINDOW:
+                        del buf[:head]
+                        head = 0
+                    yield out
+                continue
+        out: list[tuple] = []
+        for item in batch:
+            t = item[0]
+            if t is None:
+                tail = item
+                break
+            if last is not None and t < last:
+                if item[2] is not None:
+                    log.add("rows out of order",
+                            f"{path}:{item[5]}: row at {t / 1e9:.9f} s comes after rows up to {last / 1e9:.9f} s "
+                            f"(beyond the {REORDER_WINDOW}-row reorder window): replayed at {last / 1e9:.9f} s")
+                t = last
+                item = (last, -1, *item[2:])  # seq -1: replayed late (not a read sharing its time)
+            if len(buf) == head or buf[-1][0] <= t:
+                buf.append(item)
+            else:
+                insort_right(buf, item, head, key=_time)
+            if len(buf) - head > REORDER_WINDOW:
+                x = buf[head]
+                head += 1
+                last = x[0]
+                out.append(x)
+                if head >= REORDER_WINDOW:
+                    del buf[:head]
+                    head = 0
+        if out:
             yield out
-            if head >= REORDER_WINDOW:
-                del buf[:head]
-                head = 0
-    yield from buf[head:]
+        if tail is not None:
+            break
+    rest = buf[head:]
     if tail is not None:
-        yield tail
+        rest.append(tail)
+    if rest:
+        yield rest
 
 
-def _chunks(items: Iterator[tuple], per_read: bool, channels: set[str]) -> Iterator[Chunk | Gap]:
-    """Merged rows -> Chunks exactly as chunks_from_rows cuts a sorted list; a Gap where rows were skipped."""
+def _chunks(batches: Iterator[list[tuple]], per_read: bool, channels: set[str]) -> Iterator[Chunk | Gap]:
+    """Merged rows (in lists) -> Chunks exactly as chunks_from_rows cuts a sorted list; a Gap where rows
+    were skipped."""
     data = bytearray()
     times: list[int] = []
     flags: list[tuple[int, str]] = []
@@ -304,29 +398,30 @@ def _chunks(items: Iterator[tuple], per_read: bool, channels: set[str]) -> Itera
             hole = None
         yield c
 
-    for t, _seq, ch, b, flag, lineno in items:
-        if ch is None:  # bad rows were skipped before this point
-            if data:
+    for batch in batches:
+        for t, _seq, ch, b, flag, lineno in batch:
+            if ch is None:  # bad rows were skipped before this point
+                if data:
+                    last_t = times[-1]
+                    yield from flush()
+                if lineno is None:
+                    where = f"line {b} to the end"
+                else:
+                    where = f"line {b}" if lineno - 1 <= b else f"lines {b}-{lineno - 1}"
+                hole = hole or f"unreadable rows skipped ({where})"
+                hole_last = last_t
+                continue
+            if data and (ch != run_ch or (t != run_t if per_read else len(data) >= PER_BYTE_CHUNK)):
                 last_t = times[-1]
                 yield from flush()
-            if lineno is None:
-                where = f"line {b} to the end"
-            else:
-                where = f"line {b}" if lineno - 1 <= b else f"lines {b}-{lineno - 1}"
-            hole = hole or f"unreadable rows skipped ({where})"
-            hole_last = last_t
-            continue
-        if data and (ch != run_ch or (t != run_t if per_read else len(data) >= PER_BYTE_CHUNK)):
-            last_t = times[-1]
-            yield from flush()
-        if not data:
-            run_t, run_ch = t, ch
-            if ch not in channels and len(channels) < 256:
-                channels.add(ch)
-        if flag:
-            flags.append((len(data), flag))
-        data.append(b)
-        times.append(t)
+            if not data:
+                run_t, run_ch = t, ch
+                if ch not in channels and len(channels) < 256:
+                    channels.add(ch)
+            if flag:
+                flags.append((len(data), flag))
+            data.append(b)
+            times.append(t)
     if data:
         yield from flush()
     elif hole is not None and last_t is not None:
@@ -336,5 +431,5 @@ def _chunks(items: Iterator[tuple], per_read: bool, channels: set[str]) -> Itera
 def chunks_from_rows(rows: list[Row]) -> tuple[str, list[Chunk]]:
     """A list of rows (already in time order) -> ("byte" | "read", Chunks); kept for small callers."""
     per_read = any(rows[i][0] == rows[i - 1][0] and rows[i][1] == rows[i - 1][1] for i in range(1, len(rows)))
-    items = ((t, i, ch, b, flag, None) for i, (t, ch, b, flag) in enumerate(rows))
-    return ("read" if per_read else "byte"), list(_chunks(items, per_read, set()))
+    items = [(t, i, ch, b, flag, None) for i, (t, ch, b, flag) in enumerate(rows)]
+    return ("read" if per_read else "byte"), list(_chunks([items], per_read, set()))
