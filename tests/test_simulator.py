@@ -370,3 +370,52 @@ def test_ptybus_play_stops_on_event():
     with PtyBus() as bus:
         stats = bus.play(frames, speed=1.0, stop_event=stop)
     assert stats.stopped and stats.frames == 0
+
+
+def _usb_packets_byte_by_byte(frames, latency_ns, cap, rng):
+    """The FTDI rule one byte at a time: the reference for chunks._usb_packets' frame-at-a-time loop."""
+    anchor, deadline, buf = None, 0, bytearray()
+    for f in frames:
+        char = f.t_end_ns - f.byte_t_ns[-1]
+        for t, b in zip(f.byte_t_ns, f.raw):
+            a = t + char
+            if anchor is None:
+                anchor = a - rng.randrange(latency_ns)
+            if buf and a > deadline:
+                yield deadline, bytes(buf)
+                buf.clear()
+                anchor = deadline
+            if not buf:
+                deadline = anchor + ((a - anchor) // latency_ns + 1) * latency_ns
+            buf.append(b)
+            if len(buf) >= cap:
+                yield a, bytes(buf)
+                buf.clear()
+                anchor = a
+    if buf:
+        yield deadline, bytes(buf)
+
+
+def test_usb_packets_frame_at_a_time_equal_byte_by_byte():
+    import random
+
+    from sniffer.simulator.bus import WireFrame
+    from sniffer.simulator.chunks import _usb_packets
+
+    rng = random.Random(11)
+    for _ in range(300):
+        frames, t = [], rng.randrange(10**9)
+        for _ in range(rng.randint(1, 40)):
+            n = rng.choice((1, 2, 8, 9, 40, 70, 130, rng.randint(1, 260)))
+            char = rng.choice((86_805, 520_833, 1_145_833))  # 115200, 19200, 9600 baud
+            times = []
+            for _ in range(n):
+                times.append(t)
+                t += char + (rng.choice((0, 0, 0, rng.randrange(3 * char))) if rng.random() < 0.2 else 0)
+            frames.append(WireFrame(times[0], times[-1] + char, bytes(rng.randrange(256) for _ in range(n)),
+                                    tuple(times), KIND_RESPONSE, 1, 3))
+            t += rng.choice((0, char, 5 * char, 40_000_000))
+        latency, cap = rng.choice((1_000_000, 16_000_000)), rng.choice((1, 2, 62, 510))
+        seed = rng.randrange(1000)
+        want = list(_usb_packets_byte_by_byte(frames, latency, cap, random.Random(seed)))
+        assert list(_usb_packets(frames, latency, cap, random.Random(seed))) == want
