@@ -146,3 +146,22 @@ def test_progress_total_from_mcap_summary(tmp_path):
     n = []
     Session(CaptureSpec(), FileSource(str(A510)), on_event=n.append).run()
     assert len(n) == 570
+
+
+def test_parquet_export_does_not_load_pyarrow_file_systems(tmp_path):
+    """The Parquet files are written by pyarrow's engine directly (sinks/parquet.py): the cloud file
+    system modules pyarrow.parquet would import (9.8 MB of RSS) stay out; the files read back whole."""
+    import subprocess
+    import sys
+
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "e.parquet"
+    code = ("import sys\nfrom sniffer.cli import main\n"
+            f"rc = main(['export', {str(ERRORS)!r}, '--to', 'parquet', '--out', {str(out)!r}])\n"
+            "assert rc == 0, rc\nassert 'pyarrow.fs' not in sys.modules, 'pyarrow.fs was imported'\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    frames, points = pq.read_table(out), pq.read_table(tmp_path / "e.points.parquet")
+    assert frames.num_rows == len(decoded(ERRORS)[1]) and points.num_rows > 0
+    assert pq.ParquetFile(out).metadata.row_group(0).column(0).compression == "SNAPPY"
