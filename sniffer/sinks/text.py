@@ -10,7 +10,9 @@ from ..frame import Frame
 from .base import Sink
 
 _MARK = {"error": "!!", "warning": "! ", "info": "  ", None: "  "}
-_ROLE = {"request": "REQ", "response": "RSP"}
+_DIRECTION = {"request": "->REQ", "response": "<-RSP"}  # any other role: "<-???"
+_FC = [f"{i:02X}" for i in range(256)]
+_UNIT = [f"{i:<3d}" for i in range(256)]
 
 
 def frame_line(f: Frame, t0_ns: int) -> str:
@@ -19,18 +21,17 @@ def frame_line(f: Frame, t0_ns: int) -> str:
     if f.protocol == "noise":
         more = "..." if len(f.raw) > 24 else ""
         return f"{t:12.6f} {mark} NOISE   {len(f.raw):3d}B {f.raw[:24].hex(' ')}{more}  [{f.noise_reason}]"
-    role = _ROLE.get(f.role, "???")
-    arrow = "->" if f.role == "request" else "<-"
+    direction = _DIRECTION.get(f.role, "<-???")
     pair = f" #{f.pair}" if f.pair is not None else ""
     lat = f" {f.latency_ms:6.1f}ms" if f.latency_ms is not None else ""
-    fc = f"{f.function:02X}" if f.function is not None else "--"
-    unit = f"{f.unit:<3d}" if f.unit is not None else "?  "
+    fc = "--" if f.function is None else _FC[f.function] if 0 <= f.function < 256 else f"{f.function:02X}"
+    unit = "?  " if f.unit is None else _UNIT[f.unit] if 0 <= f.unit < 256 else f"{f.unit:<3d}"
     crc = "" if f.crc_ok else " CRC!"
     notes = [a.code for a in f.annotations if a.severity != "info"] if f.annotations else None
     tail = f"  [{', '.join(notes)}]" if notes else ""
     model = f" {f.model}" if f.model and f.model != "generic" else ""
     return (
-        f"{t:12.6f} {mark} {arrow}{role} u{unit}{model} fc{fc}{crc} #{f.index}{pair}{lat}  "
+        f"{t:12.6f} {mark} {direction} u{unit}{model} fc{fc}{crc} #{f.index}{pair}{lat}  "
         f"{f.summary}{tail}"
     )
 

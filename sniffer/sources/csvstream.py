@@ -402,7 +402,7 @@ def _chunks(batches: Iterator[list[tuple]], per_read: bool, channels: set[str]) 
         for t, _seq, ch, b, flag, lineno in batch:
             if ch is None:  # bad rows were skipped before this point
                 if data:
-                    last_t = times[-1]
+                    last_t = run_t if per_read else times[-1]  # a read's rows share its time
                     yield from flush()
                 if lineno is None:
                     where = f"line {b} to the end"
@@ -412,7 +412,7 @@ def _chunks(batches: Iterator[list[tuple]], per_read: bool, channels: set[str]) 
                 hole_last = last_t
                 continue
             if data and (ch != run_ch or (t != run_t if per_read else len(data) >= PER_BYTE_CHUNK)):
-                last_t = times[-1]
+                last_t = run_t if per_read else times[-1]  # a read's rows share its time
                 yield from flush()
             if not data:
                 run_t, run_ch = t, ch
@@ -421,7 +421,8 @@ def _chunks(batches: Iterator[list[tuple]], per_read: bool, channels: set[str]) 
             if flag:
                 flags.append((len(data), flag))
             data.append(b)
-            times.append(t)
+            if not per_read:
+                times.append(t)
     if data:
         yield from flush()
     elif hole is not None and last_t is not None:
