@@ -113,6 +113,10 @@ class _Bus:
         return adu + crc_bytes(adu)
 
     def _place(self, raw: bytes, t0: int) -> tuple[tuple[int, ...], int]:
+        char = self.char
+        if not self.jitter:  # back to back: one range, no loop (a 255-byte frame is 255 start bits)
+            times = range(t0, t0 + len(raw) * char, char)
+            return tuple(times), times[-1] + char
         times = []
         t = t0
         for _ in raw:
