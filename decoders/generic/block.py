@@ -64,10 +64,10 @@ class _Shape:
     and summary, and the last values written with their JSON and summary (a poll often reads what it
     read before, from this unit or another: equal values give the same text)."""
 
-    __slots__ = ("space", "addr", "n", "offset", "pieces", "summary_tpl", "last", "last_json", "last_summary")
+    __slots__ = ("space", "addr", "offset", "pieces", "summary_tpl", "last", "last_json", "last_summary")
 
     def __init__(self, space: str, addr: int, n: int, offset: int) -> None:
-        self.space, self.addr, self.n, self.offset = space, addr, n, offset
+        self.space, self.addr, self.offset = space, addr, offset
         # the JSON in 5 pieces a point: prefix, raw digits (None), ',"value":', value digits (None), suffix
         pieces: list[bytes | None] = []
         sep = "["
@@ -107,26 +107,24 @@ def _shape(space: str, addr: int, n: int, offset: int) -> _Shape:
 
 class RegisterBlock:
     """Consecutive values of one table from `addr` on; value i's bytes start at ADU offset `offset`
-    (register i at offset + 2i, bit i in the byte offset + i // 8)."""
+    (register i at offset + 2i, bit i in the byte offset + i // 8).  Table, address and offset are
+    the shape's: a block holds its values and its shape only."""
 
-    __slots__ = ("space", "addr", "values", "offset", "shape")
+    __slots__ = ("values", "shape")
 
     def __init__(self, space: str, addr: int, values: list[int], offset: int) -> None:
-        self.space = space
-        self.addr = addr
         self.values = values  # kept, not copied: nothing changes a decoded frame's values
-        self.offset = offset
         self.shape = _shape(space, addr, len(values), offset)
 
     def __len__(self) -> int:
         return len(self.values)
 
     def points(self) -> list[dict]:
-        n = len(self.values)
+        sh, n = self.shape, len(self.values)
         return [
             {"name": nm, "address": a, "raw": v, "value": v, "unit": None, "span": sp}
-            for nm, a, v, sp in zip(names(self.space, self.addr, n), range(self.addr, self.addr + n), self.values,
-                                    spans(self.offset, n, self.space in BIT_SPACES))
+            for nm, a, v, sp in zip(names(sh.space, sh.addr, n), range(sh.addr, sh.addr + n), self.values,
+                                    spans(sh.offset, n, sh.space in BIT_SPACES))
         ]
 
     def json(self) -> bytes:
@@ -149,7 +147,7 @@ class RegisterBlock:
         """What _points_summary says of these points: "holding[8448]=1 holding[8449]=2 ... (+n)"."""
         values, shape = self.values, self.shape
         if limit != SUMMARY_LIMIT:
-            return _summary_template(self.space, self.addr, len(values), limit) % tuple(values[:limit])
+            return _summary_template(shape.space, shape.addr, len(values), limit) % tuple(values[:limit])
         if values == shape.last and shape.last_summary is not None:
             return shape.last_summary
         text = shape.summary_tpl % tuple(values[:limit])
