@@ -127,8 +127,8 @@ class GenericModbus:
     # Spans below are ADU offsets: unit fc | address(2) quantity(2) | ... ; a read response's
     # values start at 3 (after the byte count), a multiple write's at 7, 0x17's written ones at 11.
     # The shadow is written only through state.commit, which records the write on the frame.
-    # The hot handlers read the ADU in place, with the same length rules as fast.py's readers
-    # (test_generic_inline checks them against those on random bodies).
+    # The hot handlers read the ADU in place, with the length rules of schema.py's layouts
+    # (test_generic_inline checks them against those on random bodies and the reference vectors).
     def _read_req(self, f, adu, request, state):  # 0x01-0x04 request: address, quantity
         if len(adu) < 6:
             self._malformed(f, adu)

@@ -9,11 +9,11 @@ We parse with the interpreted (uncompiled) Structs: construct 2.10's
 compiled `Bytes(this.n)` returns fewer bytes than asked without an error,
 which would hide exactly the short frames a sniffer must flag.  Interpreted
 parsing costs ~15 us, so the hot layouts (01-06, 0F, 10: nearly all traffic)
-are read with `struct` in `fast.py`; `test_generic_schema` asserts that both
-readings agree, on random bodies and on every reference frame.  The decoder
-imports this module when it first meets a function code without a fast
-reader (importing construct costs 8 MB of RSS and 40 ms: a capture of common
-traffic never pays it).
+are read from the ADU in place by the decoder (decoder.py); `test_generic_inline`
+asserts that both readings agree, on random bodies and on every reference
+vector.  The decoder imports this module when it first meets a function code
+without an in-place reader (importing construct costs 8 MB of RSS and 40 ms: a
+capture of common traffic never pays it).
 """
 
 from __future__ import annotations
