@@ -58,12 +58,21 @@ class DecoderRegistry:
         self.codebook = CodeBook(all_codes(), *(d.codes for d in self.decoders.values()))
 
     def model_for(self, unit: int | None) -> str:
-        """A user's map wins; else the identifier's guess; else the default (generic)."""
+        """A user's map wins; else the identifier's guess; else the default (generic).
+
+        Unit 0 (broadcast) is every unit's: the model given for unit 0 (`--device 0=M`, a bus
+        file's `broadcast = "M"`), else the one model all known units share (given or
+        guessed), so the manual's broadcast rules and names apply; else the default.
+        """
         if unit is None:
             return self.default
         m = self.devices.get(unit)
         if m is not None:
             return m
+        if unit == 0:
+            models = {m for u, m in self.devices.items() if u}
+            models.update(g[0] for u, g in self.guesses.items() if u not in self.devices)
+            return models.pop() if len(models) == 1 else self.default
         g = self.guesses.get(unit)
         return g[0] if g else self.default
 

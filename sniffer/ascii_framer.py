@@ -14,22 +14,26 @@ function, so the pairer never sees an ASCII frame it cannot read.
 
 from __future__ import annotations
 
-from .codes import ASCII_BAD_HEX, ASCII_NO_CRLF, CRC_MISMATCH, LINE_CODES
+from .codes import ASCII_BAD_HEX, ASCII_NO_CRLF, CRC_MISMATCH, LINE_CODES, STRUCTURE_MISMATCH, UNIT_RESERVED, note
 from .frame import CAN_REQ, CAN_RSP, Frame
 from .hexline import HexLineFraming
 from .linebuf import LineBuffer
-from .rtu_layout import Need, candidates
+from .rtu_layout import Need, candidates, roles
 
 
 class AsciiFramer(HexLineFraming, LineBuffer):
     protocol = "modbus-ascii"
-    codes = LINE_CODES + (CRC_MISMATCH, ASCII_NO_CRLF, ASCII_BAD_HEX)
+    codes = LINE_CODES + (CRC_MISMATCH, ASCII_NO_CRLF, ASCII_BAD_HEX, UNIT_RESERVED, STRUCTURE_MISMATCH)
     no_crlf_code = ASCII_NO_CRLF
     bad_hex_code = ASCII_BAD_HEX
 
     def _header(self, fr: Frame, adu: bytes, crc_good: bool) -> None:
         fr.unit, fr.function, fr.adu = adu[0], adu[1], adu
-        fr.can = _roles(adu)
+        fr.can, why = roles(adu, _roles(adu))
+        if adu[0] > 247:  # a framer's spans are in characters: ADU byte i is characters 1 + 2i, 2 + 2i
+            fr.annotations.append(note(UNIT_RESERVED, f"unit {adu[0]} (248-255 are reserved)", 1, 3))
+        if why:
+            fr.annotations.append(note(STRUCTURE_MISMATCH, why, 5, 1 + 2 * len(adu)))
 
 
 def _roles(adu: bytes) -> int:

@@ -13,6 +13,10 @@
     [timeouts_ms]    # optional, per unit: a finite number >= 0
     1 = 250
 
+    broadcast = "tds-v8"   # optional, before the first table: the model whose manual
+                           # rules unit 0 (broadcast) frames; same as [units] 0 = "tds-v8".
+                           # Without it a broadcast takes the model all units share, if one.
+
 Every field is checked before use; a bad one is BusFileError("<path>: <what>"),
 one line.  Unknown tables and keys are errors too, naming what was found: a
 typo such as `[unit]` or `buad = 9600` would otherwise be silently ignored
@@ -28,6 +32,7 @@ from .tomlfile import read_toml
 
 BAUD_RANGE = (50, 4_000_000)
 TABLES = ("serial", "units", "timeouts_ms")
+TOP_KEYS = ("broadcast",)
 SERIAL_KEYS = ("baud", "parity", "stopbits", "protocol")
 MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo
 
@@ -96,9 +101,10 @@ def _serial(path: str, serial: dict, bus: BusFile) -> None:
 def load_bus_file(path: str) -> BusFile:
     """The bus file at `path`, every field checked; BusFileError (one line) if any is wrong."""
     doc = read_toml(path, BusFileError)
-    unknown = sorted(set(doc) - set(TABLES))
+    unknown = sorted(set(doc) - set(TABLES) - set(TOP_KEYS))
     if unknown:
-        raise BusFileError(f"{path}: unknown tables or keys {_show(unknown)} (known: {', '.join(TABLES)})")
+        raise BusFileError(f"{path}: unknown tables or keys {_show(unknown)} "
+                           f"(known: {', '.join(TABLES + TOP_KEYS)})")
     bus = BusFile()
     _serial(path, _table(path, doc, "serial"), bus)
     for key, model in _table(path, doc, "units").items():
@@ -106,6 +112,13 @@ def load_bus_file(path: str) -> BusFile:
         if not isinstance(model, str) or not model.strip():
             raise BusFileError(f"{path}: [units] {key} must be a model id string (e.g. \"a510\"), not {_show(model)}")
         bus.devices[unit] = model.strip()
+    if "broadcast" in doc:
+        model = doc["broadcast"]
+        if not isinstance(model, str) or not model.strip():
+            raise BusFileError(f"{path}: broadcast must be a model id string (e.g. \"tds-v8\"), not {_show(model)}")
+        if bus.devices.get(0, model.strip()) != model.strip():
+            raise BusFileError(f"{path}: broadcast = {_show(model)} but [units] 0 = {_show(bus.devices[0])}")
+        bus.devices[0] = model.strip()
     for key, ms in _table(path, doc, "timeouts_ms").items():
         unit = _unit(path, "timeouts_ms", key)
         ok = (_is_int(ms) or isinstance(ms, float)) and math.isfinite(ms) and 0 <= ms <= MAX_TIMEOUT_MS

@@ -66,6 +66,9 @@ FUNCTION_USER = Code(
     "modbus.function.user_defined", INFO, "user-defined function code (65-72, 100-110): shown raw"
 )
 UNIT_RESERVED = Code("modbus.unit.reserved", WARNING, "unit address 248-255 is reserved")
+STRUCTURE_MISMATCH = Code(
+    "modbus.structure.mismatch", WARNING, "the frame's bytes contradict the structure its function code defines"
+)
 T15_VIOLATION = Code(
     "modbus.timing.t15", WARNING, "silence inside the frame longer than 1.5 character times"
 )
@@ -87,6 +90,12 @@ BROADCAST_RESPONSE = Code(
     "pair.broadcast_response", ERROR, "a unit answered a broadcast request (unit 0)"
 )
 BROADCAST = Code("pair.broadcast", INFO, "broadcast request: no response expected")
+BROADCAST_FUNCTION = Code(
+    "pair.broadcast.function", WARNING, "unit 0 addressed with a function a broadcast cannot carry (a read)"
+)
+ROLE_AMBIGUOUS = Code(
+    "pair.role.ambiguous", INFO, "the frame fits a request and a response; pairing context chose, and says how"
+)
 PAIR_MISMATCH = Code(
     "pair.mismatch", ERROR, "response does not match its request (echo, address, count)"
 )
@@ -95,6 +104,9 @@ END_OF_CAPTURE = Code("pair.end_of_capture", INFO, "capture ended before a respo
 # --- decoding ----------------------------------------------------------------
 EXCEPTION = Code("modbus.exception", WARNING, "exception response")
 DECODE_SHORT = Code("modbus.decode.short", ERROR, "frame too short for its function code")
+BITS_PADDING = Code(
+    "modbus.bits.padding", WARNING, "coil/input bits beyond the requested quantity are set (the spec pads with 0)"
+)
 NO_REQUEST_CONTEXT = Code(
     "modbus.decode.no_request", INFO, "register addresses unknown: response has no request"
 )
@@ -163,11 +175,12 @@ ALL_CODES: tuple[Code, ...] = tuple(v for v in list(globals().values()) if isins
 CORE_CODES: tuple[Code, ...] = (
     SOURCE_GAP, NO_RESPONSE, TIMEOUT, LATE_RESPONSE, ORPHAN_RESPONSE, RETRY, BROADCAST_RESPONSE,
     BROADCAST, PAIR_MISMATCH, END_OF_CAPTURE, DECODE_SHORT, MODEL_MISMATCH, MODEL_GUESS,
+    BROADCAST_FUNCTION, ROLE_AMBIGUOUS,
 )
 # the Modbus RTU framer's codes (LineBuffer's own are the UART, t1.5 and noise ones)
 LINE_CODES: tuple[Code, ...] = (UART_FRAMING, UART_PARITY, T15_VIOLATION, NOISE)
 RTU_CODES: tuple[Code, ...] = LINE_CODES + (
-    CRC_MISMATCH, LENGTH_MISMATCH, FUNCTION_UNKNOWN, FUNCTION_USER, UNIT_RESERVED, T35_SHORT,
+    CRC_MISMATCH, LENGTH_MISMATCH, FUNCTION_UNKNOWN, FUNCTION_USER, UNIT_RESERVED, T35_SHORT, STRUCTURE_MISMATCH,
 )
 
 

@@ -8,12 +8,13 @@ tries the framer's rules in this order, each a method of that name:
   B1  `_rule_b1_crc_run`            a CRC-good run the header does not explain;
   B2  `_rule_b2_noise_before_frame` a good frame starts later: noise before it;
   B3  `_rule_b3_damaged_frame`      the header's length ends at a boundary, bad CRC;
+  B3b `_rule_b3b_frame_inside`      a good frame inside the run, junk on both sides;
   B4  `_rule_b4_malformed_burst`    a whole burst between two HARD silences;
   B5  `_rule_b5_noise`              noise up to the next boundary.
 
 A rule returns a Frame (decided), `NEXT` (the rule does not apply: try the
 next one) or `_WAIT` (the decision needs bytes not here yet).  A framer
-supplies A, B1, B3, B4, `_frame_starts_at` (for B2's scan), `_header` (unit,
+supplies A, B1, B3, B4 (B3b if it has one), `_frame_starts_at` (for B2's scan), `_header` (unit,
 function, adu and header notes of an emitted frame) and `_short_silence_note`;
 B2, B5, the scan and the emission live here.
 """
@@ -45,7 +46,7 @@ class Crc16Framing:
         if b is _WAIT:
             return None
         for rule in (self._rule_b1_crc_run, self._rule_b2_noise_before_frame,
-                     self._rule_b3_damaged_frame, self._rule_b4_malformed_burst):
+                     self._rule_b3_damaged_frame, self._rule_b3b_frame_inside, self._rule_b4_malformed_burst):
             fr = rule(p, b, end, final)
             if fr is not NEXT:
                 return fr
@@ -69,6 +70,10 @@ class Crc16Framing:
 
     def _rule_b3_damaged_frame(self, p: int, b: int, end: int, final: bool):  # pragma: no cover
         raise NotImplementedError
+
+    def _rule_b3b_frame_inside(self, p: int, b: int, end: int, final: bool):
+        """B3b: a good frame inside [p, b) with junk on both sides (a framer may add it; not by default)."""
+        return NEXT
 
     def _rule_b4_malformed_burst(self, p: int, b: int, end: int, final: bool):  # pragma: no cover
         raise NotImplementedError

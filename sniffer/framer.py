@@ -43,7 +43,7 @@ from .crc import _modbus, crc_ok
 from .crc_framing import NEXT, Crc16Framing
 from .frame import CAN_REQ, CAN_RSP, Frame
 from .linebuf import _WAIT, HARD, MAX_NOISE, NONE, SOFT, LineBuffer
-from .rtu_layout import KNOWN_FUNCTIONS, Need, candidates
+from .rtu_layout import KNOWN_FUNCTIONS, Need, candidates, roles
 
 __all__ = ["RtuFramer", "HARD", "SOFT", "NONE", "MAX_NOISE", "_WAIT"]
 _READS = frozenset((0x01, 0x02, 0x03, 0x04))  # request 8 bytes, response byte count + 5
@@ -132,6 +132,8 @@ class RtuFramer(Crc16Framing, LineBuffer):
                     self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
                     return False
             t1 = c0.t_ns - (end0 - e) * char
+            if can == 3 and raw[1] < 5:  # 01-04 in 8 bytes with byte count 3: the bytes may decide the role
+                can = roles(raw[:-2], can)[0]
             fr = Frame(index, t0, t1, raw, "modbus-rtu", raw[0], raw[1], can, True, None, "read",
                        None if prev_end is None else t0 - prev_end, None, c0.channel)
             fr.adu = raw[:-2]
@@ -197,8 +199,13 @@ class RtuFramer(Crc16Framing, LineBuffer):
         """B1: the run up to the boundary carries a valid CRC: a frame of the wrong length or an
         unknown / user-defined function (annotated so)."""
         seg = bytes(self.buf[p - self.base : b - self.base])
-        if not (len(seg) >= 4 and seg[0] <= 247 and crc_ok(seg)):
+        if not (len(seg) >= 4 and crc_ok(seg)):
             return NEXT
+        return self._crc_run(p, b, seg)
+
+    def _crc_run(self, p: int, b: int, seg: bytes) -> Frame:
+        """[p, b) holds a valid CRC but no length the header explains: a frame all the same,
+        annotated (wrong length for a known function, or an unknown / user-defined one)."""
         fc = seg[1]
         fr = self._emit(p, b, CAN_REQ | CAN_RSP, crc_good=True, raw=seg)
         base_fc = fc & 0x7F
@@ -213,6 +220,43 @@ class RtuFramer(Crc16Framing, LineBuffer):
                      f"function 0x{fc:02X} ({fc}) shown raw", 1, 2)
             )
         return fr
+
+    def _rule_b2_noise_before_frame(self, p: int, b: int, end: int, final: bool):
+        """B2: a good frame starts at q in (p, b) and ends plausibly.  The start of a good frame is a
+        clear boundary, so [p, q) is judged as a run of its own first: a valid CRC makes it a frame
+        (a diagnostic 08 without data glued to the next frame), a header whose length ends exactly
+        at q a damaged frame (a bad-CRC exception glued to the good retry); else it is noise."""
+        q = self._resync(p, b, end, final)
+        if q is _WAIT:
+            return _WAIT
+        if q >= b:
+            return NEXT
+        return self._lead_run(p, q)
+
+    def _lead_run(self, p: int, q: int) -> Frame:
+        """[p, q) before a good frame: a CRC-valid run, a damaged structural frame, or noise."""
+        buf, base = self.buf, self.base
+        seg = bytes(buf[p - base : q - base])
+        if len(seg) >= 4 and (seg[1] & 0x7F) in KNOWN_FUNCTIONS and seg[1] != 0x80:
+            if crc_ok(seg):
+                return self._crc_run(p, q, seg)
+            for length, can in candidates(buf, p - base, q - base):
+                if length == q - p and type(length) is int:
+                    return self._emit(p, q, can, crc_good=False, raw=seg)
+        return self._emit_noise(p, q)
+
+    def _rule_b3b_frame_inside(self, p: int, b: int, end: int, final: bool):
+        """B3b: a good frame lies wholly inside [p, b) with junk on both sides of it (one read holding
+        noise, a frame and noise): the bytes before it go first (as B2 judges them); its end need not
+        be plausible, as nothing else explains the run.  Tried after B3 so a damaged frame's data
+        is not searched for a chance CRC match."""
+        hit = self._crc_candidate
+        for q in range(p + 1, b - 3):
+            if (buf_q1 := self.buf[q + 1 - self.base]) & 0x7F not in KNOWN_FUNCTIONS or buf_q1 == 0x80:
+                continue
+            if hit(q, b, True):
+                return self._lead_run(p, q)
+        return NEXT
 
     def _rule_b3_damaged_frame(self, p: int, b: int, end: int, final: bool):
         """B3: a structural length ending exactly at the boundary, bad CRC; with per-read times
@@ -254,7 +298,8 @@ class RtuFramer(Crc16Framing, LineBuffer):
         buf, base = self.buf, self.base
         if q + 1 >= end:
             return False if final else _WAIT
-        if buf[q - base] > 247 or (buf[q + 1 - base] & 0x7F) not in KNOWN_FUNCTIONS:
+        fc = buf[q + 1 - base]
+        if (fc & 0x7F) not in KNOWN_FUNCTIONS or fc == 0x80:
             return False
         hit = self._crc_candidate(q, end, final)
         if hit is _WAIT:
@@ -278,7 +323,10 @@ class RtuFramer(Crc16Framing, LineBuffer):
         fr.function = adu[1]
         fr.adu = adu
         if adu[0] > 247:
-            fr.annotations.append(note(codes.UNIT_RESERVED, f"unit {adu[0]}", 0, 1))
+            fr.annotations.append(note(codes.UNIT_RESERVED, f"unit {adu[0]} (248-255 are reserved)", 0, 1))
+        fr.can, why = roles(adu, fr.can)
+        if why:
+            fr.annotations.append(note(codes.STRUCTURE_MISMATCH, why, 2, len(adu)))
 
     def _short_silence_note(self, idle_ns: int):
         return note(codes.T35_SHORT, f"{idle_ns / self.char_ns:.2f} characters of silence before the frame", 0, 1)

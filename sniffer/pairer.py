@@ -13,7 +13,11 @@ Rules (one master; each has a test of its name in tests/test_pairer.py):
   * a shape that fits both (05/06/08/16 echoes, unknown codes): context
     decides; the response if it matches the pending request's unit and
     function within the response timeout, else the answer to a broadcast
-    just before it, else a new request;
+    just before it, else a new request.  Where the two readings mean
+    different things (not an echo) and the context is not clear (a response
+    whose byte count does not fit the pending request, a request while one
+    of the same unit and function is pending), pair.role.ambiguous says
+    which was chosen and why;
   * a new request while one is pending: the pending one is unanswered
     (`_unanswered`: pair.no_response "next request after X ms", and
     pair.timeout when X is past the unit's timeout); identical bytes mark
@@ -23,7 +27,8 @@ Rules (one master; each has a test of its name in tests/test_pairer.py):
   * end of capture: the pending request gets pair.end_of_capture instead of
     pair.no_response (its answer may simply not have been captured);
   * broadcast (unit 0) expects no answer (pair.broadcast, not held); a
-    response right after it is pair.broadcast_response;
+    response right after it is pair.broadcast_response; a Modbus broadcast
+    of a function that is not a write is pair.broadcast.function;
   * a response with nothing pending, or for another unit or function, is an
     orphan (pair.orphan_response);
   * a response past the unit's timeout is still paired, and flagged
@@ -41,10 +46,12 @@ from . import codes
 from .codes import note
 from .frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE, UNKNOWN, Frame
 from .protocols import PROTOCOLS
+from .rtu_layout import BROADCAST_FUNCTIONS
 
 DEFAULT_TIMEOUT_MS = 1000.0
 _MODBUS = frozenset(name for name, p in PROTOCOLS.items() if p.family == "modbus")  # Modbus echo/count rules
 _ROLES = CAN_REQ | CAN_RSP
+_ECHOES = frozenset((0x05, 0x06, 0x08, 0x16))  # request and response are the same shape and meaning
 
 
 class Pairer:
@@ -71,10 +78,21 @@ class Pairer:
         if not can & _ROLES:  # fits no role
             return self._pass_through(f)
         pending = self.pending  # the shape fits both: context decides
-        if (pending is not None and _same_transaction(pending, f)
-                and f.t_ns - pending.t_end_ns <= self._timeout(pending.unit)):
-            f.role = RESPONSE
-            return self._response(f)
+        if pending is not None and _same_transaction(pending, f):
+            if f.t_ns - pending.t_end_ns <= self._timeout(pending.unit):
+                if f.function not in _ECHOES and f.protocol in _MODBUS and pending.crc_ok and f.crc_ok:
+                    why = response_mismatch(pending.adu, f.adu)
+                    if why:
+                        f.annotations.append(note(
+                            codes.ROLE_AMBIGUOUS,
+                            f"taken as the response to #{pending.index} though {why}; as a request it "
+                            f"would leave #{pending.index} unanswered", 0, len(f.raw)))
+                f.role = RESPONSE
+                return self._response(f)
+            if f.function not in _ECHOES and f.protocol in _MODBUS:
+                f.annotations.append(note(
+                    codes.ROLE_AMBIGUOUS,
+                    f"taken as a new request: #{pending.index} waited past the unit's timeout", 0, len(f.raw)))
         if pending is None and self._answers_broadcast(f):
             f.role = RESPONSE
             return self._response(f)
@@ -151,6 +169,9 @@ class Pairer:
         self.last_request = f
         if f.unit == 0:
             f.annotations.append(note(codes.BROADCAST, "no response expected", 0, 1))
+            if f.protocol in _MODBUS and f.function not in BROADCAST_FUNCTIONS:
+                f.annotations.append(note(codes.BROADCAST_FUNCTION,
+                                          f"function 0x{f.function:02X} to unit 0: no unit may answer it", 1, 2))
             out.append(f)
             return out
         self.pending = f

@@ -108,11 +108,22 @@ def test_rule_b2_noise_glued_before_a_frame():
     assert got[0].noise_reason == "3 byte(s): too short for a frame" and codes(got[0]) == ["noise.bytes"]
 
 
-def test_rule_b2_needs_a_plausible_end_after_the_frame():
-    """A good frame inside a burst, followed by a stray byte, ends nowhere plausible: all noise."""
+def test_rule_b3b_a_frame_with_junk_on_both_sides():
+    """A good frame inside a burst with a stray byte on each side: B2's scan finds no plausible end
+    after it, B3 no damaged frame; B3b takes the frame and leaves the junk as noise (issue 10)."""
     got = frames(RtuFramer, wire(b"\xff" + REQ + b"\x77"))
-    assert shape(got) == [(b"\xff" + REQ + b"\x77", "noise", 0, None)]
-    assert got[0].noise_reason == "no frame: unit 255 is reserved and no valid CRC"
+    assert shape(got) == [(b"\xff", "noise", 0, None), (REQ, "modbus-rtu", CAN_REQ, True),
+                          (b"\x77", "noise", 0, None)]
+
+
+def test_rule_b3_before_b3b_a_damaged_frame_is_not_searched_for_a_chance_crc():
+    """A write-multiple whose 8 data bytes happen to be a CRC-valid frame, its own CRC bad: the
+    structural length ends at the boundary, so it is one damaged frame (B3), not noise around a frame."""
+    inner = crc("020600010005")
+    body = bytes.fromhex("01100000000408") + inner
+    outer = body + bytes([crc(body.hex())[-2] ^ 0xFF, 0x00])
+    (f,) = frames(RtuFramer, wire(outer))
+    assert shape([f]) == [(outer, "modbus-rtu", CAN_REQ, False)]
 
 
 def test_rule_b3_damaged_frame_ends_at_the_boundary():

@@ -11,7 +11,7 @@ import functools
 from struct import Struct, unpack_from
 
 from sniffer.codes import (
-    COIL_VALUE, DECODE_SHORT, EXCEPTION, NO_REQUEST_CONTEXT, QUANTITY, Code, note, note_in,
+    BITS_PADDING, COIL_VALUE, DECODE_SHORT, EXCEPTION, NO_REQUEST_CONTEXT, QUANTITY, Code, note, note_in,
 )
 from sniffer.frame import REQUEST, RESPONSE, Frame
 from sniffer.protocols import MODBUS_TABLES
@@ -27,7 +27,7 @@ _MAX_QTY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x0F: 1968, 0x10: 123}
 
 class GenericModbus:
     model = "generic"
-    codes: tuple[Code, ...] = (EXCEPTION, DECODE_SHORT, NO_REQUEST_CONTEXT, COIL_VALUE, QUANTITY)
+    codes: tuple[Code, ...] = (EXCEPTION, DECODE_SHORT, NO_REQUEST_CONTEXT, COIL_VALUE, QUANTITY, BITS_PADDING)
 
     # ---- hooks for drive models --------------------------------------------
     def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
@@ -167,7 +167,10 @@ class GenericModbus:
         addr, qty = None, len(status) * 8
         if request is not None and request.crc_ok and len(request.adu) >= 6:
             addr = (request.adu[2] << 8) | request.adu[3]
-            qty = min(qty, (request.adu[4] << 8) | request.adu[5])
+            asked = (request.adu[4] << 8) | request.adu[5]
+            if asked < qty and int.from_bytes(status, "little") >> asked:  # bit k: byte k // 8, bit k % 8
+                f.annotations.append(note(BITS_PADDING, f"bits past the {asked} requested are set", 3, n))
+            qty = min(qty, asked)
         else:
             f.annotations.append(note(NO_REQUEST_CONTEXT, "bit numbers unknown", 2, n))
         bits = _bits(status, qty)
