@@ -25,7 +25,8 @@ other model that is not ruled out has evidence of its own: e.g. two described
 registers only it has, or a vendor exception plus an answer its map fits.  A
 unit with no evidence of its own that is polled like a unit named from its own
 evidence (at least two of the same requests answered, half of all it answered)
-and not ruled out for that model gets the same name ("polled like unit 2").
+and not ruled out for that model (no value its map rules out) gets the same name
+("polled like unit 2").
 Confidence = 1 - 2^(-score/2).  If the named model is ruled out later, the
 guess is withdrawn.  A user's device map always wins; the registry annotates
 a guess that contradicts it.  After SETTLED answers a unit's verdict stands
@@ -330,7 +331,7 @@ class Identifier:
     def _polled_like(self, unit: int, ev: UnitEvidence) -> Verdict | None:
         """No evidence of its own: the name of a unit polled the same way, if nothing rules it out."""
         for other, model in sorted(self.direct.items()):
-            if other == unit or model in ev.ruled_out:
+            if other == unit or model in ev.ruled_out or any(k[0] == "misfit" for k in ev.items.get(model, ())):
                 continue
             shared = ev.answered & self.units[other].answered
             if len(shared) >= 2 and 2 * len(shared) >= len(ev.answered):
