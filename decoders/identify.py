@@ -256,6 +256,8 @@ class Identifier:
         for mf in self.facts:
             if mf.functions is not None and fc not in mf.functions:
                 self._rule_out(ev, mf.id, f"answered function {fc:02X}H, which {mf.id} does not implement")
+            # max_frame_bytes counts the frame on the wire: in ASCII its characters (the A510 manual:
+            # 80 bytes "limits ASCII to far fewer than 32 registers")
             elif mf.max_frame and max(len(rsp.raw), len(req.raw)) > mf.max_frame:
                 self._rule_out(ev, mf.id, f"answered a {max(len(rsp.raw), len(req.raw))}-byte frame "
                                           f"({mf.id}: at most {mf.max_frame})")
