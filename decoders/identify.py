@@ -1,117 +1,359 @@
-"""Guess a unit's drive model from what it is polled for and how it answers.
+"""Guess a unit's drive model from how it answers, on evidence only that model would give.
 
-Evidence per frame (CRC-good requests and exception responses):
-  * a request whose whole register range exists (not reserved) in exactly one
-    model's map is strong evidence for that model; in several maps, weak
-    evidence for each;
-  * an exception code only one model defines is strong evidence for it.
-A guess is made once a model has at least MIN_STRONG strong hits and at
-least 90 % of the unit's evidence, and no other model has strong hits.  A
-user's device map always wins; if the traffic clearly points elsewhere the
-registry annotates the contradiction.
+A wrong name is worse than none (an energy meter renamed "Parameter 7-01"), so a
+guess needs evidence a generic device would not produce, per unit and model:
+
+  * a vendor exception code (outside Modbus's 01H-0BH) that only this model's map
+    defines: weight 3 (SPL 51H-55H, TDS-V8 21H/22H);
+  * a normal answer to a request whose registers all exist in the model's map, at
+    least one of them outside the common block 0000H-00FFH (which any device
+    answers) and in no other candidate's map: weight 2 when that register is
+    described (read-only, a unit, a range, an enum, a status word), 1 when the map
+    only knows it exists (a bare "Parameter 16-00" row; at most 2 of these count);
+  * answers that fit the map at all: weight 1, once.
+Against it:
+  * a value the map rules out (outside an enum or min..max, a status word with a
+    bit the manual calls unused set): -2 per register (a meter's float32 words
+    in a drive's status block);
+  * what the model cannot do rules it out for the unit: a normal answer to a
+    function code the model does not implement (a meter's 04H), to a register the
+    map does not have, to more registers or a longer frame than the manual allows;
+    an exception code the map does not define (gateway codes 0AH/0BH aside); a unit
+    address the model cannot have.
+The unit is named once a model that is not ruled out reaches SCORE (4) and no
+other model that is not ruled out has evidence of its own: e.g. two described
+registers only it has, or a vendor exception plus an answer its map fits.  A
+unit with no evidence of its own that is polled like a unit named from its own
+evidence (at least two of the same requests answered, half of all it answered)
+and not ruled out for that model (no value its map rules out) gets the same name
+("polled like unit 2").
+Confidence = 1 - 2^(-score/2).  If the named model is ruled out later, the
+guess is withdrawn.  A user's device map always wins; the registry annotates
+a guess that contradicts it.  After SETTLED answers a unit's verdict stands
+(keeps the hot path cheap).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
-from sniffer.frame import REQUEST, Frame
+from sniffer.frame import RESPONSE, Frame
+from sniffer.protocols import PROTOCOLS
 
-MIN_STRONG = 3
-SETTLED = 200  # evidence frames after which a unit's verdict stands (keeps the hot path cheap)
+SCORE = 4
+SETTLED = 200  # answers after which a unit's verdict stands (keeps the hot path cheap)
+COMMON_END = 0x0100  # 0000H-00FFH: addresses nearly any device answers, never evidence of a model
+STANDARD_EXCEPTIONS = frozenset(range(0x01, 0x0C))  # Modbus application protocol, section 7
+GATEWAY_EXCEPTIONS = frozenset({0x0A, 0x0B})  # a gateway's answer, not the device's
+W_VENDOR, W_DESCRIBED, W_BARE, W_FITS, W_MISFIT = 3, 2, 1, 1, -2
+MAX_BARE = 2  # bare-parameter evidence counts at most this much in all
+MAX_SIGNATURES = 64  # answered requests remembered per unit (for "polled like")
+_REG_FUNCTIONS = {0x03: "read", 0x04: "read", 0x06: "write", 0x10: "write"}
+_MODBUS = frozenset(name for name, p in PROTOCOLS.items() if p.family == "modbus")
+
+
+class Verdict(NamedTuple):
+    """A change of a unit's guess: model None = an earlier guess withdrawn."""
+
+    model: str | None
+    confidence: float
+    evidence: str
+
+
+def confidence_of(score: float) -> float:
+    return round(min(0.99, 1 - 2 ** (-score / 2)), 2)
+
+
+def _described(r) -> bool:
+    return bool(r.access != "RW" or r.unit or r.enum or r.bits or r.min is not None or r.max is not None
+                or r.scale != 1 or r.scale_by)
+
+
+def _unused_mask(regmap, bits_name: str) -> int:
+    """Bits the manual calls unused or reserved in a bit-field table: a set one rules the model out."""
+    mask = 0
+    for fdef in regmap.bits.get(bits_name, []):
+        name = str(fdef.get("name", "")).lower()
+        if "unused" in name or name.strip("() ") == "reserved":
+            for b in range(fdef["lo"], fdef["hi"] + 1):
+                mask |= 1 << b
+    return mask
+
+
+class ModelFacts:
+    """What one candidate's map says a device of that model can and cannot do."""
+
+    def __init__(self, mid: str, regmap) -> None:
+        self.id = mid
+        self.map = regmap
+        info = regmap.model
+        fcs = info.get("function_codes")
+        self.functions = frozenset(fcs) | frozenset(info.get("vendor_function_codes") or ()) if fcs else None
+        self.max_regs = info.get("max_registers_per_request")
+        self.max_frame = info.get("max_frame_bytes")
+        units = info.get("unit_addresses") or info.get("unit_address_range")
+        self.units = tuple(units) if units and len(units) == 2 else None
+        self.exceptions = frozenset(regmap.exceptions)
+        self._masks: dict[str, int] = {}
+
+    def misfit(self, r, raw: int) -> str | None:
+        """Why a register's value cannot come from this model, or None."""
+        if r.enum:
+            table = self.map.enums.get(r.enum)
+            if table and raw not in table:
+                return f"{r.addr:04X}H = {raw} is not in its table"
+        if r.bits:
+            mask = self._masks.get(r.bits)
+            if mask is None:
+                mask = self._masks[r.bits] = _unused_mask(self.map, r.bits)
+            if raw & mask:
+                return f"{r.addr:04X}H = {raw:04X}H sets bits the manual calls unused"
+        if r.min is not None or r.max is not None:
+            v = raw - 0x10000 if r.type == "s16" and raw >= 0x8000 else raw
+            if (r.min is not None and v < r.min) or (r.max is not None and v > r.max):
+                return f"{r.addr:04X}H = {v} outside {r.min}..{r.max}"
+        return None
+
+
+class RangeVerdict(NamedTuple):
+    """One register range against one model (cached: polls repeat)."""
+
+    missing: int | None  # first address the map does not have
+    weight: int  # W_DESCRIBED, W_BARE or 0 (nothing only this model has)
+    checked: tuple  # (offset, Register) of rows whose values can rule the model out
 
 
 @dataclass
 class UnitEvidence:
-    strong: dict[str, int] = field(default_factory=dict)
-    weak: dict[str, int] = field(default_factory=dict)
     seen: int = 0
-    examples: dict[str, list[str]] = field(default_factory=dict)
+    items: dict[str, dict[tuple, tuple[int, str]]] = field(default_factory=dict)  # model -> key -> (weight, label)
+    ruled_out: dict[str, str] = field(default_factory=dict)  # model -> first reason
+    answered: set[tuple[int, int, int]] = field(default_factory=set)  # (function, address, count)
     guess: str | None = None
     confidence: float = 0.0
+    via: int | None = None  # the unit whose name this one took ("polled like")
+    dirty: bool = False
+    siblings_seen: int = -1
 
 
 class Identifier:
     def __init__(self, maps: dict) -> None:
         """maps: {model id: RegisterMap} of the candidate models (variants sharing a map count once)."""
-        self.maps = maps
+        self.facts = [ModelFacts(mid, m) for mid, m in maps.items()]
         self.units: dict[int, UnitEvidence] = {}
-        self._cover_cache: dict[tuple[int, int], list[str]] = {}  # polls repeat: remember each range
+        self.direct: dict[int, str] = {}  # unit -> model named from its own evidence
+        self._direct_version = 0
+        self._owners: dict[int, frozenset[str]] = {}
+        self._ranges: dict[tuple[int, int], tuple[RangeVerdict, ...]] = {}
+        vendor: dict[int, list[str]] = {}
+        for mf in self.facts:
+            for code in mf.exceptions - STANDARD_EXCEPTIONS:
+                vendor.setdefault(code, []).append(mf.id)
+        self._vendor_owner = {code: ids[0] for code, ids in vendor.items() if len(ids) == 1}
 
-    def _covering(self, a: int, q: int) -> list[str]:
+    # ---- what the maps say -------------------------------------------------
+    def owners(self, addr: int) -> frozenset[str]:
+        """The candidates whose map holds a (not reserved) register at addr."""
+        o = self._owners.get(addr)
+        if o is None:
+            o = self._owners[addr] = frozenset(
+                mf.id for mf in self.facts
+                if (r := mf.map.registers.get(addr)) is not None and r.access != "reserved")
+        return o
+
+    def range_verdicts(self, a: int, q: int) -> tuple[RangeVerdict, ...]:
         key = (a, q)
-        hit = self._cover_cache.get(key)
+        hit = self._ranges.get(key)
         if hit is not None:
             return hit
-        if len(self._cover_cache) > 65536:
-            self._cover_cache.clear()
-        out = self._cover_cache[key] = []
-        for mid, m in self.maps.items():
-            regs = m.registers
-            ok = True
-            for addr in range(a, a + q):
-                r = regs.get(addr)
-                if r is None or r.access == "reserved":
-                    ok = False
+        if len(self._ranges) > 65536:
+            self._ranges.clear()
+        out = []
+        for mf in self.facts:
+            regs = mf.map.registers
+            missing, weight, checked = None, 0, []
+            for k in range(q):
+                r = regs.get(a + k)
+                if r is None:
+                    missing = a + k
                     break
-            if ok:
-                out.append(mid)
-        return out
+                if r.access == "reserved":
+                    continue
+                if r.enum or r.bits or r.min is not None or r.max is not None:
+                    checked.append((k, r))
+                if a + k >= COMMON_END and weight < W_DESCRIBED and self.owners(a + k) == {mf.id}:
+                    weight = W_DESCRIBED if _described(r) else W_BARE
+            out.append(RangeVerdict(missing, 0 if missing is not None else weight, tuple(checked)))
+        hit = self._ranges[key] = tuple(out)
+        return hit
 
+    # ---- frames ---------------------------------------------------------------
     def settled(self, unit: int) -> bool:
         """True once a unit's verdict stands: observe() will not change it any more."""
         ev = self.units.get(unit)
         return ev is not None and ev.seen >= SETTLED
 
-    def observe(self, f: Frame) -> tuple[str, float, str] | None:
-        """Feed one decoded-or-not frame; returns (model, confidence, evidence) when the guess changes."""
-        if not f.crc_ok or f.unit in (None, 0) or len(f.adu) < 3:
+    def ruled_out(self, unit: int, model: str) -> str | None:
+        ev = self.units.get(unit)
+        return ev.ruled_out.get(model) if ev else None
+
+    def observe(self, f: Frame) -> Verdict | None:
+        """Feed one frame (answers carry the evidence); a Verdict when the unit's guess changes."""
+        if f.role != RESPONSE or not f.crc_ok or f.unit in (None, 0) or f.protocol not in _MODBUS:
+            return None
+        adu = f.adu
+        if len(adu) < 3:
             return None
         ev = self.units.get(f.unit)
-        if ev is not None and ev.seen >= SETTLED:
-            return None
-        fc = f.function
-        models: list[str] = []
-        label = ""
-        if f.role == REQUEST and fc in (0x03, 0x04, 0x06, 0x10) and len(f.adu) >= 6:
-            a = (f.adu[2] << 8) | f.adu[3]
-            q = 1 if fc == 0x06 else ((f.adu[4] << 8) | f.adu[5])
-            if not 1 <= q <= 125:
-                return None
-            models = self._covering(a, q)
-            label = f"{a:04X}H" + (f"-{a + q - 1:04X}H" if q > 1 else "")
-        elif fc & 0x80:
-            code = f.adu[2]
-            if code > 0x0B:
-                models = [mid for mid, m in self.maps.items() if code in m.exceptions]
-                label = f"exception {code:02X}H"
-        else:
-            return None
         if ev is None:
             ev = self.units[f.unit] = UnitEvidence()
+            self._check_unit(ev, f.unit)
+        elif ev.seen >= SETTLED:
+            return None
         ev.seen += 1
-        if len(models) == 1:
-            ev.strong[models[0]] = ev.strong.get(models[0], 0) + 1
-            ex = ev.examples.setdefault(models[0], [])
-            if label not in ex and len(ex) < 4:
-                ex.append(label)
-        for mid in models:
-            ev.weak[mid] = ev.weak.get(mid, 0) + 1
-        return self._decide(ev)
+        if f.function & 0x80:
+            self._exception(ev, adu[2])
+        else:
+            req = f.peer
+            if req is None or not req.crc_ok or req.function != f.function:
+                return None
+            self._answer(ev, req, f)
+        if not ev.dirty and ev.siblings_seen == self._direct_version:
+            return None
+        ev.dirty = False
+        ev.siblings_seen = self._direct_version
+        return self._decide(f.unit, ev)
 
-    def _decide(self, ev: UnitEvidence):
-        if not ev.strong:
-            return None
-        best = max(ev.strong, key=lambda m: (ev.strong[m], m))
-        others = sum(n for m, n in ev.strong.items() if m != best)
-        hits = ev.weak.get(best, 0)
-        conf = hits / ev.seen
-        if ev.strong[best] < MIN_STRONG or others or conf < 0.9:
-            return None
-        changed = best != ev.guess
-        ev.guess, ev.confidence = best, conf
-        if not changed:
-            return None
-        evidence = (f"{hits} of {ev.seen} requests fit the {best} map; {ev.strong[best]} only {best} has "
-                    f"({', '.join(ev.examples.get(best, []))})")
-        return best, conf, evidence
+    def _item(self, ev: UnitEvidence, model: str, key: tuple, weight: int, label: str) -> None:
+        items = ev.items.setdefault(model, {})
+        if key not in items:
+            items[key] = (weight, label)
+            ev.dirty = True
+
+    def _rule_out(self, ev: UnitEvidence, model: str, reason: str) -> None:
+        if model not in ev.ruled_out:
+            ev.ruled_out[model] = reason
+            ev.dirty = True
+
+    def _check_unit(self, ev: UnitEvidence, unit: int) -> None:
+        for mf in self.facts:
+            if mf.units and not mf.units[0] <= unit <= mf.units[1]:
+                self._rule_out(ev, mf.id, f"unit {unit} is outside its addresses {mf.units[0]}-{mf.units[1]}")
+
+    def _exception(self, ev: UnitEvidence, code: int) -> None:
+        owner = self._vendor_owner.get(code)
+        if owner is not None:
+            self._item(ev, owner, ("exc", code), W_VENDOR, f"exception {code:02X}H only {owner} defines")
+        if code in GATEWAY_EXCEPTIONS:
+            return
+        for mf in self.facts:
+            if mf.exceptions and code not in mf.exceptions:
+                self._rule_out(ev, mf.id, f"answered exception {code:02X}H, which {mf.id} does not define")
+
+    def _answer(self, ev: UnitEvidence, req: Frame, rsp: Frame) -> None:
+        fc = rsp.function
+        for mf in self.facts:
+            if mf.functions is not None and fc not in mf.functions:
+                self._rule_out(ev, mf.id, f"answered function {fc:02X}H, which {mf.id} does not implement")
+            # max_frame_bytes counts the frame on the wire: in ASCII its characters (the A510 manual:
+            # 80 bytes "limits ASCII to far fewer than 32 registers")
+            elif mf.max_frame and max(len(rsp.raw), len(req.raw)) > mf.max_frame:
+                self._rule_out(ev, mf.id, f"answered a {max(len(rsp.raw), len(req.raw))}-byte frame "
+                                          f"({mf.id}: at most {mf.max_frame})")
+        kind = _REG_FUNCTIONS.get(fc)
+        if kind is None or len(req.adu) < 6:
+            return
+        r_adu, adu = req.adu, rsp.adu
+        a = (r_adu[2] << 8) | r_adu[3]
+        if fc == 0x06:
+            q, data = 1, adu[4:6]
+        else:
+            q = (r_adu[4] << 8) | r_adu[5]
+            data = adu[3:3 + 2 * q] if kind == "read" else r_adu[7:7 + 2 * q]
+        if not 1 <= q <= 125 or len(data) != 2 * q:
+            return
+        if len(ev.answered) < MAX_SIGNATURES:
+            if (fc, a, q) not in ev.answered:
+                ev.answered.add((fc, a, q))
+                ev.dirty = True
+        label = f"{a:04X}H" + (f"-{a + q - 1:04X}H" if q > 1 else "")
+        for mf, rv in zip(self.facts, self.range_verdicts(a, q)):
+            if mf.id in ev.ruled_out:
+                continue
+            if rv.missing is not None:
+                self._rule_out(ev, mf.id, f"answered {rv.missing:04X}H, which {mf.id}'s map does not have")
+                continue
+            if mf.max_regs and q > mf.max_regs and fc != 0x06:
+                self._rule_out(ev, mf.id, f"answered {q} registers at once ({mf.id}: at most {mf.max_regs})")
+                continue
+            self._item(ev, mf.id, ("fits",), W_FITS, "answers what its map holds")
+            if rv.weight:
+                self._item(ev, mf.id, ("reg", rv.weight, fc, a, q), rv.weight,
+                           f"{kind} {label}" + ("" if rv.weight == W_DESCRIBED else " (bare parameters)"))
+            for k, r in rv.checked:
+                why = mf.misfit(r, (data[2 * k] << 8) | data[2 * k + 1])
+                if why:
+                    self._item(ev, mf.id, ("misfit", r.addr), W_MISFIT, why)
+
+    # ---- the verdict -------------------------------------------------------------
+    @staticmethod
+    def score(items: dict) -> int:
+        bare = sum(w for key, (w, _) in items.items() if key[0] == "reg" and key[1] == W_BARE)
+        rest = sum(w for key, (w, _) in items.items() if not (key[0] == "reg" and key[1] == W_BARE))
+        return rest + min(bare, MAX_BARE)
+
+    @staticmethod
+    def _own(items: dict) -> bool:
+        """Evidence only this model gives (not just 'its map fits')."""
+        return any(key[0] in ("exc", "reg") for key in items)
+
+    def _decide(self, unit: int, ev: UnitEvidence) -> Verdict | None:
+        if ev.guess is not None and ev.guess in ev.ruled_out:
+            was, ev.guess, ev.via, ev.confidence = ev.guess, None, None, 0.0
+            if self.direct.pop(unit, None) is not None:
+                self._direct_version += 1
+            return Verdict(None, 0.0, f"not {was}: {ev.ruled_out[was]}")
+        alive = {m: items for m, items in ev.items.items() if m not in ev.ruled_out}
+        scores = {m: self.score(items) for m, items in alive.items()}
+        best = max(scores, key=lambda m: (scores[m], m), default=None)
+        if (best is not None and scores[best] >= SCORE and self._own(alive[best])
+                and not any(self._own(items) for m, items in alive.items() if m != best)):
+            conf = confidence_of(scores[best])
+            changed = best != ev.guess
+            ev.guess, ev.confidence, ev.via = best, conf, None
+            if self.direct.get(unit) != best:
+                self.direct[unit] = best
+                self._direct_version += 1
+            return Verdict(best, conf, self._explain(ev, best, scores[best])) if changed else None
+        if ev.guess is None and not any(self._own(items) for items in alive.values()):
+            return self._polled_like(unit, ev)
+        return None
+
+    def _polled_like(self, unit: int, ev: UnitEvidence) -> Verdict | None:
+        """No evidence of its own: the name of a unit polled the same way, if nothing rules it out."""
+        for other, model in sorted(self.direct.items()):
+            if other == unit or model in ev.ruled_out or any(k[0] == "misfit" for k in ev.items.get(model, ())):
+                continue
+            shared = ev.answered & self.units[other].answered
+            if len(shared) >= 2 and 2 * len(shared) >= len(ev.answered):
+                conf = round(self.units[other].confidence * len(shared) / len(ev.answered) * 0.9, 2)
+                ev.guess, ev.confidence, ev.via = model, conf, other
+                same = ", ".join(f"{fc:02X}H {a:04X}H" + (f"-{a + q - 1:04X}H" if q > 1 else "")
+                                 for fc, a, q in sorted(shared)[:4])
+                return Verdict(model, conf, f"confidence {conf}: polled like unit {other} ({model}), "
+                                            f"{len(shared)} of its {len(ev.answered)} answered requests the same "
+                                            f"({same}){self._ruled_text(ev, model)}")
+        return None
+
+    def _explain(self, ev: UnitEvidence, model: str, score: int) -> str:
+        items = sorted(ev.items[model].items(), key=lambda kv: -kv[1][0])
+        shown = [f"{label} ({w:+d})" for _, (w, label) in items[:5]]
+        more = f", +{len(items) - 5} more" if len(items) > 5 else ""
+        return (f"score {score}, confidence {confidence_of(score)}: {'; '.join(shown)}{more}"
+                f"{self._ruled_text(ev, model)}")
+
+    @staticmethod
+    def _ruled_text(ev: UnitEvidence, model: str) -> str:
+        others = [f"not {m}: {why}" for m, why in sorted(ev.ruled_out.items()) if m != model]
+        return f"; {'; '.join(others[:3])}" if others else ""

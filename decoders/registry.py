@@ -10,6 +10,7 @@ import functools
 
 from sniffer import codes as core_codes
 from sniffer.codes import MODEL_GUESS as GUESS
+from sniffer.codes import MODEL_GUESS_WITHDRAWN as WITHDRAWN
 from sniffer.codes import CodeBook, note
 from sniffer.frame import Frame
 from sniffer.protocols import PROTOCOLS
@@ -84,14 +85,19 @@ class DecoderRegistry:
             return
         model, conf, evidence = got
         given = self.devices.get(f.unit)
-        if given is None:
+        if model is None:  # an earlier guess withdrawn
+            was = self.guesses.pop(f.unit, None)
+            if was is not None and given is None:
+                f.annotations.append(note(WITHDRAWN, f"unit {f.unit} is generic again, {evidence}", 0, len(f.raw)))
+        elif given is None:
             self.guesses[f.unit] = got
             f.annotations.append(note(GUESS, f"unit {f.unit} looks like {model}: {evidence}", 0, len(f.raw)))
         elif given != model and f.unit not in self._contradicted and not _same_family(given, model):
             self._contradicted.add(f.unit)
+            why = self.identifier.ruled_out(f.unit, given)
             f.annotations.append(note(core_codes.MODEL_MISMATCH,
-                                      f"unit {f.unit} is mapped to {given} but looks like {model}: {evidence}",
-                                      0, len(f.raw)))
+                                      f"unit {f.unit} is mapped to {given} but looks like {model}: {evidence}"
+                                      + (f"; and {why}" if why else ""), 0, len(f.raw)))
 
     def state(self, unit: int) -> UnitState:
         st = self.states.get(unit)

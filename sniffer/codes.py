@@ -130,6 +130,9 @@ QUANTITY = Code("modbus.quantity.range", ERROR, "quantity outside the range the 
 
 # --- drive models from register maps (decoders/model.py, decoders/registry.py) ------
 MODEL_GUESS = Code("model.guess", INFO, "unit's model guessed from its traffic (no device map entry)")
+MODEL_GUESS_WITHDRAWN = Code(
+    "model.guess.withdrawn", WARNING, "an earlier model guess withdrawn: the traffic rules that model out"
+)
 MODEL_READ_ONLY = Code("model.write.read_only", ERROR, "write to a read-only register")
 MODEL_RESERVED = Code("model.write.reserved", ERROR, "write to a reserved register")
 MODEL_UNKNOWN_REG = Code("model.register.unknown", WARNING, "register not in the model's register map")
@@ -175,7 +178,7 @@ ALL_CODES: tuple[Code, ...] = tuple(v for v in list(globals().values()) if isins
 CORE_CODES: tuple[Code, ...] = (
     SOURCE_GAP, NO_RESPONSE, TIMEOUT, LATE_RESPONSE, ORPHAN_RESPONSE, RETRY, BROADCAST_RESPONSE,
     BROADCAST, PAIR_MISMATCH, END_OF_CAPTURE, DECODE_SHORT, MODEL_MISMATCH, MODEL_GUESS,
-    BROADCAST_FUNCTION, ROLE_AMBIGUOUS,
+    BROADCAST_FUNCTION, ROLE_AMBIGUOUS, MODEL_GUESS_WITHDRAWN,
 )
 # the Modbus RTU framer's codes (LineBuffer's own are the UART, t1.5 and noise ones)
 LINE_CODES: tuple[Code, ...] = (UART_FRAMING, UART_PARITY, T15_VIOLATION, NOISE)
