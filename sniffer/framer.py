@@ -123,6 +123,13 @@ class RtuFramer(Crc16Framing, LineBuffer):
             if not length:
                 break
             e = p + length
+            if cands[-1][0] != length:  # a longer length of this header may hold a CRC too (_prefer_longer)
+                at = self._is_boundary(e, limit, final)
+                if at is None:  # the frame ends where the bytes end: wait for what follows
+                    self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
+                    return True
+                if not at:  # bytes glued after it: the rule-by-rule path weighs the longer one
+                    break
             t0 = c0.t_ns - (end0 - p) * char
             while e > end0:  # the frame ends in a later read
                 k += 1
@@ -160,7 +167,7 @@ class RtuFramer(Crc16Framing, LineBuffer):
         if i + 2 < n:  # fast path for the function codes that make up nearly all traffic
             quick = _quick(buf, i, n)
             if quick is not None:
-                for length, can in quick:
+                for k, (length, can) in enumerate(quick):
                     if i + length > n:
                         if final:
                             return False
@@ -168,10 +175,12 @@ class RtuFramer(Crc16Framing, LineBuffer):
                         return _WAIT
                     raw = bytes(buf[i : i + length])
                     if not _modbus(raw):
+                        if k + 1 < len(quick):
+                            return self._prefer_longer(p, (length, can, raw), quick[k + 1 :], end, final)
                         return length, can, raw
                 return False
         cands = candidates(buf, i, n)
-        for length, can in cands:
+        for k, (length, can) in enumerate(cands):
             if type(length) is Need:
                 if final:
                     continue
@@ -182,8 +191,37 @@ class RtuFramer(Crc16Framing, LineBuffer):
                 return _WAIT
             raw = bytes(buf[i : i + length])
             if crc_ok(raw):
+                if k + 1 < len(cands):
+                    return self._prefer_longer(p, (length, can, raw), cands[k + 1 :], end, final)
                 return length, can, raw
         return False
+
+    def _prefer_longer(self, p: int, hit: tuple, longer, end: int, final: bool):
+        """Two lengths of one header both carry a valid CRC (a 9-byte read response whose first 8
+        bytes pass as a request, about 1 in 65536): the shorter is taken unless the bytes say
+        otherwise, i.e. it ends where no boundary is and a longer one ends at a boundary.  Only
+        bytes and boundaries decide, so a frame waits while the longer one's bytes are coming."""
+        at = self._is_boundary(p + hit[0], end, final)
+        if at is None:
+            return _WAIT  # the shorter ends where the bytes so far end: what follows decides
+        if at:
+            return hit  # the shorter ends at a boundary
+        buf, i = self.buf, p - self.base
+        for length, can in longer:
+            if type(length) is Need or p + length > end:
+                if final:
+                    continue
+                if type(length) is not Need:
+                    self._need = p + length
+                return _WAIT
+            raw = bytes(buf[i : i + length])
+            if crc_ok(raw):
+                at = self._is_boundary(p + length, end, final)
+                if at is None:
+                    return _WAIT
+                if at:
+                    return length, can, raw
+        return hit
 
     # --------------------------------------------------------------- rules
     def _rule_a_structural(self, p: int, end: int, final: bool):

@@ -13,7 +13,7 @@ import pytest
 from helpers import fr, run_events, run_sniffer
 
 from sniffer.ascii_framer import AsciiFramer
-from sniffer.crc import lrc
+from sniffer.crc import crc_ok, lrc
 from sniffer.events import Chunk
 from sniffer.frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE
 from sniffer.framer import RtuFramer
@@ -291,3 +291,24 @@ def test_bus_file_broadcast_key(tmp_path):
     bus.write_text('broadcast = 3\n')
     got = run_sniffer("decode", "--bus", str(bus), fr("000625010bb8"))
     assert got.returncode == 2 and "model id" in got.stderr
+
+
+# ---------------------------------------------------------------- two lengths, both CRC-valid
+RSP9 = bytes.fromhex("01030444ea370a5900")  # a meter's float32 answer; its first 8 bytes pass as a request
+
+
+def test_the_chance_request_inside_a_response_is_not_split():
+    assert crc_ok(RSP9) and crc_ok(RSP9[:8])  # the case: both lengths of this header hold a CRC
+    req = h("010300000002")
+    for chunks in (on_wire(req) + at(60, RSP9), [Chunk(10 * CHAR, req), Chunk(70 * CHAR, RSP9)],
+                   [Chunk(70 * CHAR, req + RSP9)]):
+        got = framed(chunks)
+        assert [f.raw for f in got] == [req, RSP9], chunks
+        out = run_events(chunks, LINE)
+        assert [f.role for f in out] == [REQUEST, RESPONSE] and out[1].pair == 0
+
+
+def test_the_shorter_wins_where_it_ends_at_a_boundary():
+    """The 8 bytes end at silence: a request, and the byte after it starts something else."""
+    got = framed(on_wire(RSP9[:8]) + at(60, RSP9[8:]))
+    assert [(f.raw, f.protocol) for f in got] == [(RSP9[:8], "modbus-rtu"), (RSP9[8:], "noise")]
