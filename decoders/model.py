@@ -117,9 +117,9 @@ class TableDecoder(GenericModbus):
     def make_points(self, space: str, addr: int | None, values: list[int], state: UnitState,
                     offset: int) -> list[dict]:
         """Points of consecutive registers: a value of several registers joined where all are here."""
-        parts = self.map.parts
-        if addr is None or space not in _REGISTERS or not parts:
+        if addr is None or space not in _REGISTERS or not self.map.any_part(addr, len(values)):
             return super().make_points(space, addr, values, state, offset)
+        parts = self.map.parts
         out = []
         n, i = len(values), 0
         while i < n:

@@ -6,6 +6,7 @@ One loader for the built-in drive models and for `--model-file`; the lint
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -91,6 +92,7 @@ class RegisterMap:
     path: str = ""
     by_id: dict[str, Register] = field(default_factory=dict)
     _parts: dict[int, tuple[Register, int]] | None = field(default=None, repr=False)
+    _part_addrs: list[int] | None = field(default=None, repr=False)
 
     @property
     def model_id(self) -> str:
@@ -104,6 +106,17 @@ class RegisterMap:
             self._parts = {r.addr + k: (r, k) for r in self.registers.values() if r.words > 1
                            for k in range(r.words)}
         return self._parts
+
+    def any_part(self, addr: int, n: int) -> bool:
+        """Does any register of addr..addr+n-1 belong to a row of more than one word?"""
+        parts = self.parts
+        if not parts:
+            return False
+        starts = self._part_addrs
+        if starts is None:
+            starts = self._part_addrs = sorted(parts)
+        i = bisect.bisect_left(starts, addr)
+        return i < len(starts) and starts[i] < addr + n
 
     def covering(self, addr: int) -> tuple[Register, int] | None:
         """(row, word index) of the row whose value takes register `addr`: (row, 0) at its own address."""

@@ -5,7 +5,7 @@ crc_ok, exception, model, points, annotations, latency_ms, pair.  The same
 record is the MCAP `/frames` message, described by FRAME_SCHEMA.  Fields are
 only ever added, never renamed.
 
-| `points` | `[{name, address, raw, value, unit, span, ...}]`; `span` = `[start, end)` of the value's bytes in `raw` |
+| `points` | `[{name, address, raw, value, unit, span, ...}]`; `span` = `[start, end)` of the value's bytes in `raw`; a value of several registers (u32, f32, str ...) adds `words` (its registers as on the wire), one register of such a value alone adds `part` ([index, of]) (docs/register-map-format.md) |
 | `writes` | `[[table, start, [raw, ...]], ...]`: what the frame wrote into its unit's register shadow |
 
 `writes` is exactly what the decoder put into the unit's register shadow when

@@ -260,6 +260,15 @@ def test_watch_shows_the_combined_value():
     s.add(frames[4:])
     (row,) = s.register_rows(1)
     assert row.value == 0x00020003 and row.changes == 1 and list(row.history) == [123456, 0x00020003]
+    # a viewer attached over a socket rebuilds the frames from their JSON records: the same watch
+    from sniffer.records import frame_json, loads
+    from sniffer.tui.model import frame_from_record
+
+    t0 = frames[0].t_ns
+    attached = FrameStore(t0)
+    attached.add([frame_from_record(loads(frame_json(f, t0)), t0) for f in frames])
+    assert [(r.address, r.words, r.value, r.raw) for r in attached.register_rows(1)] == [
+        (0x2510, 2, 0x00020003, 0x00020003)]
 
 
 def test_watch_under_pilot_shows_one_row_per_value():
