@@ -170,15 +170,18 @@ class TableDecoder(GenericModbus):
 
     def _split_range(self, f: Frame, a: int, q: int, start: int) -> None:
         """Annotate a read of registers a..a+q-1 that starts or ends inside a value of several registers."""
-        parts = self.map.parts
-        for addr, inner in ((a, lambda k, w: k > 0), (a + q - 1, lambda k, w: k < w - 1)):
-            hit = parts.get(addr)
-            if hit is not None and q > 0 and inner(hit[1], hit[0].words):
-                r = hit[0]
-                f.annotations.append(note(SPLIT, f"read 0x{a:04X}..0x{a + q - 1:04X} cuts {r.id or r.name} "
-                                                 f"({r.type} at 0x{r.addr:04X}..0x{r.addr + r.words - 1:04X})",
-                                          start, start + 4))
-                return
+        if q < 1:
+            return
+        first, last = self.map.parts.get(a), self.map.parts.get(a + q - 1)
+        if first is not None and first[1] > 0:  # starts after the value's first register
+            r = first[0]
+        elif last is not None and last[1] < last[0].words - 1:  # ends before its last
+            r = last[0]
+        else:
+            return
+        f.annotations.append(note(SPLIT, f"read 0x{a:04X}..0x{a + q - 1:04X} cuts {r.id or r.name} "
+                                         f"({r.type} at 0x{r.addr:04X}..0x{r.addr + r.words - 1:04X})",
+                                  start, start + 4))
 
     def _exception(self, f: Frame, fc: int, body: bytes) -> None:
         super()._exception(f, fc, body)
