@@ -6,26 +6,39 @@ package adds only what a table cannot say (subclass hooks `check_request`,
 raw / 30000 * Cn-02) use the per-unit register shadow: until the reference
 register has been seen on the bus the value is shown in % with an
 annotation saying why.
+
+A value of several registers (u32, s32, f32, u64, s64, f64, str; decoders/regtypes.py) is one point
+when a frame carries all its registers: named by its row, at its first address, its span over all
+its bytes, `raw` its registers joined, `words` the registers as they are on the wire (what the
+register shadow holds).  A frame that carries only some of them (a read or write that starts or ends
+inside the value) gets each of those registers as a point of its own, shown raw, with `part`
+[word index, words] and a `model.register.split` annotation.
 """
 
 from __future__ import annotations
+
+import math
 
 from sniffer.codes import MODEL_BROADCAST_REG as BROADCAST_REG
 from sniffer.codes import MODEL_RANGE as RANGE
 from sniffer.codes import MODEL_READ_ONLY as READ_ONLY
 from sniffer.codes import MODEL_RESERVED as RESERVED
 from sniffer.codes import MODEL_SCALE_PENDING as SCALE_PENDING
+from sniffer.codes import MODEL_SPLIT as SPLIT
 from sniffer.codes import MODEL_TOO_MANY as TOO_MANY
 from sniffer.codes import MODEL_UNKNOWN_REG as UNKNOWN_REG
 from sniffer.codes import MODEL_VENDOR_EXCEPTION as VENDOR_EXCEPTION
 from sniffer.codes import Code, note
 from sniffer.frame import REQUEST, RESPONSE, Frame
 
+from . import regtypes
 from .base import UnitState
 from .generic.decoder import GenericModbus
 from .tables import Register, RegisterMap
 
-MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION)
+MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION,
+               SPLIT)
+_REGISTERS = ("holding", "input")
 
 _DIGITS = {1.0: 0, 0.1: 1, 0.01: 2, 0.001: 3}
 
@@ -43,26 +56,45 @@ class TableDecoder(GenericModbus):
 
     # ---- values ------------------------------------------------------------
     def value_of(self, r: Register, raw: int, state: UnitState):
-        """(value, unit, pending) of one register's raw value."""
-        if r.type == "s16" and raw >= 0x8000:
-            raw -= 0x10000
+        """(value, unit, pending) of one register's raw value (its registers joined: regtypes.join)."""
+        raw = r.number(raw)
         sb = r.scale_by
         if sb:
             ref = self.map.registers.get(sb["addr"])
             ref_raw = state.holding.get(sb["addr"])
-            if ref is None or ref_raw is None:
+            if ref is None or ref_raw is None or ref.words != 1:
                 return round(raw * 100.0 / sb["full"], 2), "%", True
             ref_val, ref_unit, _ = self.value_of(ref, ref_raw, state)
             return round(raw * ref_val / sb["full"], 2), ref_unit or r.unit, False
         scale = r.scale
         if scale == 1:
             return raw, r.unit or None, False
+        if type(raw) is float:  # scaled to the float's own precision, not to the scale's digits
+            return float(f"{raw * scale:{'.7g' if r.type == 'f32' else '.15g'}}"), r.unit or None, False
         return round(raw * scale, _DIGITS.get(scale, 4)), r.unit or None, False
 
     def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
-        r = self.map.registers.get(address) if space in ("holding", "input") and address is not None else None
-        if r is None:
-            return super().point(space, address, raw, state)
+        r = self.map.registers.get(address) if space in _REGISTERS and address is not None else None
+        if r is None or r.words != 1 or r.byte_order != "big":
+            hit = self.map.parts.get(address) if space in _REGISTERS and address is not None else None
+            if hit is not None:  # one register of a value of several: shown raw
+                return self.part_point(hit[0], hit[1], raw)
+            if r is None:
+                return super().point(space, address, raw, state)
+            return self.value_point(r, [raw], state)  # a u16 / s16 with its bytes swapped
+        return self._named(r, address, raw, state)
+
+    def value_point(self, r: Register, words: list[int], state: UnitState) -> dict:
+        """The point of a row's value from all its registers (in address order, as on the wire)."""
+        if r.type == regtypes.TEXT:
+            raw, text = regtypes.text(words, r.byte_order)
+            return {"name": r.name, "address": r.addr, "raw": raw, "value": text, "unit": r.unit or None,
+                    "id": r.id, "words": words}
+        pt = self._named(r, r.addr, regtypes.join(words, r.word_order, r.byte_order), state)
+        pt["words"] = words
+        return pt
+
+    def _named(self, r: Register, address: int, raw: int, state: UnitState) -> dict:
         value, unit, pending = self.value_of(r, raw, state)
         pt = {"name": r.name, "address": address, "raw": raw, "value": value, "unit": unit, "id": r.id}
         if r.enum:
@@ -70,15 +102,51 @@ class TableDecoder(GenericModbus):
             pt["text"] = text if text is not None else f"unknown code {raw}"
         elif r.bits:
             pt["text"] = self.map.bits_text(r.bits, raw)
+        elif type(value) is float and not math.isfinite(value):
+            pt["text"] = str(value)  # JSON writes NaN and infinity as null: the text keeps them
         if pending:
             pt["pending"] = True
         return pt
+
+    @staticmethod
+    def part_point(r: Register, k: int, raw: int) -> dict:
+        """Register k of row r's value, without the others: its own raw number."""
+        return {"name": f"{r.name} [word {k + 1}/{r.words}]", "address": r.addr + k, "raw": raw, "value": raw,
+                "unit": None, "id": r.id, "part": [k, r.words]}
+
+    def make_points(self, space: str, addr: int | None, values: list[int], state: UnitState,
+                    offset: int) -> list[dict]:
+        """Points of consecutive registers: a value of several registers joined where all are here."""
+        if addr is None or space not in _REGISTERS or not self.map.any_part(addr, len(values)):
+            return super().make_points(space, addr, values, state, offset)
+        parts = self.map.parts
+        out = []
+        n, i = len(values), 0
+        while i < n:
+            a = addr + i
+            hit = parts.get(a)
+            w = 1
+            if hit is None:
+                pt = self.point(space, a, values[i], state)
+            else:
+                r, k = hit
+                if k == 0 and i + r.words <= n:
+                    w = r.words
+                    pt = self.value_point(r, values[i:i + w], state)
+                else:
+                    pt = self.part_point(r, k, values[i])
+            pt["span"] = [offset + 2 * i, offset + 2 * (i + w)]
+            out.append(pt)
+            i += w
+        return out
 
     # ---- frames --------------------------------------------------------------
     def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
         super().decode(f, request, state)
         if f.role == REQUEST and f.crc_ok:
             self.check_request(f, state)
+        if self.map.parts:
+            self._split(f)
         if any(p.get("pending") for p in f.points):
             ref = next(p for p in f.points if p.get("pending"))
             r = self.map.registers[ref["address"]]
@@ -86,6 +154,34 @@ class TableDecoder(GenericModbus):
             who = f"{ref_reg.id or ref_reg.name} (0x{ref_reg.addr:04X})" if ref_reg else "the reference register"
             f.annotations.append(note(SCALE_PENDING,
                                       f"{who} not seen yet: {r.name} shown as % of it", 0, len(f.raw)))
+
+    def _split(self, f: Frame) -> None:
+        """Annotate every point that is one register of a value the frame does not carry whole."""
+        for p in f.points:
+            part = p.get("part")
+            if part is None:
+                continue
+            k, w = part
+            r = self.map.registers[p["address"] - k]
+            order = "" if r.type == regtypes.TEXT else f", {'high' if r.word_order == 'big' else 'low'} word first"
+            f.annotations.append(note(SPLIT, f"0x{p['address']:04X} is register {k + 1} of {w} of "
+                                             f"{r.id or r.name} ({r.type} at 0x{r.addr:04X}{order}): shown raw",
+                                      *p["span"]))
+
+    def _split_range(self, f: Frame, a: int, q: int, start: int) -> None:
+        """Annotate a read of registers a..a+q-1 that starts or ends inside a value of several registers."""
+        if q < 1:
+            return
+        first, last = self.map.parts.get(a), self.map.parts.get(a + q - 1)
+        if first is not None and first[1] > 0:  # starts after the value's first register
+            r = first[0]
+        elif last is not None and last[1] < last[0].words - 1:  # ends before its last
+            r = last[0]
+        else:
+            return
+        f.annotations.append(note(SPLIT, f"read 0x{a:04X}..0x{a + q - 1:04X} cuts {r.id or r.name} "
+                                         f"({r.type} at 0x{r.addr:04X}..0x{r.addr + r.words - 1:04X})",
+                                  start, start + 4))
 
     def _exception(self, f: Frame, fc: int, body: bytes) -> None:
         super()._exception(f, fc, body)
@@ -105,12 +201,17 @@ class TableDecoder(GenericModbus):
             qty = (raw[4] << 8) | raw[5]
             if qty > self.max_regs:
                 f.annotations.append(note(TOO_MANY, f"{qty} registers (manual: at most {self.max_regs})", 4, 6))
+        if fc in (0x03, 0x04, 0x17) and len(raw) >= 6 and self.map.parts:
+            self._split_range(f, (raw[2] << 8) | raw[3], (raw[4] << 8) | raw[5], 2)
         if fc not in (0x06, 0x10):
             return
         for pt in f.points:
             a = pt["address"]
             span = pt["span"]
             r = self.map.registers.get(a)
+            part = pt.get("part")
+            if part is not None:
+                r = self.map.registers.get(a - part[0])
             if r is None:
                 f.annotations.append(note(UNKNOWN_REG, f"0x{a:04X} is not in the {self.model} map", *span))
                 continue
@@ -121,10 +222,8 @@ class TableDecoder(GenericModbus):
                     f.annotations.append(note(RESERVED, f"0x{a:04X} is reserved", *span))
             elif r.access == "R":
                 f.annotations.append(note(READ_ONLY, f"0x{a:04X} {r.name} is read-only", *span))
-            raw_v = pt["raw"]
-            if r.type == "s16" and raw_v >= 0x8000:
-                raw_v -= 0x10000
-            if (r.min is not None and raw_v < r.min) or (r.max is not None and raw_v > r.max):
+            raw_v = r.number(pt["raw"]) if part is None and r.type != regtypes.TEXT else None
+            if raw_v is not None and ((r.min is not None and raw_v < r.min) or (r.max is not None and raw_v > r.max)):
                 f.annotations.append(
                     note(RANGE, f"{r.id or r.name} = {raw_v}, manual range {r.min}..{r.max}", *span)
                 )

@@ -6,23 +6,31 @@ One loader for the built-in drive models and for `--model-file`; the lint
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from sniffer.tomlfile import read_toml
 
+from . import regtypes
+from .regtypes import ORDERS, TEXT, TYPES, WIDTH
+
 
 class MapError(ValueError):
     """A register-map file that cannot be used (one clear line)."""
 
 
-WIDTH = {"u16": 1, "s16": 1, "u32": 2, "s32": 2}
 ACCESS = {"R", "W", "RW", "reserved"}
 
 
 @dataclass(slots=True)
 class Register:
+    """One row of a register map.  `type` is one of regtypes.TYPES (aliases such as "float32" are
+    taken); `words` is the number of registers it takes: given by the type (0 = from the type),
+    required for "str".  A map importer sets type, words and the two orders; a bad combination
+    raises MapError."""
+
     addr: int
     id: str
     name: str
@@ -38,12 +46,40 @@ class Register:
     scale_by: dict | None = None
     scale_rule: str | None = None
     word_order: str = "big"
+    byte_order: str = "big"
+    words: int = 0
     section: str = ""
     note: str = ""
 
+    def __post_init__(self) -> None:
+        self.type = t = regtypes.canonical(self.type)
+        where = f"register 0x{self.addr:04X}" if isinstance(self.addr, int) else "register"
+        if t not in TYPES:
+            raise MapError(f"{where}: unknown type {_show(t)} (one of {', '.join(TYPES)})")
+        if t == TEXT:
+            if not _is_int(self.words) or not 1 <= self.words <= regtypes.MAX_WORDS:
+                raise MapError(f"{where}: a str needs words = 1..{regtypes.MAX_WORDS} (registers of text)")
+        elif not self.words:
+            self.words = WIDTH[t]
+        elif self.words != WIDTH[t]:
+            raise MapError(f"{where}: words = {_show(self.words)}, but a {t} takes {WIDTH[t]}")
+        for f in ("word_order", "byte_order"):
+            if getattr(self, f) not in ORDERS:
+                raise MapError(f"{where}: {f} {_show(getattr(self, f))} (big or little)")
+
     @property
     def width(self) -> int:
-        return WIDTH[self.type]
+        """Registers the value takes (= words)."""
+        return self.words
+
+    def number(self, raw: int):
+        """The number a raw bit pattern of this register stands for (signed, float), before scale."""
+        t = self.type
+        if t == "u16":
+            return raw
+        if t == "s16":
+            return raw - 0x10000 if raw >= 0x8000 else raw
+        return regtypes.number(t, raw, self.words)
 
 
 @dataclass
@@ -55,10 +91,39 @@ class RegisterMap:
     exceptions: dict[int, dict]
     path: str = ""
     by_id: dict[str, Register] = field(default_factory=dict)
+    _parts: dict[int, tuple[Register, int]] | None = field(default=None, repr=False)
+    _part_addrs: list[int] | None = field(default=None, repr=False)
 
     @property
     def model_id(self) -> str:
         return self.model["id"]
+
+    @property
+    def parts(self) -> dict[int, tuple[Register, int]]:
+        """address -> (the multi-register row holding it, the word's index in it), for every register
+        of every row of more than one word (built on first use: the rows must be complete by then)."""
+        if self._parts is None:
+            self._parts = {r.addr + k: (r, k) for r in self.registers.values() if r.words > 1
+                           for k in range(r.words)}
+        return self._parts
+
+    def any_part(self, addr: int, n: int) -> bool:
+        """Does any register of addr..addr+n-1 belong to a row of more than one word?"""
+        parts = self.parts
+        if not parts:
+            return False
+        starts = self._part_addrs
+        if starts is None:
+            starts = self._part_addrs = sorted(parts)
+        i = bisect.bisect_left(starts, addr)
+        return i < len(starts) and starts[i] < addr + n
+
+    def covering(self, addr: int) -> tuple[Register, int] | None:
+        """(row, word index) of the row whose value takes register `addr`: (row, 0) at its own address."""
+        r = self.registers.get(addr)
+        if r is not None and r.words == 1:
+            return r, 0
+        return self.parts.get(addr)
 
     def enum_text(self, name: str, value: int) -> str | None:
         e = self.enums.get(name, {}).get(value)
@@ -86,7 +151,7 @@ class RegisterMap:
 MAX_ADDR = 0xFFFF
 MAX_REGISTERS = 0x10000  # every address once: a map can hold no more
 TOP_LEVEL = ("registers", "model", "enums", "bits", "exceptions")
-WORD_ORDERS = ("big", "little")
+MAX_BIT = 63  # bit fields of a u64
 _STR_FIELDS = ("id", "name", "unit", "enum", "bits", "scale_rule", "section", "note")
 _INT_FIELDS = ("min", "max", "default")
 
@@ -160,6 +225,9 @@ class _Check:
         for f in ("name", "manual", "revision"):
             self.text(model, f, "[model]")
         self.int_in(model, "max_registers_per_request", "[model]", 1, MAX_REGISTERS)
+        for f in ("word_order", "byte_order"):  # the defaults of the rows
+            if model.get(f, "big") not in ORDERS:
+                self.fail("[model]", f"{f} {_show(model[f])} (big or little)")
         for f, ok in (("protocols", lambda x: isinstance(x, str)), ("bauds", _is_int),
                       ("broadcast_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR)):
             if f in model and (not isinstance(model[f], list) or not all(ok(x) for x in model[f])):
@@ -179,14 +247,25 @@ class _Check:
         where = f"register row {i + 1} (0x{row['addr']:04X})"
         for f in _STR_FIELDS:
             self.text(row, f, where, required=f == "name")
-        for f in _INT_FIELDS:
-            self.int_in(row, f, where, -(1 << 32), 1 << 32)
-        if row.get("type", "u16") not in WIDTH:
-            self.fail(where, f"unknown type {_show(row['type'])} (one of {', '.join(WIDTH)})")
+        for f in _INT_FIELDS:  # the number before scale: a u64's can be that large
+            self.int_in(row, f, where, -(1 << 64), 1 << 64)
+        t = row["type"] = regtypes.canonical(row.get("type", "u16"))
+        if t not in TYPES:
+            self.fail(where, f"unknown type {_show(t)} (one of {', '.join(TYPES)})")
+        words = row.get("words", 0)
+        if t == TEXT:
+            if not _is_int(words) or not 1 <= words <= regtypes.MAX_WORDS:
+                self.fail(where, f"a str needs words = 1..{regtypes.MAX_WORDS} (registers of text), "
+                                 f"not {_show(words) if 'words' in row else 'none'}")
+            if "word_order" in row:
+                self.fail(where, "word_order does not apply to a str (its characters follow the addresses)")
+        elif "words" in row and words != WIDTH[t]:
+            self.fail(where, f"words = {_show(words)}, but a {t} takes {WIDTH[t]}")
         if row.get("access", "RW") not in ACCESS:
             self.fail(where, f"access {_show(row['access'])} (one of {', '.join(sorted(ACCESS))})")
-        if row.get("word_order", "big") not in WORD_ORDERS:
-            self.fail(where, f"word_order {_show(row['word_order'])} (big or little)")
+        for f in ("word_order", "byte_order"):
+            if row.get(f, "big") not in ORDERS:
+                self.fail(where, f"{f} {_show(row[f])} (big or little)")
         if "scale" in row and not _is_number(row["scale"]):
             self.fail(where, f"scale must be a finite number, not {_show(row['scale'])}")
         if "scale_by" in row:
@@ -198,9 +277,9 @@ class _Check:
             self.fail(where, f"count must be an integer in 1..{MAX_REGISTERS}, not {_show(count)}")
         if not _is_int(stride) or not 1 <= stride <= MAX_ADDR:
             self.fail(where, f"stride must be an integer in 1..{MAX_ADDR}, not {_show(stride)}")
-        last = row["addr"] + (count - 1) * stride + WIDTH[row.get("type", "u16")] - 1
+        last = row["addr"] + (count - 1) * stride + (words if t == TEXT else WIDTH[t]) - 1
         if last > MAX_ADDR:
-            what = f"count {count} x stride {stride}" if count > 1 else f"a {row.get('type', 'u16')} here"
+            what = f"count {count} x stride {stride}" if count > 1 else f"a {t} here"
             self.fail(where, f"{what} runs past register 0xFFFF")
         return row, count, stride
 
@@ -223,8 +302,8 @@ class _Check:
             if not all(p.isascii() and p.isdigit() and len(p) <= 2 for p in ([lo_s, hi_s] if hi_s else [lo_s])):
                 self.fail(where, f"key {_show(key)} is not a bit number or lo-hi range")
             lo, hi = int(lo_s), int(hi_s or lo_s)
-            if not lo <= hi <= 31:
-                self.fail(where, f"key {_show(key)}: bits must be 0..31, low first")
+            if not lo <= hi <= MAX_BIT:
+                self.fail(where, f"key {_show(key)}: bits must be 0..{MAX_BIT}, low first")
             if isinstance(spec, str):
                 out.append({"lo": lo, "hi": hi, "name": spec})
                 continue
@@ -256,8 +335,12 @@ def load_map(path: str | Path) -> RegisterMap:
     if total > MAX_REGISTERS:
         c.fail("registers", f"{total} registers: more than the {MAX_REGISTERS} addresses a unit has")
     regs: dict[int, Register] = {}
+    orders = {f: model[f] for f in ("word_order", "byte_order") if f in model}  # the model's defaults
     for row, count, stride in checked:
         row.setdefault("id", "")
+        for f, v in orders.items():
+            if not (f == "word_order" and row["type"] == TEXT):
+                row.setdefault(f, v)
         for k in range(count):
             r = Register(**{**row, "addr": row["addr"] + k * stride})
             if count > 1:
@@ -294,6 +377,13 @@ def lint(m: RegisterMap) -> list[str]:
             problems.append(f"0x{a:04X}: enum {r.enum!r} not defined")
         if r.bits and r.bits not in m.bits:
             problems.append(f"0x{a:04X}: bits {r.bits!r} not defined")
+        if r.type in regtypes.FLOATS or r.type == TEXT:  # a code or flags are integers; text has no scale
+            for f in ("enum", "bits") + (("scale_by", "scale") if r.type == TEXT else ()):
+                if getattr(r, f) not in (None, 1.0):
+                    problems.append(f"0x{a:04X}: a {r.type} takes no {f}")
+        for fdef in m.bits.get(r.bits or "", []):
+            if fdef["hi"] >= 16 * r.words:
+                problems.append(f"0x{a:04X}: bits {r.bits!r} field {fdef['name']!r} past bit {16 * r.words - 1}")
         if r.scale_by and r.scale_by.get("addr") not in m.registers:
             problems.append(f"0x{a:04X}: scale_by register not in the map")
         for rid in [x.strip() for x in r.id.split("/") if x.strip()]:

@@ -147,6 +147,9 @@ MODEL_SCALE_PENDING = Code(
     "model.scale.pending", INFO, "scaled through a register not yet seen on the bus: shown in %"
 )
 MODEL_VENDOR_EXCEPTION = Code("model.exception.vendor", WARNING, "vendor exception code")
+MODEL_SPLIT = Code(
+    "model.register.split", WARNING, "a read or write covers only some registers of a multi-register value"
+)
 TDS_PRG_ONLY = Code("tds.write.prg_only", ERROR, "Cn/Sn parameter written while the drive is in DRV mode")
 A510_ASSUMED = Code(
     "a510.freq.resolution", INFO,

@@ -8,6 +8,10 @@ only ever added, never renamed.
 | `points` | `[{name, address, raw, value, unit, span, ...}]`; `span` = `[start, end)` of the value's bytes in `raw` |
 | `writes` | `[[table, start, [raw, ...]], ...]`: what the frame wrote into its unit's register shadow |
 
+A point of a value of several registers (u32, f32, str ...) adds `words` (its registers as on
+the wire); one register of such a value without the others adds `part` ([index, of]); see
+docs/register-map-format.md, "Types".
+
 `writes` is exactly what the decoder put into the unit's register shadow when
 it decoded this frame (table: "holding", "input", "coil" or "discrete"; raw
 values of consecutive addresses from `start`): a CRC-good read response's

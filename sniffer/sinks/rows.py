@@ -10,6 +10,11 @@ frame whose CRC failed are shown (they are what the line carried) but are not
 the device's values; filter on `crc_ok` before aggregating
 (`SELECT max(value) FROM pts WHERE crc_ok`).  Rows are tuples in column order:
 the writers transpose batches of them.
+
+A value of several registers (decoders/regtypes.py) is one point row: `raw` its
+registers joined (a float's bit pattern; null where it does not fit int64, a u64
+from 2**63 on, or is text), `value` the number as float64 (a 64-bit integer
+beyond 2**53 is rounded there), `value_text` the exact number or the string.
 """
 
 from __future__ import annotations
@@ -51,6 +56,9 @@ def frame_row(f: Frame, t0_ns: int, anchor_ns: int) -> tuple:
     )
 
 
+_INT64_MAX = (1 << 63) - 1
+
+
 def _num(v):
     """A point's value as a number column: numbers (and bits) as float, anything else null."""
     t = type(v)
@@ -81,6 +89,7 @@ def point_rows(f: Frame, t0_ns: int) -> list[tuple]:
         v = p.get("value")
         rows.append(head + (
             p.get("address"), p.get("name") or "", p.get("id") or "",
-            raw if type(raw) is int else None, _num(v), p.get("text") or _text(v), p.get("unit"),
+            raw if type(raw) is int and raw <= _INT64_MAX else None, _num(v), p.get("text") or _text(v),
+            p.get("unit"),
         ))
     return rows

@@ -27,6 +27,7 @@ class RegisterWatch(Vertical):
         self.store = store
         self.chosen: tuple[int, str, int] | None = None
         self._shown: dict[str, tuple] = {}  # row key -> cells on screen
+        self._dropped = 0  # the book's count of dropped rows when the table last removed them
 
     def compose(self) -> ComposeResult:
         yield DataTable(cursor_type="row", zebra_stripes=True, id="regs")
@@ -44,11 +45,17 @@ class RegisterWatch(Vertical):
         store = self.store
         now = store.last_t_ns
         shown = self._shown
-        for rv in store.register_rows():
+        rows = store.register_rows()
+        if store.book.dropped != self._dropped:  # registers joined into a value of several: their rows go
+            self._dropped = store.book.dropped
+            for key in set(shown) - {f"{rv.unit}:{rv.table}:{rv.address}" for rv in rows}:
+                del shown[key]
+                t.remove_row(key)
+        for rv in rows:
             key = f"{rv.unit}:{rv.table}:{rv.address}"
             fresh = bool(rv.changes) and now - rv.changed_ns < CHANGED_NS
             name = rv.name if not rv.id or rv.id in rv.name else f"{rv.id} {rv.name}"
-            cells = (str(rv.unit), rv.table, str(rv.address), name[:36],
+            cells = (str(rv.unit), rv.table, address_text(rv), name[:36],
                      (str(rv.value) if not rv.text else f"{rv.value} {rv.text}")[:40], rv.eng_unit or "",
                      str(rv.raw), str(rv.changes), f"{(rv.t_ns - store.t0_ns) / 1e9:.3f}s", fresh)
             old = shown.get(key)
@@ -81,6 +88,11 @@ class RegisterWatch(Vertical):
             label.update("select a numeric register for its plot" if rv is None else f"{rv.name}: not numeric")
             return
         h = list(rv.history)
-        label.update(f"unit {rv.unit} {rv.table} {rv.address} {rv.name}: min {min(h):g} max {max(h):g} "
+        label.update(f"unit {rv.unit} {rv.table} {address_text(rv)} {rv.name}: min {min(h):g} max {max(h):g} "
                      f"last {h[-1]:g} {rv.eng_unit or ''} ({len(h)} samples)")
         spark.data = h
+
+
+def address_text(rv) -> str:
+    """A row's address: "9488", or "9488..9489" for a value of several registers."""
+    return str(rv.address) if rv.words == 1 else f"{rv.address}..{rv.address + rv.words - 1}"

@@ -11,6 +11,12 @@ the one written: the frame's own (a read response, a single write's echo),
 else the latest one of a frame that wrote nothing (the write request a
 response confirmed); without one it shows the raw number, or keeps the value
 shown if the raw number did not change.
+
+A value of several registers (a u32, a float, a string: decoders/regtypes.py)
+is one point with `words`, its registers as written: where a write holds those
+words at the point's address, the value is one row at its first address (raw =
+the registers joined) and the rows its other registers had are dropped (they
+were shown raw while only part of the value had been read).
 """
 
 from __future__ import annotations
@@ -45,6 +51,7 @@ class RegisterValue:
     changes: int = 0
     history: deque = field(default_factory=lambda: deque(maxlen=HISTORY))
     id: str = ""
+    words: int = 1  # registers the value takes (address .. address + words - 1)
 
 
 _NUMBER = (int, float)  # not bool: a bit is plotted from its raw value
@@ -59,6 +66,7 @@ class RegisterBook:
         # response confirms it without points of its own)
         self.points: dict[tuple[int, str, int], dict] = {}
         self.version = 0  # bumped on every update
+        self.dropped = 0  # rows dropped so far (their registers joined into a value of several)
 
     def frame(self, f: Frame) -> None:
         """Apply one frame (in arrival order): its writes, named by its own points or earlier ones."""
@@ -80,14 +88,23 @@ class RegisterBook:
         seen, values, t_ns = self.points, self.values, f.t_ns
         for wtable, start, raws in writes:
             mine = own if wtable == table else {}
-            for a, raw in enumerate(raws, start):
+            n, i = len(raws), 0
+            while i < n:
+                raw = raws[i]
+                a = start + i
                 key = (unit, wtable, a)
                 p = mine.get(a)
-                if p is None or p.get("raw") != raw:
+                if p is None or not _holds(p, raws, i):
                     p = seen.get(key)
-                    if p is not None and p.get("raw") != raw:
+                    if p is not None and not _holds(p, raws, i):
                         p = None
+                step = 1
                 if p is not None:
+                    words = p.get("words")
+                    if words is not None:  # one value of these registers
+                        raw, step = p["raw"], len(words)
+                        if step > 1:
+                            self._drop(unit, wtable, a + 1, a + step)
                     rv = values.get(key)
                     if rv is not None and rv.raw == raw:  # polled again, unchanged (most writes): set() inline
                         v = p.get("value", raw)
@@ -95,12 +112,22 @@ class RegisterBook:
                         rv.value, rv.eng_unit, rv.text, rv.t_ns = v, p.get("unit"), p.get("text") or "", t_ns
                         if type(v) in _NUMBER:
                             rv.history.append(v)
+                        i += step
                         continue
-                self.set(key, raw, p, t_ns)
+                self.set(key, raw, p, t_ns, step)
+                i += step
         self.version += 1
 
-    def set(self, key: tuple[int, str, int], raw, p: dict | None, t_ns: int) -> None:
-        """Register `key` now holds `raw`; `p` is a point decoding that raw value, if there is one."""
+    def _drop(self, unit: int, table: str, lo: int, hi: int) -> None:
+        """Registers lo..hi-1 now belong to the value at lo - 1: their own rows go."""
+        values = self.values
+        for a in range(lo, hi):
+            if values.pop((unit, table, a), None) is not None:
+                self.dropped += 1
+
+    def set(self, key: tuple[int, str, int], raw, p: dict | None, t_ns: int, words: int = 1) -> None:
+        """Register `key` now holds `raw` (with `words` > 1: the value of that many registers from it);
+        `p` is a point decoding that raw value, if there is one."""
         rv = self.values.get(key)
         if rv is None:
             unit, table, addr = key
@@ -109,6 +136,7 @@ class RegisterBook:
         elif rv.raw != raw:
             rv.changed_ns = t_ns
             rv.changes += 1
+        rv.words = words
         if p is not None:
             rv.name = p.get("name") or rv.name
             rv.id = p.get("id") or ""
@@ -120,5 +148,14 @@ class RegisterBook:
         rv.raw, rv.t_ns = raw, t_ns
 
     def rows(self, unit: int | None = None) -> list[RegisterValue]:
+        """The rows in (unit, table, address) order."""
         keys = sorted(k for k in self.values if unit is None or k[0] == unit)
         return [self.values[k] for k in keys]
+
+
+def _holds(p: dict, raws: list, i: int) -> bool:
+    """Does point `p` decode the registers a write holds from its index i on?"""
+    words = p.get("words")
+    if words is None:
+        return p.get("raw") == raws[i]
+    return raws[i:i + len(words)] == words
