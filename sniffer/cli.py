@@ -190,6 +190,13 @@ def build_parser() -> argparse.ArgumentParser:
     serial_flags(s)
     decode_flags(s)
 
+    s = sub.add_parser("learn", help="a skeleton register map (registers.toml) from a capture's traffic, to name")
+    input_flags(s)
+    s.add_argument("--out", required=True, metavar="FILE.toml",
+                   help="the map to write; its stem is the model id (--model-file FILE.toml --device UNIT=STEM)")
+    serial_flags(s)
+    decode_flags(s)
+
     s = sub.add_parser("export", help="decode a capture into csv, parquet, pcap (Wireshark), mcap or jsonl")
     input_flags(s)
     s.add_argument("--to", required=True, choices=EXPORT_FORMATS, help="output format")
