@@ -127,7 +127,7 @@ def parse_address(text, base: str) -> int:
             raise ValueError(f"address {str(text)[:40]!r}: addresses count from 1 here (--map-base 1)")
         n -= 1
     if n > 0xFFFF:
-        hint = " (Modicon notation? give --map-base modicon)" if 30001 <= n <= 49999 else ""
+        hint = " (Modicon notation? give --map-base modicon)" if 300001 <= n <= 465536 else ""
         raise ValueError(f"address {str(text)[:40]!r} is past 0xFFFF{hint}")
     return n
 

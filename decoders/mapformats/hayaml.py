@@ -63,6 +63,8 @@ def _loader():
 def _hubs(doc, path: str) -> list[dict]:
     if isinstance(doc, dict) and "modbus" in doc:
         doc = doc["modbus"]
+    elif isinstance(doc, dict) and "sensors" not in doc:
+        doc = None
     if isinstance(doc, dict):
         doc = [doc]
     if not isinstance(doc, list) or not all(isinstance(h, dict) for h in doc):
