@@ -168,7 +168,7 @@ def guess_word(s: RegStats) -> Guess:
     values = f"{s.n} values"
     if s.lo == s.hi:
         return Guess("u16", f"constant {s.lo} (0x{s.lo:04X}) in {values}")
-    if s.downs == 0 and s.ups >= 2:
+    if s.downs == 0 and s.ups >= 2 and s.ups >= 8 * s.wraps:  # a u16 counter wraps once per 65536 counts
         wrap = f", wrapped {s.wraps}x" if s.wraps else ""
         return Guess("u16", f"rising (a counter?): rose {s.ups}x, never fell{wrap} ({s.lo}..{s.hi}, {values})")
     neg = [v for v in s.distinct if v >= 0x8000]
