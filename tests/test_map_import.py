@@ -284,3 +284,14 @@ def test_bad_map_file_one_line_exit_2(tmp_path, capsys, name, text, line):
 def test_bad_map_base_flag(capsys):
     code, lines = cli(capsys, "decode", "010300000002C40B", "--map-base", "2")
     assert code == 2 and len(lines) == 1 and "--map-base" in lines[0] and "invalid choice" in lines[0]
+
+
+def test_map_base_travels_to_the_capture_process():
+    """`serve` starts its capture as `sniffer live ...`: the CSV's address base goes with the map."""
+    from sniffer.cli import build_parser
+    from sniffer.settings import CaptureSpec
+
+    spec = CaptureSpec.from_args(build_parser().parse_args(
+        ["live", "/dev/null", "--model-file", "m.csv", "--map-base", "modicon"]))
+    again = CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live")))
+    assert (again.model_files, again.map_base) == (("m.csv",), "modicon")
