@@ -192,13 +192,16 @@ def _builtin_decoders() -> dict[str, Decoder]:
 
 
 def default_registry(devices: dict[int, str] | None = None, model_files: list[str] | None = None,
-                     default: str = "generic") -> DecoderRegistry:
-    """Built-in models plus user register maps (--model-file, a user map wins over a built-in id)."""
+                     default: str = "generic", map_base: str | None = None) -> DecoderRegistry:
+    """Built-in models plus user register maps (--model-file: TOML, CSV or Home Assistant YAML,
+    decoders.mapformats; a user map wins over a built-in id).  `map_base`: --map-base, how a CSV
+    map counts its addresses."""
+    from .mapformats import load_model_file
     from .model import TableDecoder
-    from .tables import load_map
 
     decoders = builtin_decoders()
     for path in model_files or []:
-        d = TableDecoder(load_map(path))
-        decoders[d.model] = d
+        for m in load_model_file(path, map_base):
+            d = TableDecoder(m)
+            decoders[d.model] = d
     return DecoderRegistry(decoders, devices, default=default)

@@ -186,8 +186,9 @@ def _int(key) -> int:
 class _Check:
     """Type and range checks of one file, each failure one MapError line naming the place."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, places: list[str] | None = None) -> None:
         self.path = path
+        self.places = places
 
     def fail(self, where: str, what: str):
         raise MapError(f"{self.path}: {where}: {what}")
@@ -235,16 +236,20 @@ class _Check:
                                      f"not {_show(model[f])}")
         return model
 
+    def place(self, i: int) -> str:
+        """How an error names register row `i` (an imported file names its own rows: "row 7")."""
+        return self.places[i] if self.places else f"register row {i + 1}"
+
     def row(self, i: int, row) -> tuple[dict, int, int]:
         """A register row's fields (count/stride removed) after every check, and its count and stride."""
-        where = f"register row {i + 1}"
+        where = self.place(i)
         row = dict(self.table(row, where))
         count, stride = row.pop("count", 1), row.pop("stride", 1)
         unknown = set(row) - set(Register.__slots__)
         if unknown or "addr" not in row or "name" not in row:
             self.fail(where, f"bad keys {_show(sorted(unknown)) if unknown else 'addr/name missing'}")
         self.int_in(row, "addr", where, 0, MAX_ADDR)
-        where = f"register row {i + 1} (0x{row['addr']:04X})"
+        where = f"{self.place(i)} (0x{row['addr']:04X})"
         for f in _STR_FIELDS:
             self.text(row, f, where, required=f == "name")
         for f in _INT_FIELDS:  # the number before scale: a u64's can be that large
@@ -321,8 +326,13 @@ class _Check:
 def load_map(path: str | Path) -> RegisterMap:
     """The map in `path`, every row and table checked first; MapError (one line: file and place) if not usable."""
     path = str(path)
-    doc = read_toml(path, MapError)
-    c = _Check(path)
+    return map_from_doc(read_toml(path, MapError), path)
+
+
+def map_from_doc(doc: dict, path: str, places: list[str] | None = None) -> RegisterMap:
+    """A register map from a document shaped as the TOML file (an imported CSV / YAML file builds one);
+    `places` names each register row in errors (default "register row N")."""
+    c = _Check(path, places)
     unknown = sorted(set(doc) - set(TOP_LEVEL))
     if unknown:
         c.fail("top level", f"unknown keys {_show(unknown)} (known: {', '.join(TOP_LEVEL)})")
@@ -336,7 +346,8 @@ def load_map(path: str | Path) -> RegisterMap:
         c.fail("registers", f"{total} registers: more than the {MAX_REGISTERS} addresses a unit has")
     regs: dict[int, Register] = {}
     orders = {f: model[f] for f in ("word_order", "byte_order") if f in model}  # the model's defaults
-    for row, count, stride in checked:
+    row_of: dict[int, int] = {}
+    for i, (row, count, stride) in enumerate(checked):
         row.setdefault("id", "")
         for f, v in orders.items():
             if not (f == "word_order" and row["type"] == TEXT):
@@ -346,8 +357,11 @@ def load_map(path: str | Path) -> RegisterMap:
             if count > 1:
                 r.name = f"{row['name']} [{k}]"
             if r.addr in regs:
-                raise MapError(f"{path}: register 0x{r.addr:04X} listed twice")
+                also = f" (also {c.place(row_of[r.addr])})" if places else ""
+                where = f"{places[i]}: " if places else ""
+                raise MapError(f"{path}: {where}register 0x{r.addr:04X} listed twice{also}")
             regs[r.addr] = r
+            row_of[r.addr] = i
     enums = {}
     for name, table in c.table(doc.get("enums") or {}, "[enums]").items():
         where = f"[enums.{name}]"

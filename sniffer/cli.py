@@ -59,8 +59,11 @@ def decode_flags(p: argparse.ArgumentParser, bus: bool = True) -> None:
         g.add_argument("--bus", metavar="FILE", help="bus file (TOML): serial settings, unit models, timeouts")
     g.add_argument("--timeout-ms", type=float, default=None,
                    help=f"response timeout per unit (default {DEFAULT_TIMEOUT_MS:.0f} ms)")
-    g.add_argument("--model-file", action="append", metavar="FILE.toml",
-                   help="a drive's register map (docs/register-map-format.md); its [model] id becomes a model")
+    g.add_argument("--model-file", action="append", metavar="FILE",
+                   help="a device's register map: TOML (docs/register-map-format.md), CSV or Home Assistant "
+                        "modbus YAML; its model id (the file's stem unless it names one) becomes a model")
+    g.add_argument("--map-base", choices=["0", "1", "modicon"], default=None,
+                   help="how a CSV map counts its addresses: from 0 (default), from 1, or Modicon 4xxxx/3xxxx")
     g.add_argument("--protocol", choices=PROTOCOLS, default=None,
                    help="line protocol (default modbus-rtu, or what the capture says)")
 
@@ -184,6 +187,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("b")
     s.add_argument("--format", choices=["text", "json"], default="text", help="output format (default text)")
     s.add_argument("--input-format", choices=INPUT_FORMATS, default="auto")
+    serial_flags(s)
+    decode_flags(s)
+
+    s = sub.add_parser("learn", help="a skeleton register map (registers.toml) from a capture's traffic, to name")
+    input_flags(s)
+    s.add_argument("--out", required=True, metavar="FILE.toml",
+                   help="the map to write; its stem is the model id (--model-file FILE.toml --device UNIT=STEM)")
     serial_flags(s)
     decode_flags(s)
 

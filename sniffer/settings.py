@@ -92,12 +92,14 @@ class Resolved:
     model_files: tuple[str, ...]
     timeout_ms: float
     unit_timeouts: dict[int, float]
+    map_base: str | None = None  # --map-base: how CSV model files count their addresses
 
     def registry(self):
         """A fresh decoder registry (decoders keep per-unit state: one per pipeline)."""
         from decoders.registry import default_registry
 
-        return default_registry(self.devices, list(self.model_files) or None, default=self.protocol.default_model)
+        return default_registry(self.devices, list(self.model_files) or None, default=self.protocol.default_model,
+                                map_base=self.map_base)
 
     def pipeline(self, info: CaptureInfo, sinks, registry=None) -> Pipeline:
         return Pipeline(info, self.line, registry or self.registry(), sinks, protocol=self.protocol.name,
@@ -128,6 +130,7 @@ class CaptureSpec:
     bus_file: str | None = None
     bus: LineChoice = LineChoice()
     model_files: tuple[str, ...] = ()
+    map_base: str | None = None  # --map-base 0|1|modicon for CSV model files (None: what the file says, else 0)
     # where the capture comes from
     port: str | None = None
     input: str | None = None
@@ -167,6 +170,7 @@ class CaptureSpec:
         fmt = opt("format", "text")
         return cls(
             flags=flags, bus_file=opt("bus"), bus=_load_bus(opt("bus")), model_files=tuple(opt("model_file") or ()),
+            map_base=opt("map_base"),
             port=opt("port"), input=opt("file"), input_format=opt("input_format", "auto") or "auto",
             scenario=opt("scenario"), seed=opt("seed", 1) or 1,
             duration_s=finite(duration, "--duration", upper=MAX_DURATION_S),
@@ -193,7 +197,7 @@ class CaptureSpec:
         timeouts = {int(u): finite(ms, f"timeout of unit {u}", upper=MAX_TIMEOUT_MS)
                     for u, ms in c.unit_timeouts.items()}
         resolved = Resolved(line, protocol, dict(c.devices), self.model_files,
-                            finite(c.timeout_ms, "response timeout", upper=MAX_TIMEOUT_MS), timeouts)
+                            finite(c.timeout_ms, "response timeout", upper=MAX_TIMEOUT_MS), timeouts, self.map_base)
         registry = resolved.registry()  # unknown models and bad model files fail here, before anything opens
         for unit, model in sorted(resolved.devices.items()):
             fam = getattr(registry.decoders[model], "family", "pd" if model == "pd-series" else "modbus")
@@ -217,6 +221,8 @@ class CaptureSpec:
             argv += ["--device", f"{unit}={model}"]
         for path in self.model_files:
             argv += ["--model-file", path]
+        if self.map_base is not None:
+            argv += ["--map-base", self.map_base]
         if command == "demo":
             argv += ["--scenario", self.scenario or "default", "--seed", str(self.seed)]
         argv += ["--out", self.out] if self.out else ["--no-out"]

@@ -1,0 +1,58 @@
+"""`sniffer learn CAPTURE --out map.toml`: a skeleton register map from a capture's traffic (sniffer.learn).
+
+The map's model id is the output file's stem; it loads with --model-file and decodes the same
+capture with its placeholder names.  Written as NAME.part and renamed when complete; an output
+that is also the input is refused before the capture is read.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..outputs import Output, shown
+from ..session import Session
+from ..settings import CaptureSpec
+from .common import EXIT_USAGE, UsageError, report, say
+from .replay import file_source
+
+
+def cmd_learn(spec: CaptureSpec, args) -> int:
+    from decoders.tables import MapError, load_map
+
+    from ..learn import Learner
+
+    if not args.out.lower().endswith(".toml"):
+        raise UsageError(f"--out {shown(args.out)}: the skeleton is a register map, give a .toml file name")
+    out = Output(args.out, inputs=[spec.input, *spec.model_files])  # checked before the input is read
+    model_id = os.path.splitext(os.path.basename(out.path))[0]
+    learner = Learner()
+    session = Session(spec, file_source(spec), [])
+    try:
+        for f in session:
+            learner.frame(f)
+    except BaseException:
+        out.discard()
+        raise
+    rc = report(session, label=spec.input)
+    if session.error and not session.damage:
+        out.discard()
+        return rc
+    if not learner.regs:
+        out.discard()
+        say(f"error: {shown(spec.input)}: no register reads or writes (fc 03/04/06/10) to learn from")
+        return EXIT_USAGE
+    regmap = learner.to_map(model_id, spec.input)
+    text = learner.to_toml(model_id, spec.input, out.path, regmap)
+    try:
+        with open(out.part, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        load_map(out.part)  # what we write must load (a bug here is ours, not the user's)
+    except (OSError, MapError):
+        out.discard()
+        raise
+    out.commit()
+    guessed = sum(1 for r in regmap.registers.values() if r.type != "u16")
+    say(f"wrote {out.path}: {len(learner.units)} units, {len(learner.blocks)} blocks, "
+        f"{len(regmap.registers)} registers ({guessed} typed other than u16); "
+        f"decode with --model-file {out.path} --device UNIT={model_id}")
+    return rc
