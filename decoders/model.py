@@ -23,6 +23,7 @@ from sniffer.frame import REQUEST, RESPONSE, Frame
 
 from .base import UnitState
 from .generic.decoder import GenericModbus
+from .generic.names import EXCEPTION_NAMES
 from .tables import Register, RegisterMap
 
 MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION)
@@ -40,6 +41,7 @@ class TableDecoder(GenericModbus):
         self.max_regs = regmap.model.get("max_registers_per_request")
         bc = regmap.model.get("broadcast_registers")
         self.broadcast_regs = set(bc) if bc is not None else None
+        self.complete_exceptions = regmap.model.get("exception_table") == "complete"
 
     # ---- values ------------------------------------------------------------
     def value_of(self, r: Register, raw: int, state: UnitState):
@@ -87,15 +89,37 @@ class TableDecoder(GenericModbus):
             f.annotations.append(note(SCALE_PENDING,
                                       f"{who} not seen yet: {r.name} shown as % of it", 0, len(f.raw)))
 
+    def exception_info(self, code: int) -> tuple[str, str, str | None]:
+        """The model's [exceptions] table is the source: its manual's name first, the standard meaning
+        of a redefined code as a note.  With `[model] exception_table = "complete"` (the manual
+        prints its whole table) the table is the list, and any other code is flagged; otherwise the
+        table adds to the standard codes, and a code in neither is flagged."""
+        table = self.map.exceptions
+        std = EXCEPTION_NAMES.get(code)
+        e = table.get(code)
+        if e is None and not self.complete_exceptions:
+            return super().exception_info(code)
+        if e is None:
+            name = std or "UNKNOWN EXCEPTION"
+            also = "standard Modbus meaning shown" if std else "nor in the Modbus standard"
+            return name, f"{code:02X}H {name}", f"{code:02X}H is not in the {self.model} manual's exception table ({also})"
+        name = e.get("name") or e.get("text") or f"exception {code:02X}H"
+        detail = f"{code:02X}H {name}"
+        text = e.get("text")
+        if text and text.casefold() != name.casefold():
+            detail += f": {text}"
+        if e.get("section"):
+            detail += f" [{e['section']}]"
+        if std and std.casefold() != name.casefold():
+            detail += f"; standard Modbus {code:02X}H: {std}"
+        unlisted = f"{code:02X}H is not in the {self.model} manual's exception table" if e.get("unlisted") else None
+        return name, detail, unlisted
+
     def _exception(self, f: Frame, fc: int, body: bytes) -> None:
         super()._exception(f, fc, body)
         code = body[0] if body else None
-        vend = self.map.exceptions.get(code) if code is not None else None
-        if vend:
-            f.exception = {"code": code, "name": vend.get("name", f.exception["name"])}
-            f.summary = f"exception {code:02X} {f.exception['name']} ({self.model})"
-            if code > 0x0B:
-                f.annotations.append(note(VENDOR_EXCEPTION, f"{code:02X}: {vend.get('text', vend.get('name'))}", 2, 3))
+        if code is not None and code not in EXCEPTION_NAMES and code in self.map.exceptions:
+            f.annotations.append(note(VENDOR_EXCEPTION, f"{code:02X}H is a {self.model} code, not a standard one", 2, 3))
 
     def check_request(self, f: Frame, state: UnitState) -> None:
         """Annotate what the manual forbids in a request (models extend it)."""

@@ -94,6 +94,10 @@ END_OF_CAPTURE = Code("pair.end_of_capture", INFO, "capture ended before a respo
 
 # --- decoding ----------------------------------------------------------------
 EXCEPTION = Code("modbus.exception", WARNING, "exception response")
+EXCEPTION_UNLISTED = Code(
+    "modbus.exception.unlisted", WARNING,
+    "exception code not in the unit's table (its manual's, or the Modbus standard's for a generic unit)",
+)
 DECODE_SHORT = Code("modbus.decode.short", ERROR, "frame too short for its function code")
 NO_REQUEST_CONTEXT = Code(
     "modbus.decode.no_request", INFO, "register addresses unknown: response has no request"
@@ -132,6 +136,13 @@ MODEL_SCALE_PENDING = Code(
     "model.scale.pending", INFO, "scaled through a register not yet seen on the bus: shown in %"
 )
 MODEL_VENDOR_EXCEPTION = Code("model.exception.vendor", WARNING, "vendor exception code")
+MODEL_FRAME_LONG = Code("model.frame.too_long", WARNING, "frame longer than the manual's maximum frame length")
+MODEL_SUBFUNCTION = Code(
+    "model.diagnostics.subfunction", WARNING, "diagnostics (08H) sub-function the manual does not allow"
+)
+MODEL_NOT_AVAILABLE = Code(
+    "model.value.not_available", WARNING, "register holds a marker value, not a measurement: shown as not available"
+)
 TDS_PRG_ONLY = Code("tds.write.prg_only", ERROR, "Cn/Sn parameter written while the drive is in DRV mode")
 A510_ASSUMED = Code(
     "a510.freq.resolution", INFO,

@@ -11,7 +11,7 @@ import functools
 from struct import Struct, unpack_from
 
 from sniffer.codes import (
-    COIL_VALUE, DECODE_SHORT, EXCEPTION, NO_REQUEST_CONTEXT, QUANTITY, Code, note, note_in,
+    COIL_VALUE, DECODE_SHORT, EXCEPTION, EXCEPTION_UNLISTED, NO_REQUEST_CONTEXT, QUANTITY, Code, note, note_in,
 )
 from sniffer.frame import REQUEST, RESPONSE, Frame
 from sniffer.protocols import MODBUS_TABLES
@@ -27,7 +27,7 @@ _MAX_QTY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x0F: 1968, 0x10: 123}
 
 class GenericModbus:
     model = "generic"
-    codes: tuple[Code, ...] = (EXCEPTION, DECODE_SHORT, NO_REQUEST_CONTEXT, COIL_VALUE, QUANTITY)
+    codes: tuple[Code, ...] = (EXCEPTION, EXCEPTION_UNLISTED, DECODE_SHORT, NO_REQUEST_CONTEXT, COIL_VALUE, QUANTITY)
 
     # ---- hooks for drive models --------------------------------------------
     def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
@@ -115,13 +115,29 @@ class GenericModbus:
         )
         f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} (malformed)"
 
+    def exception_info(self, code: int) -> tuple[str, str, str | None]:
+        """(name, detail, why unlisted or None) of exception `code`: one table is the source (here the
+        Modbus standard's; a drive model's is its manual's). Codes in hex, as the tables print them."""
+        name = EXCEPTION_NAMES.get(code)
+        if name is not None:
+            return name, f"{code:02X}H {name}", None
+        return "UNKNOWN EXCEPTION", f"{code:02X}H UNKNOWN EXCEPTION", f"{code:02X}H is not a standard Modbus exception code"
+
     def _exception(self, f: Frame, fc: int, body: bytes) -> None:
-        code = body[0] if body else None
-        name = EXCEPTION_NAMES.get(code, "UNKNOWN EXCEPTION") if code is not None else "MISSING CODE"
-        f.exception = {"code": code, "name": name}
         base = FUNCTION_NAMES.get(fc & 0x7F, f"function 0x{fc & 0x7F:02X}")
-        f.summary = f"exception {code:02X} {name} ({base})" if code is not None else f"exception ({base})"
-        f.annotations.append(note_in(EXCEPTION, f"{code} {name}", 2, 3, len(f.raw)))
+        n = len(f.raw)
+        if not body:
+            f.exception = {"code": None, "name": "MISSING CODE"}
+            f.summary = f"exception ({base})"
+            f.annotations.append(note_in(EXCEPTION, "exception response without its code byte", 1, 2, n))
+            return
+        code = body[0]
+        name, detail, unlisted = self.exception_info(code)
+        f.exception = {"code": code, "name": name}
+        f.summary = f"exception {code:02X}H {name} ({base})"
+        f.annotations.append(note_in(EXCEPTION, detail, 2, 3, n))
+        if unlisted:
+            f.annotations.append(note_in(EXCEPTION_UNLISTED, unlisted, 2, 3, n))
 
     # ---- per-function handlers ---------------------------------------------
     # Spans below are ADU offsets: unit fc | address(2) quantity(2) | ... ; a read response's
