@@ -11,6 +11,9 @@ annotation saying why.
 from __future__ import annotations
 
 from sniffer.codes import MODEL_BROADCAST_REG as BROADCAST_REG
+from sniffer.codes import MODEL_FRAME_LONG as FRAME_LONG
+from sniffer.codes import MODEL_NOT_AVAILABLE as NOT_AVAILABLE
+from sniffer.codes import MODEL_SUBFUNCTION as SUBFUNCTION
 from sniffer.codes import MODEL_RANGE as RANGE
 from sniffer.codes import MODEL_READ_ONLY as READ_ONLY
 from sniffer.codes import MODEL_RESERVED as RESERVED
@@ -26,7 +29,8 @@ from .generic.decoder import GenericModbus
 from .generic.names import EXCEPTION_NAMES
 from .tables import Register, RegisterMap
 
-MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION)
+MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION,
+               FRAME_LONG, SUBFUNCTION, NOT_AVAILABLE)
 
 _DIGITS = {1.0: 0, 0.1: 1, 0.01: 2, 0.001: 3}
 
@@ -42,6 +46,11 @@ class TableDecoder(GenericModbus):
         bc = regmap.model.get("broadcast_registers")
         self.broadcast_regs = set(bc) if bc is not None else None
         self.complete_exceptions = regmap.model.get("exception_table") == "complete"
+        self.max_frame = regmap.model.get("max_frame_bytes")
+        subs = regmap.model.get("loopback_subfunctions")
+        self.loop_subfunctions = set(subs) if subs is not None else None
+        # (address, raw) -> the marker's meaning: a raw value that is no measurement
+        self.markers = {(m["addr"], m["raw"]): m for m in regmap.model.get("not_available", [])}
 
     # ---- values ------------------------------------------------------------
     def value_of(self, r: Register, raw: int, state: UnitState):
@@ -61,10 +70,32 @@ class TableDecoder(GenericModbus):
             return raw, r.unit or None, False
         return round(raw * scale, _DIGITS.get(scale, 4)), r.unit or None, False
 
+    def range_text(self, space: str, a: int, q: int) -> str:
+        """Registers named as the manual names them: parameter ids where both ends have one
+        (`An-01..An-02 (2)`), else hex addresses (`2520H..252FH (16)`); coils stay numbers."""
+        if space not in ("holding", "input"):
+            return super().range_text(space, a, q)
+        where = "" if space == "holding" else "input "
+        last = a + q - 1
+        if q < 1:
+            return f"{where}{a:04X}H ({q})"
+        regs = self.map.registers
+        r0, r1 = regs.get(a), regs.get(last)
+        if r0 is not None and r1 is not None and r0.id and r1.id:
+            return f"{where}{r0.id if r0 is r1 else r0.id + '..' + r1.id} ({q})"
+        return f"{where}{a:04X}H ({q})" if q == 1 else f"{where}{a:04X}H..{last:04X}H ({q})"
+
     def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
         r = self.map.registers.get(address) if space in ("holding", "input") and address is not None else None
         if r is None:
-            return super().point(space, address, raw, state)
+            pt = super().point(space, address, raw, state)
+            if address is not None and space in ("holding", "input"):
+                pt["name"] = f"{space}[{address:04X}H]"  # an unmapped register, in the manual's notation
+            return pt
+        marker = self.markers.get((address, raw)) if self.markers else None
+        if marker is not None:
+            return {"name": r.name, "address": address, "raw": raw, "value": None, "unit": None, "id": r.id,
+                    "text": f"not available ({raw:04X}H)", "not_available": marker["text"]}
         value, unit, pending = self.value_of(r, raw, state)
         pt = {"name": r.name, "address": address, "raw": raw, "value": value, "unit": unit, "id": r.id}
         if r.enum:
@@ -81,6 +112,14 @@ class TableDecoder(GenericModbus):
         super().decode(f, request, state)
         if f.role == REQUEST and f.crc_ok:
             self.check_request(f, state)
+        if self.max_frame and len(f.raw) > self.max_frame:
+            f.annotations.append(note(FRAME_LONG, f"{len(f.raw)} bytes on the wire (manual: at most {self.max_frame};"
+                                      " an ASCII frame counted in characters, ':' to LF)", 0, len(f.raw)))
+        if self.markers:
+            for p in f.points:
+                if "not_available" in p:
+                    f.annotations.append(note(NOT_AVAILABLE, f"{p['name']} raw {p['raw']:04X}H: {p['not_available']}",
+                                              *p["span"]))
         if any(p.get("pending") for p in f.points):
             ref = next(p for p in f.points if p.get("pending"))
             r = self.map.registers[ref["address"]]
@@ -102,7 +141,8 @@ class TableDecoder(GenericModbus):
         if e is None:
             name = std or "UNKNOWN EXCEPTION"
             also = "standard Modbus meaning shown" if std else "nor in the Modbus standard"
-            return name, f"{code:02X}H {name}", f"{code:02X}H is not in the {self.model} manual's exception table ({also})"
+            why = f"{code:02X}H is not in the {self.model} manual's exception table ({also})"
+            return name, f"{code:02X}H {name}", why
         name = e.get("name") or e.get("text") or f"exception {code:02X}H"
         detail = f"{code:02X}H {name}"
         text = e.get("text")
@@ -119,12 +159,19 @@ class TableDecoder(GenericModbus):
         super()._exception(f, fc, body)
         code = body[0] if body else None
         if code is not None and code not in EXCEPTION_NAMES and code in self.map.exceptions:
-            f.annotations.append(note(VENDOR_EXCEPTION, f"{code:02X}H is a {self.model} code, not a standard one", 2, 3))
+            f.annotations.append(
+                note(VENDOR_EXCEPTION, f"{code:02X}H is a {self.model} code, not a standard one", 2, 3))
 
     def check_request(self, f: Frame, state: UnitState) -> None:
         """Annotate what the manual forbids in a request (models extend it)."""
         fc = f.function
         raw = f.adu
+        if fc == 0x08 and self.loop_subfunctions is not None and len(raw) >= 4:
+            sub = (raw[2] << 8) | raw[3]
+            if sub not in self.loop_subfunctions:
+                allowed = ", ".join(f"{x:04X}H" for x in sorted(self.loop_subfunctions))
+                f.annotations.append(note(SUBFUNCTION, f"sub-function {sub:04X}H (the {self.model} manual allows only "
+                                          f"{allowed}; the drive answers exception 01H)", 2, 4))
         if fc in (0x03, 0x04, 0x10, 0x17) and len(raw) >= 6 and self.max_regs:
             qty = (raw[4] << 8) | raw[5]
             if qty > self.max_regs:

@@ -168,8 +168,15 @@ class _Check:
         self.int_in(model, "max_frame_bytes", "[model]", 4, 1 << 16)
         if model.get("exception_table", "standard") not in ("standard", "complete"):
             self.fail("[model]", f"exception_table {_show(model['exception_table'])} (standard or complete)")
+        marks = model.get("not_available", [])
+        if not isinstance(marks, list) or not all(
+                isinstance(m, dict) and _is_int(m.get("addr")) and 0 <= m["addr"] <= MAX_ADDR
+                and _is_int(m.get("raw")) and 0 <= m["raw"] <= 0xFFFF and isinstance(m.get("text"), str)
+                for m in marks):
+            self.fail("[model]", "not_available must be a list of { addr, raw (0..0xFFFF), text }")
         subs = model.get("loopback_subfunctions")
-        if subs is not None and (not isinstance(subs, list) or not all(_is_int(x) and 0 <= x <= MAX_ADDR for x in subs)):
+        if subs is not None and (not isinstance(subs, list)
+                                 or not all(_is_int(x) and 0 <= x <= MAX_ADDR for x in subs)):
             self.fail("[model]", f"loopback_subfunctions must be a list of integers 0..0xFFFF, not {_show(subs)}")
         for f, ok in (("protocols", lambda x: isinstance(x, str)), ("bauds", _is_int),
                       ("broadcast_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR)):

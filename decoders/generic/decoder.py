@@ -35,6 +35,11 @@ class GenericModbus:
         name = f"{space}[{address}]" if address is not None else f"{space}[?]"
         return {"name": name, "address": address, "raw": raw, "value": raw, "unit": None}
 
+    def range_text(self, space: str, a: int, q: int) -> str:
+        """How a summary names `q` registers or bits from `a`: generic numbers them in decimal;
+        a model names them as its manual does (TableDecoder: hex and parameter ids)."""
+        return f"{space} {a}..{a + q - 1} ({q})"
+
     def make_points(self, space: str, addr: int | None, values: list[int], state: UnitState,
                     offset: int) -> list[dict]:
         """Points for consecutive registers or bits of one space, each with its span.
@@ -121,7 +126,8 @@ class GenericModbus:
         name = EXCEPTION_NAMES.get(code)
         if name is not None:
             return name, f"{code:02X}H {name}", None
-        return "UNKNOWN EXCEPTION", f"{code:02X}H UNKNOWN EXCEPTION", f"{code:02X}H is not a standard Modbus exception code"
+        why = f"{code:02X}H is not a standard Modbus exception code"
+        return "UNKNOWN EXCEPTION", f"{code:02X}H UNKNOWN EXCEPTION", why
 
     def _exception(self, f: Frame, fc: int, body: bytes) -> None:
         base = FUNCTION_NAMES.get(fc & 0x7F, f"function 0x{fc & 0x7F:02X}")
@@ -151,7 +157,7 @@ class GenericModbus:
             return
         fc = f.function
         a, q = _HH.unpack_from(adu, 2)
-        f.summary = f"read {SPACE[fc]} {a}..{a + q - 1} ({q})"
+        f.summary = "read " + self.range_text(SPACE[fc], a, q)
         if not 1 <= q <= _MAX_QTY[fc]:
             self._check_qty(f, fc, q)
 
@@ -237,7 +243,7 @@ class GenericModbus:
             return
         fc = f.function
         a, q = _HH.unpack_from(adu, 2)
-        f.summary = f"wrote {SPACE[fc]} {a}..{a + q - 1} ({q})"
+        f.summary = "wrote " + self.range_text(SPACE[fc], a, q)
         if request is not None and request.crc_ok and f.crc_ok:
             written = _request_writes(request, fc)  # the request's values, confirmed here
             if written is not None:
@@ -367,6 +373,8 @@ def _request_writes(request: Frame, fc: int) -> tuple[str, int, list[int]] | Non
 def _pt_text(pt: dict) -> str:
     unit = pt["unit"]
     text = pt.get("text")
+    if pt["value"] is None:  # a marker value, no measurement (TableDecoder: not available)
+        return f"{pt['name']}=n/a [{text}]"
     if not unit and not text:
         return f"{pt['name']}={pt['value']}"
     return f"{pt['name']}={pt['value']}{' ' + unit if unit else ''}{' [' + text + ']' if text else ''}"
