@@ -258,7 +258,7 @@ class _Check:
             name = spec.get("name", f"bit{lo}")
             if spec.get("mnemonic"):  # a fault/alarm flag: shown as its enums are, "OL1 — Motor overload"
                 name = f"{spec['mnemonic']} — {name}"
-            out.append({"lo": lo, "hi": hi, "name": name, "values": vals})
+            out.append({"lo": lo, "hi": hi, "name": name, "values": vals, "mnemonic": spec.get("mnemonic", "")})
         out.sort(key=lambda d: d["lo"])
         return out
 
