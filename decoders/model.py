@@ -20,6 +20,9 @@ from __future__ import annotations
 import math
 
 from sniffer.codes import MODEL_BROADCAST_REG as BROADCAST_REG
+from sniffer.codes import MODEL_FRAME_LONG as FRAME_LONG
+from sniffer.codes import MODEL_NOT_AVAILABLE as NOT_AVAILABLE
+from sniffer.codes import MODEL_SUBFUNCTION as SUBFUNCTION
 from sniffer.codes import MODEL_RANGE as RANGE
 from sniffer.codes import MODEL_READ_ONLY as READ_ONLY
 from sniffer.codes import MODEL_RESERVED as RESERVED
@@ -34,10 +37,11 @@ from sniffer.frame import REQUEST, RESPONSE, Frame
 from . import regtypes
 from .base import UnitState
 from .generic.decoder import GenericModbus
+from .generic.names import EXCEPTION_NAMES
 from .tables import Register, RegisterMap
 
 MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION,
-               SPLIT)
+               SPLIT, FRAME_LONG, SUBFUNCTION, NOT_AVAILABLE)
 _REGISTERS = ("holding", "input")
 
 _DIGITS = {1.0: 0, 0.1: 1, 0.01: 2, 0.001: 3}
@@ -53,6 +57,12 @@ class TableDecoder(GenericModbus):
         self.max_regs = regmap.model.get("max_registers_per_request")
         bc = regmap.model.get("broadcast_registers")
         self.broadcast_regs = set(bc) if bc is not None else None
+        self.complete_exceptions = regmap.model.get("exception_table") == "complete"
+        self.max_frame = regmap.model.get("max_frame_bytes")
+        subs = regmap.model.get("loopback_subfunctions")
+        self.loop_subfunctions = set(subs) if subs is not None else None
+        # (address, raw) -> the marker's meaning: a raw value that is no measurement
+        self.markers = {(m["addr"], m["raw"]): m for m in regmap.model.get("not_available", [])}
 
     # ---- values ------------------------------------------------------------
     def value_of(self, r: Register, raw: int, state: UnitState):
@@ -73,6 +83,21 @@ class TableDecoder(GenericModbus):
             return float(f"{raw * scale:{'.7g' if r.type == 'f32' else '.15g'}}"), r.unit or None, False
         return round(raw * scale, _DIGITS.get(scale, 4)), r.unit or None, False
 
+    def range_text(self, space: str, a: int, q: int) -> str:
+        """Registers named as the manual names them: parameter ids where both ends have one
+        (`An-01..An-02 (2)`), else hex addresses (`2520H..252FH (16)`); coils stay numbers."""
+        if space not in ("holding", "input"):
+            return super().range_text(space, a, q)
+        where = "" if space == "holding" else "input "
+        last = a + q - 1
+        if q < 1:
+            return f"{where}{a:04X}H ({q})"
+        regs = self.map.registers
+        r0, r1 = regs.get(a), regs.get(last)
+        if r0 is not None and r1 is not None and r0.id and r1.id:
+            return f"{where}{r0.id if r0 is r1 else r0.id + '..' + r1.id} ({q})"
+        return f"{where}{a:04X}H ({q})" if q == 1 else f"{where}{a:04X}H..{last:04X}H ({q})"
+
     def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
         r = self.map.registers.get(address) if space in _REGISTERS and address is not None else None
         if r is None or r.words != 1 or r.byte_order != "big":
@@ -80,7 +105,10 @@ class TableDecoder(GenericModbus):
             if hit is not None:  # one register of a value of several: shown raw
                 return self.part_point(hit[0], hit[1], raw)
             if r is None:
-                return super().point(space, address, raw, state)
+                pt = super().point(space, address, raw, state)
+                if address is not None and space in _REGISTERS:
+                    pt["name"] = f"{space}[{address:04X}H]"  # an unmapped register, in the manual's notation
+                return pt
             return self.value_point(r, [raw], state)  # a u16 / s16 with its bytes swapped
         return self._named(r, address, raw, state)
 
@@ -95,6 +123,10 @@ class TableDecoder(GenericModbus):
         return pt
 
     def _named(self, r: Register, address: int, raw: int, state: UnitState) -> dict:
+        marker = self.markers.get((address, raw)) if self.markers else None
+        if marker is not None:
+            return {"name": r.name, "address": address, "raw": raw, "value": None, "unit": None, "id": r.id,
+                    "text": f"not available ({raw:04X}H)", "not_available": marker["text"]}
         value, unit, pending = self.value_of(r, raw, state)
         pt = {"name": r.name, "address": address, "raw": raw, "value": value, "unit": unit, "id": r.id}
         if r.enum:
@@ -147,6 +179,14 @@ class TableDecoder(GenericModbus):
             self.check_request(f, state)
         if self.map.parts:
             self._split(f)
+        if self.max_frame and len(f.raw) > self.max_frame:
+            f.annotations.append(note(FRAME_LONG, f"{len(f.raw)} bytes on the wire (manual: at most {self.max_frame};"
+                                      " an ASCII frame counted in characters, ':' to LF)", 0, len(f.raw)))
+        if self.markers:
+            for p in f.points:
+                if "not_available" in p:
+                    f.annotations.append(note(NOT_AVAILABLE, f"{p['name']} raw {p['raw']:04X}H: {p['not_available']}",
+                                              *p["span"]))
         if any(p.get("pending") for p in f.points):
             ref = next(p for p in f.points if p.get("pending"))
             r = self.map.registers[ref["address"]]
@@ -182,21 +222,50 @@ class TableDecoder(GenericModbus):
         f.annotations.append(note(SPLIT, f"read 0x{a:04X}..0x{a + q - 1:04X} cuts {r.id or r.name} "
                                          f"({r.type} at 0x{r.addr:04X}..0x{r.addr + r.words - 1:04X})",
                                   start, start + 4))
+    def exception_info(self, code: int) -> tuple[str, str, str | None]:
+        """The model's [exceptions] table is the source: its manual's name first, the standard meaning
+        of a redefined code as a note.  With `[model] exception_table = "complete"` (the manual
+        prints its whole table) the table is the list, and any other code is flagged; otherwise the
+        table adds to the standard codes, and a code in neither is flagged."""
+        table = self.map.exceptions
+        std = EXCEPTION_NAMES.get(code)
+        e = table.get(code)
+        if e is None and not self.complete_exceptions:
+            return super().exception_info(code)
+        if e is None:
+            name = std or "UNKNOWN EXCEPTION"
+            also = "standard Modbus meaning shown" if std else "nor in the Modbus standard"
+            why = f"{code:02X}H is not in the {self.model} manual's exception table ({also})"
+            return name, f"{code:02X}H {name}", why
+        name = e.get("name") or e.get("text") or f"exception {code:02X}H"
+        detail = f"{code:02X}H {name}"
+        text = e.get("text")
+        if text and text.casefold() != name.casefold():
+            detail += f": {text}"
+        if e.get("section"):
+            detail += f" [{e['section']}]"
+        if std and std.casefold() != name.casefold():
+            detail += f"; standard Modbus {code:02X}H: {std}"
+        unlisted = f"{code:02X}H is not in the {self.model} manual's exception table" if e.get("unlisted") else None
+        return name, detail, unlisted
 
     def _exception(self, f: Frame, fc: int, body: bytes) -> None:
         super()._exception(f, fc, body)
         code = body[0] if body else None
-        vend = self.map.exceptions.get(code) if code is not None else None
-        if vend:
-            f.exception = {"code": code, "name": vend.get("name", f.exception["name"])}
-            f.summary = f"exception {code:02X} {f.exception['name']} ({self.model})"
-            if code > 0x0B:
-                f.annotations.append(note(VENDOR_EXCEPTION, f"{code:02X}: {vend.get('text', vend.get('name'))}", 2, 3))
+        if code is not None and code not in EXCEPTION_NAMES and code in self.map.exceptions:
+            f.annotations.append(
+                note(VENDOR_EXCEPTION, f"{code:02X}H is a {self.model} code, not a standard one", 2, 3))
 
     def check_request(self, f: Frame, state: UnitState) -> None:
         """Annotate what the manual forbids in a request (models extend it)."""
         fc = f.function
         raw = f.adu
+        if fc == 0x08 and self.loop_subfunctions is not None and len(raw) >= 4:
+            sub = (raw[2] << 8) | raw[3]
+            if sub not in self.loop_subfunctions:
+                allowed = ", ".join(f"{x:04X}H" for x in sorted(self.loop_subfunctions))
+                f.annotations.append(note(SUBFUNCTION, f"sub-function {sub:04X}H (the {self.model} manual allows only "
+                                          f"{allowed}; the drive answers exception 01H)", 2, 4))
         if fc in (0x03, 0x04, 0x10, 0x17) and len(raw) >= 6 and self.max_regs:
             qty = (raw[4] << 8) | raw[5]
             if qty > self.max_regs:

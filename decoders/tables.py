@@ -126,10 +126,15 @@ class RegisterMap:
         return self.parts.get(addr)
 
     def enum_text(self, name: str, value: int) -> str | None:
+        """One form for every table: the manual's mnemonic (`text`) and its description (`detail`),
+        or our `reading` where the manual prints only the mnemonic: "OL1 — Motor overload"."""
         e = self.enums.get(name, {}).get(value)
         if e is None:
             return None
-        return e["text"] + (f" ({e['detail']})" if e.get("detail") else "")
+        head, tail = e["text"], e.get("detail") or e.get("reading")
+        if head and tail:
+            return f"{head} — {tail}"
+        return head or tail or "no text in the manual"
 
     def bits_text(self, name: str, value: int) -> str:
         parts = []
@@ -229,6 +234,19 @@ class _Check:
         for f in ("word_order", "byte_order"):  # the defaults of the rows
             if model.get(f, "big") not in ORDERS:
                 self.fail("[model]", f"{f} {_show(model[f])} (big or little)")
+        self.int_in(model, "max_frame_bytes", "[model]", 4, 1 << 16)
+        if model.get("exception_table", "standard") not in ("standard", "complete"):
+            self.fail("[model]", f"exception_table {_show(model['exception_table'])} (standard or complete)")
+        marks = model.get("not_available", [])
+        if not isinstance(marks, list) or not all(
+                isinstance(m, dict) and _is_int(m.get("addr")) and 0 <= m["addr"] <= MAX_ADDR
+                and _is_int(m.get("raw")) and 0 <= m["raw"] <= 0xFFFF and isinstance(m.get("text"), str)
+                for m in marks):
+            self.fail("[model]", "not_available must be a list of { addr, raw (0..0xFFFF), text }")
+        subs = model.get("loopback_subfunctions")
+        if subs is not None and (not isinstance(subs, list)
+                                 or not all(_is_int(x) and 0 <= x <= MAX_ADDR for x in subs)):
+            self.fail("[model]", f"loopback_subfunctions must be a list of integers 0..0xFFFF, not {_show(subs)}")
         for f, ok in (("protocols", lambda x: isinstance(x, str)), ("bauds", _is_int),
                       ("broadcast_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR)):
             if f in model and (not isinstance(model[f], list) or not all(ok(x) for x in model[f])):
@@ -295,8 +313,10 @@ class _Check:
         self.table(v, where)
         if required and need not in v:
             self.fail(where, f"{need} missing")
-        for f in (need, "text", "detail", "name"):
+        for f in (need, "text", "detail", "name", "reading", "section"):
             self.text(v, f, where)
+        if "unlisted" in v and not isinstance(v["unlisted"], bool):
+            self.fail(where, f"unlisted must be true or false, not {_show(v['unlisted'])}")
         return dict(v)
 
     def bits(self, name: str, table) -> list[dict]:
@@ -313,12 +333,16 @@ class _Check:
                 out.append({"lo": lo, "hi": hi, "name": spec})
                 continue
             self.table(spec, f"{where} {key}")
-            self.text(spec, "name", f"{where} {key}")
+            for f in ("name", "mnemonic", "section", "note"):
+                self.text(spec, f, f"{where} {key}")
             values = self.table(spec.get("values") or {}, f"{where} {key} values")
             vals = {self.key(k, f"{where} {key} values", -(1 << 32), 1 << 32): v for k, v in values.items()}
             if not all(isinstance(v, str) for v in vals.values()):
                 self.fail(f"{where} {key} values", "every value must be a string")
-            out.append({"lo": lo, "hi": hi, "name": spec.get("name", f"bit{lo}"), "values": vals})
+            name = spec.get("name", f"bit{lo}")
+            if spec.get("mnemonic"):  # a fault/alarm flag: shown as its enums are, "OL1 — Motor overload"
+                name = f"{spec['mnemonic']} — {name}"
+            out.append({"lo": lo, "hi": hi, "name": name, "values": vals, "mnemonic": spec.get("mnemonic", "")})
         out.sort(key=lambda d: d["lo"])
         return out
 

@@ -119,8 +119,11 @@ def build_parser() -> argparse.ArgumentParser:
     decode_flags(s)
     stream_flags(s)
 
-    s = sub.add_parser("decode", help="decode frames given as hex, one argument per frame")
-    s.add_argument("hex", nargs="+", help="frame bytes in hex, e.g. 010300000002C40B")
+    s = sub.add_parser("decode", help="decode frames given as hex, one argument per frame (no timing: "
+                                      "no latency or silence verdicts)")
+    s.add_argument("hex", nargs="+", help="frame bytes in hex, e.g. 010300000002C40B; in an ASCII protocol "
+                   "also ':' and the frame's characters (:010300000001FB), the characters in hex "
+                   "(3A30...0D0A), or the binary frame with its LRC in hex (010300000001FB)")
     s.add_argument("--baud", type=_number(int, "baud rate", 1, MAX_BAUD), default=9600, help=argparse.SUPPRESS)
     decode_flags(s)
     stream_flags(s)

@@ -103,6 +103,10 @@ END_OF_CAPTURE = Code("pair.end_of_capture", INFO, "capture ended before a respo
 
 # --- decoding ----------------------------------------------------------------
 EXCEPTION = Code("modbus.exception", WARNING, "exception response")
+EXCEPTION_UNLISTED = Code(
+    "modbus.exception.unlisted", WARNING,
+    "exception code not in the unit's table (its manual's, or the Modbus standard's for a generic unit)",
+)
 DECODE_SHORT = Code("modbus.decode.short", ERROR, "frame too short for its function code")
 BITS_PADDING = Code(
     "modbus.bits.padding", WARNING, "coil/input bits beyond the requested quantity are set (the spec pads with 0)"
@@ -149,6 +153,13 @@ MODEL_SCALE_PENDING = Code(
 MODEL_VENDOR_EXCEPTION = Code("model.exception.vendor", WARNING, "vendor exception code")
 MODEL_SPLIT = Code(
     "model.register.split", WARNING, "a read or write covers only some registers of a multi-register value"
+)
+MODEL_FRAME_LONG = Code("model.frame.too_long", WARNING, "frame longer than the manual's maximum frame length")
+MODEL_SUBFUNCTION = Code(
+    "model.diagnostics.subfunction", WARNING, "diagnostics (08H) sub-function the manual does not allow"
+)
+MODEL_NOT_AVAILABLE = Code(
+    "model.value.not_available", WARNING, "register holds a marker value, not a measurement: shown as not available"
 )
 TDS_PRG_ONLY = Code("tds.write.prg_only", ERROR, "Cn/Sn parameter written while the drive is in DRV mode")
 A510_ASSUMED = Code(

@@ -66,7 +66,7 @@ class CaptureInfo:
     parity: str | None = None  # "N", "E", "O"
     stopbits: int | None = None
     databits: int = 8
-    time_source: str = "byte"  # "byte" or "read" (see Chunk)
+    time_source: str = "byte"  # "byte" or "read" (see Chunk); "none": frames typed in, no real time
     t0_ns: int = 0  # capture start on the monotonic clock; JSONL `t` counts from here
     wall_anchor_ns: int = 0  # wall-clock ns (Unix epoch) at t0_ns
     low_latency: dict = field(default_factory=dict)

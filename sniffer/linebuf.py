@@ -34,6 +34,9 @@ _WAIT = None
 class LineBuffer:
     protocol = "line"
     codes = codes.LINE_CODES
+    # None: each frame's time source is its chunk's ("byte" or "read"); "none": the input has no
+    # time (frames typed in, `sniffer decode`): no timing verdicts (Pipeline sets it from CaptureInfo)
+    time_source: str | None = None
 
     def __init__(self, line: LineSettings, *, read_slack_ns: int = 50_000_000) -> None:
         self.line = line
@@ -210,7 +213,7 @@ class LineBuffer:
         idle = None if self.prev_frame_end_ns is None else t0 - self.prev_frame_end_ns
         fr = Frame(
             self.index, t0, t1, raw, protocol,
-            time_source="byte" if per_byte else "read",
+            time_source=self.time_source or ("byte" if per_byte else "read"),
             idle_before_ns=idle, channel=c0.channel,
         )
         self.index += 1
@@ -222,7 +225,7 @@ class LineBuffer:
                 if pos >= p:
                     c = codes.UART_FRAMING if flag == FLAG_FRAMING else codes.UART_PARITY
                     fr.annotations.append(note(c, f"byte {pos - p} flagged {flag}", pos - p, pos - p + 1))
-        if per_byte:
+        if per_byte and self.time_source is None:
             for bpos, _c in self.bounds:
                 if bpos >= e:
                     break

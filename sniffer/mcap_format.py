@@ -71,7 +71,7 @@ CAPTURE_SCHEMA = {
         "parity": {"type": ["string", "null"]},
         "stopbits": {"type": ["integer", "null"]},
         "databits": {"type": "integer"},
-        "time_source": {"type": "string", "enum": ["byte", "read"]},
+        "time_source": {"type": "string", "enum": ["byte", "read", "none"]},
         "t0_ns": {"type": "integer"},
         "wall_anchor_ns": {"type": "integer"},
         "low_latency": {"type": "object"},

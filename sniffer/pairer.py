@@ -129,11 +129,12 @@ class Pairer:
             # per-read times are estimated back from the read: a response read together
             # with its request has no measurable turnaround (latency stays null; the
             # frame's time_source "read" says why)
-            if not (f.time_source == "read" and lat <= 0):
+            # frames typed in (`sniffer decode`, time source "none") have no time to measure
+            if f.time_source != "none" and not (f.time_source == "read" and lat <= 0):
                 # to the microsecond, as the frame record has it: a viewer that reads the record and
                 # one that has the frame show the same figure (rounding twice could differ)
                 f.latency_ms = round(lat / 1e6, 3)
-            if lat > self.unit_timeouts.get(req.unit, self.timeout_ns):
+            if lat > self.unit_timeouts.get(req.unit, self.timeout_ns) and f.time_source != "none":
                 f.annotations.append(
                     note(codes.LATE_RESPONSE, f"{lat / 1e6:.1f} ms after the request", 0, len(f.raw))
                 )
@@ -161,7 +162,7 @@ class Pairer:
     def _request(self, f: Frame) -> list[Frame]:
         req = self.pending
         if req is not None:  # held is empty unless a request is pending
-            out = self._unanswered("next request", f.t_ns - req.t_end_ns)
+            out = self._unanswered("next request", f.t_ns - req.t_end_ns if f.time_source != "none" else None)
             if req.raw == f.raw:
                 f.annotations.append(note(codes.RETRY, f"repeats frame #{req.index}", 0, len(f.raw)))
         else:

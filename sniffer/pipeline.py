@@ -36,6 +36,8 @@ class Pipeline:
         self.registry = registry
         self.sinks = list(sinks)
         self.framer = protocols.get(protocol).framer(line)
+        if info.time_source == "none":  # no real time in the input: no latency, no silence verdicts
+            self.framer.time_source = "none"
         self.pairer = Pairer(timeout_ms, unit_timeouts)
         self.frames_out = 0
         self.bytes_in = 0

@@ -175,7 +175,7 @@ FRAME_SCHEMA = {
         "latency_ms": _NULLABLE_NUM,
         "pair": _NULLABLE_INT,
         "summary": {"type": "string"},
-        "time_source": {"type": "string", "enum": ["byte", "read"]},
+        "time_source": {"type": "string", "enum": ["byte", "read", "none"]},
         "channel": {"type": "string"},
         "noise_reason": {"type": ["string", "null"]},
     },

@@ -261,7 +261,7 @@ def test_good_register_map_with_counts_and_tables(tmp_path, capsys):
                  '[exceptions]\n0x41 = "vendor"\n')
     rm = load_map(m)
     assert sorted(rm.registers) == [0, 0x10, 0x12, 0x14] and rm.registers[0x12].name == "Slot [1]"
-    assert rm.enum_text("e", 1) == "one" and rm.enum_text("e", 2) == "two (2)"
+    assert rm.enum_text("e", 1) == "one" and rm.enum_text("e", 2) == "two — 2"
     assert rm.exceptions[0x41]["name"] == "vendor" and rm.bits_text("b", 0b010001) == "run, mode=b"
     code, lines = cli(capsys, "decode", "010300100001", "--model-file", m, "--device", "1=mine")
     assert code == 0 and lines == []

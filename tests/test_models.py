@@ -89,4 +89,4 @@ def test_readme_model_file_worked_example():
     readme = (root / "README.md").read_text()
     for line in r.stdout.splitlines():
         assert line in readme, line
-    assert "Active fault=3 [OC (over-current during acceleration)]" in r.stdout
+    assert "Active fault=3 [OC — over-current during acceleration]" in r.stdout

@@ -69,16 +69,16 @@ def test_latency_tolerance(tmp_path, a510_golden):
 
 def test_content_change_is_a_difference_whatever_the_tolerance(tmp_path, a510_golden):
     g = tmp_path / "g.txt"
-    g.write_text(a510_golden.read_text().replace("pair=-1 wrote holding", "pair=-1 wrote HOLDING", 1))
+    g.write_text(a510_golden.read_text().replace("pair=-1 wrote 2501H", "pair=-1 wrote 2501h", 1))
     rc, text = check(A510, g, tolerances=Tolerances(time_ms=1e9, latency_ms=1e9))
     assert rc == EXIT_DIFFERENT
-    assert "-0.026568 11.757 | response u1 a510 fc10 crc=ok pair=-1 wrote HOLDING" in text
-    assert "+0.026568 11.757 | response u1 a510 fc10 crc=ok pair=-1 wrote holding" in text
+    assert "-0.026568 11.757 | response u1 a510 fc10 crc=ok pair=-1 wrote 2501h" in text
+    assert "+0.026568 11.757 | response u1 a510 fc10 crc=ok pair=-1 wrote 2501H" in text
 
 
 def test_update_rewrites_and_shows_what_changed(tmp_path, a510_golden):
     g = tmp_path / "g.txt"
-    g.write_text(a510_golden.read_text().replace("wrote holding", "wrote X", 1))
+    g.write_text(a510_golden.read_text().replace("wrote 2501H", "wrote X", 1))
     rc, text = check(A510, g, update=True)
     assert rc == EXIT_SAME and "wrote X" in text
     assert g.read_text() == a510_golden.read_text()

@@ -46,10 +46,10 @@ def test_missing_golden_fails_then_update_then_pass(pytester):
     assert (pytester.path / "golden" / "wiz.txt").exists()
     _run(pytester).assert_outcomes(passed=2)
 
-    golden.write_text(golden.read_text().replace("pair=-1 wrote holding", "pair=-1 wrote HOLDING", 1))
+    golden.write_text(golden.read_text().replace("pair=-1 wrote 2501H", "pair=-1 wrote 2501h", 1))
     result = _run(pytester)
     result.assert_outcomes(failed=1, passed=1)
-    result.stdout.fnmatch_lines(["*differs from golden/a510.txt*", "*-* wrote HOLDING*", "*+* wrote holding*"])
+    result.stdout.fnmatch_lines(["*differs from golden/a510.txt*", "*-* wrote 2501h*", "*+* wrote 2501H*"])
 
 
 def test_tolerance_option(pytester):

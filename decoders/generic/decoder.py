@@ -11,7 +11,8 @@ import functools
 from struct import Struct, unpack_from
 
 from sniffer.codes import (
-    BITS_PADDING, COIL_VALUE, DECODE_SHORT, EXCEPTION, NO_REQUEST_CONTEXT, QUANTITY, Code, note, note_in,
+    BITS_PADDING, COIL_VALUE, DECODE_SHORT, EXCEPTION, EXCEPTION_UNLISTED, NO_REQUEST_CONTEXT, QUANTITY, Code, note,
+    note_in,
 )
 from sniffer.frame import REQUEST, RESPONSE, Frame
 from sniffer.protocols import MODBUS_TABLES
@@ -27,13 +28,19 @@ _MAX_QTY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x0F: 1968, 0x10: 123}
 
 class GenericModbus:
     model = "generic"
-    codes: tuple[Code, ...] = (EXCEPTION, DECODE_SHORT, NO_REQUEST_CONTEXT, COIL_VALUE, QUANTITY, BITS_PADDING)
+    codes: tuple[Code, ...] = (EXCEPTION, EXCEPTION_UNLISTED, DECODE_SHORT, NO_REQUEST_CONTEXT, COIL_VALUE, QUANTITY,
+                               BITS_PADDING)
 
     # ---- hooks for drive models --------------------------------------------
     def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
         """One decoded value. Models map (space, address) to name/scale/unit."""
         name = f"{space}[{address}]" if address is not None else f"{space}[?]"
         return {"name": name, "address": address, "raw": raw, "value": raw, "unit": None}
+
+    def range_text(self, space: str, a: int, q: int) -> str:
+        """How a summary names `q` registers or bits from `a`: generic numbers them in decimal;
+        a model names them as its manual does (TableDecoder: hex and parameter ids)."""
+        return f"{space} {a}..{a + q - 1} ({q})"
 
     def make_points(self, space: str, addr: int | None, values: list[int], state: UnitState,
                     offset: int) -> list[dict]:
@@ -115,13 +122,30 @@ class GenericModbus:
         )
         f.summary = f"{FUNCTION_NAMES.get(fc, hex(fc))} (malformed)"
 
+    def exception_info(self, code: int) -> tuple[str, str, str | None]:
+        """(name, detail, why unlisted or None) of exception `code`: one table is the source (here the
+        Modbus standard's; a drive model's is its manual's). Codes in hex, as the tables print them."""
+        name = EXCEPTION_NAMES.get(code)
+        if name is not None:
+            return name, f"{code:02X}H {name}", None
+        why = f"{code:02X}H is not a standard Modbus exception code"
+        return "UNKNOWN EXCEPTION", f"{code:02X}H UNKNOWN EXCEPTION", why
+
     def _exception(self, f: Frame, fc: int, body: bytes) -> None:
-        code = body[0] if body else None
-        name = EXCEPTION_NAMES.get(code, "UNKNOWN EXCEPTION") if code is not None else "MISSING CODE"
-        f.exception = {"code": code, "name": name}
         base = FUNCTION_NAMES.get(fc & 0x7F, f"function 0x{fc & 0x7F:02X}")
-        f.summary = f"exception {code:02X} {name} ({base})" if code is not None else f"exception ({base})"
-        f.annotations.append(note_in(EXCEPTION, f"{code} {name}", 2, 3, len(f.raw)))
+        n = len(f.raw)
+        if not body:
+            f.exception = {"code": None, "name": "MISSING CODE"}
+            f.summary = f"exception ({base})"
+            f.annotations.append(note_in(EXCEPTION, "exception response without its code byte", 1, 2, n))
+            return
+        code = body[0]
+        name, detail, unlisted = self.exception_info(code)
+        f.exception = {"code": code, "name": name}
+        f.summary = f"exception {code:02X}H {name} ({base})"
+        f.annotations.append(note_in(EXCEPTION, detail, 2, 3, n))
+        if unlisted:
+            f.annotations.append(note_in(EXCEPTION_UNLISTED, unlisted, 2, 3, n))
 
     # ---- per-function handlers ---------------------------------------------
     # Spans below are ADU offsets: unit fc | address(2) quantity(2) | ... ; a read response's
@@ -135,7 +159,7 @@ class GenericModbus:
             return
         fc = f.function
         a, q = _HH.unpack_from(adu, 2)
-        f.summary = f"read {SPACE[fc]} {a}..{a + q - 1} ({q})"
+        f.summary = "read " + self.range_text(SPACE[fc], a, q)
         if not 1 <= q <= _MAX_QTY[fc]:
             self._check_qty(f, fc, q)
 
@@ -224,7 +248,7 @@ class GenericModbus:
             return
         fc = f.function
         a, q = _HH.unpack_from(adu, 2)
-        f.summary = f"wrote {SPACE[fc]} {a}..{a + q - 1} ({q})"
+        f.summary = "wrote " + self.range_text(SPACE[fc], a, q)
         if request is not None and request.crc_ok and f.crc_ok:
             written = _request_writes(request, fc)  # the request's values, confirmed here
             if written is not None:
@@ -354,6 +378,8 @@ def _request_writes(request: Frame, fc: int) -> tuple[str, int, list[int]] | Non
 def _pt_text(pt: dict) -> str:
     unit = pt["unit"]
     text = pt.get("text")
+    if pt["value"] is None:  # a marker value, no measurement (TableDecoder: not available)
+        return f"{pt['name']}=n/a [{text}]"
     if not unit and not text:
         return f"{pt['name']}={pt['value']}"
     return f"{pt['name']}={pt['value']}{' ' + unit if unit else ''}{' [' + text + ']' if text else ''}"

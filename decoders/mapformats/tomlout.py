@@ -91,5 +91,8 @@ def to_toml(m: RegisterMap, header: str = "") -> str:
                 out.append(f'"{k}" = {value(d["name"])}')
                 continue
             spec = {"name": d["name"], "values": {str(v): t for v, t in d["values"].items()}}
+            mn = d.get("mnemonic")
+            if mn:  # the loader shows a flag as "OL1 — Motor overload": written back as its two fields
+                spec = {"name": d["name"].removeprefix(f"{mn} — "), "mnemonic": mn, "values": spec["values"]}
             out.append(f'"{k}" = {value(spec)}')
     return "\n".join(out) + "\n"

@@ -60,7 +60,14 @@ def _note_unfinished(session: Session) -> None:
 
 
 class HexSource:
-    """Frames typed as hex (or ASCII text), each one burst on the line with silence between."""
+    """Frames typed in, each one burst on the line with silence between.
+
+    The input has no time: the capture says time source "none", so nothing reports a
+    latency, a timeout or a short silence (the times only keep the frames apart: a gap longer
+    than any protocol's quiet time, PD's 50 ms included).
+    """
+
+    GAP_NS = 100_000_000
 
     def __init__(self, frames: list[bytes], spec: CaptureSpec) -> None:
         self.frames = frames
@@ -68,26 +75,58 @@ class HexSource:
 
     def open(self) -> CaptureInfo:
         line = self.line
-        return CaptureInfo(source="decode", baud=line.baud, parity=line.parity, stopbits=line.stopbits)
+        return CaptureInfo(source="decode", baud=line.baud, parity=line.parity, stopbits=line.stopbits,
+                           time_source="none")
 
     def events(self):
         line = self.line
         t = 0
-        gap = 10 * line.t35_ns
+        gap = max(10 * line.t35_ns, self.GAP_NS)
         for data in self.frames:
             times = tuple(t + i * line.char_ns for i in range(len(data)))
             yield Chunk(t, data, times)
             t = times[-1] + line.char_ns + gap
 
 
+_HEX_DIGITS = frozenset("0123456789abcdefABCDEF")
+
+
+def _hex_bytes(arg: str) -> bytes | None:
+    """The bytes an argument of hex digits (spaces allowed) writes, or None if it is not one."""
+    t = arg.replace(" ", "")
+    if not t or len(t) % 2 or not set(t) <= _HEX_DIGITS:
+        return None
+    return bytes.fromhex(t)
+
+
+def text_frame(arg: str) -> bytes:
+    """One argument of `decode` in a text (ASCII) protocol, as the characters on the wire.
+
+    * ':0103...' is the frame's characters (CR LF added if missing);
+    * hex digits without ':' are bytes: the wire characters in hex when they spell a
+      ':' ... frame (3A3031...0D0A), else the frame's binary content (unit, function, data,
+      LRC), sent as ':' + its hex + CR LF (so '010300000001FB' and ':010300000001FB' agree).
+    Anything else is a usage error (never decoded as garbage).
+    """
+    t = arg.strip()
+    if t.startswith(":"):
+        data = t.encode("ascii", "replace")
+        return data if data.endswith(b"\r\n") else data + b"\r\n"
+    b = _hex_bytes(t)
+    if b is None:
+        raise UsageError(f"not a frame: {arg[:60]!r} (give ':' and the frame's characters, or its bytes in hex)")
+    body = b[1:].rstrip(b"\r\n")
+    if b[:1] == b":" and body and all(chr(c) in _HEX_DIGITS for c in body):
+        return b if b.endswith(b"\r\n") else b + b"\r\n"
+    return b":" + b.hex().upper().encode() + b"\r\n"
+
+
 def cmd_decode(spec: CaptureSpec, args) -> int:
     text = spec.resolve(None, need_baud=False).protocol.text
     frames = []
     for h in args.hex:
-        if text:  # the frame as its characters: ':0103...' (CR LF added if missing)
-            t = h.strip()
-            data = (t if t.startswith(":") else ":" + t).encode("ascii", "replace")
-            data += b"" if data.endswith(b"\r\n") else b"\r\n"
+        if text:
+            data = text_frame(h)
         else:
             t = h.replace(" ", "").replace(":", "")
             try:

@@ -210,7 +210,7 @@ class Model:
                         return Trip(self.map.enum_text(r.enum, code), {addr: code})
             elif r.bits:
                 for b in self.map.bits[r.bits]:
-                    if b["lo"] == b["hi"] and b["name"].endswith(f"({mnemonic})"):
+                    if b["lo"] == b["hi"] and b.get("mnemonic") == mnemonic:
                         return Trip(b["name"], {addr: 1 << b["lo"]})
         return None
 

@@ -13,14 +13,16 @@ _MARK = {"error": "!!", "warning": "! ", "info": "  ", None: "  "}
 _DIRECTION = {"request": "->REQ", "response": "<-RSP"}  # any other role: "<-???"
 _FC = [f"{i:02X}" for i in range(256)]
 _UNIT = [f"{i:<3d}" for i in range(256)]
+_NO_TIME = f"{'-':>12}"  # the time column of a frame without a time
 
 
 def frame_line(f: Frame, t0_ns: int) -> str:
-    t = (f.t_ns - t0_ns) / 1e9
+    # frames typed in (`sniffer decode`) have no time: their column says so, not a made-up figure
+    t = f"{(f.t_ns - t0_ns) / 1e9:12.6f}" if f.time_source != "none" else _NO_TIME
     mark = _MARK[f.worst_severity()] if f.annotations else "  "
     if f.protocol == "noise":
         more = "..." if len(f.raw) > 24 else ""
-        return f"{t:12.6f} {mark} NOISE   {len(f.raw):3d}B {f.raw[:24].hex(' ')}{more}  [{f.noise_reason}]"
+        return f"{t} {mark} NOISE   {len(f.raw):3d}B {f.raw[:24].hex(' ')}{more}  [{f.noise_reason}]"
     direction = _DIRECTION.get(f.role, "<-???")
     pair = f" #{f.pair}" if f.pair is not None else ""
     lat = f" {f.latency_ms:6.1f}ms" if f.latency_ms is not None else ""
@@ -31,7 +33,7 @@ def frame_line(f: Frame, t0_ns: int) -> str:
     tail = f"  [{', '.join(notes)}]" if notes else ""
     model = f" {f.model}" if f.model and f.model != "generic" else ""
     return (
-        f"{t:12.6f} {mark} {direction} u{unit}{model} fc{fc}{crc} #{f.index}{pair}{lat}  "
+        f"{t} {mark} {direction} u{unit}{model} fc{fc}{crc} #{f.index}{pair}{lat}  "
         f"{f.summary}{tail}"
     )
 
