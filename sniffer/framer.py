@@ -123,13 +123,28 @@ class RtuFramer(Crc16Framing, LineBuffer):
             if not length:
                 break
             e = p + length
-            if cands[-1][0] != length:  # a longer length of this header may hold a CRC too (_prefer_longer)
+            if cands[-1][0] != length:  # a longer length of this header may hold a CRC too: _prefer_longer
                 at = self._is_boundary(e, limit, final)
-                if at is None:  # the frame ends where the bytes end: wait for what follows
-                    self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
-                    return True
-                if not at:  # bytes glued after it: the rule-by-rule path weighs the longer one
-                    break
+                if not at:
+                    for n2, can2 in cands:
+                        if n2 <= length:
+                            continue
+                        if at is None or i + n2 > lim:
+                            if final and at is not None:
+                                continue
+                            self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
+                            self._need = e + 1 if at is None else p + n2
+                            return True  # what follows decides: wait for it
+                        raw2 = data[i : i + n2]
+                        if not modbus(raw2):
+                            at2 = self._is_boundary(p + n2, limit, final)
+                            if at2 is None:
+                                self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
+                                self._need = p + n2 + 1
+                                return True
+                            if at2:
+                                length, can, raw, e = n2, can2, raw2, p + n2
+                                break
             t0 = c0.t_ns - (end0 - p) * char
             while e > end0:  # the frame ends in a later read
                 k += 1
