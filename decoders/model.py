@@ -22,6 +22,7 @@ import math
 from sniffer.codes import MODEL_BROADCAST_REG as BROADCAST_REG
 from sniffer.codes import MODEL_FRAME_LONG as FRAME_LONG
 from sniffer.codes import MODEL_NOT_AVAILABLE as NOT_AVAILABLE
+from sniffer.codes import MODEL_FUNCTION as FUNCTION
 from sniffer.codes import MODEL_SUBFUNCTION as SUBFUNCTION
 from sniffer.codes import MODEL_RANGE as RANGE
 from sniffer.codes import MODEL_READ_ONLY as READ_ONLY
@@ -41,7 +42,7 @@ from .generic.names import EXCEPTION_NAMES
 from .tables import Register, RegisterMap
 
 MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION,
-               SPLIT, FRAME_LONG, SUBFUNCTION, NOT_AVAILABLE)
+               SPLIT, FRAME_LONG, SUBFUNCTION, NOT_AVAILABLE, FUNCTION)
 _REGISTERS = ("holding", "input")
 
 _DIGITS = {1.0: 0, 0.1: 1, 0.01: 2, 0.001: 3}
@@ -61,6 +62,9 @@ class TableDecoder(GenericModbus):
         self.max_frame = regmap.model.get("max_frame_bytes")
         subs = regmap.model.get("loopback_subfunctions")
         self.loop_subfunctions = set(subs) if subs is not None else None
+        fcs = regmap.model.get("function_codes")  # the manual's list: another code is answered 01H
+        self.functions = (frozenset(fcs) | frozenset(regmap.model.get("vendor_function_codes") or ())
+                          if fcs else None)
         # (address, raw) -> the marker's meaning: a raw value that is no measurement
         self.markers = {(m["addr"], m["raw"]): m for m in regmap.model.get("not_available", [])}
 
@@ -260,6 +264,10 @@ class TableDecoder(GenericModbus):
         """Annotate what the manual forbids in a request (models extend it)."""
         fc = f.function
         raw = f.adu
+        if self.functions is not None and fc not in self.functions:
+            listed = ", ".join(f"{x:02X}H" for x in sorted(self.functions))
+            f.annotations.append(note(FUNCTION, f"function {fc:02X}H: the {self.model} manual lists {listed} "
+                                                f"(another code is answered with exception 01H)", 1, 2))
         if fc == 0x08 and self.loop_subfunctions is not None and len(raw) >= 4:
             sub = (raw[2] << 8) | raw[3]
             if sub not in self.loop_subfunctions:

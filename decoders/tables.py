@@ -227,6 +227,10 @@ class _Check:
     def model(self, model) -> dict:
         if not isinstance(model, dict) or not model.get("id"):
             raise MapError(f"{self.path}: no [model] table with an id")
+        for key in ("registers",) + tuple(k for k in TOP_LEVEL if k != "model"):
+            if key in model:  # TOML puts a key after a [table] header into that table
+                raise MapError(f"{self.path}: [model]: {key} sits under [model]; write `{key} = ...` before the "
+                               f"first [table] (TOML puts it in the table above it)")
         self.text(model, "id", "[model]", required=True)
         for f in ("name", "manual", "revision"):
             self.text(model, f, "[model]")
@@ -386,6 +390,12 @@ def map_from_doc(doc: dict, path: str, places: list[str] | None = None) -> Regis
                 raise MapError(f"{path}: {where}register 0x{r.addr:04X} listed twice{also}")
             regs[r.addr] = r
             row_of[r.addr] = i
+    for a, r in regs.items():  # a value of several registers owns them all
+        for k in range(1, r.words):
+            if a + k in regs:
+                where = f"{places[row_of[a + k]]}: " if places else ""
+                raise MapError(f"{path}: {where}register 0x{a + k:04X} is inside 0x{a:04X} ({r.name}, a {r.type} "
+                               f"of {r.words} registers)")
     enums = {}
     for name, table in c.table(doc.get("enums") or {}, "[enums]").items():
         where = f"[enums.{name}]"

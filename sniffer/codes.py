@@ -108,6 +108,9 @@ EXCEPTION_UNLISTED = Code(
     "exception code not in the unit's table (its manual's, or the Modbus standard's for a generic unit)",
 )
 DECODE_SHORT = Code("modbus.decode.short", ERROR, "frame too short for its function code")
+BYTE_COUNT_ODD = Code(
+    "modbus.byte_count.odd", WARNING, "register read answer with an odd byte count: its last byte is no register"
+)
 BITS_PADDING = Code(
     "modbus.bits.padding", WARNING, "coil/input bits beyond the requested quantity are set (the spec pads with 0)"
 )
@@ -155,6 +158,9 @@ MODEL_SPLIT = Code(
     "model.register.split", WARNING, "a read or write covers only some registers of a multi-register value"
 )
 MODEL_FRAME_LONG = Code("model.frame.too_long", WARNING, "frame longer than the manual's maximum frame length")
+MODEL_FUNCTION = Code(
+    "model.function.unsupported", WARNING, "function code the manual does not list for this model"
+)
 MODEL_SUBFUNCTION = Code(
     "model.diagnostics.subfunction", WARNING, "diagnostics (08H) sub-function the manual does not allow"
 )

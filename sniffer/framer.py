@@ -43,7 +43,7 @@ from .crc import _modbus, crc_ok
 from .crc_framing import NEXT, Crc16Framing
 from .frame import CAN_REQ, CAN_RSP, Frame
 from .linebuf import _WAIT, HARD, MAX_NOISE, NONE, SOFT, LineBuffer
-from .rtu_layout import KNOWN_FUNCTIONS, Need, candidates, roles
+from .rtu_layout import KNOWN_FUNCTIONS, MAX_ADU, Need, candidates, roles
 
 __all__ = ["RtuFramer", "HARD", "SOFT", "NONE", "MAX_NOISE", "_WAIT"]
 _READS = frozenset((0x01, 0x02, 0x03, 0x04))  # request 8 bytes, response byte count + 5
@@ -290,9 +290,9 @@ class RtuFramer(Crc16Framing, LineBuffer):
         """[p, q) before a good frame: a CRC-valid run, a damaged structural frame, or noise."""
         buf, base = self.buf, self.base
         seg = bytes(buf[p - base : q - base])
+        if len(seg) >= 4 and crc_ok(seg):  # any function: an unknown or user-defined one is annotated
+            return self._crc_run(p, q, seg)
         if len(seg) >= 4 and (seg[1] & 0x7F) in KNOWN_FUNCTIONS and seg[1] != 0x80:
-            if crc_ok(seg):
-                return self._crc_run(p, q, seg)
             for length, can in candidates(buf, p - base, q - base):
                 if length == q - p and type(length) is int:
                     return self._emit(p, q, can, crc_good=False, raw=seg)
@@ -309,6 +309,17 @@ class RtuFramer(Crc16Framing, LineBuffer):
                 continue
             if hit(q, b, True):
                 return self._lead_run(p, q)
+        return self._rule_b3c_two_crc_runs(p, b)
+
+    def _rule_b3c_two_crc_runs(self, p: int, b: int):
+        """B3c: the run splits into two CRC-valid pieces (two frames of an unknown or user-defined
+        function glued in one read, which no length rule cuts): the first is a frame (B1's notes)."""
+        if b - p > 2 * MAX_ADU:
+            return NEXT
+        seg = bytes(self.buf[p - self.base : b - self.base])
+        for q in range(4, len(seg) - 3):
+            if crc_ok(seg[:q]) and crc_ok(seg[q:]):
+                return self._crc_run(p, p + q, seg[:q])
         return NEXT
 
     def _rule_b3_damaged_frame(self, p: int, b: int, end: int, final: bool):

@@ -12,12 +12,14 @@ Rules (one master; each has a test of its name in tests/test_pairer.py):
     responses, request-only shapes (CAN_REQ) requests;
   * a shape that fits both (05/06/08/16 echoes, unknown codes): context
     decides; the response if it matches the pending request's unit and
-    function within the response timeout, else the answer to a broadcast
-    just before it, else a new request.  Where the two readings mean
+    function within the response timeout (a 05/06/16 only if it repeats the
+    request: another write is the master's next request), else the answer
+    to a broadcast just before it (from a unit other than 0), else a new
+    request.  Where the two readings mean
     different things (not an echo) and the context is not clear (a response
     whose byte count does not fit the pending request, a request while one
-    of the same unit and function is pending), pair.role.ambiguous says
-    which was chosen and why;
+    of the same unit and function is pending, or nothing pending at all),
+    pair.role.ambiguous says which was chosen and why;
   * a new request while one is pending: the pending one is unanswered
     (`_unanswered`: pair.no_response "next request after X ms", and
     pair.timeout when X is past the unit's timeout); identical bytes mark
@@ -46,12 +48,13 @@ from . import codes
 from .codes import note
 from .frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE, UNKNOWN, Frame
 from .protocols import PROTOCOLS
-from .rtu_layout import BROADCAST_FUNCTIONS
+from .rtu_layout import BROADCAST_FUNCTIONS, KNOWN_FUNCTIONS
 
 DEFAULT_TIMEOUT_MS = 1000.0
 _MODBUS = frozenset(name for name, p in PROTOCOLS.items() if p.family == "modbus")  # Modbus echo/count rules
 _ROLES = CAN_REQ | CAN_RSP
 _ECHOES = frozenset((0x05, 0x06, 0x08, 0x16))  # request and response are the same shape and meaning
+_WRITE_ECHOES = frozenset((0x05, 0x06, 0x16))  # ... and the response repeats the request byte for byte
 
 
 class Pairer:
@@ -79,7 +82,13 @@ class Pairer:
             return self._pass_through(f)
         pending = self.pending  # the shape fits both: context decides
         if pending is not None and _same_transaction(pending, f):
-            if f.t_ns - pending.t_end_ns <= self._timeout(pending.unit):
+            if (f.function in _WRITE_ECHOES and f.crc_ok and pending.crc_ok and f.adu != pending.adu
+                    and f.protocol in _MODBUS):
+                # an echo repeats its request byte for byte: another write is the master's next request
+                f.annotations.append(note(
+                    codes.ROLE_AMBIGUOUS, f"not an echo of #{pending.index}: taken as a new request (as its "
+                                          f"response it would be a mismatched echo)", 0, len(f.raw)))
+            elif f.t_ns - pending.t_end_ns <= self._timeout(pending.unit):
                 if f.function not in _ECHOES and f.protocol in _MODBUS and pending.crc_ok and f.crc_ok:
                     why = response_mismatch(pending.adu, f.adu)
                     if why:
@@ -96,6 +105,10 @@ class Pairer:
         if pending is None and self._answers_broadcast(f):
             f.role = RESPONSE
             return self._response(f)
+        if (pending is None and f.protocol in _MODBUS and f.function in KNOWN_FUNCTIONS
+                and f.function not in _ECHOES):
+            f.annotations.append(note(codes.ROLE_AMBIGUOUS, "fits a request and a response; nothing pending, "
+                                                            "so taken as a request", 0, len(f.raw)))
         f.role = REQUEST
         return self._request(f)
 
@@ -109,7 +122,8 @@ class Pairer:
     def _answers_broadcast(self, f: Frame) -> bool:
         """A unit's echo of the broadcast write just before it (a bug to flag, not a new request)."""
         last = self.last_request
-        if last is None or last.unit != 0 or last.function != f.function or last.index != f.index - 1:
+        if (last is None or last.unit != 0 or last.function != f.function or last.index != f.index - 1
+                or f.unit == 0):  # unit 0 again: the master repeating its broadcast, not an answer
             return False
         if f.function in (0x05, 0x06, 0x16):
             return f.adu[2:] == last.adu[2:]

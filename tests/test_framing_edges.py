@@ -312,3 +312,77 @@ def test_the_shorter_wins_where_it_ends_at_a_boundary():
     """The 8 bytes end at silence: a request, and the byte after it starts something else."""
     got = framed(on_wire(RSP9[:8]) + at(60, RSP9[8:]))
     assert [(f.raw, f.protocol) for f in got] == [(RSP9[:8], "modbus-rtu"), (RSP9[8:], "noise")]
+
+
+# ---------------------------------------------------------------- found by an outside review
+@pytest.mark.parametrize("chunking", CHUNKINGS)
+@pytest.mark.parametrize("fc", [0x41, 0x48, 0x64, 0x6E, 0x5A])
+def test_an_unknown_or_user_function_glued_to_other_frames_is_a_frame(fc, chunking):
+    odd, req, rsp = h(f"01{fc:02x}aabbcc"), h("010300000002"), h("01030400640065")
+    got = framed(chunking(odd, req, rsp))
+    assert [f.raw for f in got] == [odd, req, rsp] and all(f.crc_ok for f in got)
+    want = "modbus.function.user_defined" if fc != 0x5A else "modbus.function.unknown"
+    assert codes(got[0]) == [want]
+    got = framed(chunking(req, odd, rsp))
+    assert [f.raw for f in got] == [req, odd, rsp]
+
+
+@pytest.mark.parametrize("chunking", CHUNKINGS)
+def test_two_frames_of_an_unknown_function_glued_are_two_frames(chunking):
+    odd = h("0141aabbcc")
+    got = framed(chunking(odd, odd))
+    assert [f.raw for f in got] == [odd, odd] and all(f.crc_ok for f in got)
+
+
+def test_ascii_frames_of_the_wrong_length_are_annotated():
+    def line(hexbody: str) -> bytes:
+        adu = bytes.fromhex(hexbody)
+        return b":" + (adu + bytes([lrc(adu)])).hex().upper().encode() + b"\r\n"
+
+    for body, code in (("01030000000102", "modbus.length.mismatch"), ("0108000a", "modbus.length.mismatch"),
+                       ("01410102", "modbus.function.user_defined"), ("015a0102", "modbus.function.unknown")):
+        (f,) = framed([Chunk(0, line(body))], AsciiFramer)
+        assert code in codes(f), body
+        a = next(x for x in f.annotations if x.code == code)
+        assert 0 <= a.start < a.end <= len(f.raw)
+    (ok,) = framed([Chunk(0, line("010300000001"))], AsciiFramer)
+    assert codes(ok) == []
+
+
+def test_decode_ascii_hex_of_several_frames_and_junk():
+    two = b":010300000001FB\r\n:010300000001FB\r\n"
+    got = run_sniffer("decode", "--protocol", "modbus-ascii", two.hex())
+    assert got.returncode == 0 and got.stdout.count("read holding 0..0 (1)") == 2 and "CRC!" not in got.stdout
+    got = run_sniffer("decode", "--protocol", "modbus-ascii", (b"x" + two[:17]).hex())
+    assert "read holding 0..0 (1)" in got.stdout and "NOISE" in got.stdout and "u120" not in got.stdout
+
+
+def test_a_write_to_another_register_is_a_new_request_not_an_echo():
+    w1, w2 = h("010600010005"), h("010600020007")
+    out = run_events(on_wire(w1) + at(3000, w2) + at(3060, w2), LINE)
+    assert [f.role for f in out] == [REQUEST, REQUEST, RESPONSE]
+    assert "pair.no_response" in codes(out[0]) and out[2].pair == 1
+    assert "pair.role.ambiguous" in codes(out[1]) and "pair.mismatch" not in codes(out[1])
+
+
+def test_a_repeated_broadcast_is_no_answer():
+    b = h("000600000001")
+    out = run_events(on_wire(b) + at(500, b), LINE)
+    assert [f.role for f in out] == [REQUEST, REQUEST]
+    assert all("pair.broadcast_response" not in codes(f) for f in out)
+    answer = h("010600000001")  # a unit answering it is still flagged
+    out = run_events(on_wire(b) + at(60, answer), LINE)
+    assert "pair.broadcast_response" in codes(out[1])
+
+
+def test_an_odd_register_byte_count_is_flagged():
+    req, rsp = h("010300000002"), h("0103050064006500")
+    out = run_events(on_wire(req) + at(60, rsp), LINE)
+    assert "modbus.byte_count.odd" in codes(out[1]) and [p["value"] for p in out[1].points] == [100, 101]
+
+
+def test_a_frame_of_both_shapes_with_nothing_pending_says_so():
+    out = run_events(on_wire(h("010103010200")), LINE)
+    (f,) = out
+    assert f.role == REQUEST and "pair.role.ambiguous" in codes(f)
+    assert "nothing pending" in next(a.detail for a in f.annotations if a.code == "pair.role.ambiguous")

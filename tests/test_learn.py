@@ -225,3 +225,11 @@ def test_learner_memory_is_bounded():
         s.add(k % 1000, k, False)
     assert len(s.samples) == 512 and len(s.distinct) <= 65 and (s.lo, s.hi, s.n) == (0, 999, 10_000)
     assert isinstance(Learner().regs, dict)
+
+
+def test_learn_refuses_a_pd_series_capture(tmp_path, capsys):
+    """PD-series frames are no Modbus register traffic: a map learned from them could not be used."""
+    out = tmp_path / "pd.toml"
+    line = one_error(capsys, "learn", "captures/sim/pd-series.mcap", "--out", out)
+    assert "pd-rtu frames: learn writes Modbus register maps" in line
+    assert not out.exists() and not list(tmp_path.glob("*.part"))

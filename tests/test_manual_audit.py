@@ -256,3 +256,23 @@ def test_decode_text_shows_no_time(capsys):
     assert cli.main(["decode", "010300000002C40B", "010304000100022A32"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 2 and all(line.split()[0] == "-" for line in lines) and "ms" not in lines[1]
+
+
+# ---- the manual's function codes and value limits (found by an outside review) ----------------
+@pytest.mark.parametrize("model", ["a510", "tds-v8", "spl"])
+def test_a_function_code_the_manual_does_not_list_is_flagged(model):
+    out = decode([fr("010100000008"), fr("01050000ff00"), fr("010400000001"), fr("010300000001")], model)
+    reqs = [f for f in out if f.role == "request"]
+    assert [bool(notes(f, "model.function.unsupported")) for f in reqs] == [True, True, True, False]
+    assert "03H, 06H, 08H, 10H" in notes(reqs[0], "model.function.unsupported")[0]
+
+
+def test_generic_takes_every_function_code():
+    out = run_events(bursts([fr("010100000008")], L), L)
+    assert not notes(out[0], "model.function.unsupported")
+
+
+def test_a510_torque_past_100_percent_is_out_of_range():
+    out = decode([fr("010625037fff"), fr("010625032000"), fr("01062503e000")], "a510")
+    reqs = [f for f in out if f.role == "request"]
+    assert [bool(notes(f, "model.value.range")) for f in reqs] == [True, False, False]

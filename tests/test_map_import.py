@@ -294,3 +294,16 @@ def test_map_base_travels_to_the_capture_process():
         ["live", "/dev/null", "--model-file", "m.csv", "--map-base", "modicon"]))
     again = CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live")))
     assert (again.model_files, again.map_base) == (("m.csv",), "modicon")
+
+
+def test_overlapping_rows_and_registers_under_model_are_refused(tmp_path, capsys):
+    """Found by an outside review: a u16 inside a float32 loaded silently (CSV, YAML, TOML alike), and
+    `registers = [...]` written after [model] gave an empty map."""
+    csv = tmp_path / "ov.csv"
+    csv.write_text("address,name,type\n0x10,Flow,float32\n0x11,Hidden,u16\n")
+    line = one_error(capsys, "decode", "010300000002C40B", "--model-file", csv, "--device", "1=ov")
+    assert line == f"{csv}: line 3: register 0x0011 is inside 0x0010 (Flow, a f32 of 2 registers)"
+    toml = tmp_path / "late.toml"
+    toml.write_text('[model]\nid = "late"\nregisters = [{ addr = 1, name = "a", section = "s" }]\n')
+    line = one_error(capsys, "decode", "010300000002C40B", "--model-file", toml, "--device", "1=late")
+    assert line.startswith(f"{toml}: [model]: registers sits under [model]")

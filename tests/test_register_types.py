@@ -234,14 +234,16 @@ def test_model_defaults_for_order_and_lint(tmp_path):
     assert [(r.word_order, r.byte_order) for r in m.registers.values()] == [
         ("little", "little"), ("big", "little"), ("big", "little")]
     assert m.covering(1) == (m.registers[0], 1) and m.covering(5) == (m.registers[4], 1)
-    bad = model_file(tmp_path, '{ addr = 0, name = "A", type = "u32", section = "t" },\n'
-                               '{ addr = 1, name = "B", type = "u16", section = "t" },\n'
-                               '{ addr = 2, name = "F", type = "f32", enum = "e", section = "t" },\n'
+    bad = model_file(tmp_path, '{ addr = 2, name = "F", type = "f32", enum = "e", section = "t" },\n'
                                '{ addr = 4, name = "W", type = "u16", bits = "b", section = "t" },\n'
                                '{ addr = 5, name = "S", type = "str", words = 1, scale = 0.1, section = "t" },',
                      "bad", extra='[enums.e]\n"1" = "one"\n[bits.b]\n"20" = "far"\n')
-    assert lint(load_map(bad)) == ["0x0000 (u32) overlaps 0x0001", "0x0002: a f32 takes no enum",
+    assert lint(load_map(bad)) == ["0x0002: a f32 takes no enum",
                                    "0x0004: bits 'b' field 'far' past bit 15", "0x0005: a str takes no scale"]
+    overlap = model_file(tmp_path, '{ addr = 0, name = "A", type = "u32", section = "t" },\n'
+                                   '{ addr = 1, name = "B", type = "u16", section = "t" },', "overlap")
+    with pytest.raises(MapError, match=r"register 0x0001 is inside 0x0000 \(A, a u32 of 2 registers\)"):
+        load_map(overlap)  # a user's map too, not only the built-in maps' lint
 
 
 # ---- the register watch ----------------------------------------------------------------------------------

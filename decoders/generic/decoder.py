@@ -11,8 +11,8 @@ import functools
 from struct import Struct, unpack_from
 
 from sniffer.codes import (
-    BITS_PADDING, COIL_VALUE, DECODE_SHORT, EXCEPTION, EXCEPTION_UNLISTED, NO_REQUEST_CONTEXT, QUANTITY, Code, note,
-    note_in,
+    BITS_PADDING, BYTE_COUNT_ODD, COIL_VALUE, DECODE_SHORT, EXCEPTION, EXCEPTION_UNLISTED, NO_REQUEST_CONTEXT,
+    QUANTITY, Code, note, note_in,
 )
 from sniffer.frame import REQUEST, RESPONSE, Frame
 from sniffer.protocols import MODBUS_TABLES
@@ -29,7 +29,7 @@ _MAX_QTY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x0F: 1968, 0x10: 123}
 class GenericModbus:
     model = "generic"
     codes: tuple[Code, ...] = (EXCEPTION, EXCEPTION_UNLISTED, DECODE_SHORT, NO_REQUEST_CONTEXT, COIL_VALUE, QUANTITY,
-                               BITS_PADDING)
+                               BITS_PADDING, BYTE_COUNT_ODD)
 
     # ---- hooks for drive models --------------------------------------------
     def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
@@ -170,6 +170,9 @@ class GenericModbus:
             self._malformed(f, adu)
             return
         values = list(_WORDS[k].unpack_from(adu, 3))
+        if adu[2] & 1:
+            f.annotations.append(note(BYTE_COUNT_ODD, f"byte count {adu[2]}: {k} registers and one byte more",
+                                      2, min(n, 3 + adu[2])))
         space = SPACE[f.function]
         addr = None
         if request is not None and request.crc_ok and len(request.adu) >= 6:

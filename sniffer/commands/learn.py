@@ -27,8 +27,16 @@ def cmd_learn(spec: CaptureSpec, args) -> int:
     model_id = os.path.splitext(os.path.basename(out.path))[0]
     learner = Learner()
     session = Session(spec, file_source(spec), [])
+    from ..protocols import PROTOCOLS
+
     try:
         for f in session:
+            proto = PROTOCOLS.get(f.protocol)
+            if proto is not None and proto.family != "modbus":
+                out.discard()
+                say(f"error: {shown(spec.input)}: {f.protocol} frames: learn writes Modbus register maps, and "
+                    f"{f.protocol} has its own parameter table (decoders/pd_series)")
+                return EXIT_USAGE
             learner.frame(f)
     except BaseException:
         out.discard()

@@ -103,9 +103,10 @@ def text_frame(arg: str) -> bytes:
     """One argument of `decode` in a text (ASCII) protocol, as the characters on the wire.
 
     * ':0103...' is the frame's characters (CR LF added if missing);
-    * hex digits without ':' are bytes: the wire characters in hex when they spell a
-      ':' ... frame (3A3031...0D0A), else the frame's binary content (unit, function, data,
-      LRC), sent as ':' + its hex + CR LF (so '010300000001FB' and ':010300000001FB' agree).
+    * hex digits without ':' are bytes: the wire characters in hex when they are printable
+      characters holding a ':' (3A3031...0D0A; several frames and junk as they were sent),
+      else the frame's binary content (unit, function, data, LRC), sent as ':' + its hex +
+      CR LF (so '010300000001FB' and ':010300000001FB' agree).
     Anything else is a usage error (never decoded as garbage).
     """
     t = arg.strip()
@@ -115,9 +116,9 @@ def text_frame(arg: str) -> bytes:
     b = _hex_bytes(t)
     if b is None:
         raise UsageError(f"not a frame: {arg[:60]!r} (give ':' and the frame's characters, or its bytes in hex)")
-    body = b[1:].rstrip(b"\r\n")
-    if b[:1] == b":" and body and all(chr(c) in _HEX_DIGITS for c in body):
-        return b if b.endswith(b"\r\n") else b + b"\r\n"
+    if b":" in b and all(0x20 <= c < 0x7F or c in b"\r\n" for c in b):
+        # the wire characters in hex: one frame or several, junk included, as they were sent
+        return b if b.endswith(b"\r\n") or b.count(b":") > 1 else b + b"\r\n"
     return b":" + b.hex().upper().encode() + b"\r\n"
 
 
