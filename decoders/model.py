@@ -34,6 +34,7 @@ from sniffer.codes import MODEL_UNKNOWN_REG as UNKNOWN_REG
 from sniffer.codes import MODEL_VENDOR_EXCEPTION as VENDOR_EXCEPTION
 from sniffer.codes import Code, note
 from sniffer.frame import REQUEST, RESPONSE, Frame
+from sniffer.protocols import MODBUS_TABLES
 
 from . import regtypes
 from .base import UnitState
@@ -52,7 +53,8 @@ class TableDecoder(GenericModbus):
     extra_codes: tuple[Code, ...] = ()
 
     def __init__(self, regmap: RegisterMap) -> None:
-        self.map = regmap
+        self.map = regmap  # also the holding view: `registers` holds the holding and table-less rows
+        self._imap = regmap.view("input")  # the input registers' rows (the same map unless a row says table)
         self.model = regmap.model_id
         self.codes = GenericModbus.codes + MODEL_CODES + self.extra_codes
         self.max_regs = regmap.model.get("max_registers_per_request")
@@ -96,16 +98,21 @@ class TableDecoder(GenericModbus):
         last = a + q - 1
         if q < 1:
             return f"{where}{a:04X}H ({q})"
-        regs = self.map.registers
+        regs = self.view(space).registers
         r0, r1 = regs.get(a), regs.get(last)
         if r0 is not None and r1 is not None and r0.id and r1.id:
             return f"{where}{r0.id if r0 is r1 else r0.id + '..' + r1.id} ({q})"
         return f"{where}{a:04X}H ({q})" if q == 1 else f"{where}{a:04X}H..{last:04X}H ({q})"
 
+    def view(self, space: str | None) -> RegisterMap:
+        """The rows a read or write of `space` sees (tables.RegisterMap.view)."""
+        return self._imap if space == "input" else self.map
+
     def point(self, space: str, address: int | None, raw: int, state: UnitState) -> dict:
-        r = self.map.registers.get(address) if space in _REGISTERS and address is not None else None
+        m = self._imap if space == "input" else self.map
+        r = m.registers.get(address) if space in _REGISTERS and address is not None else None
         if r is None or r.words != 1 or r.byte_order != "big":
-            hit = self.map.parts.get(address) if space in _REGISTERS and address is not None else None
+            hit = m.parts.get(address) if space in _REGISTERS and address is not None else None
             if hit is not None:  # one register of a value of several: shown raw
                 return self.part_point(hit[0], hit[1], raw)
             if r is None:
@@ -153,9 +160,10 @@ class TableDecoder(GenericModbus):
     def make_points(self, space: str, addr: int | None, values: list[int], state: UnitState,
                     offset: int) -> list[dict]:
         """Points of consecutive registers: a value of several registers joined where all are here."""
-        if addr is None or space not in _REGISTERS or not self.map.any_part(addr, len(values)):
+        m = self._imap if space == "input" else self.map
+        if addr is None or space not in _REGISTERS or not m.any_part(addr, len(values)):
             return super().make_points(space, addr, values, state, offset)
-        parts = self.map.parts
+        parts = m.parts
         out = []
         n, i = len(values), 0
         while i < n:
@@ -181,7 +189,7 @@ class TableDecoder(GenericModbus):
         super().decode(f, request, state)
         if f.role == REQUEST and f.crc_ok:
             self.check_request(f, state)
-        if self.map.parts:
+        if self.map.parts or self._imap.parts:
             self._split(f)
         if self.max_frame and len(f.raw) > self.max_frame:
             f.annotations.append(note(FRAME_LONG, f"{len(f.raw)} bytes on the wire (manual: at most {self.max_frame};"
@@ -193,7 +201,7 @@ class TableDecoder(GenericModbus):
                                               *p["span"]))
         if any(p.get("pending") for p in f.points):
             ref = next(p for p in f.points if p.get("pending"))
-            r = self.map.registers[ref["address"]]
+            r = self.view(MODBUS_TABLES.get(f.function)).registers[ref["address"]]
             ref_reg = self.map.registers.get(r.scale_by["addr"])
             who = f"{ref_reg.id or ref_reg.name} (0x{ref_reg.addr:04X})" if ref_reg else "the reference register"
             f.annotations.append(note(SCALE_PENDING,
@@ -206,7 +214,7 @@ class TableDecoder(GenericModbus):
             if part is None:
                 continue
             k, w = part
-            r = self.map.registers[p["address"] - k]
+            r = self.view(MODBUS_TABLES.get(f.function)).registers[p["address"] - k]
             order = "" if r.type == regtypes.TEXT else f", {'high' if r.word_order == 'big' else 'low'} word first"
             f.annotations.append(note(SPLIT, f"0x{p['address']:04X} is register {k + 1} of {w} of "
                                              f"{r.id or r.name} ({r.type} at 0x{r.addr:04X}{order}): shown raw",
@@ -216,7 +224,8 @@ class TableDecoder(GenericModbus):
         """Annotate a read of registers a..a+q-1 that starts or ends inside a value of several registers."""
         if q < 1:
             return
-        first, last = self.map.parts.get(a), self.map.parts.get(a + q - 1)
+        parts = self.view(MODBUS_TABLES.get(f.function)).parts
+        first, last = parts.get(a), parts.get(a + q - 1)
         if first is not None and first[1] > 0:  # starts after the value's first register
             r = first[0]
         elif last is not None and last[1] < last[0].words - 1:  # ends before its last
@@ -278,7 +287,7 @@ class TableDecoder(GenericModbus):
             qty = (raw[4] << 8) | raw[5]
             if qty > self.max_regs:
                 f.annotations.append(note(TOO_MANY, f"{qty} registers (manual: at most {self.max_regs})", 4, 6))
-        if fc in (0x03, 0x04, 0x17) and len(raw) >= 6 and self.map.parts:
+        if fc in (0x03, 0x04, 0x17) and len(raw) >= 6 and self.view(MODBUS_TABLES.get(fc)).parts:
             self._split_range(f, (raw[2] << 8) | raw[3], (raw[4] << 8) | raw[5], 2)
         if fc not in (0x06, 0x10):
             return

@@ -50,6 +50,7 @@ class Register:
     words: int = 0
     section: str = ""
     note: str = ""
+    table: str = ""  # "holding" or "input" where the device has both at one address; "": either
 
     def __post_init__(self) -> None:
         self.type = t = regtypes.canonical(self.type)
@@ -93,6 +94,27 @@ class RegisterMap:
     by_id: dict[str, Register] = field(default_factory=dict)
     _parts: dict[int, tuple[Register, int]] | None = field(default=None, repr=False)
     _part_addrs: list[int] | None = field(default=None, repr=False)
+    inputs: dict[int, Register] = field(default_factory=dict)  # rows of table "input" (not in `registers`)
+    _input_view: RegisterMap | None = field(default=None, repr=False)
+
+    def view(self, space: str) -> RegisterMap:
+        """The map a read or write of `space` ("holding" / "input") sees: the rows of that table and
+        those of none.  `registers` holds the holding and the table-less rows, so it is the holding
+        view; a map without input-only or holding-only rows is one view for both."""
+        if space != "input":
+            return self
+        if self._input_view is None:
+            if not self.inputs and all(not r.table for r in self.registers.values()):
+                self._input_view = self
+            else:
+                regs = {a: r for a, r in self.registers.items() if not r.table}
+                regs.update(self.inputs)
+                v = RegisterMap(self.model, dict(sorted(regs.items())), self.enums, self.bits, self.exceptions,
+                                self.path)
+                v.by_id = {r.id: r for r in regs.values() if r.id}
+                v._input_view = v
+                self._input_view = v
+        return self._input_view
 
     @property
     def model_id(self) -> str:
@@ -272,6 +294,8 @@ class _Check:
             self.fail(where, f"bad keys {_show(sorted(unknown)) if unknown else 'addr/name missing'}")
         self.int_in(row, "addr", where, 0, MAX_ADDR)
         where = f"{self.place(i)} (0x{row['addr']:04X})"
+        if row.get("table", "") not in ("", "holding", "input"):
+            self.fail(where, f"table {_show(row['table'])} (holding or input)")
         for f in _STR_FIELDS:
             self.text(row, f, where, required=f == "name")
         for f in _INT_FIELDS:  # the number before scale: a u64's can be that large
@@ -373,8 +397,9 @@ def map_from_doc(doc: dict, path: str, places: list[str] | None = None) -> Regis
     if total > MAX_REGISTERS:
         c.fail("registers", f"{total} registers: more than the {MAX_REGISTERS} addresses a unit has")
     regs: dict[int, Register] = {}
+    inputs: dict[int, Register] = {}  # rows of table "input": the same address may be a holding row too
     orders = {f: model[f] for f in ("word_order", "byte_order") if f in model}  # the model's defaults
-    row_of: dict[int, int] = {}
+    row_of: dict[tuple[str, int], int] = {}
     for i, (row, count, stride) in enumerate(checked):
         row.setdefault("id", "")
         for f, v in orders.items():
@@ -384,18 +409,23 @@ def map_from_doc(doc: dict, path: str, places: list[str] | None = None) -> Regis
             r = Register(**{**row, "addr": row["addr"] + k * stride})
             if count > 1:
                 r.name = f"{row['name']} [{k}]"
-            if r.addr in regs:
-                also = f" (also {c.place(row_of[r.addr])})" if places else ""
+            # a table-less row is in both tables: it clashes with a row of either
+            clash = [t for t in (("holding", "input") if not r.table else (r.table,)) if (t, r.addr) in row_of]
+            if clash:
+                also = f" (also {c.place(row_of[(clash[0], r.addr)])})" if places else ""
                 where = f"{places[i]}: " if places else ""
                 raise MapError(f"{path}: {where}register 0x{r.addr:04X} listed twice{also}")
-            regs[r.addr] = r
-            row_of[r.addr] = i
-    for a, r in regs.items():  # a value of several registers owns them all
-        for k in range(1, r.words):
-            if a + k in regs:
-                where = f"{places[row_of[a + k]]}: " if places else ""
-                raise MapError(f"{path}: {where}register 0x{a + k:04X} is inside 0x{a:04X} ({r.name}, a {r.type} "
-                               f"of {r.words} registers)")
+            (inputs if r.table == "input" else regs)[r.addr] = r
+            for t in ("holding", "input") if not r.table else (r.table,):
+                row_of[(t, r.addr)] = i
+    for t in ("holding", "input"):  # a value of several registers owns them all, in its table
+        rows_t = {a: r for a, r in (*regs.items(), *inputs.items()) if r.table in ("", t)}
+        for a, r in rows_t.items():
+            for k in range(1, r.words):
+                if a + k in rows_t:
+                    where = f"{places[row_of[(t, a + k)]]}: " if places else ""
+                    raise MapError(f"{path}: {where}register 0x{a + k:04X} is inside 0x{a:04X} ({r.name}, a "
+                                   f"{r.type} of {r.words} registers)")
     enums = {}
     for name, table in c.table(doc.get("enums") or {}, "[enums]").items():
         where = f"[enums.{name}]"
@@ -404,8 +434,8 @@ def map_from_doc(doc: dict, path: str, places: list[str] | None = None) -> Regis
     bits = {name: c.bits(name, table) for name, table in c.table(doc.get("bits") or {}, "[bits]").items()}
     exc = {c.key(k, "[exceptions]", 0, 255): c.entry(v, f"[exceptions] {k}", "name", False)
            for k, v in c.table(doc.get("exceptions") or {}, "[exceptions]").items()}
-    m = RegisterMap(model, regs, enums, bits, exc, path)
-    m.by_id = {r.id: r for r in regs.values() if r.id}
+    m = RegisterMap(model, regs, enums, bits, exc, path, inputs=inputs)
+    m.by_id = {r.id: r for r in (*inputs.values(), *regs.values()) if r.id}
     return m
 
 

@@ -47,7 +47,7 @@ def _points(records) -> dict[str, tuple]:
 
 
 def _same(a, b) -> None:
-    assert a.registers == b.registers
+    assert a.registers == b.registers and a.inputs == b.inputs
     assert (a.model, a.enums, a.bits, a.exceptions) == (b.model, b.enums, b.bits, b.exceptions)
 
 
@@ -132,7 +132,9 @@ def test_csv_modicon_addresses(tmp_path):
     p = tmp_path / "modicon.csv"
     p.write_text("# base: modicon\naddress,name\n40001,Holding one\n30003,Input three\n400101,Six digits\n")
     [m] = load_model_file(str(p))
-    assert {a: r.name for a, r in m.registers.items()} == {0: "Holding one", 2: "Input three", 100: "Six digits"}
+    assert {a: r.name for a, r in m.registers.items()} == {0: "Holding one", 100: "Six digits"}
+    assert {a: (r.name, r.table) for a, r in m.inputs.items()} == {2: ("Input three", "input")}
+    assert {a: r.name for a, r in m.view("input").registers.items()} == {2: "Input three"}
 
 
 def test_built_in_maps_round_trip_through_toml(tmp_path):
@@ -191,13 +193,15 @@ def test_ha_yaml_map_fields(tmp_path):
     [m] = load_model_file(str(p))
     assert m.model_id == "solar"
     r = m.registers
-    assert (r[40].type, r[40].word_order, r[40].access, r[40].unit) == ("f32", "little", "R", "W")
+    i = m.inputs  # input_type: input -> the input table only
+    assert 40 not in r and (i[40].type, i[40].word_order, i[40].access, i[40].unit, i[40].table) == (
+        "f32", "little", "R", "W", "input")
     assert (r[100].type, r[100].scale, r[100].access) == ("s16", 0.1, "RW")
     assert "1 decimals" in r[100].note
     assert (r[102].type, r[102].scale, r[102].unit) == ("u32", 0.001, "kWh")
     assert (r[110].type, r[110].words) == ("str", 8)
     assert [r[a].name for a in (200, 201, 202)] == ["String current [0]", "String current [1]", "String current [2]"]
-    assert r[40].section == "solar.yaml line 7 (input)"
+    assert i[40].section == "solar.yaml line 7 (input)"
 
 
 def test_ha_yaml_decodes_and_round_trips(tmp_path, capsys):
@@ -259,9 +263,8 @@ BAD = [
     ("m.yaml", "modbus:\n  - name: x\n    sensors:\n      - {name: a, address: 1, swap: sideways}\n",
      "line 4: swap 'sideways' (one of none, byte, word, word_byte)"),
     ("m.yaml", "modbus:\n  - name: x\n    sensors:\n      - {name: a, address: 1}\n"
-               "      - {name: b, address: 1, input_type: input}\n",
-     "line 5: input register 1 is also a holding register at line 4; a map has one address space "
-     "(split the file per device)"),
+               "      - {name: b, address: 1, input_type: holding}\n",
+     "line 5: register 0x0001 listed twice (also line 4)"),
     ("m.yaml", "modbus:\n  - name: x\n    sensors: !include sensors.yaml\n",
      "line 2: sensors '!include sensors.yaml' is in another file; give that file (with the hub around it)"),
     ("m.yaml", "modbus:\n  - name: x\n    sensors: []\n", "no modbus sensors in the file"),
@@ -307,3 +310,21 @@ def test_overlapping_rows_and_registers_under_model_are_refused(tmp_path, capsys
     toml.write_text('[model]\nid = "late"\nregisters = [{ addr = 1, name = "a", section = "s" }]\n')
     line = one_error(capsys, "decode", "010300000002C40B", "--model-file", toml, "--device", "1=late")
     assert line.startswith(f"{toml}: [model]: registers sits under [model]")
+
+
+def test_input_and_holding_at_one_address_keep_their_names(tmp_path, capsys):
+    """A meter: input 0000H is a measurement, holding 0000H a setting.  An FC03 read is never named by an
+    input sensor, nor an FC04 read by a holding one (found by an outside review: one address space did)."""
+    yaml_map = tmp_path / "meter.yaml"
+    yaml_map.write_text("modbus:\n  - name: m\n    sensors:\n"
+                        "      - {name: Voltage, address: 0, input_type: input, data_type: float32}\n"
+                        "      - {name: Demand period, address: 0, data_type: uint16}\n", encoding="utf-8")
+    csv_map = tmp_path / "meter.csv"
+    csv_map.write_text("# base: modicon\naddress,name,type\n30001,Voltage,float32\n40001,Demand period,u16\n")
+    for path, mid in ((yaml_map, "meter"), (csv_map, "meter")):
+        recs = _decode(capsys, path, 1, mid, fr("010400000002"), fr("01040443660000"),
+                       fr("010300000001"), fr("010302003c"))
+        pts = _points(recs)
+        assert pts["Voltage"] == (0, 230.0, None) and pts["Demand period"] == (0, 60, None), path
+        [m] = load_model_file(str(path))
+        _round_trip(m, tmp_path)

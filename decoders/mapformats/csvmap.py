@@ -10,7 +10,8 @@
 Columns (header names are case-insensitive; the first two are required, the rest optional,
 unknown columns are ignored): address, name, type, scale, unit, access, description, id,
 word_order (ABCD / CDAB / BADC / DCBA or big / little), words (a string's length in registers),
-min, max, default, section.  Separators: comma, semicolon (then "0,1" is a decimal comma too) or
+min, max, default, section, table (holding / input: a device with both at one address; a
+Modicon address says it itself).  Separators: comma, semicolon (then "0,1" is a decimal comma too) or
 tab.  Addresses: hex (0x2524, 2524H) or decimal; decimal and hex alike count from 0 unless the
 file or --map-base says 1 (or modicon: 4xxxx holding, 3xxxx input registers, from 1).
 """
@@ -38,7 +39,10 @@ _COLUMNS = {
     "word_order": "order", "order": "order", "byte_order": "order", "swap": "order", "endian": "order",
     "words": "words", "length": "words", "size": "words",
     "min": "min", "max": "max", "default": "default", "section": "section",
+    "table": "table", "space": "table", "input_type": "table", "register_type": "table", "kind": "table",
 }
+_TABLES = {"holding": "holding", "h": "holding", "hr": "holding", "4x": "holding", "input": "input", "i": "input",
+           "ir": "input", "3x": "input", "": ""}
 _ACCESS = {"r": "R", "ro": "R", "read": "R", "w": "W", "wo": "W", "write": "W", "rw": "RW", "r/w": "RW",
            "wr": "RW", "read/write": "RW", "reserved": "reserved", "": "RW"}
 _DIRECTIVE = re.compile(r"^#\s*(model|id|name|base)\s*[:=]\s*(.*?)\s*$", re.I)
@@ -111,6 +115,13 @@ def _row(cells: list[str], cols: dict[str, int], base: str, comma_decimal: bool,
     if not name:
         raise ValueError("name is empty")
     row: dict = {"addr": parse_address(cell("address"), base), "name": name}
+    table = _TABLES.get(cell("table").lower())
+    if table is None:
+        raise ValueError(f"table {cell('table')[:40]!r} (holding or input)")
+    if base == "modicon":  # 3xxxx input, 4xxxx holding: the notation says which table
+        table = "input" if cell("address").lstrip().startswith("3") else "holding"
+    if table:
+        row["table"] = table
     typ, wo, bo = parse_type(cell("type"))
     row["type"] = typ
     if cell("order"):

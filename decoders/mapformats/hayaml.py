@@ -16,8 +16,9 @@
 A file whose sensors name one slave (or none) is one model, its id the file's stem; sensors
 of several slaves make one model per slave, `<stem>-u<slave>`.  What the map format cannot
 say is kept in the row's note: an `offset` (not applied), `precision` (display only).
-Holding and input registers share the map's one address space: the same address in both is
-an error.  Other platforms (binary_sensors, switches, climates, ...) are coils or write
+A sensor's `input_type` is its row's `table`: an input sensor names input registers (FC04) only,
+a holding one holding registers (FC03/06/10), so a meter's input 0000H and holding 0000H keep
+their own names.  Other platforms (binary_sensors, switches, climates, ...) are coils or write
 targets, not register readings, and are left out.  `!secret` / `!include` values are read as
 text (an `!include`d sensors list is not followed: the error says so).
 """
@@ -106,12 +107,8 @@ def load_ha_yaml(path: str, base: str | None = None) -> list[RegisterMap]:
                 row, slave, space = _row(s, fname, where)
             except ValueError as e:
                 raise MapError(f"{path}: {where}: {e}") from None
-            rows, places, spaces = groups.setdefault(slave, ([], [], {}))
-            prev = spaces.get(row["addr"])
-            if prev and prev[0] != space:
-                raise MapError(f"{path}: {where}: {space} register {row['addr']} is also a {prev[0]} register at "
-                               f"{prev[1]}; a map has one address space (split the file per device)")
-            spaces[row["addr"]] = (space, where)
+            rows, places, _spaces = groups.setdefault(slave, ([], [], {}))
+            row["table"] = space  # an input sensor names input registers only (a meter has both at 0000H)
             rows.append(row)
             places.append(where)
             n += 1

@@ -74,7 +74,8 @@ def to_toml(m: RegisterMap, header: str = "") -> str:
     """The map's TOML text; `header` (lines without '#') goes first as comments."""
     out = [f"# {line}".rstrip() for line in header.splitlines()]
     out.append("registers = [")
-    out += [register_row(r) for _a, r in sorted(m.registers.items())]
+    out += [register_row(r) for _a, r in sorted((*m.registers.items(), *m.inputs.items()),
+                                               key=lambda ar: (ar[0], ar[1].table))]
     out += ["]", "", "[model]"]
     out += [f"{key(k)} = {value(v)}" for k, v in m.model.items()]
     if m.exceptions:
