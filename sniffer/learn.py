@@ -286,7 +286,8 @@ class Learner:
             if len(types) > 1:
                 notes.insert(0, "units disagree, left u16")
             if len(tables) > 1:
-                notes.insert(0, f"seen as {' and '.join(tables)} register (one row for both: split it into rows with table = \"holding\" / \"input\" if they differ)")
+                notes.insert(0, f"seen as {' and '.join(tables)} register (one row for both: split it into "
+                                f"rows with table = \"holding\" / \"input\" if they differ)")
             r.note = "; ".join(notes)
             rows[a] = r
         # a 32-bit guess of one unit must not cover another row: it falls back to u16 there
