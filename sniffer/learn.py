@@ -146,6 +146,13 @@ def _float_guess(his: list[int], los: list[int], order: str) -> Guess | None:
         return Guess("f32", f"float32 ({which}) {_fmt(fmin)}..{_fmt(fmax)} in all {len(floats)} samples, "
                                 f"while as u16 the low word jumps over {lo_span} ({lo_d} values) and the high "
                                 f"word stays within {hi_span}", order)
+    # a steady reading: one high word, a low word that jumps between few values, and as float32 the
+    # values lie within 1 % of each other (mantissa noise: 0x41B80194 / 0x41B80678 = 23.0008 / 23.0032)
+    if (lo_d >= 2 and hi_d == 1 and lo_span >= 0x0100 and fmax != 0.0
+            and abs(fmax - fmin) <= 0.01 * max(abs(fmin), abs(fmax))):
+        return Guess("f32", f"float32? ({which}) {_fmt(fmin)}..{_fmt(fmax)} in all {len(floats)} samples: one "
+                                f"high word, the low word jumps over {lo_span} ({lo_d} values) as mantissa noise "
+                                f"does", order)
     # weaker: values that do not move, but are round numbers only as float32 (0x41700000 = 15.0)
     shown = sorted({_fmt(x) for x in floats})
     if (order == "big" and all(lo == 0 for _h, lo in nz) and all(ROUND_MIN <= abs(x) <= FLOAT_MAX for x in floats if x)

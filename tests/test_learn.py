@@ -146,6 +146,9 @@ def test_learn_real_flow_meter_float_setpoint(tmp_path, capsys):
     assert code == 0, err
     r = load_map(out).registers[6]
     assert r.type == "f32" and "round numbers 15, 20 as float32" in r.note and r.access == "RW"
+    flow = load_map(out).registers[2]  # the measured flow: 0x41B8 then 0x0194 / 0x0678 = 23.0008 / 23.0032
+    assert flow.type == "f32" and "23.0008..23.0032" in flow.note and flow.access == "R"
+    assert 3 not in load_map(out).registers
 
 
 def test_learn_refuses_to_write_over_its_input(tmp_path, capsys):
