@@ -5,12 +5,20 @@ guess needs evidence a generic device would not produce, per unit and model:
 
   * a vendor exception code (outside Modbus's 01H-0BH) that only this model's map
     defines: weight 3 (SPL 51H-55H, TDS-V8 21H/22H);
-  * a normal answer to a request whose registers all exist in the model's map, at
-    least one of them outside the common block 0000H-00FFH (which any device
-    answers) and in no other candidate's map: weight 2 when that register is
-    described (read-only, a unit, a range, an enum, a status word), 1 when the map
-    only knows it exists (a bare "Parameter 16-00" row; at most 2 of these count);
-  * answers that fit the map at all: weight 1, once.
+  * a read answered with a value that fits a narrow rule of a register only this
+    model's map has, outside the common block 0000H-00FFH (which any device
+    answers): a non-zero value in its enum, a non-zero status word that sets no bit
+    the manual calls unused: weight 2 per register; a value inside a min..max of at
+    most 256 steps: weight 1 per register, 2 in all (a setting's small integer fits
+    many ranges; 0 fits nearly every table, so it says nothing);
+  * a read of registers only this model's map has, without such a value: weight 1,
+    and all of them together count 1 (a device with a big register space answers
+    addresses any one map happens to hold);
+  * answers that fit the map at all: weight 1, once, and only beside a vendor
+    exception (a 52H from a unit whose answers SPL's map holds is SPL's; from a
+    unit that answers nothing SPL has it is a stranger's code).
+A write's echo is no evidence for a model (any device echoes), only against it:
+an echoed write to a register its map calls read-only rules the model out.
 Against it:
   * a value the map rules out (outside an enum or min..max, a status word with a
     bit the manual calls unused set): -2 per register (a meter's float32 words
@@ -46,8 +54,10 @@ SETTLED = 200  # answers after which a unit's verdict stands (keeps the hot path
 COMMON_END = 0x0100  # 0000H-00FFH: addresses nearly any device answers, never evidence of a model
 STANDARD_EXCEPTIONS = frozenset(range(0x01, 0x0C))  # Modbus application protocol, section 7
 GATEWAY_EXCEPTIONS = frozenset({0x0A, 0x0B})  # a gateway's answer, not the device's
-W_VENDOR, W_DESCRIBED, W_BARE, W_FITS, W_MISFIT = 3, 2, 1, 1, -2
-MAX_BARE = 2  # bare-parameter evidence counts at most this much in all
+W_VENDOR, W_DESCRIBED, W_RANGE, W_BARE, W_FITS, W_MISFIT = 3, 2, 1, 1, 1, -2
+MAX_RANGE = 2  # values inside tight ranges: this much in all
+MAX_BARE = 1  # registers only a model's map has, answered without a telling value: this much in all
+NARROW = 256  # a min..max of at most this many steps is a rule a random register breaks
 MAX_SIGNATURES = 64  # answered requests remembered per unit (for "polled like")
 _REG_FUNCTIONS = {0x03: "read", 0x04: "read", 0x06: "write", 0x10: "write"}
 _MODBUS = frozenset(name for name, p in PROTOCOLS.items() if p.family == "modbus")
@@ -65,9 +75,9 @@ def confidence_of(score: float) -> float:
     return round(min(0.99, 1 - 2 ** (-score / 2)), 2)
 
 
-def _described(r) -> bool:
-    return bool(r.access != "RW" or r.unit or r.enum or r.bits or r.min is not None or r.max is not None
-                or r.scale != 1 or r.scale_by)
+def _narrow(r) -> bool:
+    """A row whose value a device of another kind would likely break: an enum, a status word, a tight range."""
+    return bool(r.enum or r.bits or (r.min is not None and r.max is not None and r.max - r.min <= NARROW))
 
 
 def _unused_mask(regmap, bits_name: str) -> int:
@@ -79,6 +89,10 @@ def _unused_mask(regmap, bits_name: str) -> int:
             for b in range(fdef["lo"], fdef["hi"] + 1):
                 mask |= 1 << b
     return mask
+
+
+def _rule(r) -> str:
+    return "enum" if r.enum else "status bits" if r.bits else f"range {r.min}..{r.max}"
 
 
 class ModelFacts:
@@ -120,8 +134,10 @@ class RangeVerdict(NamedTuple):
     """One register range against one model (cached: polls repeat)."""
 
     missing: int | None  # first address the map does not have
-    weight: int  # W_DESCRIBED, W_BARE or 0 (nothing only this model has)
+    weight: int  # W_BARE if a register only this model has is in the range, else 0
     checked: tuple  # (offset, Register) of rows whose values can rule the model out
+    telling: tuple  # (offset, Register) of those rows only this model has, with a narrow rule
+    read_only: int | None  # first register the map calls read-only (an echoed write to it rules out)
 
 
 @dataclass
@@ -172,7 +188,7 @@ class Identifier:
         out = []
         for mf in self.facts:
             regs = mf.map.registers
-            missing, weight, checked = None, 0, []
+            missing, weight, checked, telling, read_only = None, 0, [], [], None
             for k in range(q):
                 r = regs.get(a + k)
                 if r is None:
@@ -180,11 +196,16 @@ class Identifier:
                     break
                 if r.access == "reserved":
                     continue
+                if r.access == "R" and read_only is None:
+                    read_only = a + k
                 if r.enum or r.bits or r.min is not None or r.max is not None:
                     checked.append((k, r))
-                if a + k >= COMMON_END and weight < W_DESCRIBED and self.owners(a + k) == {mf.id}:
-                    weight = W_DESCRIBED if _described(r) else W_BARE
-            out.append(RangeVerdict(missing, 0 if missing is not None else weight, tuple(checked)))
+                if a + k >= COMMON_END and self.owners(a + k) == {mf.id}:
+                    weight = W_BARE
+                    if _narrow(r):
+                        telling.append((k, r))
+            out.append(RangeVerdict(missing, 0 if missing is not None else weight, tuple(checked), tuple(telling),
+                                    read_only))
         hit = self._ranges[key] = tuple(out)
         return hit
 
@@ -287,26 +308,42 @@ class Identifier:
             if mf.max_regs and q > mf.max_regs and fc != 0x06:
                 self._rule_out(ev, mf.id, f"answered {q} registers at once ({mf.id}: at most {mf.max_regs})")
                 continue
+            if kind == "write":  # any device echoes a write: evidence against a model only
+                if rv.read_only is not None:
+                    self._rule_out(ev, mf.id, f"echoed a write to {rv.read_only:04X}H, which {mf.id}'s map calls "
+                                              f"read-only")
+                continue
             self._item(ev, mf.id, ("fits",), W_FITS, "answers what its map holds")
             if rv.weight:
-                self._item(ev, mf.id, ("reg", rv.weight, fc, a, q), rv.weight,
-                           f"{kind} {label}" + ("" if rv.weight == W_DESCRIBED else " (bare parameters)"))
+                self._item(ev, mf.id, ("reg", W_BARE, fc, a, q), W_BARE, f"read {label} (only its map has it)")
+            misfit = set()
             for k, r in rv.checked:
                 why = mf.misfit(r, (data[2 * k] << 8) | data[2 * k + 1])
                 if why:
+                    misfit.add(k)
                     self._item(ev, mf.id, ("misfit", r.addr), W_MISFIT, why)
+            for k, r in rv.telling:
+                raw = (data[2 * k] << 8) | data[2 * k + 1]
+                if k not in misfit and raw:
+                    w = W_DESCRIBED if r.enum or r.bits else W_RANGE
+                    self._item(ev, mf.id, ("value", r.addr, w), w,
+                               f"{r.id or r.name} ({r.addr:04X}H) = {raw:#06x} fits its {_rule(r)}")
 
     # ---- the verdict -------------------------------------------------------------
     @staticmethod
     def score(items: dict) -> int:
-        bare = sum(w for key, (w, _) in items.items() if key[0] == "reg" and key[1] == W_BARE)
-        rest = sum(w for key, (w, _) in items.items() if not (key[0] == "reg" and key[1] == W_BARE))
-        return rest + min(bare, MAX_BARE)
+        bare = sum(w for key, (w, _) in items.items() if key[0] == "reg")
+        ranged = sum(w for key, (w, _) in items.items() if key[0] == "value" and key[2] == W_RANGE)
+        vendor = any(key[0] == "exc" for key in items)
+        rest = sum(w for key, (w, _) in items.items()
+                   if key[0] not in ("reg", "fits", "value") or (key[0] == "fits" and vendor)
+                   or (key[0] == "value" and key[2] != W_RANGE))
+        return rest + min(bare, MAX_BARE) + min(ranged, MAX_RANGE)
 
     @staticmethod
     def _own(items: dict) -> bool:
         """Evidence only this model gives (not just 'its map fits')."""
-        return any(key[0] in ("exc", "reg") for key in items)
+        return any(key[0] in ("exc", "reg", "value") for key in items)
 
     def _decide(self, unit: int, ev: UnitEvidence) -> Verdict | None:
         if ev.guess is not None and ev.guess in ev.ruled_out:

@@ -11,7 +11,8 @@ L = LineSettings(19200, "E", 1)
 
 
 
-A510_POLL = [fr("020325200005"), fr("02030a00010000000013881386"), fr("020625020fa0"), fr("020625020fa0")]
+# status word 0001H (running) and input terminal S1 on (0001H): two values only A510's map explains
+A510_POLL = [fr("020325200005"), fr("02030a00010000000113881386"), fr("020625020fa0"), fr("020625020fa0")]
 
 
 def test_unmapped_unit_guessed_from_its_registers():

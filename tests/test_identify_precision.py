@@ -239,7 +239,7 @@ def test_user_map_of_the_right_model_is_not_contradicted():
         assert notes(frames, MISMATCH) == [] and notes(frames, GUESS) == []
 
 
-A510_POLL = read(2, 0x03, 0x2520, 4, {0x2520: 0x0005, 0x2521: 0, 0x2522: 0, 0x2523: 5000}) + [
+A510_POLL = read(2, 0x03, 0x2520, 4, {0x2520: 0x0005, 0x2521: 0, 0x2522: 0x0001, 0x2523: 5000}) + [
     fr("020625020fa0"), fr("020625020fa0")]
 
 
@@ -267,13 +267,13 @@ def test_vendor_exception_alone_is_not_enough():
 
 def test_bare_parameters_only_one_map_holds_are_not_enough():
     """A temperature controller at 1000H-1009H (A510 parameters 16-00..16-09: the map says only
-    that they exist) answering 03H/06H only: at most 2 points from bare rows, never a name."""
+    that they exist) answering 03H/06H only: 1 point from bare rows in all, never a name."""
     words = dict.fromkeys(range(0x1000, 0x100A), 250)
     traffic = [h for a in range(0x1000, 0x100A) for h in read(7, 0x03, a, 1, words)]
     traffic += [fr("070610010320"), fr("070610010320")]
     frames, reg = run(bursts(traffic * 3, L), L)
     assert notes(frames, GUESS) == []
-    assert reg.identifier.score(reg.identifier.units[7].items["a510"]) == 3
+    assert reg.identifier.score(reg.identifier.units[7].items["a510"]) == 1
 
 
 def test_evidence_for_two_models_stays_generic():
@@ -301,3 +301,27 @@ def test_meter_next_to_an_identified_drive_does_not_take_its_name():
     frames, reg = run(bursts(traffic, L), L)
     assert {f.unit: d.split(":")[0] for f, d in notes(frames, GUESS)} == {2: "unit 2 looks like tds-v8"}
     assert {f.model for f in frames if f.unit == 5} == {"generic"}
+
+
+# ---- found by an outside review: generic devices with big register spaces ----------------------
+@pytest.mark.parametrize("blocks, values", [
+    ([(0x0264, 8), (0x0270, 8)], lambda k: (k * 97) % 1001),  # SPL's PLC timer/counter words: 0..1000
+    ([(0x0123, 1), (0x0124, 1)], lambda k: 1 + k % 7),         # two single registers in 0100H-01FFH
+    ([(0x0420, 4), (0x0430, 4)], lambda k: 1 + k % 8),         # TDS-V8 Sn-33.. settings: small integers
+    ([(0x0415, 8)], lambda k: k % 3),
+    ([(0x0C01, 4), (0x0D00, 4)], lambda k: 10 * k),            # A510 parameter groups 12/13
+], ids=["spl-plc-words", "two-singles", "tds-sn-small-ints", "tds-sn-0415", "a510-params"])
+def test_a_device_with_a_big_register_space_stays_generic(blocks, values):
+    words = {a + k: values(a + k) for a, q in blocks for k in range(q)}
+    traffic = [h for a, q in blocks for h in read(9, 0x03, a, q, words)]
+    frames, reg = run(bursts(traffic * 20, L), L)
+    assert notes(frames, GUESS) == [] and reg.guesses == {}
+    assert {f.model for f in frames if not f.is_noise} == {"generic"}
+
+
+def test_an_echoed_write_to_a_read_only_register_rules_the_model_out():
+    """SPL's 0123H/0125H are monitor values (read-only): a device that echoes writes to them is no SPL."""
+    traffic = [fr("090601230065"), fr("090601230065"), fr("090601250003"), fr("090601250003")]
+    frames, reg = run(bursts(traffic * 5, L), L)
+    assert notes(frames, GUESS) == []
+    assert "read-only" in reg.identifier.ruled_out(9, "spl")
