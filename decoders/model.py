@@ -67,6 +67,10 @@ class TableDecoder(GenericModbus):
         fcs = regmap.model.get("function_codes")  # the manual's list: another code is answered 01H
         self.functions = (frozenset(fcs) | frozenset(regmap.model.get("vendor_function_codes") or ())
                           if fcs else None)
+        # the exception the manual says answers an unknown function (SPL: 51H FUNCTION CODE ERROR), else 01H
+        self.function_exception = next(
+            (c for c, e in sorted(regmap.exceptions.items())
+             if "function" in f"{e.get('name', '')} {e.get('text', '')}".lower()), 0x01)
         # (address, raw) -> the marker's meaning: a raw value that is no measurement
         self.markers = {(m["addr"], m["raw"]): m for m in regmap.model.get("not_available", [])}
 
@@ -276,7 +280,8 @@ class TableDecoder(GenericModbus):
         if self.functions is not None and fc not in self.functions:
             listed = ", ".join(f"{x:02X}H" for x in sorted(self.functions))
             f.annotations.append(note(FUNCTION, f"function {fc:02X}H: the {self.model} manual lists {listed} "
-                                                f"(another code is answered with exception 01H)", 1, 2))
+                                                f"(another code is answered with exception "
+                                                f"{self.function_exception:02X}H)", 1, 2))
         if fc == 0x08 and self.loop_subfunctions is not None and len(raw) >= 4:
             sub = (raw[2] << 8) | raw[3]
             if sub not in self.loop_subfunctions:

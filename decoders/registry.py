@@ -202,6 +202,10 @@ def default_registry(devices: dict[int, str] | None = None, model_files: list[st
     decoders = builtin_decoders()
     for path in model_files or []:
         for m in load_model_file(path, map_base):
+            if m.model_id == "generic":  # every unit without a model falls back to it
+                from .tables import MapError
+
+                raise MapError(f"{path}: model id 'generic' is the fallback for every unit; give the map its own id")
             d = TableDecoder(m)
             decoders[d.model] = d
     return DecoderRegistry(decoders, devices, default=default)

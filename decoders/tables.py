@@ -436,20 +436,31 @@ def map_from_doc(doc: dict, path: str, places: list[str] | None = None) -> Regis
            for k, v in c.table(doc.get("exceptions") or {}, "[exceptions]").items()}
     m = RegisterMap(model, regs, enums, bits, exc, path, inputs=inputs)
     m.by_id = {r.id: r for r in (*inputs.values(), *regs.values()) if r.id}
+    problems = lint(m, sections=False)
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise MapError(f"{path}: {problems[0]}{more}")
     return m
 
 
-def lint(m: RegisterMap) -> list[str]:
-    """Problems that make a map untrustworthy: overlaps, dangling references, missing sections."""
+def lint(m: RegisterMap, sections: bool = True) -> list[str]:
+    """Problems that make a map untrustworthy: overlaps, dangling references, missing sections.
+
+    Every map is loaded through it (`map_from_doc` refuses one with problems); a user's map may
+    leave out the manual sections (`sections=False`), the built-in maps' test holds them to it."""
     problems = []
     ids: dict[str, int] = {}
-    for a, r in sorted(m.registers.items()):
-        if not r.section:
+    for a, r in sorted((*m.registers.items(), *m.inputs.items()), key=lambda ar: (ar[0], ar[1].table)):
+        if sections and not r.section:
             problems.append(f"0x{a:04X} {r.name}: no manual section")
+        if r.scale == 0:
+            problems.append(f"0x{a:04X}: scale 0 makes every value 0")
+        if r.min is not None and r.max is not None and r.min > r.max:
+            problems.append(f"0x{a:04X}: min {r.min} > max {r.max}")
         if r.access not in ACCESS:
             problems.append(f"0x{a:04X}: access {r.access!r}")
         for k in range(1, r.width):
-            if a + k in m.registers:
+            if a + k in (m.inputs if r.table == "input" else m.registers):
                 problems.append(f"0x{a:04X} ({r.type}) overlaps 0x{a + k:04X}")
         if r.enum and r.enum not in m.enums:
             problems.append(f"0x{a:04X}: enum {r.enum!r} not defined")
@@ -465,7 +476,7 @@ def lint(m: RegisterMap) -> list[str]:
         if r.scale_by and r.scale_by.get("addr") not in m.registers:
             problems.append(f"0x{a:04X}: scale_by register not in the map")
         for rid in [x.strip() for x in r.id.split("/") if x.strip()]:
-            if rid in ids and ids[rid] != a:
+            if rid in ids and ids[rid] != a and not r.table:
                 problems.append(f"id {rid} used at 0x{ids[rid]:04X} and 0x{a:04X}")
             ids[rid] = a
     return problems

@@ -240,6 +240,17 @@ MAP_CASES = [
      "[bits.b] 0 values: key 'on' is not a number (decimal or 0x.. hex)"),
     (MODEL + '[exceptions]\n"0x1ff" = "x"', "[exceptions]: key '0x1ff' is outside 0..255"),
     ('[modle]\nid = "x"', "top level: unknown keys ['modle'] (known: registers, model, enums, bits, exceptions)"),
+    # what the table lint says of the built-in maps holds for a user's map too (an outside review found
+    # these loaded silently): one line, the first problem, how many more
+    ('registers = [{ addr = 1, name = "a", type = "f32", enum = "e" }]\n' + MODEL + '[enums.e]\n"1" = "one"',
+     "0x0001: a f32 takes no enum"),
+    ('registers = [{ addr = 1, name = "a", type = "u32", bits = "b" }]\n' + MODEL + '[bits.b]\n"3-40" = "x"',
+     "0x0001: bits 'b' field 'x' past bit 31"),
+    ('registers = [{ addr = 1, name = "a", enum = "zz" }]\n' + MODEL, "0x0001: enum 'zz' not defined"),
+    ('registers = [{ addr = 1, name = "a", scale = 0 }, { addr = 2, name = "b", min = 5, max = 1 }]\n' + MODEL,
+     "0x0001: scale 0 makes every value 0 (and 1 more)"),
+    ('registers = [{ addr = 1, name = "a", type = "str", words = 2, scale = 0.1 }]\n' + MODEL,
+     "0x0001: a str takes no scale"),
 ]
 
 
@@ -265,3 +276,10 @@ def test_good_register_map_with_counts_and_tables(tmp_path, capsys):
     assert rm.exceptions[0x41]["name"] == "vendor" and rm.bits_text("b", 0b010001) == "run, mode=b"
     code, lines = cli(capsys, "decode", "010300100001", "--model-file", m, "--device", "1=mine")
     assert code == 0 and lines == []
+
+
+def test_a_user_map_may_not_take_the_generic_id(tmp_path, capsys):
+    m = tmp_path / "g.toml"
+    m.write_text('registers = [{ addr = 1, name = "a" }]\n[model]\nid = "generic"\n')
+    assert one_error(capsys, "decode", "010300000002C40B", "--model-file", m) == (
+        f"{m}: model id 'generic' is the fallback for every unit; give the map its own id")

@@ -14,12 +14,14 @@ import csv
 import struct
 from pathlib import Path
 
+import tomllib
+
 import pytest
 from helpers import bursts, export, fr, run_sniffer
 from refdata import VECTORS
 
 from decoders.registry import default_registry
-from decoders.tables import MapError, Register, lint, load_map
+from decoders.tables import MapError, Register, RegisterMap, lint, load_map
 from sniffer.events import CaptureInfo
 from sniffer.line import LineSettings
 from sniffer.pipeline import Pipeline
@@ -238,8 +240,15 @@ def test_model_defaults_for_order_and_lint(tmp_path):
                                '{ addr = 4, name = "W", type = "u16", bits = "b", section = "t" },\n'
                                '{ addr = 5, name = "S", type = "str", words = 1, scale = 0.1, section = "t" },',
                      "bad", extra='[enums.e]\n"1" = "one"\n[bits.b]\n"20" = "far"\n')
-    assert lint(load_map(bad)) == ["0x0002: a f32 takes no enum",
-                                   "0x0004: bits 'b' field 'far' past bit 15", "0x0005: a str takes no scale"]
+    with pytest.raises(MapError, match=r"bad.toml: 0x0002: a f32 takes no enum \(and 2 more\)"):
+        load_map(bad)  # the loader lints every map, a user's too
+    doc = tomllib.loads(Path(bad).read_text())
+    doc["registers"] = [dict(r) for r in doc["registers"]]
+    m = RegisterMap(doc["model"], {r["addr"]: Register(**{"id": "", **r}) for r in doc["registers"]}, {}, {}, {})
+    m.enums = {"e": {1: {"text": "one"}}}
+    m.bits = {"b": [{"lo": 20, "hi": 20, "name": "far"}]}
+    assert lint(m) == ["0x0002: a f32 takes no enum",
+                       "0x0004: bits 'b' field 'far' past bit 15", "0x0005: a str takes no scale"]
     overlap = model_file(tmp_path, '{ addr = 0, name = "A", type = "u32", section = "t" },\n'
                                    '{ addr = 1, name = "B", type = "u16", section = "t" },', "overlap")
     with pytest.raises(MapError, match=r"register 0x0001 is inside 0x0000 \(A, a u32 of 2 registers\)"):
@@ -273,6 +282,25 @@ def test_watch_shows_the_combined_value():
     attached.add([frame_from_record(loads(frame_json(f, t0)), t0) for f in frames])
     assert [(r.address, r.words, r.value, r.raw) for r in attached.register_rows(1)] == [
         (0x2510, 2, 0x00020003, 0x00020003)]
+
+
+def test_a_half_read_or_write_after_the_whole_never_shows_as_the_value():
+    """Found by an outside review: a 1-register read of 12-00's halves overwrote the joined row (and its
+    plot) with the half's raw number.  Now the row keeps its value, says it is stale, and the next
+    whole read sets it again."""
+    halves = [fr("010325100001"), fr("0103020001"),  # the high word alone
+              fr("010625110007"), fr("010625110007"),  # the low word written alone
+              fr("010325100002"), fr("01030400010007")]  # whole again: 0x00010007
+    frames = decode(A510_FRAMES[2:4] + halves, {1: "a510"})
+    s = FrameStore(frames[0].t_ns)
+    s.add(frames[:2])
+    s.add(frames[2:6])
+    (row,) = s.register_rows(1)
+    assert (row.address, row.words, row.value) == (0x2510, 2, 123456) and list(row.history) == [123456]
+    assert row.text == "word 2/2 now 0007H: value as of the last whole read"
+    s.add(frames[6:])
+    (row,) = s.register_rows(1)
+    assert (row.value, row.text, list(row.history)) == (0x00010007, "", [123456, 0x00010007])
 
 
 def test_watch_under_pilot_shows_one_row_per_value():

@@ -16,7 +16,11 @@ A value of several registers (a u32, a float, a string: decoders/regtypes.py)
 is one point with `words`, its registers as written: where a write holds those
 words at the point's address, the value is one row at its first address (raw =
 the registers joined) and the rows its other registers had are dropped (they
-were shown raw while only part of the value had been read).
+were shown raw while only part of the value had been read).  A point of one
+register of such a value (`part`: a read or write of half a u32) never
+overwrites the value's row nor enters its plot: while the row exists it is
+marked stale ("word 2/2 now 0007H: value as of the last whole read") until a
+whole read or write sets it again; without a row, the register shows raw.
 """
 
 from __future__ import annotations
@@ -99,6 +103,10 @@ class RegisterBook:
                     if p is not None and not _holds(p, raws, i):
                         p = None
                 step = 1
+                part = p.get("part") if p is not None else None
+                if part is not None and self._stale(unit, wtable, a, part, raw, t_ns):
+                    i += 1
+                    continue
                 if p is not None:
                     words = p.get("words")
                     if words is not None:  # one value of these registers
@@ -117,6 +125,23 @@ class RegisterBook:
                 self.set(key, raw, p, t_ns, step)
                 i += step
         self.version += 1
+
+    def _stale(self, unit: int, table: str, a: int, part: list, raw, t_ns: int) -> bool:
+        """Register a is word part[0] + 1 of a value of part[1] registers: mark that value's row stale
+        (True) rather than show the half as the value; False when there is no such row."""
+        k, w = part
+        rv = self.values.get((unit, table, a - k))
+        if rv is None or rv.words != w:
+            return False
+        note = f"word {k + 1}/{w} now {raw:04X}H: value as of the last whole read"
+        if rv.text != note:
+            rv.text = note
+            rv.changed_ns = t_ns
+            rv.changes += 1
+        rv.t_ns = t_ns
+        if k:
+            self._drop(unit, table, a, a + 1)  # its own raw row, if an earlier half made one
+        return True
 
     def _drop(self, unit: int, table: str, lo: int, hi: int) -> None:
         """Registers lo..hi-1 now belong to the value at lo - 1: their own rows go."""
