@@ -119,6 +119,12 @@ def guess_pair(a: RegStats, b: RegStats) -> Guess | None:
         g = _float_guess(his, los, order)
         if g is not None:
             return g
+    # an s32 of small magnitude, high word first: the high word is the low word's sign, in both signs
+    if (any(h == 0xFFFF for h in first) and any(h == 0 for h in first)
+            and all(h == (0xFFFF if lo & 0x8000 else 0) for h, lo in zip(first, second))):
+        vals = [(((h << 16) | lo) ^ 0x80000000) - 0x80000000 for h, lo in zip(first, second)]
+        return Guess("s32", f"s32 (high word first) {min(vals)}..{max(vals)}: in all {len(seqs)} samples the high "
+                            f"word is the low word's sign (0000H / FFFFH)")
     # a u32 counter, high word first: never falls, and its high word moves exactly when the low word wraps
     vals = [(h << 16) | lo for h, lo in zip(first, second)]
     steps = list(zip(first, first[1:], second, second[1:]))
@@ -267,6 +273,15 @@ class Learner:
                 s = self.regs[unit, table, a]
                 nxt = self.regs.get((unit, table, a + 1))
                 g = guess_pair(s, nxt) if nxt is not None and a + 1 <= 0xFFFF else None
+                if g is not None and g.evidence.startswith("float32?") and a + 2 <= 0xFFFF:
+                    # a weak float guess yields to the pair one register on if that one is stronger or
+                    # high word first while this is low word first (the s32 before a float: its low
+                    # word and the float's high word look like a steady float low word first)
+                    after = self.regs.get((unit, table, a + 2))
+                    g2 = guess_pair(nxt, after) if after is not None else None
+                    if g2 is not None and (not g2.evidence.startswith("float32?")
+                                           or (g.word_order, g2.word_order) == ("little", "big")):
+                        g = None  # a stronger guess, or Modbus's own word order, one register on
                 if g is not None:
                     taken.add(a + 1)
                     written = s.written + nxt.written
@@ -281,30 +296,36 @@ class Learner:
         return out
 
     def to_map(self, model_id: str, source: str = "") -> RegisterMap:
+        """The skeleton map: one row per address, or one per table where the device answered the
+        address as a holding and as an input register (a meter's input 0000H and holding 0000H)."""
         rows: dict[int, Register] = {}
-        for a, cands in sorted(self.guesses().items()):
-            types = {r.type + r.word_order for _u, _t, r in cands}
-            tables = sorted({t for _u, t, _r in cands})
-            r = Register(addr=a, id="", name=cands[0][2].name, access=_access(c[2].access for c in cands),
-                         section=f"learned from {source}" if source else "learned from traffic")
-            if len(types) == 1:
-                r.type, r.word_order, r.words = cands[0][2].type, cands[0][2].word_order, cands[0][2].words
-            notes = [c[2].note for c in cands]
-            if len(types) > 1:
-                notes.insert(0, "units disagree, left u16")
-            if len(tables) > 1:
-                notes.insert(0, f"seen as {' and '.join(tables)} register (one row for both: split it into "
-                                f"rows with table = \"holding\" / \"input\" if they differ)")
-            r.note = "; ".join(notes)
-            rows[a] = r
-        # a 32-bit guess of one unit must not cover another row: it falls back to u16 there
-        for a in sorted(rows):
-            r = rows.get(a)
-            if r is not None and r.width > 1 and any(a + k in rows for k in range(1, r.width)):
-                r.note = f"{r.type} guess dropped: {a + 1:04X}H is a register of its own elsewhere; " + r.note
-                r.type, r.word_order = "u16", "big"
+        inputs: dict[int, Register] = {}
+        for a, all_cands in sorted(self.guesses().items()):
+            tables = sorted({t for _u, t, _r in all_cands})
+            for table in tables if len(tables) > 1 else [None]:
+                cands = [c for c in all_cands if table is None or c[1] == table]
+                types = {r.type + r.word_order for _u, _t, r in cands}
+                r = Register(addr=a, id="", name=cands[0][2].name, access=_access(c[2].access for c in cands),
+                             section=f"learned from {source}" if source else "learned from traffic",
+                             table=table or "")
+                if len(types) == 1:
+                    r.type, r.word_order, r.words = cands[0][2].type, cands[0][2].word_order, cands[0][2].words
+                notes = [c[2].note for c in cands]
+                if len(types) > 1:
+                    notes.insert(0, "units disagree, left u16")
+                r.note = "; ".join(notes)
+                (inputs if table == "input" else rows)[a] = r
+        # a 32-bit guess must not cover another row of its table: it falls back to u16 there
+        for table_rows in (rows, inputs):
+            for a in sorted(table_rows):
+                r = table_rows[a]
+                mine = inputs if r.table == "input" else rows
+                others = [mine] + ([inputs] if not r.table else [])
+                if r.width > 1 and any(a + k in t for t in others for k in range(1, r.width)):
+                    r.note = f"{r.type} guess dropped: {a + 1:04X}H is a register of its own elsewhere; " + r.note
+                    r.type, r.word_order, r.words = "u16", "big", 1
         model = {"id": model_id, "name": f"learned from {source}" if source else "learned from traffic"}
-        return RegisterMap(model, rows, {}, {}, {}, "")
+        return RegisterMap(model, rows, {}, {}, {}, "", inputs=inputs)
 
     def summary(self, source: str = "") -> str:
         """The header of the learned file: what was seen, units and blocks (comment lines, no '#')."""

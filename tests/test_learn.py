@@ -236,3 +236,46 @@ def test_learn_refuses_a_pd_series_capture(tmp_path, capsys):
     line = one_error(capsys, "learn", "captures/sim/pd-series.mcap", "--out", out)
     assert "pd-rtu frames: learn writes Modbus register maps" in line
     assert not out.exists() and not list(tmp_path.glob("*.part"))
+
+
+def _polls_capture(path, blocks_of, polls: int = 40, seed: int = 5) -> None:
+    """A unit-7 byte CSV at 9600 8N1: each poll reads every (fc, start, words) `blocks_of(rng)` gives."""
+    rng = random.Random(seed)
+    char_s = 11 / 9600
+    rows, t = [], 0.0
+    for _ in range(polls):
+        for fc, start, words in blocks_of(rng):
+            req = _frame(bytes([7, fc]) + struct.pack(">HH", start, len(words)))
+            rsp = _frame(bytes([7, fc, 2 * len(words)]) + struct.pack(f">{len(words)}H", *words))
+            for data, gap in ((req, 0.004), (rsp, 0.05)):
+                for b in data:
+                    rows.append(f"{t:.6f},RX,{b:02x},")
+                    t += char_s
+                t += gap
+    path.write_text("t_s,channel,byte_hex,flags\n" + "\n".join(rows) + "\n")
+
+
+def test_learn_keeps_holding_and_input_apart_and_aligns_s32_before_a_float(tmp_path, capsys):
+    """Found by an outside review: holding 0000H (a setting, 15) and input 0000H (a float) made one row,
+    and an s32 before a float32 lent its low word to a float read one register off."""
+    def blocks(rng):
+        volts = _words_f(230 + rng.uniform(-3, 3))
+        s32 = rng.randint(-500, 500) & 0xFFFFFFFF
+        hz = _words_f(50 + rng.uniform(-0.25, 0.25))
+        inputs = volts + [0, rng.randint(0, 60000)] + [s32 >> 16, s32 & 0xFFFF] + hz
+        return [(4, 0, inputs), (3, 0, [15])]
+
+    cap, out = tmp_path / "meter4.csv", tmp_path / "m4.toml"
+    _polls_capture(cap, blocks)
+    code, err = _learn(capsys, cap, out, "--baud", "9600")
+    assert code == 0, err
+    m = load_map(out)
+    assert (m.registers[0].table, m.registers[0].type) == ("holding", "u16")
+    assert "constant 15" in m.registers[0].note
+    i = m.view("input").registers  # input 0000H has its own row; 0002H on answer only as input: no table
+    assert (i[0].table, i[0].type) == ("input", "f32") and m.registers[4].table == ""
+    assert (i[4].type, i[6].type, i[6].word_order) == ("s32", "f32", "big")
+    assert 5 not in i and 7 not in i
+    recs = _replay(capsys, cap, out, ["7=m4"], "--baud", "9600")
+    names = {p["name"] for r in recs for p in r["points"]}
+    assert {"holding 0000H", "input 0000H", "input 0004H", "input 0006H"} <= names
