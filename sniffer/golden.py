@@ -4,6 +4,9 @@ The golden text has one line per frame:
 
     <t seconds> <latency ms or -> | <content: role, unit, model, fc, crc, pair offset, summary, codes>
 
+A summary shows at most 6 points ("... (+N)"); v2 goldens add the rest after it
+(" | rest: name=value ..."), so a value changed in the 7th register of a read
+is a changed line too.  A v1 golden (no rest) is compared as v1.
 Content is compared exactly; the two timing columns within tolerances
 (`Tolerances(time_ms=..., latency_ms=...)`), so a golden survives a rounding
 change in a clock model but not a changed verdict.  Exit codes: 0 same,
@@ -28,7 +31,10 @@ from pathlib import Path
 from .frame import Frame
 
 EXIT_SAME, EXIT_DIFFERENT, EXIT_ERROR = 0, 1, 2
-GOLDEN_HEADER = "# sniffer golden v1: t_s latency_ms | role unit model fc crc pair(offset) summary [codes]"
+GOLDEN_HEADER = ("# sniffer golden v2: t_s latency_ms | role unit model fc crc pair(offset) summary [| rest: points "
+                 "past the summary's 6] [codes]")
+GOLDEN_V1 = "# sniffer golden v1: t_s latency_ms | role unit model fc crc pair(offset) summary [codes]"
+SHOWN = 6  # points a summary shows (decoders.generic.decoder._points_summary)
 WINDOW = 2000  # unmatched lines held per side while re-aligning
 MAX_SHOWN = 2000  # changed lines shown in a diff (the rest are counted)
 CONTEXT = 3
@@ -42,7 +48,17 @@ class Tolerances:
     latency_ms: float = 1.0  # request -> response latency
 
 
-def golden_line(f: Frame, t0_ns: int) -> str:
+def _rest(f: Frame) -> str:
+    """The points a summary left out (" ... (+N)"), as name=value text: '' if it left none out."""
+    if " ... (+" not in f.summary:
+        return ""
+    from decoders.generic.decoder import _points_summary
+
+    pts = f.points
+    return f" | rest: {_points_summary(list(pts[SHOWN:]), 1 << 30)}" if len(pts) > SHOWN else ""
+
+
+def golden_line(f: Frame, t0_ns: int, version: int = 2) -> str:
     t = (f.t_ns - t0_ns) / 1e9
     lat = "-" if f.latency_ms is None else f"{f.latency_ms:.3f}"
     codes = ",".join(a.code for a in f.annotations)
@@ -55,16 +71,17 @@ def golden_line(f: Frame, t0_ns: int) -> str:
         crc = {True: "ok", False: "BAD", None: "-"}[f.crc_ok]
         # the partner as an offset, not an index: one inserted frame is one diff line
         pair = "-" if f.pair is None else f"{f.pair - f.index:+d}"
+        rest = _rest(f) if version >= 2 else ""
         content = (f"{f.role} u{unit} {f.model or '-'} fc{fc} crc={crc} pair={pair} "
-                   f"{f.summary}{tail}")
+                   f"{f.summary}{rest}{tail}")
     return f"{t:.6f} {lat} | {content}"
 
 
-def golden_lines(t0_ns: int, frames: Iterable[Frame]) -> Iterator[str]:
-    """The golden text of a decode, line by line (header first)."""
-    yield GOLDEN_HEADER
+def golden_lines(t0_ns: int, frames: Iterable[Frame], version: int = 2) -> Iterator[str]:
+    """The golden text of a decode, line by line (header first); `version` 1 for an old golden."""
+    yield GOLDEN_HEADER if version >= 2 else GOLDEN_V1
     for f in frames:
-        yield golden_line(f, t0_ns)
+        yield golden_line(f, t0_ns, version)
 
 
 def golden_text(t0_ns: int, frames: Iterable[Frame]) -> str:
@@ -221,6 +238,12 @@ def compare_text(old: str, new: str, tol: Tolerances = Tolerances(), names=("gol
     return compare_lines(old.splitlines(), new.splitlines(), tol, names)
 
 
+def _version(path: Path) -> int:
+    """The golden format of the file at path: 1 for a v1 header, else the current one."""
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        return 1 if fh.readline().rstrip("\n") == GOLDEN_V1 else 2
+
+
 def _read_lines(path: Path) -> Iterator[str]:
     with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
@@ -269,7 +292,7 @@ def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
             session.close()
             return EXIT_ERROR, (f"sniffer check: error: {golden}: no such golden file "
                                 "(create it with --update-golden, then review it)\n")
-        d = compare_lines(_read_lines(golden), golden_lines(session.info.t0_ns, session), tol,
+        d = compare_lines(_read_lines(golden), golden_lines(session.info.t0_ns, session, _version(golden)), tol,
                           (name, os.fspath(capture)))
         err = _failed(session)
         if err:

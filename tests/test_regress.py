@@ -41,7 +41,7 @@ def test_same_capture_passes(a510_golden):
 
 def test_golden_is_one_line_per_frame_with_timing_columns(a510_golden):
     lines = a510_golden.read_text().splitlines()
-    assert lines[0].startswith("# sniffer golden v1")
+    assert lines[0].startswith("# sniffer golden v2")
     assert len(lines) == 1 + 502
     assert all(" | " in x for x in lines[1:])
     assert "response u1 a510 fc10 crc=ok pair=-1" in lines[2]
@@ -209,3 +209,32 @@ def test_quantiles_are_exact_then_within_a_tenth_of_a_percent():
     for q in (0.05, 0.5, 0.95, 0.999):
         want = exact[round(q * (len(xs) - 1))]
         assert abs(big.pct(q) - want) <= 0.001 * want + 0.0005, q
+
+
+def test_a_value_past_the_summarys_sixth_point_is_checked(tmp_path, a510_golden):
+    """Found by an outside review: the golden held the summary only ("... (+10)"), so a value changed in
+    the 7th register of a read passed.  v2 lines carry the rest of the points."""
+    text = a510_golden.read_text()
+    lines = text.splitlines()
+    k = next(i for i, x in enumerate(lines) if " | rest: " in x)
+    rest = lines[k].split(" | rest: ", 1)[1]
+    name, _, after = rest.partition("=")
+    value = after.split(" ", 1)[0]
+    changed = lines[k].replace(f" | rest: {name}={value}", f" | rest: {name}={value}9", 1)
+    assert changed != lines[k]
+    g = tmp_path / "g.txt"
+    g.write_text("\n".join(lines[:k] + [changed] + lines[k + 1:]) + "\n")
+    rc, diff_text = check(A510, g)
+    assert rc == EXIT_DIFFERENT and f"{name}={value}9" in diff_text
+
+
+def test_a_v1_golden_is_still_checked_as_v1(tmp_path, a510_golden):
+    lines = a510_golden.read_text().splitlines()
+    v1 = ["# sniffer golden v1: t_s latency_ms | role unit model fc crc pair(offset) summary [codes]"]
+    for x in lines[1:]:
+        head, sep, rest = x.partition(" | rest: ")
+        codes = rest[rest.rfind(" ["):] if sep and rest.endswith("]") and " [" in rest else ""
+        v1.append(head + codes if sep else x)
+    g = tmp_path / "v1.txt"
+    g.write_text("\n".join(v1) + "\n")
+    assert check(A510, g) == (EXIT_SAME, "")

@@ -42,7 +42,7 @@ def test_missing_golden_fails_then_update_then_pass(pytester):
 
     _run(pytester, "--update-golden").assert_outcomes(passed=2)
     golden = pytester.path / "golden" / "a510.txt"
-    assert golden.read_text().startswith("# sniffer golden v1")
+    assert golden.read_text().startswith("# sniffer golden v2")
     assert (pytester.path / "golden" / "wiz.txt").exists()
     _run(pytester).assert_outcomes(passed=2)
 
