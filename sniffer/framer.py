@@ -296,6 +296,9 @@ class RtuFramer(Crc16Framing, LineBuffer):
             for length, can in candidates(buf, p - base, q - base):
                 if length == q - p and type(length) is int:
                     return self._emit(p, q, can, crc_good=False, raw=seg)
+        cut = _crc_partition(seg)
+        if cut:
+            return self._crc_run(p, p + cut, seg[:cut])
         return self._emit_noise(p, q)
 
     def _rule_b3b_frame_inside(self, p: int, b: int, end: int, final: bool):
@@ -312,14 +315,18 @@ class RtuFramer(Crc16Framing, LineBuffer):
         return self._rule_b3c_two_crc_runs(p, b)
 
     def _rule_b3c_two_crc_runs(self, p: int, b: int):
-        """B3c: the run splits into two CRC-valid pieces (two frames of an unknown or user-defined
-        function glued in one read, which no length rule cuts): the first is a frame (B1's notes)."""
-        if b - p > 2 * MAX_ADU:
+        """B3c: the run splits wholly into CRC-valid pieces (frames of an unknown or user-defined
+        function, or 08s without data, glued in one read, which no length rule cuts): the first
+        is a frame (B1's notes)."""
+        if b - p > 4 * MAX_ADU:
             return NEXT
         seg = bytes(self.buf[p - self.base : b - self.base])
-        for q in range(4, len(seg) - 3):
-            if crc_ok(seg[:q]) and crc_ok(seg[q:]):
-                return self._crc_run(p, p + q, seg[:q])
+        cut = _crc_partition(seg)
+        if cut:
+            return self._crc_run(p, p + cut, seg[:cut])
+        for q in range(1, min(JUNK_BEFORE, len(seg) - 4) + 1):  # a few bytes of line noise before them
+            if _crc_partition(seg[q:], whole_ok=True):
+                return self._emit_noise(p, p + q)
         return NEXT
 
     def _rule_b3_damaged_frame(self, p: int, b: int, end: int, final: bool):
@@ -433,6 +440,30 @@ def _quick(buf, i: int, n: int):
     if fc & 0x80 and fc != 0x80:
         return _EXC_CANDS
     return None
+
+
+JUNK_BEFORE = 8  # bytes of noise B3c looks past for glued CRC-valid runs (each try costs up to 256 CRCs)
+
+
+def _crc_partition(seg: bytes, whole_ok: bool = False) -> int:
+    """The length of the first piece when `seg` splits wholly into CRC-valid runs of 4..256 bytes,
+    shortest pieces first; 0 if it does not (or is one piece, unless `whole_ok`).  A chance CRC
+    match splits no run: every piece must hold one, end to end."""
+    n = len(seg)
+    if whole_ok and 4 <= n <= MAX_ADU and crc_ok(seg):
+        return n
+    memo: dict[int, bool] = {n: True}
+
+    def whole(i: int) -> bool:  # seg[i:] splits into CRC-valid runs
+        hit = memo.get(i)
+        if hit is None:
+            hit = memo[i] = any(crc_ok(seg[i:j]) and whole(j) for j in range(i + 4, min(n, i + MAX_ADU) + 1))
+        return hit
+
+    for j in range(4, min(n - 4, MAX_ADU) + 1):
+        if crc_ok(seg[:j]) and whole(j):
+            return j
+    return 0
 
 
 def _noise_reason(raw: bytes) -> str:  # RtuFramer.noise_reason

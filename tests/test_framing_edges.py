@@ -386,3 +386,17 @@ def test_a_frame_of_both_shapes_with_nothing_pending_says_so():
     (f,) = out
     assert f.role == REQUEST and "pair.role.ambiguous" in codes(f)
     assert "nothing pending" in next(a.detail for a in f.annotations if a.code == "pair.role.ambiguous")
+
+
+@pytest.mark.parametrize("chunking", CHUNKINGS)
+def test_several_glued_frames_no_length_rule_cuts_are_each_a_frame(chunking):
+    """Third outside review: three fc41 frames, or two 6-byte 08s before a read, merged into one noise."""
+    a, b, c = h("0141123456"), h("0141aabbccdd"), h("0141ee")
+    got = framed(chunking(a, b, c))
+    assert [f.raw for f in got] == [a, b, c] and all(f.crc_ok for f in got)
+    d, req = h("01080004"), h("010300000001")
+    got = framed(chunking(d, d, req))
+    assert [f.raw for f in got] == [d, d, req] and all(f.crc_ok for f in got)
+    junk = bytes.fromhex("00ff13")
+    got = framed(chunking(junk, a, b, c))  # junk before them stays noise, the frames stay frames
+    assert [f.raw for f in got if f.protocol != "noise"] == [a, b, c]
