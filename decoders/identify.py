@@ -32,9 +32,10 @@ The unit is named once a model that is not ruled out reaches SCORE (4) and no
 other model that is not ruled out has evidence of its own: e.g. two described
 registers only it has, or a vendor exception plus an answer its map fits.  A
 unit with no evidence of its own that is polled like a unit named from its own
-evidence (at least two of the same requests answered, half of all it answered)
-and not ruled out for that model (no value its map rules out) gets the same name
-("polled like unit 2").
+evidence (at least two of the same requests answered, half of all it answered),
+not ruled out for that model (no value its map rules out) and showing its shape
+(a non-zero status word or code that fits the map's bits or enum, at any address;
+a unit answering zeros shows none) gets the same name ("polled like unit 2").
 Confidence = 1 - 2^(-score/2).  If the named model is ruled out later, the
 guess is withdrawn.  A user's device map always wins; the registry annotates
 a guess that contradicts it.  After SETTLED answers a unit's verdict stands
@@ -318,10 +319,13 @@ class Identifier:
                 self._item(ev, mf.id, ("reg", W_BARE, fc, a, q), W_BARE, f"read {label} (only its map has it)")
             misfit = set()
             for k, r in rv.checked:
-                why = mf.misfit(r, (data[2 * k] << 8) | data[2 * k + 1])
+                raw = (data[2 * k] << 8) | data[2 * k + 1]
+                why = mf.misfit(r, raw)
                 if why:
                     misfit.add(k)
                     self._item(ev, mf.id, ("misfit", r.addr), W_MISFIT, why)
+                elif raw and (r.enum or r.bits):  # not evidence of its own (any address), but what a
+                    self._item(ev, mf.id, ("shape", r.addr), 0, "")  # "polled like" unit must also show
             for k, r in rv.telling:
                 raw = (data[2 * k] << 8) | data[2 * k + 1]
                 if k not in misfit and raw:
@@ -370,7 +374,9 @@ class Identifier:
     def _polled_like(self, unit: int, ev: UnitEvidence) -> Verdict | None:
         """No evidence of its own: the name of a unit polled the same way, if nothing rules it out."""
         for other, model in sorted(self.direct.items()):
-            if other == unit or model in ev.ruled_out or any(k[0] == "misfit" for k in ev.items.get(model, ())):
+            mine = ev.items.get(model, ())
+            if (other == unit or model in ev.ruled_out or any(k[0] == "misfit" for k in mine)
+                    or not any(k[0] == "shape" for k in mine)):  # zeros fit every table: no shape of the model
                 continue
             shared = ev.answered & self.units[other].answered
             if len(shared) >= 2 and 2 * len(shared) >= len(ev.answered):
@@ -384,7 +390,7 @@ class Identifier:
         return None
 
     def _explain(self, ev: UnitEvidence, model: str, score: int) -> str:
-        items = sorted(ev.items[model].items(), key=lambda kv: -kv[1][0])
+        items = sorted((kv for kv in ev.items[model].items() if kv[0][0] != "shape"), key=lambda kv: -kv[1][0])
         shown = [f"{label} ({w:+d})" for _, (w, label) in items[:5]]
         more = f", +{len(items) - 5} more" if len(items) > 5 else ""
         return (f"score {score}, confidence {confidence_of(score)}: {'; '.join(shown)}{more}"

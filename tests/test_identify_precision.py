@@ -325,3 +325,19 @@ def test_an_echoed_write_to_a_read_only_register_rules_the_model_out():
     frames, reg = run(bursts(traffic * 5, L), L)
     assert notes(frames, GUESS) == []
     assert "read-only" in reg.identifier.ruled_out(9, "spl")
+
+
+def test_a_unit_answering_zeros_is_not_polled_like_a_named_drive():
+    """Third outside review: a unit polled like a TDS-V8 named by its 22H, answering zeros (which fit every
+    table), took the name with no evidence of its own.  It must show the model's shape first."""
+    tds = dict.fromkeys(range(0x0020, 0x0030), 0) | {0x0000: 0x0001, 0x0001: 3000, 0x0020: 0x0802}
+    zeros = dict.fromkeys(range(0x0020, 0x0030), 0) | {0x0000: 0, 0x0001: 0x00E6}
+    traffic = []
+    for _ in range(10):
+        traffic += read(1, 0x03, 0x0000, 2, tds) + read(1, 0x03, 0x0020, 16, tds)
+        traffic += read(2, 0x03, 0x0000, 2, zeros) + read(2, 0x03, 0x0020, 16, zeros)
+    traffic += [fr("010301000001"), fr("018322")]
+    traffic += read(2, 0x03, 0x0000, 2, zeros) + read(2, 0x03, 0x0020, 16, zeros)
+    frames, reg = run(bursts(traffic, L), L)
+    assert {f.unit: d.split(":")[0] for f, d in notes(frames, GUESS)} == {1: "unit 1 looks like tds-v8"}
+    assert {f.model for f in frames if f.unit == 2} == {"generic"}
