@@ -133,3 +133,19 @@ def test_spans_of_a_joined_32_bit_point_would_cover_both_words():
     p = rsp.points[0]
     assert p["raw"] == 0x00010002 and int.from_bytes(rsp.raw[slice(*p["span"])], "big") == p["raw"]
     assert rsp.writes == [["holding", 0x2510, [1, 2]]]  # the shadow keeps words, whatever the points join
+
+
+def test_a_write_multiple_response_for_other_registers_confirms_nothing():
+    """Third outside review: a 10H response echoing other addresses (pair.mismatch) still committed the
+    request's values to the register shadow."""
+    from helpers import bursts, fr, run_events
+
+    from sniffer.line import LineSettings
+
+    line = LineSettings(19200, "E", 1)
+    req = fr("0110000100020400050006")
+    good, other = fr("011000010002"), fr("011000050002")
+    out = run_events(bursts([req, other], line), line)
+    assert "pair.mismatch" in [a.code for a in out[1].annotations] and out[1].writes == []
+    out = run_events(bursts([req, good], line), line)
+    assert out[1].writes == [["holding", 1, [5, 6]]]

@@ -252,8 +252,10 @@ class GenericModbus:
         fc = f.function
         a, q = _HH.unpack_from(adu, 2)
         f.summary = "wrote " + self.range_text(SPACE[fc], a, q)
-        if request is not None and request.crc_ok and f.crc_ok:
-            written = _request_writes(request, fc)  # the request's values, confirmed here
+        # the request's values, confirmed here: only by a response naming the same registers (pair.mismatch
+        # otherwise, and nothing is known written)
+        if request is not None and request.crc_ok and f.crc_ok and request.adu[2:6] == adu[2:6]:
+            written = _request_writes(request, fc)
             if written is not None:
                 state.commit(f, *written)
 
