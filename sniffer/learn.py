@@ -296,18 +296,18 @@ class Learner:
         return out
 
     def to_map(self, model_id: str, source: str = "") -> RegisterMap:
-        """The skeleton map: one row per address, or one per table where the device answered the
-        address as a holding and as an input register (a meter's input 0000H and holding 0000H)."""
+        """The skeleton map: one row per address and table it was seen in (`table = "holding"` /
+        `"input"`: a meter's input 0000H and holding 0000H are two rows, and neither names the other's reads)."""
         rows: dict[int, Register] = {}
         inputs: dict[int, Register] = {}
         for a, all_cands in sorted(self.guesses().items()):
             tables = sorted({t for _u, t, _r in all_cands})
-            for table in tables if len(tables) > 1 else [None]:
-                cands = [c for c in all_cands if table is None or c[1] == table]
+            for table in tables:  # each row names the table it was seen in: a holding read is no input's
+                cands = [c for c in all_cands if c[1] == table]
                 types = {r.type + r.word_order for _u, _t, r in cands}
                 r = Register(addr=a, id="", name=cands[0][2].name, access=_access(c[2].access for c in cands),
                              section=f"learned from {source}" if source else "learned from traffic",
-                             table=table or "")
+                             table=table)
                 if len(types) == 1:
                     r.type, r.word_order, r.words = cands[0][2].type, cands[0][2].word_order, cands[0][2].words
                 notes = [c[2].note for c in cands]

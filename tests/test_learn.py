@@ -86,16 +86,18 @@ def test_learn_synthetic_meter_guesses_types_with_evidence(tmp_path, capsys):
     assert code == 0, err
     m = load_map(out)
     assert m.model_id == "meter7"
-    got = {a: (r.type, r.word_order) for a, r in m.registers.items()}
+    rows = {**m.inputs, **m.registers}  # fc04 rows are table "input", fc03 rows "holding"
+    assert {r.table for r in m.inputs.values()} == {"input"} and {r.table for r in m.registers.values()} == {"holding"}
+    got = {a: (r.type, r.word_order) for a, r in rows.items()}
     assert got == truth
-    notes = {a: r.note for a, r in m.registers.items()}
+    notes = {a: r.note for a, r in rows.items()}
     assert "float32 (high word first) 227." in notes[0] and "low word jumps" in notes[0]
     assert "float32 (low word first) 0.8" in notes[8]
     assert "signed: -" in notes[0x100] and "as s16" in notes[0x100]
     assert "rising (a counter?)" in notes[0x101]
     assert "constant 1234 (0x04D2) in 60 values" in notes[0x102]
     assert "counter: as u32" in notes[0x103] and "wraps" in notes[0x103]
-    assert all(r.access == "R" for r in m.registers.values())
+    assert all(r.access == "R" for r in rows.values())
     text = out.read_text()
     assert "u7 fc04 read input 0000H..0009H (10): 60x, every" in text
     assert "u7 fc03 read holding 0100H..0104H (5): 60x, every" in text
@@ -122,16 +124,17 @@ def test_learn_simulated_bus_ranges_match_the_traffic(tmp_path, capsys):
         assert f"u{unit} fc10 write holding 2000H..2001H (2)" in text
     # every register read on the bus has a row, and its note gives each unit's range as the frames carried it
     recs = _replay(capsys, SIM, out, [f"{u}=drives" for u in (1, 2, 5)])
-    seen: dict[tuple[int, int], list[int]] = {}
+    seen: dict[tuple[int, int, int], list[int]] = {}
     for r in recs:
         if r["crc_ok"] and r["role"] == "response" and r["function"] in (3, 4):
             for p in r["points"]:
-                seen.setdefault((r["unit"], p["address"]), []).append(p["raw"])
-    assert {a for _u, a in seen} == set(m.registers)
-    for (unit, a), vals in seen.items():
+                seen.setdefault((r["unit"], r["function"], p["address"]), []).append(p["raw"])
+    assert {a for _u, fc, a in seen if fc == 3} == set(m.registers)
+    assert {a for _u, fc, a in seen if fc == 4} == set(m.inputs)
+    for (unit, fc, a), vals in seen.items():
         if a == 0x2001:  # read and written: the note counts both
             continue
-        note = m.registers[a].note
+        note = (m.inputs if fc == 4 else m.registers)[a].note
         lo, hi = min(vals), max(vals)
         assert (f"constant {lo} " in note) if lo == hi else (f"{lo}..{hi}" in note), (unit, a, note)
     assert m.registers[0x2000].access == "RW" and m.registers[0x2100].access == "R"
@@ -272,8 +275,8 @@ def test_learn_keeps_holding_and_input_apart_and_aligns_s32_before_a_float(tmp_p
     m = load_map(out)
     assert (m.registers[0].table, m.registers[0].type) == ("holding", "u16")
     assert "constant 15" in m.registers[0].note
-    i = m.view("input").registers  # input 0000H has its own row; 0002H on answer only as input: no table
-    assert (i[0].table, i[0].type) == ("input", "f32") and m.registers[4].table == ""
+    i = m.inputs  # every row names its table: a holding read of 0004H is no input's
+    assert (i[0].table, i[0].type) == ("input", "f32") and i[4].table == "input" and 4 not in m.registers
     assert (i[4].type, i[6].type, i[6].word_order) == ("s32", "f32", "big")
     assert 5 not in i and 7 not in i
     recs = _replay(capsys, cap, out, ["7=m4"], "--baud", "9600")

@@ -59,8 +59,9 @@ def cmd_learn(spec: CaptureSpec, args) -> int:
         out.discard()
         raise
     out.commit()
-    guessed = sum(1 for r in regmap.registers.values() if r.type != "u16")
+    rows = [*regmap.registers.values(), *regmap.inputs.values()]
+    guessed = sum(1 for r in rows if r.type != "u16")
     say(f"wrote {out.path}: {len(learner.units)} units, {len(learner.blocks)} blocks, "
-        f"{len(regmap.registers)} registers ({guessed} typed other than u16); "
+        f"{len(rows)} registers ({guessed} typed other than u16); "
         f"decode with --model-file {out.path} --device UNIT={model_id}")
     return rc
