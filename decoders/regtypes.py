@@ -94,3 +94,12 @@ def text(words: list[int], byte_order: str = "big") -> tuple[str, str]:
     written as \\xNN so nothing is lost."""
     b = _struct(byte_order, len(words)).pack(*words)
     return b.hex(), b.rstrip(b"\x00 ").decode("ascii", "backslashreplace")
+
+
+def raw_range(type_: str) -> tuple[int, int] | None:
+    """The integers an integer type's raw value can be (min / max / default are raw values), None for
+    floats and text."""
+    if type_ in FLOATS or type_ == TEXT or type_ not in WIDTH:
+        return None
+    bits = 16 * WIDTH[type_]
+    return (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if type_ in SIGNED else (0, (1 << bits) - 1)

@@ -378,7 +378,13 @@ class _Check:
 def load_map(path: str | Path) -> RegisterMap:
     """The map in `path`, every row and table checked first; MapError (one line: file and place) if not usable."""
     path = str(path)
-    return map_from_doc(read_toml(path, MapError), path)
+    doc = read_toml(path, MapError)
+    model = doc.get("model")
+    if model is None or (isinstance(model, dict) and "id" not in model):  # the id is the file's stem, as
+        import os  # for a CSV or YAML map, unless the file names one
+
+        doc["model"] = {**(model or {}), "id": os.path.splitext(os.path.basename(path))[0] or "map"}
+    return map_from_doc(doc, path)
 
 
 def map_from_doc(doc: dict, path: str, places: list[str] | None = None) -> RegisterMap:
@@ -457,6 +463,14 @@ def lint(m: RegisterMap, sections: bool = True) -> list[str]:
             problems.append(f"0x{a:04X}: scale 0 makes every value 0")
         if r.min is not None and r.max is not None and r.min > r.max:
             problems.append(f"0x{a:04X}: min {r.min} > max {r.max}")
+        span = regtypes.raw_range(r.type)
+        for f in ("min", "max", "default"):
+            v = getattr(r, f)
+            if span is not None and v is not None and not span[0] <= v <= span[1]:
+                problems.append(f"0x{a:04X}: {f} {v} is outside a {r.type} ({span[0]}..{span[1]})")
+        if r.table == "input" and r.access in ("W", "RW"):
+            problems.append(f"0x{a:04X}: access {r.access} on an input register (Modbus input registers are "
+                            f"read-only)")
         if r.access not in ACCESS:
             problems.append(f"0x{a:04X}: access {r.access!r}")
         for k in range(1, r.width):

@@ -228,7 +228,7 @@ MAP_CASES = [
     ('registers = [{ addr = 1, name = "a", scale_by = { addr = 2, full = 0 } }]\n' + MODEL,
      "register row 1 (0x0001): scale_by needs addr and a positive number full"),
     ("[model]\nid = 5", "[model]: id must be a non-empty string, not 5"),
-    ('[model]\nname = "x"', "no [model] table with an id"),
+    ('[model]\nname = "x"\n[enums.e]\n"1" = 5', "[enums.e] 1: must be a table, not 5"),
     ('[model]\nid = "x"\nbroadcast_registers = ["a"]',
      "[model]: broadcast_registers must be a list of integers, not ['a']"),
     (MODEL + "[enums.e]\nabc = \"x\"", "[enums.e]: key 'abc' is not a number (decimal or 0x.. hex)"),
@@ -251,6 +251,13 @@ MAP_CASES = [
      "0x0001: scale 0 makes every value 0 (and 1 more)"),
     ('registers = [{ addr = 1, name = "a", type = "str", words = 2, scale = 0.1 }]\n' + MODEL,
      "0x0001: a str takes no scale"),
+    ('registers = [{ addr = 1, name = "a", min = 70000 }]\n' + MODEL, "0x0001: min 70000 is outside a u16 (0..65535)"),
+    ('registers = [{ addr = 1, name = "a", type = "s16", default = 40000 }]\n' + MODEL,
+     "0x0001: default 40000 is outside a s16 (-32768..32767)"),
+    ('registers = [{ addr = 1, name = "a", table = "input", access = "RW" }]\n' + MODEL,
+     "0x0001: access RW on an input register (Modbus input registers are read-only)"),
+    ('registers = [{ addr = 1, name = "a", table = "coil" }]\n' + MODEL,
+     "register row 1 (0x0001): table 'coil' (holding or input)"),
 ]
 
 
@@ -283,3 +290,13 @@ def test_a_user_map_may_not_take_the_generic_id(tmp_path, capsys):
     m.write_text('registers = [{ addr = 1, name = "a" }]\n[model]\nid = "generic"\n')
     assert one_error(capsys, "decode", "010300000002C40B", "--model-file", m) == (
         f"{m}: model id 'generic' is the fallback for every unit; give the map its own id")
+
+
+def test_a_toml_map_without_an_id_takes_its_file_stem(tmp_path, capsys):
+    """As a CSV or YAML map does (issue 10 section 4): the model id is the file's stem unless it names one."""
+    m = tmp_path / "pump.toml"
+    m.write_text('registers = [{ addr = 0, name = "Speed", unit = "rpm" }]\n')
+    assert load_map(m).model_id == "pump"
+    code = main(["decode", "--model-file", str(m), "--device", "1=pump", "010300000001840A", "0103020064B9AF"])
+    out = capsys.readouterr().out
+    assert code == 0 and "pump" in out and "Speed=100 rpm" in out

@@ -139,7 +139,7 @@ def _row(cells: list[str], cols: dict[str, int], base: str, comma_decimal: bool,
     access = cell("access").lower().replace(" ", "")
     if access not in _ACCESS:
         raise ValueError(f"access {cell('access')[:40]!r} (one of R, W, RW, reserved)")
-    row["access"] = _ACCESS[access]
+    row["access"] = "R" if not access and table == "input" else _ACCESS[access]  # input registers: read-only
     for key in ("unit", "id", "note"):
         if cell(key):
             row[key] = cell(key)
