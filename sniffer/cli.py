@@ -29,6 +29,9 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
+_SCENARIO_HELP = ("the simulated line (default: default): default, errors, fast, stress, tds-v8, a510, a510-ascii, "
+                  "spl, spl-ascii, pd-series, pd-series-ascii")
+
 def _number(kind, what: str, lo, hi):
     def parse(text: str):
         try:
@@ -130,7 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("simulate", help="write a simulated capture (MCAP or byte CSV by extension)")
     s.add_argument("--out", required=True, metavar="FILE", help="FILE.mcap or FILE.csv")
-    s.add_argument("--scenario", default="default")
+    s.add_argument("--scenario", default="default", help=_SCENARIO_HELP)
     s.add_argument("--duration", type=float, default=10.0, help="seconds of bus traffic (default 10)")
     s.add_argument("--seed", type=int, default=1)
     s.add_argument("--adapter", choices=["wire", "usb"], default="usb",
@@ -140,7 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
     serial_flags(s)
 
     s = sub.add_parser("demo", help="live capture of a simulated bus over a pseudo-terminal")
-    s.add_argument("--scenario", default="default")
+    s.add_argument("--scenario", default="default", help=_SCENARIO_HELP)
     s.add_argument("--seed", type=int, default=1)
     capture_out_flags(s, "demo.mcap", 15.0)
     s.add_argument("--headless", action="store_true", help="text stream instead of the TUI")

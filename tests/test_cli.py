@@ -144,3 +144,10 @@ def test_ctrl_c_closes_the_capture_cleanly(tmp_path):
         reader = make_reader(fh)
         assert reader.get_summary() is not None  # finished: summary and footer written
         assert sum(1 for _ in reader.iter_messages(topics=["/frames"])) > 10
+
+
+def test_simulate_help_names_every_scenario():
+    from sniffer.cli import _SCENARIO_HELP
+    from sniffer.simulator.scenario import SCENARIOS
+
+    assert _SCENARIO_HELP.split(": ", 1)[1].split(", ") == list(SCENARIOS)
