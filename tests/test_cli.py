@@ -150,4 +150,4 @@ def test_simulate_help_names_every_scenario():
     from sniffer.cli import _SCENARIO_HELP
     from sniffer.simulator.scenario import SCENARIOS
 
-    assert _SCENARIO_HELP.split(": ", 1)[1].split(", ") == list(SCENARIOS)
+    assert _SCENARIO_HELP.rsplit("): ", 1)[1].split(", ") == list(SCENARIOS)
