@@ -155,6 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("socket", help="the capture's socket (or tcp:[HOST:]PORT)")
     s.add_argument("--headless", action="store_true", help="text stream instead of the TUI (default off a tty)")
     s.add_argument("--tui", action="store_true", help="the TUI even without a terminal (sniffer serve uses it)")
+    s.add_argument("--exit-with-parent", action="store_true", help=argparse.SUPPRESS)  # serve's viewers
     stream_flags(s)
 
     s = sub.add_parser("serve", help="serve the TUI to browsers (textual-serve); the capture runs on its own")

@@ -40,8 +40,9 @@ def capture_argv(spec, command: str, sock: str) -> list[str]:
 
 
 def viewer_command(sock: str) -> str:
-    """The shell command textual-serve runs for each browser connection."""
-    return f"{shlex.quote(sys.executable)} -m sniffer attach {shlex.quote(sock)} --tui"
+    """The shell command textual-serve runs for each browser connection: `exec`, so the viewer is the
+    process the server stops (not a shell in front of it), and it ends with the server (lifeline.py)."""
+    return f"exec {shlex.quote(sys.executable)} -m sniffer attach {shlex.quote(sock)} --tui --exit-with-parent"
 
 
 def _publishing(sock: str) -> bool:
@@ -145,7 +146,10 @@ def run_serve(spec, args) -> int:
         print(f"sniffer: note: serving on {args.host}: anyone who reaches port {args.http_port} there sees the "
               f"bus traffic (the viewers cannot write to the port)", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)  # as Ctrl-C until the web server takes the signals over
-    child = subprocess.Popen(argv, stdin=subprocess.DEVNULL)
+    from .lifeline import die_with_parent
+
+    # the capture ends (as on Ctrl-C: its MCAP closed) if this process is killed without stopping it
+    child = subprocess.Popen(argv, stdin=subprocess.DEVNULL, preexec_fn=lambda: die_with_parent(signal.SIGINT))
     stopping = threading.Event()
     try:
         deadline = time.monotonic() + WAIT_FOR_CAPTURE_S

@@ -322,6 +322,99 @@ def test_serve_demo_in_a_browser(tmp_path):
     assert not sock.exists()
 
 
+def _processes_with(needle: str) -> list[int]:
+    """Live processes whose command line holds `needle` (zombies excluded)."""
+    out = []
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit():
+            continue
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                cmd = f.read().replace(b"\0", b" ").decode(errors="replace")
+            with open(f"/proc/{pid}/stat") as f:
+                state = f.read().rpartition(")")[2].split()[0]
+        except OSError:
+            continue
+        if needle in cmd and state != "Z":
+            out.append(int(pid))
+    return out
+
+
+async def _visits(port: int, n: int) -> None:
+    """n browser visits that each see the screen, then end (the page closed)."""
+    import aiohttp
+
+    for _ in range(n):
+        got = b""
+        async with aiohttp.ClientSession() as session, \
+                session.ws_connect(f"http://127.0.0.1:{port}/ws?width=100&height=30") as ws:
+            async with asyncio.timeout(HANG_S):
+                async for msg in ws:
+                    if msg.type == aiohttp.WSMsgType.BINARY:
+                        got += msg.data
+                    if b"Frames" in got:
+                        break
+
+
+async def _hold(port: int, seen: threading.Event, stop: threading.Event) -> None:
+    import aiohttp
+
+    got = b""
+    async with aiohttp.ClientSession() as session, \
+            session.ws_connect(f"http://127.0.0.1:{port}/ws?width=100&height=30") as ws:
+        async with asyncio.timeout(HANG_S):
+            async for msg in ws:
+                if msg.type == aiohttp.WSMsgType.BINARY:
+                    got += msg.data
+                if b"Frames" in got:
+                    seen.set()
+                if stop.is_set() or msg.type in (aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.ERROR):
+                    break
+
+
+def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
+    """Issue 11: browser visits that end, and a server killed outright (SIGKILL, a crash), leave no
+    `sniffer attach --tui` viewer and no capture running (each viewer is exec'd, not behind a shell;
+    viewers and the capture end with the server: sniffer/lifeline.py)."""
+    pytest.importorskip("textual_serve")
+    pytest.importorskip("aiohttp")
+    port = _free_port()
+    sock = tmp_path / "leak.sock"
+    with open(tmp_path / "serve.log", "w") as log:
+        proc = subprocess.Popen([sys.executable, "-m", "sniffer", "serve", "--demo", "--http-port", str(port),
+                                 "--socket", str(sock), "--no-out"],
+                                cwd=tmp_path, stdout=log, stderr=log, stdin=subprocess.DEVNULL)
+    try:
+        def up():
+            assert proc.poll() is None, (tmp_path / "serve.log").read_text()
+            with socket.socket() as s:
+                return s.connect_ex(("127.0.0.1", port)) == 0
+
+        _wait(up, "the web server")
+        asyncio.run(_visits(port, 3))
+        _wait(lambda: not _processes_with(f"attach {sock} --tui"), "the ended visits' viewers to exit")
+        # a visit still open when the server is killed outright
+        seen, stop = threading.Event(), threading.Event()
+        holder = threading.Thread(target=lambda: asyncio.run(_hold(port, seen, stop)), daemon=True)
+        holder.start()
+        _wait(seen.is_set, "the open visit's screen")
+        viewers = _processes_with(f"attach {sock} --tui")
+        capture = _processes_with(f"--publish {sock}")
+        assert len(viewers) == 1 and len(capture) == 1
+        with open(f"/proc/{viewers[0]}/stat") as f:  # exec'd by the server's shell: no shell in between
+            assert int(f.read().rpartition(")")[2].split()[1]) == proc.pid
+        proc.kill()
+        proc.wait(HANG_S)
+        stop.set()
+        _wait(lambda: not _processes_with(f"attach {sock} --tui"), "the viewer to end with the server")
+        _wait(lambda: not _processes_with(f"--publish {sock}"), "the capture to end with the server")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        for pid in _processes_with(str(sock)):
+            os.kill(pid, signal.SIGKILL)
+
+
 def test_serve_usage_errors(capsys):
     pytest.importorskip("textual_serve")
     assert main(["serve"]) == 2

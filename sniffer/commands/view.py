@@ -9,6 +9,12 @@ from .common import UsageError, tui_wanted
 def cmd_attach(spec: CaptureSpec, args) -> int:
     from ..attach import Attachment, attach_tui, run_headless
 
+    if getattr(args, "exit_with_parent", False):  # a browser's viewer under `sniffer serve`
+        import signal
+
+        from ..lifeline import die_with_parent
+
+        die_with_parent(signal.SIGKILL)
     att = Attachment(args.socket)  # no capture there: CaptureError, one line, exit 2
     if args.tui or tui_wanted(spec):
         return attach_tui(att)
