@@ -262,7 +262,7 @@ def _demo_app(tmp_path, scenario: str, seconds: float):
     session = capture_session(CaptureSpec(out=out), DemoSource(get_scenario(scenario), 1, seconds), f"demo {scenario}",
                               tui_sink=sink)
     session.open()
-    return session_app(session, sink, source_label=f"demo {scenario}", capture_path=out)
+    return session_app(session, sink, source_label=f"demo {scenario}", capture_path=out, live=True)
 
 
 def test_demo_feed_live_path(tmp_path):
@@ -291,7 +291,19 @@ def test_quit_stops_a_running_capture(tmp_path):
                 if len(app.store) > 10:
                     break
             assert len(app.store) > 10
-            await pilot.press("q")
+            await pilot.press("q")  # a live capture asks first (issue 11): n, Esc and q go back to it
+            for no in ("n", "escape", "q"):
+                await pilot.pause(0.05)
+                assert type(app.screen).__name__ == "ConfirmQuit", no
+                await pilot.press(no)
+                await pilot.pause(0.05)
+                assert type(app.screen).__name__ != "ConfirmQuit" and app._thread.is_alive(), no
+                if no != "q":
+                    await pilot.press("q")
+            n = len(app.store)
+            await pilot.pause(0.3)
+            assert len(app.store) > n  # still capturing after three refusals
+            await pilot.press("q", "y")
         assert not app._thread.is_alive()  # stop event -> capture finished, MCAP closed
         assert app.sink.closed.is_set() and app.feed_error is None
 

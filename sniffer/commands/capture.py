@@ -63,7 +63,7 @@ def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None) -> int
     if tui:
         from ..tui.run import run_session_tui
 
-        rc = run_session_tui(session, tui_sink, source_label=label, capture_path=spec.out)
+        rc = run_session_tui(session, tui_sink, source_label=label, capture_path=spec.out, live=True)
         return rc or report(session)
     session.run()
     print(summary_line(session), file=sys.stderr)

@@ -41,7 +41,8 @@ HELP = """\
   [b]c[/b]            clear all filters
   [b]space[/b]        pause the view (capture goes on); again to resume
   [b]m[/b]            bookmark; [b]][/b] / [b]\\[[/b] next / previous bookmark
-  [b]?[/b]            this help;  [b]q[/b] quit (stops the capture, closes the file)
+  [b]?[/b]            this help;  [b]q[/b] quit: a live capture asks first (y stops it and closes
+               its file); a replay or a viewer of `sniffer attach` just closes (the capture goes on)
 
 Colours: [bold bright_red]errors / bad CRC[/], [bold magenta]exceptions[/], [yellow]timeouts & warnings[/],
 [grey50 italic]noise[/]. The selected frame's pair has a grey background; ←/→ #n names it.
@@ -59,6 +60,27 @@ class HelpScreen(ModalScreen):
 
     def compose(self) -> ComposeResult:
         yield Static(HELP)
+
+
+class ConfirmQuit(ModalScreen[bool]):
+    """Quitting stops a live capture: y / Enter stops it, n / Esc goes back (keys typed by mistake,
+    a `q` meant for the filter bar, end nothing)."""
+
+    BINDINGS: ClassVar[list[Binding]] = [Binding("y,enter", "answer(True)", "Stop"),
+                                         Binding("n,escape,q", "answer(False)", "Go on")]
+    DEFAULT_CSS = "ConfirmQuit { align: center middle; } ConfirmQuit > Static { width: 64; height: auto; " \
+                  "border: thick $error; background: $surface; padding: 1 2; }"
+
+    def __init__(self, what: str) -> None:
+        super().__init__()
+        self.what = what
+
+    def compose(self) -> ComposeResult:
+        yield Static(f"Stop the live capture{self.what}?\n\n"
+                     "[b]y[/b] stop it and quit    [b]n[/b] / Esc go on capturing")
+
+    def action_answer(self, stop: bool) -> None:
+        self.dismiss(stop)
 
 
 class SnifferApp(App):
@@ -97,8 +119,9 @@ class SnifferApp(App):
     def __init__(self, sink: TuiSink, feed: Callable[[TuiSink, threading.Event], object] | None = None, *,
                  source_label: str = "", capture_path: str | None = None, registry=None,
                  poll_hz: float = 15.0, max_batch: int = 5_000,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic, live: bool = False) -> None:
         super().__init__()
+        self.live = live  # quitting stops a capture running here: ask first
         self.sink = sink
         self.feed = feed
         self.stop_event = threading.Event()
@@ -163,6 +186,16 @@ class SnifferApp(App):
             self._thread.join(timeout)
 
     async def action_quit(self) -> None:
+        if self.live and not self.caught_up:  # a live capture is still running in this process
+            what = f" into {self.capture_path}" if self.capture_path else ""
+
+            def answered(stop: bool | None) -> None:
+                if stop:
+                    self.stop_feed()
+                    self.exit(self.feed_result)
+
+            self.push_screen(ConfirmQuit(what), answered)
+            return
         self.stop_feed()
         self.exit(self.feed_result)
 

@@ -61,6 +61,8 @@ def _run(app: SnifferApp) -> int:
     return 0
 
 
-def run_session_tui(session, sink: TuiSink, *, source_label: str, capture_path: str | None = None) -> int:
-    """Run the App over an opened session whose sinks include `sink`, until the user quits."""
-    return _run(session_app(session, sink, source_label=source_label, capture_path=capture_path))
+def run_session_tui(session, sink: TuiSink, *, source_label: str, capture_path: str | None = None,
+                    live: bool = False) -> int:
+    """Run the App over an opened session whose sinks include `sink`, until the user quits (`live`: a
+    capture running here, so quitting asks first)."""
+    return _run(session_app(session, sink, source_label=source_label, capture_path=capture_path, live=live))
