@@ -321,3 +321,42 @@ def test_status_bar_shows_the_size_of_a_capture_being_written(tmp_path):
     (tmp_path / "cap.mcap").write_bytes(b"y" * 10)  # renamed into place at the end
     part.unlink()
     assert app.capture_size() == 10
+
+
+def test_an_idle_view_redraws_nothing():
+    """Issue 11: an idle replay took 17-20 % of a core.  Once every frame is in, the polls change no
+    widget: the status bar is set again only when its text changes, the tables only when the store
+    or the tab does (benchmarks measure the CPU; this holds the cause)."""
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await pilot.press("2")  # the units table, rebuilt by the polls while it is shown
+            for _ in range(10):
+                app.poll()
+            await pilot.pause()
+            calls = {"status": 0, "tables": 0}
+            status_update, refresh_tables = app.status.update, app.refresh_tables
+
+            def counted_status(*a, **k):
+                calls["status"] += 1
+                return status_update(*a, **k)
+
+            def counted_tables():
+                calls["tables"] += 1
+                return refresh_tables()
+
+            app.status.update, app.refresh_tables = counted_status, counted_tables
+            for _ in range(60):  # four seconds of polls at 15 Hz
+                app.poll()
+            assert calls == {"status": 0, "tables": 0}
+            await pilot.press("3")  # another tab: its table is built by the next polls that may
+            await pilot.pause()
+            for _ in range(10):
+                app.poll()
+            assert calls["tables"] >= 1
+            calls["tables"] = 0
+            for _ in range(30):  # and then it rests again
+                app.poll()
+            assert calls == {"status": 0, "tables": 0}
+    run(go())

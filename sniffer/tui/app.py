@@ -140,6 +140,8 @@ class SnifferApp(App):
         self.frames_per_s = 0.0
         self.bytes_per_s = 0.0
         self._ticks = 0
+        self._tables_at = None  # (store state, tab) the units / registers tables were last built for
+        self._status_text = None
 
     # ---------------------------------------------------------------- layout
     def compose(self) -> ComposeResult:
@@ -219,9 +221,16 @@ class SnifferApp(App):
             self.frames_per_s = (len(self.store) - n0) / (now - when)
             self.bytes_per_s = (self.sink.bytes_in - b0) / (now - when)
             self._rate = (now, len(self.store), self.sink.bytes_in)
-        if self._ticks % max(int(self.poll_hz / 2), 1) == 0 or batch and len(self.store) == len(batch):
+        # idle means idle: tables only when the store changed, the status bar only when its text did
+        shown = (self.store.generation, len(self.store), self.store.book.version, self.tabs.active)
+        if (self._ticks % max(int(self.poll_hz / 2), 1) == 0 and shown != self._tables_at
+                or batch and len(self.store) == len(batch)):
+            self._tables_at = shown
             self.refresh_tables()
-        self.status.update(status_text(self))
+        text = status_text(self)
+        if text != self._status_text:
+            self._status_text = text
+            self.status.update(text)
 
     def refresh_tables(self) -> None:
         active = self.tabs.active
