@@ -360,3 +360,40 @@ def test_an_idle_view_redraws_nothing():
                 app.poll()
             assert calls == {"status": 0, "tables": 0}
     run(go())
+
+
+def test_keys_typed_right_after_slash_are_filter_text():
+    """Issue 11: under load, keys typed right after '/' ran as commands ('q' quit a live capture).  The
+    driver delivers a fast typist's keys as one burst of events: all of them reach the filter bar."""
+    from textual import events
+
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            for key, char in [("slash", "/")] + [(c, c) for c in "quality"] + [("enter", "\r")]:
+                event = events.Key(key, char)  # as the driver sends them (Pilot.press, without its waits)
+                event.set_sender(app)
+                app._driver.send_message(event)  # one burst, nothing awaited in between
+            await pilot.pause()
+            await pilot.pause()
+            assert app.is_running and app.return_code is None
+            assert filter_words(app) == ["quality"]
+            assert app.focused is app.frame_list
+    run(go())
+
+
+def filter_words(app) -> list[str]:
+    from sniffer.tui.filters import filter_expr
+
+    return filter_expr(app.store.filter).split()
+
+
+def test_a_slash_typed_in_the_filter_is_text():
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await pilot.press("/", "a", "/", "b")
+            assert app.filter_bar.value == "a/b" and app.focused is app.filter_bar
+    run(go())

@@ -105,7 +105,9 @@ class SnifferApp(App):
         Binding("e", "errors_only", "Errors"),
         Binding("u", "unit_filter", "Unit"),
         Binding("f", "function_filter", "Func", show=False),
-        Binding("slash", "filter_bar", "Filter"),
+        # priority: handled as the App takes the key from the driver, before the keys typed after it are
+        # passed on, so those reach the filter bar (not the frame list's commands: 'q' would quit)
+        Binding("slash", "filter_bar", "Filter", priority=True),
         Binding("c", "clear_filters", "Clear", show=False),
         Binding("space", "pause", "Pause"),
         Binding("m", "bookmark", "Mark"),
@@ -339,9 +341,16 @@ class SnifferApp(App):
 
     def action_filter_bar(self) -> None:
         bar = self.filter_bar
+        if self.focused is bar:  # a '/' typed in the filter itself
+            bar.insert_text_at_cursor("/")
+            return
+        if self.screen is not self.screen_stack[0]:  # help or a question on top: not now
+            return
         bar.value = filter_expr(self.store.filter)
         bar.add_class("shown")
-        bar.focus()
+        # focus now, not after the queued keys (Widget.focus waits for the message queue): what is
+        # typed right after '/' is filter text, never commands ('q' would quit)
+        bar.screen.set_focus(bar)
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         if event.input.id == "filterbar":
@@ -351,14 +360,14 @@ class SnifferApp(App):
                 self.notify(str(e), severity="error")
                 return
             event.input.remove_class("shown")
-            self.frame_list.focus()
+            self.frame_list.screen.set_focus(self.frame_list)
             self.apply_filter(**kw)
 
     def on_key(self, event) -> None:
         bar = self.filter_bar
         if event.key == "escape" and bar.has_class("shown"):
             bar.remove_class("shown")
-            self.frame_list.focus()
+            self.frame_list.screen.set_focus(self.frame_list)
             event.stop()
 
     def action_help(self) -> None:
