@@ -323,7 +323,7 @@ def test_watch_under_pilot_shows_one_row_per_value():
             regs = app.query_one("#regs")
             assert regs.row_count == 1
             cells = [str(c) for c in regs.get_row("1:holding:9488")]
-            assert cells[:5] == ["1", "holding", "9488..9489", "Parameter 12-00", "123456"]
+            assert cells[:5] == ["1", "holding", "2510H..2511H", "Parameter 12-00", "123456"]
     asyncio.run(go())
 
 

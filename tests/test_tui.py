@@ -65,6 +65,12 @@ def test_select_frame_and_detail_and_pair_jump():
                 spans.append(app.detail.span)
             # fc16 request: the written registers' bytes (after unit, fc, addr, count, byte count)
             assert (7, 9) in spans and (9, 11) in spans
+            await pilot.press("escape")  # issue 11: Esc leaves the detail tree
+            assert app.focused is app.frame_list
+            await pilot.press("3")  # the Registers tab takes the keys when opened
+            assert app.focused is app.query_one("#regwatch").query_one("DataTable")
+            await pilot.press("2")
+            assert app.focused is app.query_one("#unitstable")
     run(go())
 
 
@@ -232,7 +238,7 @@ def test_register_watch_of_an_attached_viewer_is_the_decoders_shadow():
             assert watch.chosen == (1, "holding", 9474)
             assert "Frequency command" in str(app.query_one("#spark-label").render())
             cells = [str(c) for c in regs.get_row("1:holding:9474")]
-            assert cells[:5] == ["1", "holding", "9474", "Frequency command", "44.5"] and cells[6] == "4450"
+            assert cells[:5] == ["1", "holding", "2502H", "Frequency command", "44.5"] and cells[6] == "4450"
     run(go())
 
 

@@ -273,6 +273,12 @@ class SnifferApp(App):
         self.refresh_tables()
         if tab == "frames":
             self.frame_list.focus()
+        else:  # the tab's table takes the keys (arrows move in it at once)
+            from textual.widgets import DataTable
+
+            pane = self.query_one("#unitstable" if tab == "units" else "#regwatch")
+            table = pane if isinstance(pane, DataTable) else pane.query_one(DataTable)
+            table.focus()
 
     def action_pair(self) -> None:
         row = self.frame_list.selected_row
@@ -368,6 +374,9 @@ class SnifferApp(App):
         if event.key == "escape" and bar.has_class("shown"):
             bar.remove_class("shown")
             self.frame_list.screen.set_focus(self.frame_list)
+            event.stop()
+        elif event.key == "escape" and self.focused is not None and self.detail in self.focused.ancestors_with_self:
+            self.frame_list.focus()  # Esc leaves the detail tree for the frame list
             event.stop()
 
     def action_help(self) -> None:

@@ -10,7 +10,8 @@ from textual.widgets import DataTable, Sparkline, Static
 
 from .model import FrameStore
 
-COLUMNS = ("unit", "table", "addr", "name", "value", "unit ", "raw", "changes", "updated")
+# "unit" is the Modbus unit (as in the frame list); "eng" the value's engineering unit (Hz, A, V)
+COLUMNS = ("unit", "table", "addr", "name", "value", "eng", "raw", "changes", "updated")
 _VALUE = COLUMNS.index("value")
 CHANGED_NS = 2_000_000_000  # a change shows highlighted for 2 s of capture time
 
@@ -94,5 +95,6 @@ class RegisterWatch(Vertical):
 
 
 def address_text(rv) -> str:
-    """A row's address: "9488", or "9488..9489" for a value of several registers."""
-    return str(rv.address) if rv.words == 1 else f"{rv.address}..{rv.address + rv.words - 1}"
+    """A row's address as the manuals write it: "2520H", or "2510H..2511H" for a value of several
+    registers (the parameter id, where the map has one, leads the name)."""
+    return f"{rv.address:04X}H" if rv.words == 1 else f"{rv.address:04X}H..{rv.address + rv.words - 1:04X}H"
