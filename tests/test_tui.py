@@ -403,3 +403,22 @@ def test_a_slash_typed_in_the_filter_is_text():
             await pilot.press("/", "a", "/", "b")
             assert app.filter_bar.value == "a/b" and app.focused is app.filter_bar
     run(go())
+
+
+def test_ended_shows_only_once_every_frame_is_in_view():
+    """Issue 11: `[ended]` showed while a replay was still loading into the view."""
+    from sniffer.tui.status import status_text
+
+    async def go():
+        app = make_app()
+        app.max_batch = 50  # the view takes 50 frames a poll: the feed is done long before
+        async with app.run_test(size=SIZE) as pilot:
+            app.poll()
+            await pilot.pause()
+            assert app.sink.closed.is_set() and app.sink.backlog > 0
+            text = status_text(app).plain
+            assert "[loading:" in text and "[ended]" not in text
+            while app.sink.backlog:
+                app.poll()
+            assert "[ended]" in status_text(app).plain
+    run(go())

@@ -50,6 +50,8 @@ def status_text(app) -> Text:
     text = Text(" │ ".join(parts))
     if store.paused:
         text.append("  PAUSED", "bold black on yellow")
-    if sink.closed.is_set():
-        text.append("  [ended]" if not sink.error else f"  [error: {sink.error}]", "bold")
+    if sink.error:
+        text.append(f"  [error: {sink.error}]", "bold")
+    elif sink.closed.is_set():  # the feed is done; the view may still be taking in what it read
+        text.append("  [ended]" if not sink.backlog else f"  [loading: {sink.backlog} frames to show]", "bold")
     return text
