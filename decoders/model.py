@@ -22,6 +22,8 @@ import math
 from sniffer.codes import MODEL_BROADCAST_REG as BROADCAST_REG
 from sniffer.codes import MODEL_FRAME_LONG as FRAME_LONG
 from sniffer.codes import MODEL_NOT_AVAILABLE as NOT_AVAILABLE
+from sniffer.codes import MODEL_ALARM as ALARM
+from sniffer.codes import MODEL_FAULT as FAULT
 from sniffer.codes import MODEL_FUNCTION as FUNCTION
 from sniffer.codes import MODEL_SUBFUNCTION as SUBFUNCTION
 from sniffer.codes import MODEL_RANGE as RANGE
@@ -43,7 +45,7 @@ from .generic.names import EXCEPTION_NAMES
 from .tables import Register, RegisterMap
 
 MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION,
-               SPLIT, FRAME_LONG, SUBFUNCTION, NOT_AVAILABLE, FUNCTION)
+               SPLIT, FRAME_LONG, SUBFUNCTION, NOT_AVAILABLE, FUNCTION, FAULT, ALARM)
 _REGISTERS = ("holding", "input")
 
 _DIGITS = {1.0: 0, 0.1: 1, 0.01: 2, 0.001: 3}
@@ -71,6 +73,9 @@ class TableDecoder(GenericModbus):
         self.function_exception = next(
             (c for c, e in sorted(regmap.exceptions.items())
              if "function" in f"{e.get('name', '')} {e.get('text', '')}".lower()), 0x01)
+        # registers whose non-zero value is a trip (fault) or a warning (alarm): model.fault / model.alarm
+        self.trips = {**{a: (ALARM, "alarm") for a in regmap.model.get("alarm_registers", [])},
+                      **{a: (FAULT, "fault") for a in regmap.model.get("fault_registers", [])}}
         # (address, raw) -> the marker's meaning: a raw value that is no measurement
         self.markers = {(m["addr"], m["raw"]): m for m in regmap.model.get("not_available", [])}
 
@@ -198,6 +203,8 @@ class TableDecoder(GenericModbus):
         if self.max_frame and len(f.raw) > self.max_frame:
             f.annotations.append(note(FRAME_LONG, f"{len(f.raw)} bytes on the wire (manual: at most {self.max_frame};"
                                       " an ASCII frame counted in characters, ':' to LF)", 0, len(f.raw)))
+        if self.trips and f.role == RESPONSE and f.crc_ok and f.function in (0x03, 0x04):
+            self._trips(f)
         if self.markers:
             for p in f.points:
                 if "not_available" in p:
@@ -210,6 +217,17 @@ class TableDecoder(GenericModbus):
             who = f"{ref_reg.id or ref_reg.name} (0x{ref_reg.addr:04X})" if ref_reg else "the reference register"
             f.annotations.append(note(SCALE_PENDING,
                                       f"{who} not seen yet: {r.name} shown as % of it", 0, len(f.raw)))
+
+    def _trips(self, f: Frame) -> None:
+        """A read answer whose fault / alarm register is not 0: the drive tripped or warns (the text as
+        the manual gives it: "OL1 — Motor overload")."""
+        trips = self.trips
+        for p in f.points:
+            hit = trips.get(p.get("address"))
+            if hit is not None and p.get("raw"):
+                code, what = hit
+                f.annotations.append(note(code, f"{what}: {p.get('text') or p['raw']} ({p['name']})",
+                                          *p.get("span", (0, len(f.raw)))))
 
     def _split(self, f: Frame) -> None:
         """Annotate every point that is one register of a value the frame does not carry whole."""

@@ -274,7 +274,9 @@ class _Check:
                                  or not all(_is_int(x) and 0 <= x <= MAX_ADDR for x in subs)):
             self.fail("[model]", f"loopback_subfunctions must be a list of integers 0..0xFFFF, not {_show(subs)}")
         for f, ok in (("protocols", lambda x: isinstance(x, str)), ("bauds", _is_int),
-                      ("broadcast_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR)):
+                      ("broadcast_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR),
+                      ("fault_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR),
+                      ("alarm_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR)):
             if f in model and (not isinstance(model[f], list) or not all(ok(x) for x in model[f])):
                 self.fail("[model]", f"{f} must be a list of {'strings' if f == 'protocols' else 'integers'}, "
                                      f"not {_show(model[f])}")

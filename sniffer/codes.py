@@ -158,6 +158,8 @@ MODEL_SPLIT = Code(
     "model.register.split", WARNING, "a read or write covers only some registers of a multi-register value"
 )
 MODEL_FRAME_LONG = Code("model.frame.too_long", WARNING, "frame longer than the manual's maximum frame length")
+MODEL_FAULT = Code("model.fault", ERROR, "the drive reports a fault (trip): its fault code or fault bits")
+MODEL_ALARM = Code("model.alarm", WARNING, "the drive reports an alarm (warning): its alarm code or alarm bits")
 MODEL_FUNCTION = Code(
     "model.function.unsupported", WARNING, "function code the manual does not list for this model"
 )

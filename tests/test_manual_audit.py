@@ -276,3 +276,19 @@ def test_a510_torque_past_100_percent_is_out_of_range():
     out = decode([fr("010625037fff"), fr("010625032000"), fr("01062503e000")], "a510")
     reqs = [f for f in out if f.role == "request"]
     assert [bool(notes(f, "model.value.range")) for f in reqs] == [True, False, False]
+
+
+# ---- drive trips are problems (issue 11): the fault / alarm registers of each manual ----------
+@pytest.mark.parametrize("model, read, answer, code, text", [
+    ("a510", "010325210001", "010302000c", "model.fault", "fault: Input Phase Loss"),
+    ("a510", "010325280001", "0103020003", "model.alarm", "alarm: OL2 — Inverter overload"),
+    ("spl", "010301210001", "0103020015", "model.fault", "fault: OL1 — Motor over load"),
+    ("tds-v8", "010300210001", "0103020002", "model.fault", "fault: "),
+    ("tds-v8", "010300230001", "0103020001", "model.alarm", "alarm: "),
+])
+def test_a_fault_or_alarm_the_drive_reports_is_a_problem(model, read, answer, code, text):
+    out = decode([fr(read), fr(answer)], model)
+    assert notes(out[1], code) and notes(out[1], code)[0].startswith(text)
+    zero = fr(answer[:6] + "0000")
+    out = decode([fr(read), zero], model)
+    assert not notes(out[1], "model.fault") and not notes(out[1], "model.alarm")  # 0: no trip

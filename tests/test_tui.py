@@ -422,3 +422,28 @@ def test_ended_shows_only_once_every_frame_is_in_view():
                 app.poll()
             assert "[ended]" in status_text(app).plain
     run(go())
+
+
+def test_drive_faults_have_their_own_colour_count_and_are_found_by_n():
+    """Issue 11: a frame reporting a fault code or alarm is a problem of its own: coloured apart from CRC
+    errors and exceptions, found by n / errors-only, counted per unit in Units, its text in the detail."""
+    from helpers import bursts, fr, run_events
+
+    from sniffer.line import LineSettings
+    from sniffer.tui.framelist import S_ERROR, S_EXC, S_FAULT, row_style
+    from sniffer.tui.model import F_FAULT, FrameStore, frame_flags
+
+    line = LineSettings(19200, "E", 1)
+    frames = run_events(bursts([fr("010300000001"), fr("0103020005"),       # a plain read
+                                fr("010325210001"), fr("0103020015"),       # fault code 21
+                                fr("010300000001"), fr("0183 02".replace(" ", ""))], line),
+                        line, devices={1: "a510"})
+    fault = frames[3]
+    assert frame_flags(fault) & F_FAULT and row_style(frame_flags(fault)) is S_FAULT
+    assert len({S_ERROR, S_EXC, S_FAULT}) == 3
+    store = FrameStore(frames[0].t_ns)
+    store.add(frames)
+    assert store.units[1].faults == 1 and store.units[1].exceptions == 1
+    assert 3 in list(store.problems)
+    detail = next(a.detail for a in fault.annotations if a.code == "model.fault")
+    assert detail == "fault: External Fault 05 (Error description (fault code))"  # A510 code 21

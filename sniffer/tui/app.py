@@ -34,7 +34,7 @@ HELP = """\
   [b]↑ ↓ PgUp PgDn[/b] move; [b]Home[/b] first; [b]End[/b] / [b]G[/b] follow the tail
   [b]Enter[/b]        focus the detail tree (select a node: its bytes light up in the hex dump)
   [b]p[/b]            jump to the paired request / response
-  [b]n[/b] / [b]N[/b]        next / previous problem (error, exception, timeout, noise)
+  [b]n[/b] / [b]N[/b]        next / previous problem (error, exception, timeout, drive fault, noise)
   [b]e[/b]            errors only (toggle)
   [b]u[/b] / [b]f[/b]        only this frame's unit / function (toggle)
   [b]/[/b]            filter bar: words search the line; u:1,2  fc:3,16  role:req  err
@@ -44,8 +44,9 @@ HELP = """\
   [b]?[/b]            this help;  [b]q[/b] quit: a live capture asks first (y stops it and closes
                its file); a replay or a viewer of `sniffer attach` just closes (the capture goes on)
 
-Colours: [bold bright_red]errors / bad CRC[/], [bold magenta]exceptions[/], [yellow]timeouts & warnings[/],
-[grey50 italic]noise[/]. The selected frame's pair has a grey background; ←/→ #n names it.
+Colours: [bold bright_red]!! errors / bad CRC[/], [bold magenta]E exceptions[/], [bold dark_orange]F drive faults &
+alarms[/] (OL1 — Motor overload), [yellow]T timeouts & warnings[/], [grey50 italic]noise[/].
+The selected frame's pair has a grey background; ←/→ #n names it.
 """
 
 

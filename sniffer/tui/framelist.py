@@ -19,11 +19,12 @@ from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
 from ..frame import Frame
-from .model import F_ERROR, F_EXC, F_NOISE, F_TIMEOUT, F_WARN, FrameStore
+from .model import F_ERROR, F_EXC, F_FAULT, F_NOISE, F_TIMEOUT, F_WARN, FrameStore
 
 ROLE_TAG = {"request": "->REQ", "response": "<-RSP", "unknown": " ??? ", "noise": "NOISE"}
 S_ERROR = Style(color="bright_red", bold=True)
 S_EXC = Style(color="magenta", bold=True)
+S_FAULT = Style(color="dark_orange", bold=True)  # the drive tripped or warns
 S_TIMEOUT = Style(color="yellow")
 S_WARN = Style(color="yellow")
 S_NOISE = Style(color="grey50", italic=True)
@@ -39,6 +40,8 @@ def row_style(fl: int) -> Style | None:
         return S_ERROR
     if fl & F_EXC:
         return S_EXC
+    if fl & F_FAULT:
+        return S_FAULT
     if fl & F_NOISE:
         return S_NOISE
     if fl & (F_TIMEOUT | F_WARN):
@@ -52,6 +55,8 @@ def format_row(f: Frame, fl: int, t0_ns: int, marked: bool) -> Text:
         mark = "!!"
     elif fl & F_EXC:
         mark = "E "
+    elif fl & F_FAULT:
+        mark = "F "
     elif fl & F_TIMEOUT:
         mark = "T "
     else:

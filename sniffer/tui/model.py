@@ -32,7 +32,9 @@ F_WARN = 2  # a warning annotation
 F_EXC = 4  # exception response
 F_TIMEOUT = 8  # request without (timely) response
 F_NOISE = 16
-F_PROBLEM = F_ERROR | F_WARN | F_EXC | F_TIMEOUT | F_NOISE
+F_FAULT = 32  # the drive reports a fault or alarm (model.fault / model.alarm): a problem of the machine
+F_PROBLEM = F_ERROR | F_WARN | F_EXC | F_TIMEOUT | F_NOISE | F_FAULT
+FAULT_CODES = frozenset({"model.fault", "model.alarm"})
 
 TIMEOUT_CODES = frozenset({"pair.timeout", "pair.no_response"})
 ROLES = ("request", "response", "unknown", "noise")
@@ -41,7 +43,7 @@ _NO_ROLE = 255  # a role outside ROLES (none today)
 _LAT_KEEP = 2048  # latencies kept per unit for the median
 _RATE_WINDOW_NS = 10_000_000_000  # poll rate over the last 10 s of capture time
 
-__all__ = ["F_ERROR", "F_EXC", "F_NOISE", "F_PROBLEM", "F_TIMEOUT", "F_WARN", "Filter", "FrameStore",
+__all__ = ["F_ERROR", "F_EXC", "F_FAULT", "F_NOISE", "F_PROBLEM", "F_TIMEOUT", "F_WARN", "Filter", "FrameStore",
            "RegisterValue", "RowIndex", "UnitStats", "frame_flags", "frame_from_record"]
 
 
@@ -54,7 +56,9 @@ def frame_flags(f: Frame) -> int:
     if f.exception:
         fl |= F_EXC
     for a in f.annotations:
-        if a.severity == "error":
+        if a.code in FAULT_CODES:  # the drive's own trip, not a fault of the line: its own colour
+            fl |= F_FAULT
+        elif a.severity == "error":
             fl |= F_ERROR
         elif a.severity == "warning":
             fl |= F_WARN
@@ -117,6 +121,7 @@ class UnitStats:
     crc_errors: int = 0
     exceptions: int = 0
     timeouts: int = 0
+    faults: int = 0  # answers reporting a fault or alarm (model.fault / model.alarm)
     lat_min: float | None = None
     lat_max: float | None = None
     latencies: deque = field(default_factory=lambda: deque(maxlen=_LAT_KEEP))
@@ -237,6 +242,8 @@ class FrameStore:
             st.exceptions += 1
         if fl & F_TIMEOUT:
             st.timeouts += 1
+        if fl & F_FAULT:
+            st.faults += 1
         lat = f.latency_ms
         if lat is not None and f.role == "response":
             st.latencies.append(lat)

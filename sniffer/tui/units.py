@@ -6,7 +6,7 @@ from textual.widgets import DataTable
 
 from .model import FrameStore
 
-COLUMNS = ("unit", "model", "req", "rsp", "CRC err", "exc", "timeouts", "lat min", "lat med", "lat max",
+COLUMNS = ("unit", "model", "req", "rsp", "CRC err", "exc", "timeouts", "faults", "lat min", "lat med", "lat max",
            "poll/s", "last seen")
 
 
@@ -22,7 +22,8 @@ def unit_cells(st, t0_ns: int, guesses: dict | None = None, given: dict | None =
         g = guesses[st.unit]
         model = f"{g[0]} (guess {g[1]:.0%})"
     return (str(st.unit), model, str(st.requests), str(st.responses), str(st.crc_errors), str(st.exceptions),
-            str(st.timeouts), _ms(st.lat_min), _ms(st.lat_median), _ms(st.lat_max), f"{st.poll_rate:.1f}",
+            str(st.timeouts), str(st.faults),
+            _ms(st.lat_min), _ms(st.lat_median), _ms(st.lat_max), f"{st.poll_rate:.1f}",
             f"{(st.last_seen_ns - t0_ns) / 1e9:.3f}s")
 
 
