@@ -42,7 +42,10 @@ class RegisterWatch(Vertical):
         self.update_rows()
 
     def update_rows(self) -> None:
-        t = self.query_one("#regs", DataTable)
+        found = self.query("#regs")
+        if not found:  # asked before its children are mounted (a poll right after the tab opened)
+            return
+        t = found.first(DataTable)
         store = self.store
         now = store.last_t_ns
         shown = self._shown
@@ -82,8 +85,10 @@ class RegisterWatch(Vertical):
 
     def _spark(self) -> None:
         rv = self.store.registers.get(self.chosen) if self.chosen else None
-        label = self.query_one("#spark-label", Static)
-        spark = self.query_one("#spark", Sparkline)
+        labels, sparks = self.query("#spark-label"), self.query("#spark")
+        if not labels or not sparks:  # not mounted yet
+            return
+        label, spark = labels.first(Static), sparks.first(Sparkline)
         if rv is None or not rv.history:
             spark.data = []
             label.update("select a numeric register for its plot" if rv is None else f"{rv.name}: not numeric")
