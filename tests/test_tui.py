@@ -307,8 +307,11 @@ def test_quit_stops_a_running_capture(tmp_path):
                 if no != "q":
                     await pilot.press("q")
             n = len(app.store)
-            await pilot.pause(0.3)
-            assert len(app.store) > n  # still capturing after three refusals
+            for _ in range(100):  # still capturing after three refusals (frames keep coming)
+                await pilot.pause(0.05)
+                if len(app.store) > n:
+                    break
+            assert len(app.store) > n
             await pilot.press("q", "y")
         assert not app._thread.is_alive()  # stop event -> capture finished, MCAP closed
         assert app.sink.closed.is_set() and app.feed_error is None
@@ -410,11 +413,12 @@ def test_ended_shows_only_once_every_frame_is_in_view():
     from sniffer.tui.status import status_text
 
     async def go():
-        app = make_app()
-        app.max_batch = 50  # the view takes 50 frames a poll: the feed is done long before
-        async with app.run_test(size=SIZE) as pilot:
+        _, _, registry = replay_frames("errors.mcap")
+        # the view takes 20 frames a poll, and only the polls this test makes (no timer: a slow poll_hz)
+        app = SnifferApp(filled_sink("errors.mcap"), None, source_label="errors.mcap", registry=registry,
+                         clock=lambda: 0.0, poll_hz=0.001, max_batch=20)
+        async with app.run_test(size=SIZE):
             app.poll()
-            await pilot.pause()
             assert app.sink.closed.is_set() and app.sink.backlog > 0
             text = status_text(app).plain
             assert "[loading:" in text and "[ended]" not in text
@@ -447,3 +451,21 @@ def test_drive_faults_have_their_own_colour_count_and_are_found_by_n():
     assert 3 in list(store.problems)
     detail = next(a.detail for a in fault.annotations if a.code == "model.fault")
     assert detail == "fault: External Fault 05 (Error description (fault code))"  # A510 code 21
+
+
+def test_a_unit_seen_only_in_crc_bad_frames_is_marked_a_ghost():
+    """Issue 11: ghost units from corrupted frames are marked as such in Units."""
+    from helpers import bursts, fr, run_events
+
+    from sniffer.line import LineSettings
+    from sniffer.tui.model import FrameStore
+    from sniffer.tui.units import unit_cells
+
+    line = LineSettings(19200, "E", 1)
+    bad = bytearray(bytes.fromhex(fr("090300000001")))
+    bad[-1] ^= 0xFF  # unit 9 only in a frame with a bad CRC
+    frames = run_events(bursts([fr("010300000001"), fr("0103020005"), bad.hex()], line), line)
+    store = FrameStore(frames[0].t_ns)
+    store.add(frames)
+    assert unit_cells(store.units[9], 0)[1] == "ghost? (CRC-bad frames only)"
+    assert "ghost" not in unit_cells(store.units[1], 0)[1]

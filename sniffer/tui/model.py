@@ -122,6 +122,7 @@ class UnitStats:
     exceptions: int = 0
     timeouts: int = 0
     faults: int = 0  # answers reporting a fault or alarm (model.fault / model.alarm)
+    good: int = 0  # CRC-good frames: a unit seen only in damaged frames may be a ghost (a corrupted address)
     lat_min: float | None = None
     lat_max: float | None = None
     latencies: deque = field(default_factory=lambda: deque(maxlen=_LAT_KEEP))
@@ -238,6 +239,8 @@ class FrameStore:
             st.responses += 1
         if f.crc_ok is False:
             st.crc_errors += 1
+        elif f.crc_ok:
+            st.good += 1
         if fl & F_EXC:
             st.exceptions += 1
         if fl & F_TIMEOUT:

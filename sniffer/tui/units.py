@@ -16,7 +16,9 @@ def _ms(v: float | None) -> str:
 
 def unit_cells(st, t0_ns: int, guesses: dict | None = None, given: dict | None = None) -> tuple:
     model = st.model or "-"
-    if given and st.unit in given:
+    if not st.good:  # only CRC-bad frames named it: likely a corrupted unit byte, not a device
+        model = "ghost? (CRC-bad frames only)"
+    elif given and st.unit in given:
         model = f"{given[st.unit]} (given)"
     elif guesses and st.unit in guesses:
         g = guesses[st.unit]
