@@ -469,3 +469,23 @@ def test_a_unit_seen_only_in_crc_bad_frames_is_marked_a_ghost():
     store.add(frames)
     assert unit_cells(store.units[9], 0)[1] == "ghost? (CRC-bad frames only)"
     assert "ghost" not in unit_cells(store.units[1], 0)[1]
+
+
+def test_the_status_bar_says_when_the_view_stops_following_the_tail(tmp_path):
+    """Issue 11: when the view stops following new frames (a move up, a filter), the screen says so."""
+    from sniffer.tui.status import status_text
+
+    async def go():
+        app = _demo_app(tmp_path, "default", 60)
+        async with app.run_test(size=SIZE) as pilot:
+            for _ in range(200):
+                await pilot.pause(0.05)
+                if len(app.store) > 10:
+                    break
+            assert "not following" not in status_text(app).plain
+            await pilot.press("home")
+            assert "[not following the tail: End]" in status_text(app).plain
+            await pilot.press("end")
+            assert "not following" not in status_text(app).plain
+            await pilot.press("q", "y")
+    run(go())

@@ -50,6 +50,9 @@ def status_text(app) -> Text:
     text = Text(" │ ".join(parts))
     if store.paused:
         text.append("  PAUSED", "bold black on yellow")
+    elif not getattr(app.frame_list, "follow", True) and not sink.closed.is_set():
+        # new frames arrive below the view (a filter or a move up stopped following the tail)
+        text.append("  [not following the tail: End]", "bold")
     if sink.error:
         text.append(f"  [error: {sink.error}]", "bold")
     elif sink.closed.is_set():  # the feed is done; the view may still be taking in what it read
