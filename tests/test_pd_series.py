@@ -1,17 +1,15 @@
 """PD-series protocol: framers (pd-rtu, pd-ascii), decoder, the manual's example frames.
 
-The manual (shared/manuals/pd-series-protocol.txt) contradicts itself about
+The PD-series manual (pd-series-protocol.txt, the team's manuals folder) contradicts itself about
 LEN; decoders/pd_series/NOTES.md has our reading.  Wrong bytes in the manual
 stay wrong in examples.toml and the sniffer must flag them.  The lines the
 tests hold the tables against are kept in tests/data/pd-series-manual-lines.json,
-so the tests never read ../shared; with the manual beside the repository,
-SNIFFER_CHECK_MANUALS=1 checks the copy against it.
+so the tests read nothing outside the repository; `scripts/check-manual-excerpt.py MANUAL`
+holds the copy against the manual by hand.
 """
 
 from __future__ import annotations
 
-import os
-import hashlib
 import json
 import tomllib
 from pathlib import Path
@@ -37,7 +35,6 @@ from sniffer.records import frame_record
 
 LINE = LineSettings(9600, "N", 1)
 PKG = Path(__file__).resolve().parent.parent / "decoders" / "pd_series"
-MANUAL = Path(__file__).resolve().parents[2] / "shared" / "manuals" / "pd-series-protocol.txt"
 EXCERPT = json.loads((Path(__file__).resolve().parent / "data" / "pd-series-manual-lines.json").read_text("utf-8"))
 EXAMPLES = tomllib.loads((PKG / "examples.toml").read_text())["examples"]
 BY_LINE = {ex["line"]: ex for ex in EXAMPLES}
@@ -86,19 +83,6 @@ def manual_lines() -> list[str]:
     for n, line in EXCERPT["lines"].items():
         text[int(n) - 1] = line
     return text
-
-
-@pytest.mark.skipif(os.environ.get("SNIFFER_CHECK_MANUALS") != "1" or not MANUAL.exists(),
-                    reason="tests read no file outside the repository: SNIFFER_CHECK_MANUALS=1 holds the excerpt "
-                           "against ../shared/manuals by hand")
-def test_manual_excerpt_matches_the_manual():
-    raw = MANUAL.read_bytes()
-    text = raw.decode("utf-8").splitlines()
-    assert len(text) == EXCERPT["source_lines"]
-    for n, line in EXCERPT["lines"].items():
-        assert text[int(n) - 1] == line, n
-    if hashlib.sha256(raw).hexdigest() != EXCERPT["source_sha256"]:
-        pytest.fail("the manual changed since the excerpt was taken: re-check the lines and the hash")
 
 
 # ---------------------------------------------------------------- manual examples
