@@ -15,8 +15,10 @@ import tomllib
 MAX_BYTES = 16 << 20  # a bus file is a few lines, the largest register map ~200 kB
 
 
-def read_toml(path: str, error: type[Exception]) -> dict:
-    """The document, or `error("<path>: <why>")`."""
+def read_text(path: str, error: type[Exception], what: str = "a bus file or register map",
+              bom: bool = False) -> str:
+    """A small text file (UTF-8; with `bom`, a byte-order mark allowed), or `error("<path>: <why>")`:
+    never blocks on a FIFO, never reads more than MAX_BYTES of a device or a huge file."""
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
     except OSError as e:
@@ -35,12 +37,17 @@ def read_toml(path: str, error: type[Exception]) -> dict:
     finally:
         os.close(fd)
     if len(data) > MAX_BYTES:
-        raise error(f"{path}: over {MAX_BYTES >> 20} MB: not a bus file or register map")
+        raise error(f"{path}: over {MAX_BYTES >> 20} MB: not {what}")
     try:
-        text = data.decode("utf-8")
+        return data.decode("utf-8-sig" if bom else "utf-8")
     except UnicodeDecodeError as e:
         line = data.count(b"\n", 0, e.start) + 1
         raise error(f"{path}: not UTF-8 text (line {line}, byte {e.start})") from None
+
+
+def read_toml(path: str, error: type[Exception]) -> dict:
+    """The document, or `error("<path>: <why>")`."""
+    text = read_text(path, error)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

@@ -9,11 +9,8 @@ from __future__ import annotations
 
 import os
 import re
-import stat
 
 from ..tables import MapError
-
-MAX_BYTES = 16 << 20
 
 # --map-base / `# base:`: how the file counts its addresses
 BASES = ("0", "1", "modicon")
@@ -40,29 +37,10 @@ _ORDER_SUFFIX = re.compile(r"^(?P<t>[a-z0-9]+?)[_ ]?(?P<o>abcd|cdab|badc|dcba|be
 
 
 def read_text(path: str) -> str:
-    """The file as text (UTF-8, a BOM allowed), or MapError naming it."""
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    except OSError as e:
-        raise MapError(f"{path}: {e.strerror or e}") from None
-    try:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise MapError(f"{path}: not a regular file")
-        os.set_blocking(fd, True)
-        with os.fdopen(fd, "rb", closefd=False) as fh:
-            data = fh.read(MAX_BYTES + 1)
-    except OSError as e:
-        raise MapError(f"{path}: {e.strerror or e}") from None
-    finally:
-        os.close(fd)
-    if len(data) > MAX_BYTES:
-        raise MapError(f"{path}: over {MAX_BYTES >> 20} MB: not a register map")
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        line = data.count(b"\n", 0, e.start) + 1
-        raise MapError(f"{path}: not UTF-8 text (line {line})") from None
+    """The file as text (UTF-8, a BOM allowed), or MapError naming it (sniffer.tomlfile.read_text's checks)."""
+    from sniffer.tomlfile import read_text as read_small_text
+
+    return read_small_text(path, MapError, "a register map", bom=True)
 
 
 def parse_base(text, what: str) -> str:
