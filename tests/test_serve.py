@@ -340,23 +340,9 @@ def _processes_with(needle: str) -> list[int]:
     return out
 
 
-async def _visits(port: int, n: int) -> None:
-    """n browser visits that each see the screen, then end (the page closed)."""
-    import aiohttp
-
-    for _ in range(n):
-        got = b""
-        async with aiohttp.ClientSession() as session, \
-                session.ws_connect(f"http://127.0.0.1:{port}/ws?width=100&height=30") as ws:
-            async with asyncio.timeout(HANG_S):
-                async for msg in ws:
-                    if msg.type == aiohttp.WSMsgType.BINARY:
-                        got += msg.data
-                    if b"Frames" in got:
-                        break
-
-
-async def _hold(port: int, seen: threading.Event, stop: threading.Event) -> None:
+async def _visit(port: int, seen: threading.Event | None = None, stop: threading.Event | None = None) -> None:
+    """A browser visit: open the app's websocket and read until the screen shows; with `stop`, stay
+    (`seen` set once the screen shows) until it is set or the server closes; then the page closes."""
     import aiohttp
 
     got = b""
@@ -367,9 +353,18 @@ async def _hold(port: int, seen: threading.Event, stop: threading.Event) -> None
                 if msg.type == aiohttp.WSMsgType.BINARY:
                     got += msg.data
                 if b"Frames" in got:
+                    if stop is None:
+                        break
                     seen.set()
-                if stop.is_set() or msg.type in (aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.ERROR):
+                if stop is not None and stop.is_set() or msg.type in (aiohttp.WSMsgType.CLOSED,
+                                                                      aiohttp.WSMsgType.ERROR):
                     break
+
+
+async def _visits(port: int, n: int) -> None:
+    """n browser visits that each see the screen, then end (the page closed)."""
+    for _ in range(n):
+        await _visit(port)
 
 
 def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
@@ -395,7 +390,7 @@ def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
         _wait(lambda: not _processes_with(f"attach {sock} --tui"), "the ended visits' viewers to exit")
         # a visit still open when the server is killed outright
         seen, stop = threading.Event(), threading.Event()
-        holder = threading.Thread(target=lambda: asyncio.run(_hold(port, seen, stop)), daemon=True)
+        holder = threading.Thread(target=lambda: asyncio.run(_visit(port, seen, stop)), daemon=True)
         holder.start()
         _wait(seen.is_set, "the open visit's screen")
         viewers = _processes_with(f"attach {sock} --tui")
