@@ -28,6 +28,15 @@ def run(coro):
     return asyncio.run(coro)
 
 
+async def until(pilot, cond, tries: int = 200, step_s: float = 0.05) -> bool:
+    """Let the app run until `cond()` holds (True) or `tries` pauses have passed (False)."""
+    for _ in range(tries):
+        if cond():
+            return True
+        await pilot.pause(step_s)
+    return cond()
+
+
 def test_loads_and_follows_tail():
     async def go():
         app = make_app()
@@ -292,11 +301,7 @@ def test_quit_stops_a_running_capture(tmp_path):
     async def go():
         app = _demo_app(tmp_path, "default", 60)
         async with app.run_test(size=SIZE) as pilot:
-            for _ in range(200):
-                await pilot.pause(0.05)
-                if len(app.store) > 10:
-                    break
-            assert len(app.store) > 10
+            assert await until(pilot, lambda: len(app.store) > 10)
             await pilot.press("q")  # a live capture asks first (issue 11): n, Esc and q go back to it
             for no in ("n", "escape", "q"):
                 await pilot.pause(0.05)
@@ -307,11 +312,7 @@ def test_quit_stops_a_running_capture(tmp_path):
                 if no != "q":
                     await pilot.press("q")
             n = len(app.store)
-            for _ in range(100):  # still capturing after three refusals (frames keep coming)
-                await pilot.pause(0.05)
-                if len(app.store) > n:
-                    break
-            assert len(app.store) > n
+            assert await until(pilot, lambda: len(app.store) > n)  # still capturing after three refusals
             await pilot.press("q", "y")
         assert not app._thread.is_alive()  # stop event -> capture finished, MCAP closed
         assert app.sink.closed.is_set() and app.feed_error is None
@@ -478,10 +479,7 @@ def test_the_status_bar_says_when_the_view_stops_following_the_tail(tmp_path):
     async def go():
         app = _demo_app(tmp_path, "default", 60)
         async with app.run_test(size=SIZE) as pilot:
-            for _ in range(200):
-                await pilot.pause(0.05)
-                if len(app.store) > 10:
-                    break
+            assert await until(pilot, lambda: len(app.store) > 10)
             assert "not following" not in status_text(app).plain
             await pilot.press("home")
             assert "[not following the tail: End]" in status_text(app).plain
