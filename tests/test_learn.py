@@ -34,22 +34,13 @@ def _words_f(x: float, order: str = "big") -> list[int]:
     return [hi, lo] if order == "big" else [lo, hi]
 
 
-def meter_capture(path, polls: int = 60, seed: int = 3) -> dict:
-    """A meter at unit 7, 9600 8N1: fc04 0..9 (five float32s, the last one low word first) and fc03
-    0x100..0x104 (s16, rising counter, constant, u32 counter); a byte CSV at `path`.  The truth, by address."""
+def _polls_capture(path, blocks_of, polls: int = 40, seed: int = 5) -> None:
+    """A unit-7 byte CSV at 9600 8N1: each poll reads every (fc, start, words) `blocks_of(rng)` gives."""
     rng = random.Random(seed)
     char_s = 11 / 9600
     rows, t = [], 0.0
-    energy = 65_400
-    count = 10
     for _ in range(polls):
-        floats = [230 + rng.uniform(-3, 3), rng.uniform(0.5, 12.0), 50 + rng.uniform(-0.05, 0.05),
-                  rng.uniform(100, 2500), rng.uniform(0.85, 0.99)]
-        inputs = [w for x in floats[:4] for w in _words_f(x)] + _words_f(floats[4], "little")
-        energy += rng.randint(20, 60)
-        count += rng.randint(1, 3)
-        holding = [rng.randint(-40, 40) & 0xFFFF, count, 1234, energy >> 16, energy & 0xFFFF]
-        for fc, start, words in ((4, 0, inputs), (3, 0x100, holding)):
+        for fc, start, words in blocks_of(rng):
             req = _frame(bytes([7, fc]) + struct.pack(">HH", start, len(words)))
             rsp = _frame(bytes([7, fc, 2 * len(words)]) + struct.pack(f">{len(words)}H", *words))
             for data, gap in ((req, 0.004), (rsp, 0.05)):
@@ -58,6 +49,24 @@ def meter_capture(path, polls: int = 60, seed: int = 3) -> dict:
                     t += char_s
                 t += gap
     path.write_text("t_s,channel,byte_hex,flags\n" + "\n".join(rows) + "\n")
+
+
+def meter_capture(path, polls: int = 60, seed: int = 3) -> dict:
+    """A meter at unit 7, 9600 8N1: fc04 0..9 (five float32s, the last one low word first) and fc03
+    0x100..0x104 (s16, rising counter, constant, u32 counter); a byte CSV at `path`.  The truth, by address."""
+    state = {"energy": 65_400, "count": 10}
+
+    def blocks(rng):
+        floats = [230 + rng.uniform(-3, 3), rng.uniform(0.5, 12.0), 50 + rng.uniform(-0.05, 0.05),
+                  rng.uniform(100, 2500), rng.uniform(0.85, 0.99)]
+        inputs = [w for x in floats[:4] for w in _words_f(x)] + _words_f(floats[4], "little")
+        state["energy"] += rng.randint(20, 60)
+        state["count"] += rng.randint(1, 3)
+        energy = state["energy"]
+        holding = [rng.randint(-40, 40) & 0xFFFF, state["count"], 1234, energy >> 16, energy & 0xFFFF]
+        return [(4, 0, inputs), (3, 0x100, holding)]
+
+    _polls_capture(path, blocks, polls, seed)
     return {0: ("f32", "big"), 2: ("f32", "big"), 4: ("f32", "big"), 6: ("f32", "big"),
             8: ("f32", "little"), 0x100: ("s16", "big"), 0x101: ("u16", "big"), 0x102: ("u16", "big"),
             0x103: ("u32", "big")}
@@ -239,23 +248,6 @@ def test_learn_refuses_a_pd_series_capture(tmp_path, capsys):
     line = one_error(capsys, "learn", "captures/sim/pd-series.mcap", "--out", out)
     assert "pd-rtu frames: learn writes Modbus register maps" in line
     assert not out.exists() and not list(tmp_path.glob("*.part"))
-
-
-def _polls_capture(path, blocks_of, polls: int = 40, seed: int = 5) -> None:
-    """A unit-7 byte CSV at 9600 8N1: each poll reads every (fc, start, words) `blocks_of(rng)` gives."""
-    rng = random.Random(seed)
-    char_s = 11 / 9600
-    rows, t = [], 0.0
-    for _ in range(polls):
-        for fc, start, words in blocks_of(rng):
-            req = _frame(bytes([7, fc]) + struct.pack(">HH", start, len(words)))
-            rsp = _frame(bytes([7, fc, 2 * len(words)]) + struct.pack(f">{len(words)}H", *words))
-            for data, gap in ((req, 0.004), (rsp, 0.05)):
-                for b in data:
-                    rows.append(f"{t:.6f},RX,{b:02x},")
-                    t += char_s
-                t += gap
-    path.write_text("t_s,channel,byte_hex,flags\n" + "\n".join(rows) + "\n")
 
 
 def test_learn_keeps_holding_and_input_apart_and_aligns_s32_before_a_float(tmp_path, capsys):
