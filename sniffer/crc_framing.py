@@ -9,6 +9,7 @@ tries the framer's rules in this order, each a method of that name:
   B2  `_rule_b2_noise_before_frame` a good frame starts later: noise before it;
   B3  `_rule_b3_damaged_frame`      the header's length ends at a boundary, bad CRC;
   B3b `_rule_b3b_frame_inside`      a good frame inside the run, junk on both sides;
+  B3c `_rule_b3c_crc_pieces`        (RTU) the run splits into CRC-valid pieces;
   B4  `_rule_b4_malformed_burst`    a whole burst between two HARD silences;
   B5  `_rule_b5_noise`              noise up to the next boundary.
 

@@ -26,10 +26,20 @@ each rule a method named for it:
      glued to a frame in one read);
   B3. `_rule_b3_damaged_frame`: a structural length that ends exactly at the
      next boundary, bad CRC (a corrupted frame);
+  B3b. `_rule_b3b_frame_inside`: a good frame wholly inside the run, junk on
+     both sides of it;
+  B3c. `_rule_b3c_crc_pieces`: the run splits wholly into CRC-valid pieces
+     (glued frames no length rule cuts), a few junk bytes before them allowed;
   B4. `_rule_b4_malformed_burst`: a whole burst between two t3.5 silences
      with a plausible header is a malformed frame (the Modbus definition of
      a frame), bad CRC;
   B5. `_rule_b5_noise`: otherwise noise up to the next boundary.
+B2 judges the bytes before the good frame as a run of their own: CRC-valid
+-> a frame (B1's notes), a structural length ending there -> a damaged frame,
+CRC-valid pieces -> frames, else noise.  Every unit gets the same lengths
+(rtu_layout.candidates); the frame's bytes may narrow its roles
+(rtu_layout.roles), and of two CRC-valid lengths the shorter wins only where
+it ends at a boundary (`_prefer_longer`).
 Decisions depend only on bytes and boundaries, never on how reads were cut,
 so feeding a capture whole, byte by byte or in random chunks gives the same
 frames (a property test checks it).
@@ -312,9 +322,9 @@ class RtuFramer(Crc16Framing, LineBuffer):
                 continue
             if hit(q, b, True):
                 return self._lead_run(p, q)
-        return self._rule_b3c_two_crc_runs(p, b)
+        return self._rule_b3c_crc_pieces(p, b)
 
-    def _rule_b3c_two_crc_runs(self, p: int, b: int):
+    def _rule_b3c_crc_pieces(self, p: int, b: int):
         """B3c: the run splits wholly into CRC-valid pieces (frames of an unknown or user-defined
         function, or 08s without data, glued in one read, which no length rule cuts): the first
         is a frame (B1's notes)."""
