@@ -20,7 +20,7 @@ from .records import loads
 from .sources import CaptureError
 
 
-def _connect(addr: Address, timeout_s: float) -> socket.socket:
+def connect(addr: Address, timeout_s: float) -> socket.socket:
     if addr.path is not None:
         s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         target: object = addr.path
@@ -56,7 +56,7 @@ class Attachment:
 
     def __init__(self, spec: str, *, timeout_s: float = 10.0) -> None:
         self.address = parse_address(spec)
-        self.sock = _connect(self.address, timeout_s)
+        self.sock = connect(self.address, timeout_s)
         self._buf = b""
         self._first: list[bytes] = []
         try:

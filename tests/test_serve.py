@@ -20,7 +20,7 @@ import urllib.request
 
 import pytest
 from helpers import ListSink
-from tui_helpers import SIM, replay_frames
+from tui_helpers import SIM, demo_viewer, replay_frames
 
 from decoders.registry import default_registry
 from sniffer.attach import Attachment, attach_feed
@@ -196,41 +196,26 @@ def test_attach_tui_shows_the_published_frames(tmp_path):
 
 
 def test_demo_tui_publishes_to_a_viewer(tmp_path):
-    """`sniffer demo --publish SOCKET` on a terminal: its own TUI and an attached viewer see the same frames."""
-    from sniffer.commands.capture import capture_session
-    from sniffer.simulator.sources import DemoSource
-
+    """`sniffer demo --publish SOCKET` on a terminal: the capture runs as a process of its own publishing there;
+    its TUI and another attached viewer see the same frames, the MCAP holds them."""
     sock, out = str(tmp_path / "demo.sock"), tmp_path / "d.mcap"
-    spec = CaptureSpec(scenario="errors", out=str(out), publish=sock)
-    sink = TuiSink()
-    session = capture_session(spec, DemoSource(get_scenario("errors"), 1, 1.5), "demo errors", tui_sink=sink)
-    session.open()
-    viewer = None
 
-    async def go():
-        nonlocal viewer
-        app = SnifferApp(sink, lambda _s, _stop: session.run(), source_label="demo errors", capture_path=str(out),
-                         registry=session.registry)
-        app.stop_event = session.stop
+    async def go(app):
+        viewer = Viewer(sock)
+        viewer.start()
         async with app.run_test(size=(140, 45)) as pilot:
             deadline = time.monotonic() + HANG_S
-            while viewer is None:  # the socket listens once the capture has opened the pty
-                assert time.monotonic() < deadline, "the demo never published"
-                try:
-                    viewer = Viewer(sock)
-                except CaptureError:
-                    await pilot.pause(0.05)
-            viewer.start()
             while not (app.caught_up and len(app.store) == app.sink.frames_in):
                 assert time.monotonic() < deadline, "the demo never ended"
                 await pilot.pause(0.05)
             assert app.feed_error is None
-            shown = [f.raw.hex() for f in app.store.frames]
-        app.stop_feed()  # as run_tui does: the capture's files are closed and in place before the App is gone
-        return shown
+        return viewer, [f.raw.hex() for f in app.store.frames]
 
-    shown = asyncio.run(go())
+    with demo_viewer(tmp_path, "errors", 1.5, publish=sock) as capture:
+        viewer, shown = asyncio.run(go(capture.app))
     viewer.join(HANG_S)
+    assert capture.app.feed_error is None, capture.app.feed_error
+    assert capture.rc() == 0 and capture.sock == sock
     assert viewer.att.ended is not None and viewer.att.earlier_frames == 0
     assert viewer.records == read_frames(str(out))
     assert [r["raw"] for r in viewer.records] == shown and len(shown) > 20

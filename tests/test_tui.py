@@ -3,8 +3,9 @@
 import asyncio
 
 import pytest
-from tui_helpers import filled_sink, registry_shadow, replay_frames
+from tui_helpers import demo_viewer, filled_sink, registry_shadow, replay_frames
 
+from sniffer.sources.mcapsrc import read_frames
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.model import F_PROBLEM
 from sniffer.tui.sink import TuiSink
@@ -263,43 +264,24 @@ def test_mouse_click_selects(name):
     run(go())
 
 
-def _demo_app(tmp_path, scenario: str, seconds: float):
-    """The App over `sniffer demo`'s session (the simulated bus on a pty, captured live to an MCAP)."""
-    from sniffer.commands.capture import capture_session
-    from sniffer.session import CaptureSpec
-    from sniffer.simulator.scenario import get_scenario
-    from sniffer.simulator.sources import DemoSource
-    from sniffer.tui.run import session_app
-    from sniffer.tui.sink import TuiSink
-
-    out = str(tmp_path / "d.mcap")
-    sink = TuiSink()
-    session = capture_session(CaptureSpec(out=out), DemoSource(get_scenario(scenario), 1, seconds), f"demo {scenario}",
-                              tui_sink=sink)
-    session.open()
-    return session_app(session, sink, source_label=f"demo {scenario}", capture_path=out, live=True)
-
-
 def test_demo_feed_live_path(tmp_path):
-    """The live path for real: the simulated bus on a pty, captured by capture() on the feed thread."""
-    async def go():
-        app = _demo_app(tmp_path, "errors", 1.5)
+    """The live path for real: the simulated bus on a pty, captured by its own process, viewed over its socket."""
+    async def go(app):
         async with app.run_test(size=SIZE) as pilot:
-            for _ in range(300):
-                await pilot.pause(0.05)
-                if app.caught_up and len(app.store) == app.sink.frames_in:
-                    break
+            assert await until(pilot, lambda: app.caught_up and len(app.store) == app.sink.frames_in, 300)
             assert app.feed_error is None, app.feed_error
             assert len(app.store) > 20 and app.store.units
             assert app.capture_size() and app.capture_size() > 0
-            await pilot.press("q")
+            await pilot.press("q")  # the capture has ended: no question
 
-    run(go())
+    with demo_viewer(tmp_path, "errors", 1.5) as viewer:
+        run(go(viewer.app))
+    assert viewer.rc() == 0
+    assert [r["raw"] for r in read_frames(str(tmp_path / "d.mcap"))] == [f.raw.hex() for f in viewer.app.store.frames]
 
 
 def test_quit_stops_a_running_capture(tmp_path):
-    async def go():
-        app = _demo_app(tmp_path, "default", 60)
+    async def go(app, capture):
         async with app.run_test(size=SIZE) as pilot:
             assert await until(pilot, lambda: len(app.store) > 10)
             await pilot.press("q")  # a live capture asks first (issue 11): n, Esc and q go back to it
@@ -313,11 +295,16 @@ def test_quit_stops_a_running_capture(tmp_path):
                     await pilot.press("q")
             n = len(app.store)
             assert await until(pilot, lambda: len(app.store) > n)  # still capturing after three refusals
+            assert capture.returncode is None
             await pilot.press("q", "y")
-        assert not app._thread.is_alive()  # stop event -> capture finished, MCAP closed
-        assert app.sink.closed.is_set() and app.feed_error is None
 
-    run(go())
+    with demo_viewer(tmp_path, "default", 60) as viewer:
+        run(go(viewer.app, viewer.capture))
+    # the capture stopped as on Ctrl-C: exit 0, MCAP closed (no .part left) and holding what the viewer saw
+    assert viewer.rc() == 0 and not (tmp_path / "d.mcap.part").exists()
+    saved = [r["raw"] for r in read_frames(str(tmp_path / "d.mcap"))]
+    shown = [f.raw.hex() for f in viewer.app.store.frames]
+    assert len(saved) >= len(shown) > 10 and saved[:len(shown)] == shown
 
 
 def test_status_bar_shows_the_size_of_a_capture_being_written(tmp_path):
@@ -476,8 +463,7 @@ def test_the_status_bar_says_when_the_view_stops_following_the_tail(tmp_path):
     """Issue 11: when the view stops following new frames (a move up, a filter), the screen says so."""
     from sniffer.tui.status import status_text
 
-    async def go():
-        app = _demo_app(tmp_path, "default", 60)
+    async def go(app):
         async with app.run_test(size=SIZE) as pilot:
             assert await until(pilot, lambda: len(app.store) > 10)
             assert "not following" not in status_text(app).plain
@@ -486,4 +472,6 @@ def test_the_status_bar_says_when_the_view_stops_following_the_tail(tmp_path):
             await pilot.press("end")
             assert "not following" not in status_text(app).plain
             await pilot.press("q", "y")
-    run(go())
+
+    with demo_viewer(tmp_path, "default", 60) as viewer:
+        run(go(viewer.app))

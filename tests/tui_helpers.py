@@ -1,7 +1,8 @@
-"""Deterministic replays for the TUI tests: decode a capture once, hand out its frames."""
+"""Helpers for the TUI tests: deterministic replays (decode a capture once, hand out its frames), a live demo viewer."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 from pathlib import Path
 
@@ -48,3 +49,17 @@ def filled_sink(name: str = "errors.mcap") -> TuiSink:
     sink.bytes_in = sum(len(f.raw) for f in frames)
     sink.close()
     return sink
+
+
+@contextlib.contextmanager
+def demo_viewer(tmp_path, scenario: str, seconds: float, **spec):
+    """`sniffer demo` with the TUI, as run_capture_tui runs it: the capture (the simulated bus on a pty,
+    captured to an MCAP) a process of its own, the App attached to it over the capture's socket."""
+    from sniffer.session import CaptureSpec
+    from sniffer.tui.run import CaptureViewer
+
+    out = str(tmp_path / "d.mcap")
+    with CaptureViewer(CaptureSpec(out=out, scenario=scenario, seed=1, duration_s=seconds, **spec), "demo",
+                       f"demo {scenario}") as viewer:
+        assert viewer.start(), "the demo capture did not start"
+        yield viewer

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import ClassVar
 
@@ -145,6 +146,7 @@ class SnifferApp(App):
         self._ticks = 0
         self._tables_at = None  # (store state, tab) the units / registers tables were last built for
         self._status_text = None
+        self.notices: deque[str] = deque()  # lines a capture process said on stderr: shown as notifications
 
     # ---------------------------------------------------------------- layout
     def compose(self) -> ComposeResult:
@@ -211,6 +213,11 @@ class SnifferApp(App):
         return self.sink.closed.is_set() and self.sink.backlog == 0
 
     def poll(self) -> None:
+        while self.notices:
+            line = self.notices.popleft()
+            bad = "error" in line or "warning" in line or "lost" in line
+            self.notify(line.removeprefix("sniffer: "), title="capture", severity="warning" if bad else "information",
+                        timeout=8 if bad else 4)
         if self.sink.info is not None and not len(self.store):
             self.store.t0_ns = self.sink.info.t0_ns
         batch = self.sink.drain(self.max_batch)

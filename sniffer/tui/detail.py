@@ -10,6 +10,7 @@ from __future__ import annotations
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
+from textual.css.query import NoMatches
 from textual.widgets import Static, Tree
 
 from ..frame import Frame
@@ -72,9 +73,16 @@ class DetailPane(Vertical):
         yield tree
         yield Static("", id="hex")
 
+    def on_mount(self) -> None:
+        if self.frame is not None:  # selected before the tree was composed (a feed can be that quick)
+            self.show(self.frame, self.t0_ns)
+
     def show(self, f: Frame | None, t0_ns: int = 0) -> None:
         self.frame, self.t0_ns, self.span = f, t0_ns, None
-        tree = self.query_one("#fields", Tree)
+        try:
+            tree = self.query_one("#fields", Tree)
+        except NoMatches:
+            return  # not composed yet: on_mount shows it
         tree.clear()
         if f is None:
             tree.root.set_label("no frame selected")
