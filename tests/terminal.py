@@ -17,13 +17,13 @@ HANG_S = 60.0
 class Terminal:
     """A command on a pty of its own, as a terminal runs it: what it draws is read and kept, keys are typed."""
 
-    def __init__(self, argv: list[str], cols: int = 120, rows: int = 40) -> None:
+    def __init__(self, argv: list[str], cols: int = 120, rows: int = 40, cwd: str | None = None) -> None:
         self.master, slave = pty.openpty()
         fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, cols, 0, 0))
         env = dict(os.environ, TERM="xterm-256color", COLUMNS=str(cols), LINES=str(rows))
         env.pop("CI", None)  # Textual is the same either way; keep CI's own settings out of the App
         self.proc = subprocess.Popen(argv, stdin=slave, stdout=slave, stderr=slave, env=env, start_new_session=True,
-                                     close_fds=True)
+                                     close_fds=True, cwd=cwd)
         os.close(slave)
         self.screen = bytearray()
 

@@ -8,7 +8,7 @@ from tui_helpers import demo_viewer, filled_sink, registry_shadow, replay_frames
 from sniffer.sources.mcapsrc import read_frames
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.model import F_PROBLEM
-from sniffer.tui.sink import TuiSink
+from sniffer.tui.sink import INTAKE_CHUNK, TuiSink
 
 SIZE = (140, 45)
 
@@ -162,6 +162,68 @@ def test_pause_keeps_view_while_frames_arrive():
             await pilot.press("space")
             assert not app.store.paused and len(app.store.view) == len(frames)
             assert app.frame_list.cursor == len(frames) - 1  # back to following the tail
+    run(go())
+
+
+def test_the_timer_takes_a_backlog_in_by_turns_every_frame_in_order(monkeypatch):
+    """Issue 11: a poll took 5,000 frames in at once (half a second while a replay loaded, keys waiting).
+    The timer takes frames in by turns of a time budget, and between polls while frames wait; with a
+    budget of 0 every turn takes one frame, and still every frame arrives, in order, and is shown."""
+    import sniffer.tui.app as app_module
+
+    monkeypatch.setattr(app_module, "INTAKE_BUDGET_S", 0.0)
+
+    async def go():
+        info, frames, registry = replay_frames()
+        frames = frames[:40]
+        sink = TuiSink()
+        sink.start(info)
+        sink.frames(frames)
+        sink.close()
+        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0)
+        turns = []
+        add = app.store.add
+        app.store.add = lambda batch: turns.append(len(batch)) or add(batch)
+        async with app.run_test(size=SIZE) as pilot:
+            assert await until(pilot, lambda: app.caught_up and app.frame_list.cursor == len(frames) - 1)
+            assert [f.index for f in app.store.frames] == [f.index for f in frames]
+            assert turns == [INTAKE_CHUNK] + [1] * (len(frames) - INTAKE_CHUNK)  # then one frame a turn
+    run(go())
+
+
+def test_the_detail_follows_the_tail_at_a_readable_pace_and_shows_a_selected_frame_at_once(monkeypatch):
+    """Rebuilding the detail for every new tail frame (15 times a second) took a third of the TUI's time
+    under live stress: while the list follows the tail, the detail changes at most every FOLLOW_EVERY_S;
+    a frame the user selects shows at once."""
+    import sniffer.tui.detail as detail_module
+
+    monkeypatch.setattr(detail_module, "FOLLOW_EVERY_S", 3600.0)
+
+    async def go():
+        info, frames, registry = replay_frames()
+        sink = TuiSink()
+        sink.start(info)
+        sink.frames(frames[:50])
+        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0, poll_hz=0.001)
+        async with app.run_test(size=SIZE) as pilot:
+            app.poll()
+            await pilot.pause()
+            store, detail = app.store, app.detail
+            assert detail.frame is store.frames[49]  # the first tail frame shows at once
+            sink.frames(frames[50:60])
+            app.poll()
+            await pilot.pause()
+            assert detail.frame is store.frames[49] and detail.due[0] is store.frames[59]  # waits its turn
+            await pilot.press("up")
+            assert detail.frame is store.frames[58] and detail.due is None  # the user's: at once
+            await pilot.press("end")
+            assert detail.frame is store.frames[59]
+            monkeypatch.setattr(detail_module, "FOLLOW_EVERY_S", 0.2)
+            sink.frames(frames[60:70])
+            app.poll()
+            sink.frames(frames[70:80])
+            app.poll()
+            assert await until(pilot, lambda: detail.frame is store.frames[79] and detail.due is None)
     run(go())
 
 

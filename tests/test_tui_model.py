@@ -397,3 +397,52 @@ def test_sink_makes_a_replay_wait_for_the_ui_but_never_a_live_line():
     for f in _frames_every(50, 1000):  # capture time no faster than the wall clock
         live.frame(f)
     assert live.backlog == 50
+
+
+class _FakeClock:
+    """A clock that moves only when frames are handed over: `cost` seconds a frame."""
+
+    def __init__(self, cost: float) -> None:
+        self.now, self.cost = 0.0, cost
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_budgeted_drain_delivers_every_frame_in_order_while_a_capture_pushes():
+    """The UI takes frames in for a time budget at a time (issue 11: 5,000 frames a tick kept keys waiting
+    for half a second); whatever the budget and the pace of the pusher, every frame arrives once, in order."""
+    frames = _frames_every(5000, 1000)
+    for cost, budget in ((1e-5, 0.008), (4e-4, 0.008), (0.02, 0.008)):  # fast, slow and slower than a budget
+        sink, clock = TuiSink(), _FakeClock(cost)
+        got, calls = [], []
+
+        def add(batch, clock=clock, got=got):
+            got.extend(batch)
+            clock.now += clock.cost * len(batch)
+
+        pusher = threading.Thread(target=lambda sink=sink: [sink.frame(f) for f in frames])
+        pusher.start()
+        while pusher.is_alive() or sink.backlog:
+            t0 = clock.now
+            n = sink.drain_into(add, budget_s=budget, clock=clock)
+            calls.append((n, clock.now - t0))
+        pusher.join()
+        assert [f.index for f in got] == list(range(5000))
+        # after the first call (cost unknown: a first list of INTAKE_CHUNK frames), a call ends within one
+        # frame's cost of its budget (one frame a call when a frame alone takes longer)
+        for n, spent in calls[1:]:
+            assert spent <= budget + cost * 1.001, (cost, n, spent)
+        sizes = [n for n, _ in calls[1:]]
+        assert set(sizes) == {1} if cost > budget else 1 < max(sizes) <= budget / cost + 1
+
+
+def test_budgeted_drain_keeps_limit_and_without_a_budget_is_drain():
+    frames = _frames_every(300, 1000)
+    sink = TuiSink()
+    sink.frames(frames)
+    got = []
+    assert sink.drain_into(got.extend, limit=20, budget_s=10.0) == 20  # a limit holds with any budget
+    assert sink.drain_into(got.extend, limit=50) == 50  # no budget: one list of up to `limit`
+    assert sink.drain_into(got.extend) == 230 and sink.drain_into(got.extend) == 0
+    assert [f.index for f in got] == list(range(300))

@@ -1,7 +1,8 @@
 """The Textual App: a thin viewer over a FrameStore fed by a TuiSink.
 
 The pipeline runs elsewhere (a worker thread given as `feed`); the App polls
-the sink on a timer, adds the batch to the store and redraws once per tick.
+the sink on a timer, takes frames into the store for a time budget (more in
+between while they wait: sink.py) and redraws once per tick.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from .filters import filter_expr, parse_filter
 from .framelist import FrameList
 from .model import FrameStore
 from .registers import RegisterWatch
-from .sink import TuiSink
+from .sink import INTAKE_BUDGET_S, INTAKE_PERIOD_S, TuiSink
 from .status import status_text
 from .units import UnitsTable
 
@@ -146,6 +147,7 @@ class SnifferApp(App):
         self._ticks = 0
         self._tables_at = None  # (store state, tab) the units / registers tables were last built for
         self._status_text = None
+        self._shown_rows = 0  # store rows when the list was last told
         self.notices: deque[str] = deque()  # lines a capture process said on stderr: shown as notifications
 
     # ---------------------------------------------------------------- layout
@@ -172,7 +174,8 @@ class SnifferApp(App):
         self.tabs = self.query_one(TabbedContent)
         self.filter_bar = self.query_one("#filterbar", Input)
         self.frame_list.focus()
-        self.set_interval(1 / self.poll_hz, self.poll)
+        self.set_interval(1 / self.poll_hz, self._tick)
+        self._more = self.set_interval(INTAKE_PERIOD_S, self._intake, pause=True)  # while frames wait
         if self.feed is not None:
             self._thread = threading.Thread(target=self._run_feed, name="tui-feed", daemon=True)
             self._thread.start()
@@ -212,7 +215,19 @@ class SnifferApp(App):
         """The feed has finished and every frame it produced is in the store."""
         return self.sink.closed.is_set() and self.sink.backlog == 0
 
-    def poll(self) -> None:
+    def _tick(self) -> None:
+        """The poll timer: frames in for at most INTAKE_BUDGET_S (a key waits no longer), then the view."""
+        self.poll(INTAKE_BUDGET_S)
+        if self.sink.backlog:
+            self._more.resume()
+
+    def _intake(self) -> None:
+        """Between two polls, while frames wait: more of them into the store (the next poll shows them)."""
+        if not self.sink.drain_into(self.store.add, budget_s=INTAKE_BUDGET_S) or not self.sink.backlog:
+            self._more.pause()
+
+    def poll(self, budget_s: float | None = None) -> None:
+        """Frames into the store (at most max_batch, and for at most `budget_s` if given), then the view."""
         while self.notices:
             line = self.notices.popleft()
             bad = "error" in line or "warning" in line or "lost" in line
@@ -220,9 +235,9 @@ class SnifferApp(App):
                         timeout=8 if bad else 4)
         if self.sink.info is not None and not len(self.store):
             self.store.t0_ns = self.sink.info.t0_ns
-        batch = self.sink.drain(self.max_batch)
-        if batch:
-            self.store.add(batch)
+        self.sink.drain_into(self.store.add, limit=self.max_batch, budget_s=budget_s)
+        before, self._shown_rows = self._shown_rows, len(self.store)  # frames _intake added count too
+        if before != self._shown_rows:
             self.frame_list.refresh_rows()
         self._ticks += 1
         now = self.clock()
@@ -234,7 +249,7 @@ class SnifferApp(App):
         # idle means idle: tables only when the store changed, the status bar only when its text did
         shown = (self.store.generation, len(self.store), self.store.book.version, self.tabs.active)
         if (self._ticks % max(int(self.poll_hz / 2), 1) == 0 and shown != self._tables_at
-                or batch and len(self.store) == len(batch)):
+                or not before and self._shown_rows):
             self._tables_at = shown
             self.refresh_tables()
         text = status_text(self)
@@ -263,7 +278,7 @@ class SnifferApp(App):
     # ---------------------------------------------------------------- selection
     def on_frame_list_selected(self, message: FrameList.Selected) -> None:
         row = message.row
-        self.detail.show(None if row is None else self.store.frame(row), self.store.t0_ns)
+        self.detail.show(None if row is None else self.store.frame(row), self.store.t0_ns, following=message.following)
 
     @property
     def selected_frame(self):

@@ -7,6 +7,8 @@ annotation's start..end), never guessed here.
 
 from __future__ import annotations
 
+import time
+
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
@@ -16,6 +18,7 @@ from textual.widgets import Static, Tree
 from ..frame import Frame
 
 HL = "black on yellow"
+FOLLOW_EVERY_S = 0.5  # while the list follows the tail, the detail is rebuilt at most this often
 
 
 def hex_dump(raw: bytes, span: tuple[int, int] | None = None, width: int = 16) -> Text:
@@ -66,6 +69,9 @@ class DetailPane(Vertical):
         self.frame: Frame | None = None
         self.t0_ns = 0
         self.span: tuple[int, int] | None = None
+        self.due: tuple[Frame | None, int] | None = None  # the tail's newest frame, shown at _shown_at + FOLLOW_EVERY_S
+        self._shown_at = float("-inf")  # when a tail frame was last shown
+        self._due_timer = None
 
     def compose(self) -> ComposeResult:
         tree: Tree = Tree("no frame selected", id="fields")
@@ -77,7 +83,25 @@ class DetailPane(Vertical):
         if self.frame is not None:  # selected before the tree was composed (a feed can be that quick)
             self.show(self.frame, self.t0_ns)
 
-    def show(self, f: Frame | None, t0_ns: int = 0) -> None:
+    def show(self, f: Frame | None, t0_ns: int = 0, *, following: bool = False) -> None:
+        """Show frame f; `following`: f is the tail's newest frame (the list follows a capture), and the tail
+        frame shown less than FOLLOW_EVERY_S ago stays until then (nobody reads a detail that changes 15 times
+        a second; building it took a third of the TUI's time).  A frame the user selects shows at once."""
+        now = time.monotonic()
+        if following:
+            wait = self._shown_at + FOLLOW_EVERY_S - now
+            if wait > 0:
+                self.due = (f, t0_ns)
+                if self._due_timer is None:
+                    self._due_timer = self.set_timer(wait, self._show_due)
+                return
+            self._shown_at = now
+        else:
+            self._shown_at = float("-inf")  # the next tail frame shows at once
+        self.due = None
+        if self._due_timer is not None:
+            self._due_timer.stop()
+            self._due_timer = None
         self.frame, self.t0_ns, self.span = f, t0_ns, None
         try:
             tree = self.query_one("#fields", Tree)
@@ -135,6 +159,11 @@ class DetailPane(Vertical):
                 node.add_leaf(label, data=(a.start, a.end))
         tree.root.expand()
         self._hex()
+
+    def _show_due(self) -> None:
+        self._due_timer = None
+        if self.due is not None:
+            self.show(*self.due, following=True)
 
     def _add_fields(self, parent, fields) -> None:
         for item in fields:

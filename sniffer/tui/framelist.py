@@ -103,8 +103,9 @@ class FrameList(ScrollView, can_focus=True):
     cursor = reactive(-1, always_update=True, repaint=False)
 
     class Selected(Message):
-        def __init__(self, row: int | None) -> None:
+        def __init__(self, row: int | None, following: bool = False) -> None:
             self.row = row
+            self.following = following  # moved by new frames at the tail, not by the user
             super().__init__()
 
     def __init__(self, store: FrameStore, **kw) -> None:
@@ -112,15 +113,27 @@ class FrameList(ScrollView, can_focus=True):
         self.store = store
         self.follow = True
         self._seen_generation = -1
+        self._tailing = False  # the cursor moves because frames arrived (refresh_rows)
 
     # ---- data
+    def _fit(self) -> int:
+        """The scrollable height made the view's length (frames taken in since the last poll count)."""
+        n = len(self.store.view)
+        if self.virtual_size.height != n:
+            self.virtual_size = Size(max(self.size.width, 200), n)
+        return n
+
     def refresh_rows(self) -> None:
         """Called by the App after the store changed."""
         n = len(self.store.view)
         self.virtual_size = Size(max(self.size.width, 200), n)
         if self.follow and n:
             if self.cursor != n - 1:
-                self.cursor = n - 1
+                self._tailing = True
+                try:
+                    self.cursor = n - 1
+                finally:
+                    self._tailing = False
             self.scroll_end(animate=False, immediate=True)
         elif self.cursor >= n:
             self.cursor = n - 1
@@ -143,7 +156,7 @@ class FrameList(ScrollView, can_focus=True):
         if new >= 0:
             self.scroll_to_region_visible(new)
         self.refresh()
-        self.post_message(self.Selected(self.selected_row))
+        self.post_message(self.Selected(self.selected_row, self._tailing))
 
     def scroll_to_region_visible(self, pos: int) -> None:
         top = round(self.scroll_offset.y)
@@ -155,7 +168,7 @@ class FrameList(ScrollView, can_focus=True):
 
     # ---- actions
     def _move_to(self, pos: int) -> None:
-        n = len(self.store.view)
+        n = self._fit()
         if not n:
             return
         pos = max(0, min(n - 1, pos))

@@ -24,6 +24,17 @@ from .app import SnifferApp
 from .sink import TuiSink
 
 VIEWER_NICE = 5  # the viewer of a capture it started runs at lower priority than the capture
+# the longest the UI thread waits for the interpreter while a feed thread (a replay's decoding, an attached
+# capture's records) holds it: CPython's default, 5 ms, is paid at every hand-over of a key's way to the screen
+UI_SWITCH_S = 0.001
+
+
+def _ready_interpreter() -> None:
+    """The process is about to run the App for the rest of its life: keys first."""
+    import gc
+
+    sys.setswitchinterval(min(sys.getswitchinterval(), UI_SWITCH_S))
+    gc.freeze()  # what the imports made lives until exit: the full collections need not walk it every time
 
 
 def make_app(feed: Callable[[TuiSink, threading.Event], object], *, sink: TuiSink | None = None,
@@ -54,6 +65,7 @@ def run_tui(feed: Callable[[TuiSink, threading.Event], object], **kw) -> int:
 
 
 def _run(app: SnifferApp) -> int:
+    _ready_interpreter()
     app.run()
     app.stop_feed()
     result = app.feed_result
@@ -143,6 +155,7 @@ def run_capture_tui(spec, command: str, label: str) -> int:
             return viewer.rc()
         app = viewer.app
         previous = {sig: signal.signal(sig, lambda *_: app.exit()) for sig in (signal.SIGTERM, signal.SIGHUP)}
+        _ready_interpreter()
         try:
             app.run()
         finally:

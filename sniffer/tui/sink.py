@@ -2,13 +2,17 @@
 
 The capture (or replay) runs on its own thread and calls `frame()` thousands
 of times a second; the sink only appends to a list under a lock.  The App
-polls `drain()` on a timer (10-20 Hz) and adds the batch to its FrameStore,
-so the UI thread does one redraw per tick whatever the frame rate.
+polls on a timer (15 Hz), takes frames into its FrameStore with `drain_into`
+for a time budget (INTAKE_BUDGET_S, so a key never waits behind thousands of
+frames), takes more in between polls while frames wait, and redraws once per
+poll whatever the frame rate.
 
 A replay decodes faster than the UI can take frames in: when `max_backlog`
 frames wait, the UI has started draining and the frames' capture time runs
 ahead of the wall clock (a live line never does), `frame()` waits until the UI has drained half of them, so a
-million-frame replay does not pile up a million Frame objects in the sink.
+million-frame replay does not pile up a million Frame objects in the sink.  The backlog is kept small
+(4,000 frames): every waiting frame is a handful of objects each full garbage collection walks (at 30,000,
+each took 100-800 ms of the UI thread while a 200k-frame replay loaded).
 
 The register watch needs nothing else: each frame carries what it wrote into
 its unit's register shadow (`Frame.writes`), so the sink never looks at the
@@ -24,7 +28,10 @@ from ..events import CaptureInfo, Chunk
 from ..frame import Frame
 from ..sinks.base import Sink
 
-MAX_BACKLOG = 30_000  # frames waiting for the UI before a replay waits (the App drains 5,000 a tick)
+MAX_BACKLOG = 4_000  # frames waiting for the UI before a replay waits
+INTAKE_BUDGET_S = 0.008  # the UI thread's turn at taking frames in: a key waits at most about this long
+INTAKE_PERIOD_S = 0.02  # between two turns while frames wait (the view is drawn at the App's poll rate)
+INTAKE_CHUNK = 32  # frames drain_into hands over first, before it knows what a frame costs
 
 
 class TuiSink(Sink):
@@ -36,6 +43,7 @@ class TuiSink(Sink):
         self._ui = False  # someone drains (a UI polls): only then may a replay wait
         self._t_first: tuple[int, float] | None = None  # (capture t_ns, wall time) of the first frame
         self._pending: list[Frame] = []
+        self._frame_cost_s: float | None = None  # what handing one frame to the UI took (drain_into)
         self.info: CaptureInfo | None = None
         self.started = threading.Event()
         self.closed = threading.Event()
@@ -100,10 +108,43 @@ class TuiSink(Sink):
             if limit is None or len(self._pending) <= limit:
                 out, self._pending = self._pending, []
             else:
-                out, self._pending = self._pending[:limit], self._pending[limit:]
+                out = self._pending[:limit]
+                del self._pending[:limit]  # in place: a memmove, not a copy of what stays
             self._ui = True
             self._room.notify_all()
         return out
+
+    def drain_into(self, add, *, limit: int | None = None, budget_s: float | None = None,
+                   clock=time.perf_counter) -> int:
+        """Hand the waiting frames to `add` (a list at a time, in arrival order) until none wait, `limit`
+        were handed, or `budget_s` has passed; returns how many were handed.
+
+        Without a budget it is `add(drain(limit))`.  With one, the lists are sized to the time left at the
+        cost a frame took so far (the first list: the last call's cost, else INTAKE_CHUNK frames), and the
+        clock is read between them: the UI thread gives its event loop back after about `budget_s` however
+        many frames wait or however slow a frame is (at least one frame goes each call)."""
+        if budget_s is None:
+            batch = self.drain(limit)
+            if batch:
+                add(batch)
+            return len(batch)
+        t0 = clock()
+        done = 0
+        cost = self._frame_cost_s
+        size = max(1, int(budget_s / cost)) if cost else INTAKE_CHUNK
+        while limit is None or done < limit:
+            batch = self.drain(size if limit is None else min(size, limit - done))
+            if not batch:
+                break
+            add(batch)
+            done += len(batch)
+            spent = clock() - t0
+            cost = self._frame_cost_s = spent / done
+            left = budget_s - spent
+            if left <= 0:
+                break
+            size = max(1, int(left / cost)) if cost > 0 else INTAKE_CHUNK
+        return done
 
     @property
     def backlog(self) -> int:
