@@ -30,10 +30,12 @@ average is printed beside them.
 from __future__ import annotations
 
 import argparse
+import atexit
 import contextlib
 import os
 import random
 import select
+import signal
 import statistics
 import subprocess
 import sys
@@ -59,11 +61,25 @@ TICK = os.sysconf("SC_CLK_TCK")
 
 
 # ------------------------------------------------------------------ a terminal that keeps its screen
+_running: set[Terminal] = set()  # killed if the bench is (a TUI left behind would load the machine for hours)
+
+
+@atexit.register
+def _kill_running() -> None:
+    for term in list(_running):
+        if term.proc.poll() is None:
+            with contextlib.suppress(OSError):
+                os.killpg(term.proc.pid, signal.SIGKILL)  # its session: the TUI and a capture child
+            term.proc.wait()
+        _running.discard(term)
+
+
 class Screen:
     """A command on a pty (tests/terminal.Terminal) with pyte keeping what it draws."""
 
     def __init__(self, argv: list[str], cols: int = COLS, rows: int = ROWS, cwd: str | None = None) -> None:
         self.term = Terminal(argv, cols, rows, cwd)
+        _running.add(self.term)
         self.screen = pyte.Screen(cols, rows)
         self.stream = pyte.ByteStream(self.screen)
         self.pid = self.term.proc.pid
@@ -120,6 +136,7 @@ class Screen:
             except OSError:  # it had ended already: q closed it
                 pass
         rc = self.term.finish(30)
+        _running.discard(self.term)
         return rc
 
 
@@ -365,6 +382,7 @@ def run(n_keys: int = 80, seconds: float = 60.0, replay_frames: int = 200_000, r
     """The scenarios, `repeat` times, for each checkout in `trees` (label -> path, None: this one), one after
     the other within a run; prints each run's tables and, after several, the keys of all runs."""
     trees = trees or {"": None}
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # a bench stopped with kill still stops its TUIs
     print(f"terminal {COLS}x{ROWS} (pty + pyte), keys Home / End alternating, {n_keys} a scenario; "
           f"python {sys.version.split()[0]}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}", flush=True)
     path = big_capture(replay_frames) if "replay" in scenarios else None

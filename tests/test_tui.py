@@ -227,6 +227,40 @@ def test_the_detail_follows_the_tail_at_a_readable_pace_and_shows_a_selected_fra
     run(go())
 
 
+def test_new_frames_below_a_still_window_and_a_fast_tail(monkeypatch):
+    """Issue 11 (CPU): frames arriving below a window that does not follow repaint nothing but the scroll
+    extent; a followed tail that moves more than a screen between polls is drawn at most every
+    TAIL_EVERY_S by the timer (a direct poll draws at once)."""
+    import sniffer.tui.framelist as framelist_module
+
+    async def go():
+        info, frames, registry = replay_frames()
+        sink = TuiSink()
+        sink.start(info)
+        sink.frames(frames[:100])
+        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0, poll_hz=0.001)
+        async with app.run_test(size=SIZE) as pilot:
+            app.poll()
+            await pilot.pause()
+            fl = app.frame_list
+            await pilot.press("home")
+            sink.frames(frames[100:200])
+            app.poll(0.01)
+            assert fl.cursor == 0 and fl.virtual_size.height == 200 and fl.scroll_offset.y == 0
+            await pilot.press("end")
+            assert fl.cursor == 199 and fl.follow and app.detail.frame is app.store.frames[199]
+            monkeypatch.setattr(framelist_module, "TAIL_EVERY_S", 3600.0)
+            sink.frames(frames[200:210])  # fewer than a screen: drawn at once
+            app.poll(0.01)
+            assert fl.cursor == 209
+            sink.frames(frames[210:300])  # more than a screen, just after a draw: at the next due poll
+            app.poll(0.01)
+            assert fl.cursor == 209 and len(app.store) == 300
+            app.poll()
+            assert fl.cursor == 299
+    run(go())
+
+
 def test_bookmarks_units_registers_help():
     async def go():
         app = make_app("a510.mcap")

@@ -236,9 +236,10 @@ class SnifferApp(App):
         if self.sink.info is not None and not len(self.store):
             self.store.t0_ns = self.sink.info.t0_ns
         self.sink.drain_into(self.store.add, limit=self.max_batch, budget_s=budget_s)
-        before, self._shown_rows = self._shown_rows, len(self.store)  # frames _intake added count too
-        if before != self._shown_rows:
-            self.frame_list.refresh_rows()
+        before = self._shown_rows  # frames _intake added count too
+        if len(self.store) != before and (budget_s is None or self.frame_list.tail_due(len(self.store) - before)):
+            self._shown_rows = len(self.store)
+            self.frame_list.refresh_rows(grown=True)
         self._ticks += 1
         now = self.clock()
         when, n0, b0 = self._rate

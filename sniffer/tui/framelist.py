@@ -7,6 +7,7 @@ End (or G) follows again.
 
 from __future__ import annotations
 
+import time
 from typing import ClassVar
 
 from rich.style import Style
@@ -20,6 +21,8 @@ from textual.strip import Strip
 
 from ..frame import Frame
 from .model import F_ERROR, F_EXC, F_FAULT, F_NOISE, F_TIMEOUT, F_WARN, FrameStore
+
+TAIL_EVERY_S = 0.2  # a tail moving more than a screen between two polls is drawn at most this often
 
 ROLE_TAG = {"request": "->REQ", "response": "<-RSP", "unknown": " ??? ", "noise": "NOISE"}
 S_ERROR = Style(color="bright_red", bold=True)
@@ -114,6 +117,7 @@ class FrameList(ScrollView, can_focus=True):
         self.follow = True
         self._seen_generation = -1
         self._tailing = False  # the cursor moves because frames arrived (refresh_rows)
+        self._tail_drawn_at = float("-inf")
 
     # ---- data
     def _fit(self) -> int:
@@ -123,10 +127,25 @@ class FrameList(ScrollView, can_focus=True):
             self.virtual_size = Size(max(self.size.width, 200), n)
         return n
 
-    def refresh_rows(self) -> None:
-        """Called by the App after the store changed."""
+    def tail_due(self, new_rows: int) -> bool:
+        """Should `new_rows` frames that came since the last draw be drawn now?  Followed, a tail that moves
+        more than a screen between two polls is a blur whose every draw costs a screen of rows: it is drawn
+        at most every TAIL_EVERY_S.  Fewer rows, or a view that does not follow, now."""
+        return (not self.follow or new_rows < self.size.height
+                or time.monotonic() - self._tail_drawn_at >= TAIL_EVERY_S)
+
+    def refresh_rows(self, grown: bool = False) -> None:
+        """Called by the App after the store changed; `grown`: only frames at the view's end came (new frames
+        below a window that does not follow the tail change nothing on screen but the scroll bar)."""
         n = len(self.store.view)
-        self.virtual_size = Size(max(self.size.width, 200), n)
+        size = Size(max(self.size.width, 200), n)
+        if (grown and not self.follow and round(self.scroll_offset.y) + self.size.height <= self.virtual_size.height
+                and hasattr(self, "_scroll_update")):  # Textual's own way to a new extent without a repaint
+            self.set_reactive(FrameList.virtual_size, size)  # the rows on screen stay as they are
+            self._scroll_update(size)
+            return
+        self.virtual_size = size
+        self._tail_drawn_at = time.monotonic()
         if self.follow and n:
             if self.cursor != n - 1:
                 self._tailing = True

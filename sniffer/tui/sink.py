@@ -11,7 +11,7 @@ A replay decodes faster than the UI can take frames in: when `max_backlog`
 frames wait, the UI has started draining and the frames' capture time runs
 ahead of the wall clock (a live line never does), `frame()` waits until the UI has drained half of them, so a
 million-frame replay does not pile up a million Frame objects in the sink.  The backlog is kept small
-(4,000 frames): every waiting frame is a handful of objects each full garbage collection walks (at 30,000,
+(2,000 frames): every waiting frame is a handful of objects each full garbage collection walks (at 30,000,
 each took 100-800 ms of the UI thread while a 200k-frame replay loaded).
 
 The register watch needs nothing else: each frame carries what it wrote into
@@ -28,8 +28,8 @@ from ..events import CaptureInfo, Chunk
 from ..frame import Frame
 from ..sinks.base import Sink
 
-MAX_BACKLOG = 4_000  # frames waiting for the UI before a replay waits
-INTAKE_BUDGET_S = 0.008  # the UI thread's turn at taking frames in: a key waits at most about this long
+MAX_BACKLOG = 2_000  # frames waiting for the UI before a replay waits
+INTAKE_BUDGET_S = 0.004  # the UI thread's turn at taking frames in: a key waits at most about this long
 INTAKE_PERIOD_S = 0.02  # between two turns while frames wait (the view is drawn at the App's poll rate)
 INTAKE_CHUNK = 32  # frames drain_into hands over first, before it knows what a frame costs
 
