@@ -1,14 +1,22 @@
-"""How many frames per second the TUI absorbs, and how quickly it answers a key meanwhile.
+"""The TUI under load: key-to-screen latency and CPU on a real terminal (headline), and in-process figures.
 
-    .venv/bin/python benchmarks/bench_tui.py [--rates 1000,2000,5000,10000,20000] [--seconds 3]
-                                             [--million] [--quick]
+    .venv/bin/python benchmarks/bench_tui.py [--sections terminal,inprocess] [--keys 80] [--repeat 1]
+                                             [--before DIR] [--rates 1000,2000,5000,10000,20000]
+                                             [--seconds 3] [--million] [--quick]
 
-A feeder thread pushes synthetic frames (decoded frames of captures/sim/errors.mcap and
-a510.mcap, renumbered) into the TuiSink at a fixed rate, in 10 ms batches, as the capture
-thread would; the App runs headless under `run_test` (120x40) with its 15 Hz poll timer.
-For each rate it prints: frames absorbed per second, the backlog left in the sink, the time
-one poll tick takes (drain + store + redraw request), and the latency of key presses
-(Pilot press -> handled and screen idle) while frames keep arriving.
+Section "terminal" (the headline figures; benchmarks/tui_terminal.py, which runs alone too): the real
+commands on a pty, the screen kept by pyte, keys typed and timed until the screen shows their effect,
+under `sniffer demo --scenario stress` (the capture in its own process) and while a 200k-frame replay
+loads, against the same keys on an idle replay; the CPU of the TUI and of the capture child under live
+stress against the capture alone (headless).  `--before DIR` runs a second checkout's sniffer (a
+worktree of the commit before a change) in the same run, for before / after on one machine load.
+
+Section "inprocess" (how many frames per second the App absorbs): a feeder thread pushes synthetic frames
+(decoded frames of captures/sim/errors.mcap and a510.mcap, renumbered) into the TuiSink at a fixed rate,
+in 10 ms batches, as the capture thread would; the App runs headless under `run_test` (120x40) with its
+15 Hz poll timer.  For each rate it prints: frames absorbed per second, the backlog left in the sink, the
+time one poll tick or intake turn takes (the UI thread's longest stretches), and the latency of key
+presses (Pilot press -> handled) while frames keep arriving: it leaves out drawing and the terminal.
 `--million` also loads 1,000,000 frames into a FrameStore and times filters, next-error and
 drawing rows in the middle.  Figures are printed, nothing is asserted.
 """
@@ -31,6 +39,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests"))
 
 from tui_helpers import replay_frames
+
+import tui_terminal
 
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.model import FrameStore
@@ -85,15 +95,16 @@ async def run_rate(rate: int, seconds: float, frames: list) -> dict:
     sink = TuiSink()
     sink.start(replay_frames("errors.mcap")[0])
     app = SnifferApp(sink, None, poll_hz=15)
-    tick_times: list[float] = []
-    orig_poll = app.poll
+    tick_times: list[float] = []  # poll ticks and intake turns: the UI thread's stretches away from keys
 
-    def timed_poll():
-        t = time.perf_counter()
-        orig_poll()
-        tick_times.append(time.perf_counter() - t)
+    def timed(turn):
+        def run():
+            t = time.perf_counter()
+            turn()
+            tick_times.append(time.perf_counter() - t)
+        return run
 
-    app.poll = timed_poll  # the interval timer calls the attribute
+    app._tick, app._intake = timed(app._tick), timed(app._intake)  # the timers call the attributes
     stop = threading.Event()
     sent = [0]
 
@@ -183,11 +194,23 @@ def million(n: int) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
+    ap.add_argument("--sections", default="terminal,inprocess", help="terminal (headline), inprocess")
+    ap.add_argument("--keys", type=int, default=80, help="terminal: keys per scenario")
+    ap.add_argument("--repeat", type=int, default=1, help="terminal: runs of every scenario")
+    ap.add_argument("--before", metavar="DIR", help="terminal: also run the sniffer of checkout DIR in each run")
     ap.add_argument("--rates", default="1000,2000,5000,10000,20000")
     ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--million", action="store_true")
     ap.add_argument("--quick", action="store_true", help="2 rates, 2 s each, 200k-frame store")
     a = ap.parse_args()
+    sections = a.sections.split(",")
+    if "terminal" in sections:
+        print("== key-to-screen latency and CPU on a terminal (benchmarks/tui_terminal.py)")
+        tui_terminal.main(["--keys", str(a.keys), "--repeat", str(a.repeat)]
+                          + (["--before", a.before] if a.before else []))
+    if "inprocess" not in sections:
+        return
+    print("\n== in-process: frames absorbed and keys handled (App headless under run_test, no terminal)")
     rates = [int(x) for x in a.rates.split(",")]
     if a.quick:
         rates, a.seconds = [2000, 5000], 2.0

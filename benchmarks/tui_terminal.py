@@ -325,11 +325,11 @@ def replay(path: Path, n_keys: int, max_runs: int = 8) -> tuple[Keys, Keys, list
 
 
 # ------------------------------------------------------------------ report
-def _row(keys: Keys) -> str:
+def _row(keys: Keys, width: int) -> str:
     s = keys.stats()
     if not s["n"]:
-        return f"  {keys.label:16s} no keys"
-    return (f"  {keys.label:16s} {s['n']:4d} {s['median']:8.0f} {s['p90']:8.0f} {s['p99']:8.0f} {s['max']:8.0f} "
+        return f"  {keys.label:{width}s} no keys"
+    return (f"  {keys.label:{width}s} {s['n']:4d} {s['median']:8.0f} {s['p90']:8.0f} {s['p99']:8.0f} {s['max']:8.0f} "
             f"{s['lost']:5d}   {s['load']:4.1f}")
 
 
@@ -343,9 +343,10 @@ def _merge(label: str, parts: list[Keys]) -> Keys:
 
 
 def _print_keys(rows: list[Keys], peer: Keys | None) -> None:
-    print(f"  {'scenario':16s} {'keys':>4} {'median':>8} {'p90':>8} {'p99':>8} {'max':>8} {'lost':>5}   load")
+    width = max(len(k.label) for k in rows)
+    print(f"  {'scenario':{width}s} {'keys':>4} {'median':>8} {'p90':>8} {'p99':>8} {'max':>8} {'lost':>5}   load")
     for k in rows:
-        print(_row(k))
+        print(_row(k, width))
     peer_med = peer.stats().get("median") if peer is not None else None
     for k in rows:
         med = k.stats().get("median")

@@ -571,3 +571,17 @@ def test_the_status_bar_says_when_the_view_stops_following_the_tail(tmp_path):
 
     with demo_viewer(tmp_path, "default", 60) as viewer:
         run(go(viewer.app))
+
+
+def test_the_apps_process_is_readied_for_keys():
+    """Issue 11: run.py readies the App's process: a feed thread holds the interpreter at most UI_SWITCH_S
+    at a time, the imports are frozen out of the collector's walks, young collections come GC_YOUNG objects
+    apart (in a process of its own: these are process-wide)."""
+    import subprocess
+    import sys
+
+    code = ("import gc, sys; from sniffer.tui.run import _ready_interpreter, UI_SWITCH_S, GC_YOUNG; "
+            "_ready_interpreter(); print(sys.getswitchinterval() <= UI_SWITCH_S, "
+            "gc.get_threshold()[0] == GC_YOUNG, gc.get_freeze_count() > 0)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["True", "True", "True"]
