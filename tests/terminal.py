@@ -62,3 +62,17 @@ class Terminal:
         self.read()
         os.close(self.master)
         return rc
+
+
+def children(pid: int) -> list[int]:
+    """The processes whose parent is `pid` (a TUI's capture child)."""
+    out = []
+    for p in os.listdir("/proc"):
+        if p.isdigit():
+            try:
+                with open(f"/proc/{p}/stat") as f:
+                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
+                        out.append(int(p))
+            except (OSError, ValueError, IndexError):  # gone meanwhile
+                pass
+    return out

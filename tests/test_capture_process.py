@@ -15,7 +15,7 @@ import sys
 import threading
 import time
 
-from terminal import Terminal
+from terminal import Terminal, children
 
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
@@ -33,19 +33,6 @@ def _fds_on(pid: int, path: str) -> int:
         except OSError:
             pass
     return n
-
-
-def _children(pid: int) -> list[int]:
-    out = []
-    for p in os.listdir("/proc"):
-        if p.isdigit():
-            try:
-                with open(f"/proc/{p}/stat") as f:
-                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
-                        out.append(int(p))
-            except OSError:
-                pass
-    return out
 
 
 def _timing(path) -> tuple[int, int, int]:
@@ -75,10 +62,10 @@ def _run_live(tmp_path, name: str, frames, line, *, tui: bool):
             # the port is open once the capture publishes (TUI: the App shows its label) or says so
             assert term.wait_for(bus.port), term.screen[-2000:]
             deadline = time.monotonic() + HANG_S
-            while not any(_fds_on(p, bus.port) for p in [term.proc.pid, *_children(term.proc.pid)]):
+            while not any(_fds_on(p, bus.port) for p in [term.proc.pid, *children(term.proc.pid)]):
                 assert time.monotonic() < deadline, "the port was never opened"
                 time.sleep(0.05)
-            holders = [p for p in [term.proc.pid, *_children(term.proc.pid)] if _fds_on(p, bus.port)]
+            holders = [p for p in [term.proc.pid, *children(term.proc.pid)] if _fds_on(p, bus.port)]
             stats = {}
             player = threading.Thread(target=lambda: stats.update(s=bus.play(frames)))
             player.start()

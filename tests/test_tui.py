@@ -18,6 +18,16 @@ def make_app(name="errors.mcap") -> SnifferApp:
     return SnifferApp(filled_sink(name), None, source_label=name, registry=registry, clock=lambda: 0.0)
 
 
+def growing_app(n: int):
+    """(app, sink, frames): an App over a sink holding errors.mcap's first n frames (the test adds more and
+    polls itself: the poll timer is off)."""
+    info, frames, registry = replay_frames()
+    sink = TuiSink()
+    sink.start(info)
+    sink.frames(frames[:n])
+    return SnifferApp(sink, None, registry=registry, clock=lambda: 0.0, poll_hz=0.001), sink, frames
+
+
 async def loaded(app, pilot):
     app.poll()  # the timer would do the same within 1/15 s
     await pilot.pause()
@@ -46,7 +56,8 @@ def test_loads_and_follows_tail():
             n = len(app.store)
             assert n == len(replay_frames()[1])
             assert app.frame_list.cursor == n - 1 and app.frame_list.follow
-            assert app.detail.frame is app.store.frames[-1]
+            # the tail's newest frame, at once or (the timer took frames in first) within FOLLOW_EVERY_S
+            assert await until(pilot, lambda: app.detail.frame is app.store.frames[-1])
     run(go())
 
 
@@ -200,11 +211,7 @@ def test_the_detail_follows_the_tail_at_a_readable_pace_and_shows_a_selected_fra
     monkeypatch.setattr(detail_module, "FOLLOW_EVERY_S", 3600.0)
 
     async def go():
-        info, frames, registry = replay_frames()
-        sink = TuiSink()
-        sink.start(info)
-        sink.frames(frames[:50])
-        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0, poll_hz=0.001)
+        app, sink, frames = growing_app(50)
         async with app.run_test(size=SIZE) as pilot:
             app.poll()
             await pilot.pause()
@@ -234,11 +241,7 @@ def test_new_frames_below_a_still_window_and_a_fast_tail(monkeypatch):
     import sniffer.tui.framelist as framelist_module
 
     async def go():
-        info, frames, registry = replay_frames()
-        sink = TuiSink()
-        sink.start(info)
-        sink.frames(frames[:100])
-        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0, poll_hz=0.001)
+        app, sink, frames = growing_app(100)
         async with app.run_test(size=SIZE) as pilot:
             app.poll()
             await pilot.pause()
