@@ -1,4 +1,4 @@
-"""The frame list: a Line-API ScrollView over the store's view index (like toolong).
+"""The frame list: a virtual list (vlist.CursorList) over the store's view index (like toolong).
 
 Only the rows on screen are formatted, so a million frames cost nothing until
 they scroll into view.  The list follows the tail until the user moves up;
@@ -7,19 +7,13 @@ End (or G) follows again.
 
 from __future__ import annotations
 
-from typing import ClassVar
-
 from rich.style import Style
 from rich.text import Text
-from textual.binding import Binding
-from textual.geometry import Size
 from textual.message import Message
-from textual.reactive import reactive
-from textual.scroll_view import ScrollView
-from textual.strip import Strip
 
 from ..frame import Frame
 from .model import F_ERROR, F_EXC, F_FAULT, F_NOISE, F_TIMEOUT, F_WARN, FrameStore
+from .vlist import CursorList
 
 ROLE_TAG = {"request": "->REQ", "response": "<-RSP", "unknown": " ??? ", "noise": "NOISE"}
 S_ERROR = Style(color="bright_red", bold=True)
@@ -49,18 +43,22 @@ def row_style(fl: int) -> Style | None:
     return None
 
 
+def row_mark(fl: int) -> str:
+    """The two-character problem mark a row starts with (its colour is row_style's)."""
+    if fl & F_ERROR:
+        return "!!"
+    if fl & F_EXC:
+        return "E "
+    if fl & F_FAULT:
+        return "F "
+    if fl & F_TIMEOUT:
+        return "T "
+    return "! " if fl & (F_WARN | F_NOISE) else "  "
+
+
 def format_row(f: Frame, fl: int, t0_ns: int, marked: bool) -> Text:
     t = (f.t_ns - t0_ns) / 1e9
-    if fl & F_ERROR:
-        mark = "!!"
-    elif fl & F_EXC:
-        mark = "E "
-    elif fl & F_FAULT:
-        mark = "F "
-    elif fl & F_TIMEOUT:
-        mark = "T "
-    else:
-        mark = "! " if fl & (F_WARN | F_NOISE) else "  "
+    mark = row_mark(fl)
     role = ROLE_TAG.get(f.role, " ??? ")
     unit = "  -" if f.unit is None else f"{f.unit:3d}"
     model = (f.model or "")[:8]
@@ -87,20 +85,10 @@ def format_row(f: Frame, fl: int, t0_ns: int, marked: bool) -> Text:
     return text
 
 
-class FrameList(ScrollView, can_focus=True):
+class FrameList(CursorList):
     """Rows are positions in `store.view`; `cursor` is one of them."""
 
-    BINDINGS: ClassVar[list[Binding]] = [
-        Binding("up,k", "cursor(-1)", "Up", show=False),
-        Binding("down,j", "cursor(1)", "Down", show=False),
-        Binding("pageup", "page(-1)", "PgUp", show=False),
-        Binding("pagedown", "page(1)", "PgDn", show=False),
-        Binding("home", "first", "First", show=False),
-        Binding("end,G", "last", "Tail", show=False),
-    ]
     DEFAULT_CSS = "FrameList { height: 1fr; }"
-
-    cursor = reactive(-1, always_update=True, repaint=False)
 
     class Selected(Message):
         def __init__(self, row: int | None) -> None:
@@ -110,21 +98,15 @@ class FrameList(ScrollView, can_focus=True):
     def __init__(self, store: FrameStore, **kw) -> None:
         super().__init__(**kw)
         self.store = store
-        self.follow = True
-        self._seen_generation = -1
 
-    # ---- data
-    def refresh_rows(self) -> None:
-        """Called by the App after the store changed."""
-        n = len(self.store.view)
-        self.virtual_size = Size(max(self.size.width, 200), n)
-        if self.follow and n:
-            if self.cursor != n - 1:
-                self.cursor = n - 1
-            self.scroll_end(animate=False, immediate=True)
-        elif self.cursor >= n:
-            self.cursor = n - 1
-        self.refresh()
+    def count(self) -> int:
+        return len(self.store.view)
+
+    def may_follow(self) -> bool:
+        return not self.store.paused
+
+    def cursor_moved(self) -> None:
+        self.post_message(self.Selected(self.selected_row))
 
     @property
     def selected_row(self) -> int | None:
@@ -139,58 +121,8 @@ class FrameList(ScrollView, can_focus=True):
         self.cursor = pos
         return True
 
-    def watch_cursor(self, old: int, new: int) -> None:
-        if new >= 0:
-            self.scroll_to_region_visible(new)
-        self.refresh()
-        self.post_message(self.Selected(self.selected_row))
-
-    def scroll_to_region_visible(self, pos: int) -> None:
-        top = round(self.scroll_offset.y)
-        h = max(self.scrollable_content_region.height, 1)
-        if pos < top:
-            self.scroll_to(y=pos, animate=False, immediate=True)
-        elif pos >= top + h:
-            self.scroll_to(y=pos - h + 1, animate=False, immediate=True)
-
-    # ---- actions
-    def _move_to(self, pos: int) -> None:
-        n = len(self.store.view)
-        if not n:
-            return
-        pos = max(0, min(n - 1, pos))
-        self.follow = pos == n - 1 and not self.store.paused
-        self.cursor = pos
-
-    def action_cursor(self, delta: int) -> None:
-        self._move_to(self.cursor + delta)
-
-    def action_page(self, direction: int) -> None:
-        self._move_to(self.cursor + direction * max(self.scrollable_content_region.height - 1, 1))
-
-    def action_first(self) -> None:
-        self._move_to(0)
-
-    def action_last(self) -> None:
-        self._move_to(len(self.store.view) - 1)
-        self.follow = True
-
-    def on_mouse_scroll_up(self, event) -> None:
-        self.follow = False  # reading back: stop following the tail
-
-    def on_click(self, event) -> None:
-        pos = round(self.scroll_offset.y) + event.y
-        if 0 <= pos < len(self.store.view):
-            self._move_to(pos)
-
-    # ---- Line API
-    def render_line(self, y: int) -> Strip:
-        scroll_x, scroll_y = self.scroll_offset
-        pos = scroll_y + y
-        width = self.scrollable_content_region.width
+    def line_text(self, pos: int) -> Text:
         store = self.store
-        if pos >= len(store.view) or pos < 0:
-            return Strip.blank(width, self.rich_style)
         row = store.view[pos]
         text = format_row(store.frame(row), store.flags[row], store.t0_ns, row in store.bookmarks)
         sel = self.selected_row
@@ -198,6 +130,4 @@ class FrameList(ScrollView, can_focus=True):
             text.stylize(S_CURSOR)
         elif sel is not None and store.pair_row(row) == sel:
             text.stylize(S_PAIR)  # the selected frame's request / response
-        segments = list(text.render(self.app.console))
-        segments = [s for s in segments if s.text != "\n"]
-        return Strip(segments).crop_extend(scroll_x, scroll_x + width, self.rich_style)
+        return text
