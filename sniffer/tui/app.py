@@ -25,12 +25,13 @@ from .model import FrameStore
 from .registers import RegisterWatch
 from .sink import TuiSink
 from .status import status_text
+from .txlist import TransactionList, TransactionsPane
 from .units import UnitsTable
 
 HELP = """\
 [b]rs485-sniffer TUI[/b] — keys
 
-  [b]1 2 3[/b]        frames / units / registers
+  [b]1 2 3 4[/b]      frames / units / registers / transactions
   [b]↑ ↓ PgUp PgDn[/b] move; [b]Home[/b] first; [b]End[/b] / [b]G[/b] follow the tail
   [b]Enter[/b]        focus the detail tree (select a node: its bytes light up in the hex dump)
   [b]p[/b]            jump to the paired request / response
@@ -41,6 +42,10 @@ HELP = """\
   [b]c[/b]            clear all filters
   [b]space[/b]        pause the view (capture goes on); again to resume
   [b]m[/b]            bookmark; [b]][/b] / [b]\\[[/b] next / previous bookmark
+  [b]Transactions[/b] (4): one line per request and its answer, latency histogram below; the frame filter
+               applies (a transaction shows when its request or response passes it); [b]Enter[/b] / click
+               the selected line: its request in Frames; [b]h[/b] histogram of all units / this unit;
+               [b]n[/b] / [b]N[/b] next / previous problem transaction; [b]u[/b] / [b]f[/b] its unit / function
   [b]?[/b]            this help;  [b]q[/b] quit: a live capture asks first (y stops it and closes
                its file); a replay or a viewer of `sniffer attach` just closes (the capture goes on)
 
@@ -100,6 +105,7 @@ class SnifferApp(App):
         Binding("1", "tab('frames')", "Frames"),
         Binding("2", "tab('units')", "Units"),
         Binding("3", "tab('registers')", "Registers"),
+        Binding("4", "tab('transactions')", "Trans"),
         Binding("p", "pair", "Pair"),
         Binding("n", "problem(1)", "Next err"),
         Binding("N", "problem(0)", "Prev err", show=False),
@@ -159,6 +165,8 @@ class SnifferApp(App):
                 yield UnitsTable(self.store, self.registry, id="unitstable")
             with TabPane("Registers", id="registers"):
                 yield RegisterWatch(self.store, id="regwatch")
+            with TabPane("Transactions", id="transactions"):
+                yield TransactionsPane(self.store, id="txpane")
         yield Static("", id="status")
         yield Footer()
 
@@ -169,6 +177,7 @@ class SnifferApp(App):
         self.status = self.query_one("#status", Static)
         self.tabs = self.query_one(TabbedContent)
         self.filter_bar = self.query_one("#filterbar", Input)
+        self.tx_pane = self.query_one("#txpane", TransactionsPane)
         self.frame_list.focus()
         self.set_interval(1 / self.poll_hz, self.poll)
         if self.feed is not None:
@@ -217,6 +226,8 @@ class SnifferApp(App):
         if batch:
             self.store.add(batch)
             self.frame_list.refresh_rows()
+            if self.tabs.active == "transactions":
+                self.tx_pane.refresh_view()
         self._ticks += 1
         now = self.clock()
         when, n0, b0 = self._rate
@@ -241,6 +252,8 @@ class SnifferApp(App):
             self.tabs.query_one("#unitstable", UnitsTable).update_rows()
         elif active == "registers":
             self.tabs.query_one("#regwatch", RegisterWatch).update_rows()
+        elif active == "transactions":
+            self.tx_pane.refresh_view()
 
     def capture_size(self) -> int | None:
         path = self.capture_path or self.sink.capture_path
@@ -261,7 +274,16 @@ class SnifferApp(App):
     @property
     def selected_frame(self):
         row = self.frame_list.selected_row
+        if self.tabs.active == "transactions":  # u / f act on the selected transaction
+            row = self.tx_pane.selected_row
         return None if row is None else self.store.frame(row)
+
+    def on_transaction_list_chosen(self, message: TransactionList.Chosen) -> None:
+        """Open a transaction's request in the Frames tab (its response if the filter hides the request)."""
+        req, rsp = self.store.transactions.rows(message.tx)
+        row = req if req >= 0 and self.store.pos_of_row(req) is not None else rsp
+        self.action_tab("frames")
+        self._goto(row if row >= 0 else None, "frame of this transaction in view")
 
     def _goto(self, row: int | None, what: str) -> bool:
         if row is None or not self.frame_list.select_row(row):
@@ -274,6 +296,8 @@ class SnifferApp(App):
         self.refresh_tables()
         if tab == "frames":
             self.frame_list.focus()
+        elif tab == "transactions":
+            self.tx_pane.list.focus()
         else:  # the tab's table takes the keys (arrows move in it at once)
             from textual.widgets import DataTable
 
@@ -318,6 +342,8 @@ class SnifferApp(App):
         fl.refresh_rows()
         if keep is not None and len(self.store.view) and not fl.follow:
             fl.cursor = self.store.nearest_pos(keep)
+        if self.tabs.active == "transactions":
+            self.tx_pane.refresh_view()
         self.status.update(status_text(self))
 
     def apply_filter(self, **kw) -> None:

@@ -25,6 +25,7 @@ from ..codes import Annotation
 from ..frame import Frame
 from .framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, RowIndex, matches_text
 from .shadow import RegisterBook, RegisterValue
+from .transactions import Transactions
 
 # per-frame flag bits
 F_ERROR = 1  # an error annotation or bad CRC
@@ -164,6 +165,7 @@ class FrameStore:
         self.units: dict[int, UnitStats] = {}
         self.book = RegisterBook()  # the frames' `writes` applied: the decoders' register shadow
         self.registers = self.book.values  # (unit, table, address) -> RegisterValue
+        self.transactions = Transactions()  # request + response as one entry, per-unit latency
         self.bookmarks: set[int] = set()
         self.paused_at: int | None = None  # row count when the view was paused
         self.bytes_total = 0
@@ -216,6 +218,7 @@ class FrameStore:
             self.noise_bytes += len(f.raw)
         if fl & F_PROBLEM:
             self.problems.append(row)
+        self.transactions.add(row, f, fl)
         if self.paused_at is None and self._passes(f, fl):
             self.view.append(row)
         if f.unit is not None and f.protocol != "noise":

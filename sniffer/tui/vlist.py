@@ -63,6 +63,10 @@ class CursorList(ScrollView, can_focus=True):
             self.cursor = n - 1
         self.refresh()
 
+    def on_resize(self, event) -> None:
+        if self.follow and self.count():  # shown for the first time (a tab opened): the tail is in view
+            self.scroll_end(animate=False, immediate=True)
+
     def watch_cursor(self, old: int, new: int) -> None:
         if new >= 0:
             self.scroll_to_region_visible(new)
