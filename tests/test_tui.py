@@ -68,7 +68,7 @@ def test_select_frame_and_detail_and_pair_jump():
             await pilot.press("enter")  # into the detail tree; its nodes light bytes up
             tree = app.detail.query_one("Tree")
             assert app.focused is tree
-            spans = []
+            spans = [app.detail.span]  # entering the tree selects the first point
             for _ in range(12):
                 await pilot.press("down")
                 spans.append(app.detail.span)

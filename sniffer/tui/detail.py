@@ -2,7 +2,11 @@
 
 Selecting a tree node (a point, a field or an annotation) highlights its
 bytes in the hex dump: the spans the decoders recorded (a point's `span`, an
-annotation's start..end), never guessed here.
+annotation's start..end), never guessed here.  Entering the tree puts its
+cursor on the frame's first point (else its first annotation) and lights that
+up: the tree is rebuilt for every frame, and a cursor left on the line it had
+in the previous frame (often the last line: a PD-series answer has one point)
+highlighted nothing and could not move on to anything that would.
 """
 
 from __future__ import annotations
@@ -65,6 +69,7 @@ class DetailPane(Vertical):
         self.frame: Frame | None = None
         self.t0_ns = 0
         self.span: tuple[int, int] | None = None
+        self._entry = None  # the node the cursor goes to when the tree is entered
 
     def compose(self) -> ComposeResult:
         tree: Tree = Tree("no frame selected", id="fields")
@@ -73,7 +78,7 @@ class DetailPane(Vertical):
         yield Static("", id="hex")
 
     def show(self, f: Frame | None, t0_ns: int = 0) -> None:
-        self.frame, self.t0_ns, self.span = f, t0_ns, None
+        self.frame, self.t0_ns, self.span, self._entry = f, t0_ns, None, None
         tree = self.query_one("#fields", Tree)
         tree.clear()
         if f is None:
@@ -115,6 +120,7 @@ class DetailPane(Vertical):
                 label = Text(f"{addr if addr is not None else '-'}{pid} {p.get('name', '')} = ")
                 label.append(_fmt_value(p), "bold")
                 pn = node.add(label, data=span, expand=False) if p.get("text") else node.add_leaf(label, data=span)
+                self._entry = self._entry or pn
                 if p.get("text"):
                     for part in str(p["text"]).split(", "):
                         pn.add_leaf(part, data=span)
@@ -124,7 +130,8 @@ class DetailPane(Vertical):
             for a in f.annotations:
                 label = Text(f"{a.severity}: ", colour.get(a.severity))
                 label.append(f"{a.code} — {a.detail} [bytes {a.start}..{a.end - 1}]")
-                node.add_leaf(label, data=(a.start, a.end))
+                leaf = node.add_leaf(label, data=(a.start, a.end))
+                self._entry = self._entry or leaf
         tree.root.expand()
         self._hex()
 
@@ -141,7 +148,18 @@ class DetailPane(Vertical):
         raw = self.frame.raw if self.frame is not None else b""
         self.query_one("#hex", Static).update(hex_dump(raw, self.span))
 
-    def on_tree_node_highlighted(self, event: Tree.NodeHighlighted) -> None:
-        data = event.node.data
+    def _light(self, node) -> None:
+        data = node.data
         self.span = data if isinstance(data, tuple) else None
         self._hex()
+
+    def on_tree_node_highlighted(self, event: Tree.NodeHighlighted) -> None:
+        self._light(event.node)
+
+    def on_descendant_focus(self, event) -> None:
+        tree = self.query_one("#fields", Tree)
+        if event.widget is not tree or self._entry is None:
+            return
+        tree.last_line  # noqa: B018 - lays the lines out, so that the nodes know their line numbers
+        tree.move_cursor(self._entry)
+        self._light(self._entry)
