@@ -4,13 +4,13 @@ and the tab under Pilot (Enter opens the request in Frames, the frame filter app
 Expected values are computed here from the frames themselves (roles, pairs, annotations, latencies),
 never from the transaction model."""
 
-import asyncio
 import functools
 import math
 import random
 
 import pytest
-from tui_helpers import SIM, filled_sink, replay_frames
+from test_tui import loaded, make_app, run
+from tui_helpers import SIM, replay_frames
 
 from decoders.registry import default_registry
 from sniffer.line import LineSettings
@@ -219,24 +219,9 @@ def test_transactions_cost_one_entry_per_frame():
 
 
 # ------------------------------------------------------------------ the tab, under Pilot
-def make_app(name="errors.mcap") -> SnifferApp:
-    _, _, registry = replay_frames(name)
-    return SnifferApp(filled_sink(name), None, source_label=name, registry=registry, clock=lambda: 0.0)
-
-
-async def loaded(app, pilot):
-    app.poll()
-    await pilot.pause()
-    assert app.caught_up
-
-
 def screen_text(app) -> str:
     lst = app.tx_pane.list
     return "\n".join(lst.line_text(p).plain for p in range(lst.count()))
-
-
-def run(coro):
-    return asyncio.run(coro)
 
 
 def test_tab_4_lists_transactions_and_enter_opens_the_request():

@@ -12,7 +12,7 @@ from rich.text import Text
 from textual.message import Message
 
 from ..frame import Frame
-from .model import F_ERROR, F_EXC, F_FAULT, F_NOISE, F_TIMEOUT, F_WARN, FrameStore
+from .model import F_ERROR, F_EXC, F_FAULT, F_NOISE, F_TIMEOUT, F_WARN
 from .vlist import CursorList
 
 ROLE_TAG = {"request": "->REQ", "response": "<-RSP", "unknown": " ??? ", "noise": "NOISE"}
@@ -95,23 +95,15 @@ class FrameList(CursorList):
             self.row = row
             super().__init__()
 
-    def __init__(self, store: FrameStore, **kw) -> None:
-        super().__init__(**kw)
-        self.store = store
-
-    def count(self) -> int:
-        return len(self.store.view)
-
-    def may_follow(self) -> bool:
-        return not self.store.paused
+    def positions(self):
+        return self.store.view
 
     def cursor_moved(self) -> None:
         self.post_message(self.Selected(self.selected_row))
 
     @property
     def selected_row(self) -> int | None:
-        v = self.store.view
-        return v[self.cursor] if 0 <= self.cursor < len(v) else None
+        return self.selected
 
     def select_row(self, row: int) -> bool:
         pos = self.store.pos_of_row(row)

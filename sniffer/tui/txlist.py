@@ -25,8 +25,8 @@ from .model import F_PROBLEM, FrameStore
 from .transactions import BROADCAST, EXCEPTION, KIND_TEXT, PENDING, UNANSWERED
 from .vlist import CursorList
 
-ASKED = 34  # characters of the request's summary shown
-ANSWER = 44
+ASKED = 32  # characters of the request's summary shown
+ANSWER = 38
 VALUES = 6  # values shown of a read's answer
 HEADER = (f"   {'time (s)':>12} {'unit':4} {'model':<8} {'fc':4} {'latency':>9} {'asked':<{ASKED}}   "
           f"{'answer':<{ANSWER}}  [problems]")
@@ -127,23 +127,18 @@ class TransactionList(CursorList):
             super().__init__()
 
     def __init__(self, store: FrameStore, **kw) -> None:
-        super().__init__(**kw)
-        self.store = store
+        super().__init__(store, **kw)
         self.all_units = False  # the histogram shows every unit, not the selected transaction's
 
-    def count(self) -> int:
-        return len(self.store.transactions.view)
-
-    def may_follow(self) -> bool:
-        return not self.store.paused
+    def positions(self):
+        return self.store.transactions.view
 
     def cursor_moved(self) -> None:
         self.post_message(self.Highlighted(self.selected_tx))
 
     @property
     def selected_tx(self) -> int | None:
-        v = self.store.transactions.view
-        return v[self.cursor] if 0 <= self.cursor < len(v) else None
+        return self.selected
 
     def line_text(self, pos: int) -> Text:
         text = format_tx(self.store, self.store.transactions.view[pos])

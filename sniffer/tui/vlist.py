@@ -31,13 +31,24 @@ class CursorList(ScrollView, can_focus=True):
 
     cursor = reactive(-1, always_update=True, repaint=False)
 
-    def __init__(self, **kw) -> None:
+    def __init__(self, store, **kw) -> None:
         super().__init__(**kw)
+        self.store = store  # a FrameStore: what the rows show
         self.follow = True
 
     # ---- what a subclass says
-    def count(self) -> int:
+    def positions(self):
+        """The sequence shown (one item a row): the store's view of rows, of transactions."""
         raise NotImplementedError
+
+    def count(self) -> int:
+        return len(self.positions())
+
+    @property
+    def selected(self):
+        """The item at the cursor, or None."""
+        v = self.positions()
+        return v[self.cursor] if 0 <= self.cursor < len(v) else None
 
     def line_text(self, pos: int) -> Text:
         """Row `pos` (0 <= pos < count()), styled, the cursor's highlight included."""
@@ -45,7 +56,7 @@ class CursorList(ScrollView, can_focus=True):
 
     def may_follow(self) -> bool:
         """Whether the cursor on the last row follows new rows (a paused view does not)."""
-        return True
+        return not self.store.paused
 
     def cursor_moved(self) -> None:
         """Called after every cursor change (a subclass posts its message)."""
