@@ -235,7 +235,8 @@ def test_tab_4_lists_transactions_and_enter_opens_the_request():
             assert app.tabs.active == "transactions" and app.focused is lst
             frames = replay_frames()[1]
             assert lst.count() == len(expected_transactions(frames))
-            assert lst.cursor == lst.count() - 1  # follows the tail
+            assert lst.cursor == lst.count() - 1  # follows the tail, the histogram of all units meanwhile
+            assert "latency, all units" in str(app.tx_pane.query_one("#histogram").render())
             text = screen_text(app)
             assert "exception 02H ILLEGAL DATA ADDRESS" in text and "no response" in text
             assert "read holding 8448..8455 (8)" in text

@@ -42,8 +42,9 @@ HELP = """\
   [b]c[/b]            clear all filters
   [b]space[/b]        pause the view (capture goes on); again to resume
   [b]m[/b]            bookmark; [b]][/b] / [b]\\[[/b] next / previous bookmark
-  [b]4[/b]            transactions: a request and its answer a line, the unit's latency histogram
-               below; the frame filter applies (shown if the request or the response passes)
+  [b]4[/b]            transactions: a request and its answer a line, the latency histogram below (all
+               units while following the tail, else the selected transaction's unit); the frame
+               filter applies (a transaction shows if its request or its response passes)
     in it:     [b]Enter[/b] / a click on the selected line: its request in Frames; [b]h[/b] histogram
                of all units / this unit; [b]n[/b] / [b]N[/b] next / previous problem; [b]u[/b] / [b]f[/b] its unit / fc
   [b]?[/b]            this help;  [b]q[/b] quit: a live capture asks first (y stops it and closes

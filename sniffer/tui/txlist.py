@@ -3,8 +3,9 @@
 The list is a virtual list (vlist.CursorList) over `store.transactions.view`: only the lines on
 screen are made, from their frames.  The frame filter applies (a transaction shows when its request
 or its response passes it), the header says so.  Enter (or a click on the selected line) opens the
-transaction's request in the Frames tab; `h` switches the histogram between the selected
-transaction's unit and all units; `n` / `N` move to the next / previous transaction with a problem.
+transaction's request in the Frames tab; the histogram shows the selected transaction's unit, or
+all units while the list follows the tail or after `h`; `n` / `N` move to the next / previous
+transaction with a problem.
 """
 
 from __future__ import annotations
@@ -218,13 +219,15 @@ class TransactionsPane(Vertical):
         head = HEADER + "\n" + what + ("  (paused)" if self.store.paused else "")
         if head != self._head:
             self._head = head
-            self.query_one("#txhead", Static).update(head)
+            self.query_one("#txhead", Static).update(Text(head, no_wrap=True, overflow="crop"))
         self.refresh_histogram()
 
     def refresh_histogram(self) -> None:
         txs = self.store.transactions
         tx = self.list.selected_tx
-        unit = None if tx is None or self.list.all_units else self.store.frame(txs.first_row(tx)).unit
+        # following the tail, the selection changes every tick: all units then, not a unit jumping about
+        whole = tx is None or self.list.all_units or self.list.follow
+        unit = None if whole else self.store.frame(txs.first_row(tx)).unit
         st = txs.all_units if unit is None else txs.stats(unit)
         key = (unit, st.count, st.timeouts, st.no_response, st.end_of_capture, st.unmeasured)
         if key == self._hist:
