@@ -94,7 +94,7 @@ def unanswered_line(st: LatencyStats) -> str:
     if st.end_of_capture:
         parts.append(f"unanswered at the end {st.end_of_capture}")
     if st.unmeasured:
-        parts.append(f"answered without a latency {st.unmeasured} (in the request's USB read)")
+        parts.append(f"no latency {st.unmeasured} (read with their request)")
     return "  ".join(parts)
 
 

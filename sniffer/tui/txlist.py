@@ -179,9 +179,10 @@ class TransactionsPane(Vertical):
     """Header (columns, what the filter does), the list, the histogram."""
 
     DEFAULT_CSS = """
-    TransactionsPane > #txhead { height: 2; color: $text-muted; }
+    TransactionsPane > #txhead { height: 2; color: $text-muted; text-wrap: nowrap; text-overflow: clip; }
     TransactionsPane > TransactionList { height: 1fr; }
-    TransactionsPane > #histogram { height: 10; border-top: solid $primary; padding: 0 1; }
+    TransactionsPane > #histogram { height: 10; border-top: solid $primary; padding: 0 1; text-wrap: nowrap;
+                                    text-overflow: clip; }
     """
 
     def __init__(self, store: FrameStore, **kw) -> None:
@@ -219,7 +220,7 @@ class TransactionsPane(Vertical):
         head = HEADER + "\n" + what + ("  (paused)" if self.store.paused else "")
         if head != self._head:
             self._head = head
-            self.query_one("#txhead", Static).update(Text(head, no_wrap=True, overflow="crop"))
+            self.query_one("#txhead", Static).update(head)
         self.refresh_histogram()
 
     def refresh_histogram(self) -> None:
