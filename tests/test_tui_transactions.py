@@ -20,9 +20,7 @@ from sniffer.tui.app import SnifferApp
 from sniffer.tui.latency import EDGES_MS, LatencyStats, histogram_text
 from sniffer.tui.model import F_PROBLEM, FrameStore
 from sniffer.tui.sink import TuiSink
-from sniffer.tui.transactions import (
-    BROADCAST, END_OF_CAPTURE, EXCEPTION, NO_RESPONSE, OK, ORPHAN, TIMEOUT, Transactions,
-)
+from sniffer.tui.transactions import BROADCAST, END_OF_CAPTURE, EXCEPTION, NO_RESPONSE, OK, ORPHAN, TIMEOUT
 
 SIZE = (140, 45)
 SCENARIOS = ["a510.mcap", "errors.mcap", "pd-series.mcap", "pd-series-ascii.mcap"]
@@ -211,11 +209,13 @@ def test_a_viewer_that_joins_mid_transaction_shows_the_answer_without_its_reques
     assert f"(request #{frames[first].index} not here)" in format_tx(s, 0).plain
 
 
-def test_transactions_cost_one_entry_per_frame():
-    txs = Transactions()
+def test_noise_and_unknown_frames_belong_to_no_transaction():
     _, frames = frames_of("errors.mcap")
     s = store_with(frames)
-    assert len(s.transactions.tx_of_row) == len(s) and len(txs) == 0
+    of_row = s.transactions.tx_of_row
+    assert len(of_row) == len(s)
+    noise = [r for r, f in enumerate(frames) if f.role not in ("request", "response")]
+    assert noise and all(of_row[r] == -1 for r in noise)
 
 
 # ------------------------------------------------------------------ the tab, under Pilot
@@ -312,8 +312,12 @@ def test_live_transactions_grow_as_frames_arrive():
             lst = app.tx_pane.list
             first = lst.count()
             assert first == len(expected_transactions(frames[:100]))
+            await pilot.press("space")  # paused: the list holds still while frames come in
             sink.frames(frames[100:])
             app.poll()
+            await pilot.pause()
+            assert lst.count() == first and "(paused)" in str(app.tx_pane.query_one("#txhead").render())
+            await pilot.press("space")
             await pilot.pause()
             assert lst.count() == len(expected_transactions(frames)) > first
             assert lst.cursor == lst.count() - 1
