@@ -42,6 +42,8 @@ HELP = """\
   [b]c[/b]            clear all filters
   [b]space[/b]        pause the view (capture goes on); again to resume
   [b]m[/b]            bookmark; [b]][/b] / [b]\\[[/b] next / previous bookmark
+  [b]x[/b]            export the filtered view or the bookmarks (MCAP, pcap, CSV) to a file
+  [b]y[/b]            copy the selected frame's bytes as hex to the clipboard (OSC 52)
   [b]?[/b]            this help;  [b]q[/b] quit: a live capture asks first (y stops it and closes
                its file); a replay or a viewer of `sniffer attach` just closes (the capture goes on)
 
@@ -118,6 +120,9 @@ class SnifferApp(App):
         Binding("enter", "focus_detail", "Detail", show=False),
         Binding("question_mark,f1", "help", "Help"),
         Binding("q", "quit", "Quit"),
+        # export / copy / raw bytes (issue 11)
+        Binding("x", "export", "Export"),
+        Binding("y", "copy_hex", "Copy hex", show=False),
     ]
 
     def __init__(self, sink: TuiSink, feed: Callable[[TuiSink, threading.Event], object] | None = None, *,
@@ -147,6 +152,7 @@ class SnifferApp(App):
         self._tables_at = None  # (store state, tab) the units / registers tables were last built for
         self._status_text = None
         self.notices: deque[str] = deque()  # lines a capture process said on stderr: shown as notifications
+        self.export_status: str | None = None  # an export running on its worker: how far it is
 
     # ---------------------------------------------------------------- layout
     def compose(self) -> ComposeResult:
@@ -389,3 +395,25 @@ class SnifferApp(App):
 
     def action_help(self) -> None:
         self.push_screen(HelpScreen())
+
+    # ---------------------------------------------------------------- export, copy (issue 11)
+    def action_export(self) -> None:
+        from .exportscreen import ExportScreen, start_export
+
+        if self.screen is not self.screen_stack[0]:  # help or a question on top: not now
+            return
+        if self.export_status is not None:
+            self.notify("an export is running (its progress is in the status bar)", timeout=3)
+            return
+        path = self.capture_path or self.sink.capture_path
+        screen = ExportScreen(path, len(self.store.view), len(self.store.bookmarks), inputs=[path])
+        self.push_screen(screen, lambda job: job and start_export(self, job))
+
+    def action_copy_hex(self) -> None:
+        f = self.selected_frame
+        if f is None:
+            self.notify("no frame selected", timeout=2)
+            return
+        self.copy_to_clipboard(f.raw.hex())
+        self.notify(f"copied frame #{f.index}: {len(f.raw)} bytes, {f.raw[:24].hex(' ')}"
+                    + (" …" if len(f.raw) > 24 else ""), timeout=3, markup=False)

@@ -22,6 +22,7 @@ import operator
 import pickle
 from array import array
 from collections import OrderedDict
+from collections.abc import Callable, Iterator
 
 import zstandard
 
@@ -198,6 +199,31 @@ class FrameBlocks:
     def clear_cache(self) -> None:
         self._frame_cache.clear()
         self._block_cache.clear()
+
+    def reader(self, rows) -> Callable[[], Iterator[Frame]]:
+        """The frames of `rows` (ascending), to be read on another thread (an export): what they need is
+        taken now (sealed blocks are never changed, the unsealed tail is copied); the reading uses its own
+        decompressor and none of the caches the UI thread uses."""
+        rows = array("q", rows)
+        packed, sealed, tail, size = self.packed, self.sealed_rows, list(self.tail), self.block
+
+        def frames() -> Iterator[Frame]:
+            zd = zstandard.ZstdDecompressor()
+            cur, tuples = -1, []
+            for r in rows:
+                if r >= sealed:
+                    yield tail[r - sealed]
+                    continue
+                b, i = divmod(r, size)
+                data = packed[b]
+                if type(data) is list:  # a block that would not pack keeps its frames
+                    yield data[i]
+                    continue
+                if b != cur:
+                    cur, tuples = b, _load(zd.decompress(data))
+                yield unpack(tuples[i])
+
+        return frames
 
 
 class RowIndex:

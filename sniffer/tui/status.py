@@ -45,6 +45,8 @@ def status_text(app) -> Text:
     if missing:
         parts.append("not here: " + ", ".join(missing))
     parts.append(f"{app.clock() - app.t_start:.0f}s")
+    if getattr(app, "export_status", None):  # an export on its worker thread
+        parts.append(app.export_status)
     if store.filter.active:
         parts.append(f"filter: {store.filter.describe()} ({len(store.view)})")
     text = Text(" │ ".join(parts))
