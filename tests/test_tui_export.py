@@ -139,6 +139,10 @@ def test_export_bookmarks_asks_before_replacing_and_reports_a_bad_path(tmp_path)
             error = await export(app, pilot, path=str(nowhere / "x.mcap"))
             assert error == f"{nowhere / 'x.mcap'}: folder {nowhere} does not exist"
             await pilot.press("escape")
+            for path in ("/proc/no-export-here.pcap", "/proc/no-export-here.mcap"):  # no file can be made there
+                error = await export(app, pilot, path=path)
+                assert error.startswith(f"{path}: ") and "cannot" in error and "\n" not in error
+                await pilot.press("escape")
             error = await export(app, pilot, path=str(tmp_path / "a510.mcap"))  # the capture itself
             assert error == f"{tmp_path / 'a510.mcap'}: is also an input of this command; write to another file"
             assert not list(tmp_path.glob("*.part"))

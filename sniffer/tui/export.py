@@ -36,7 +36,7 @@ WHATS = {"view": "view", "bookmarks": "bookmarks"}  # what -> the default file n
 
 def files_of(fmt: str, path: str) -> list[str]:
     """Every file an export to `path` writes (CSV: the frames table and its points table)."""
-    return [path, os.fspath(points_path(path, ".csv"))] if fmt == "csv" else [path]
+    return [path, os.fspath(points_path(path, ".csv"))] if fmt == "csv" and path.strip() else [path]
 
 
 def existing(fmt: str, path: str) -> list[str]:
@@ -88,15 +88,20 @@ class Export:
 
     def __init__(self, fmt: str, path: str, what: str, *, inputs: Iterable[str] = ()) -> None:
         self.fmt, self.what = fmt, what
-        self.out = FileSink(fmt, os.path.expanduser(path.strip()), inputs=[p for p in inputs if p], what="export")
+        path = os.path.expanduser(path.strip())
+        if not path:
+            raise OutputError("no file name given")
+        self.out = FileSink(fmt, path, inputs=[p for p in inputs if p], what="export")
         self.path = self.out.path
         try:
             self.sink = self.out.open()
         except (OSError, CaptureStorageError) as e:
             for o in self.out.outputs:
                 o.discard()
-            why = e.strerror if isinstance(e, OSError) and e.strerror else getattr(e, "reason", "") or str(e)
-            raise OutputError(f"{shown(self.path)}: cannot write: {why}") from None
+            text = str(e) if isinstance(e, CaptureStorageError) else f"{self.path}: cannot write: {e.strerror or e}"
+            for o in self.out.outputs:
+                text = text.replace(o.part, o.path)
+            raise OutputError(shown(text, 300)) from None
 
     def run(self, frames: Iterable[Frame], n: int, info: CaptureInfo | None, *,
             progress: Callable[[int], None] | None = None, stop: threading.Event | None = None) -> int:
