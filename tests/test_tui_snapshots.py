@@ -54,3 +54,11 @@ def test_registers(snap_compare):
         await pilot.press("3", "down", "down")
 
     assert snap_compare(make_app("a510.mcap"), terminal_size=SIZE, run_before=before)
+
+
+def test_bytes(snap_compare):
+    async def before(pilot):
+        await _load(pilot)
+        await pilot.press("home", *["down"] * 6, "6")  # a request the USB adapter split across two reads
+
+    assert snap_compare(make_app("errors.mcap"), terminal_size=SIZE, run_before=before)

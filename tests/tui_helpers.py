@@ -27,12 +27,17 @@ def _decode(name: str):
         p.feed(ev)
     p.finish()
     frames = sink.drain()
-    return info, frames, registry
+    return info, frames, registry, sink.drain_reads()
 
 
 def replay_frames(name: str = "errors.mcap"):
     """(CaptureInfo, frames, registry) of a simulated capture; frames are shared, do not mutate them."""
-    return _decode(name)
+    return _decode(name)[:3]
+
+
+def replay_reads(name: str = "errors.mcap"):
+    """The capture's reads as the TUI's sink marked them with their frames (sniffer.reads)."""
+    return _decode(name)[3]
 
 
 def registry_shadow(registry) -> dict:
@@ -46,6 +51,7 @@ def filled_sink(name: str = "errors.mcap") -> TuiSink:
     sink = TuiSink()
     sink.start(info)
     sink.frames(frames)
+    sink.reads(replay_reads(name))
     sink.bytes_in = sum(len(f.raw) for f in frames)
     sink.close()
     return sink

@@ -13,16 +13,19 @@ from collections import deque
 from collections.abc import Callable
 from typing import ClassVar
 
+from textual import on
 from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Footer, Input, Static, TabbedContent, TabPane
 
+from .byteview import BytesPane, ByteView, char_ns
 from .detail import DetailPane
 from .filters import filter_expr, parse_filter
 from .framelist import FrameList
 from .model import FrameStore
+from .readring import ReadRing
 from .registers import RegisterWatch
 from .sink import TuiSink
 from .status import status_text
@@ -31,7 +34,8 @@ from .units import UnitsTable
 HELP = """\
 [b]rs485-sniffer TUI[/b] — keys
 
-  [b]1 2 3[/b]        frames / units / registers
+  [b]1 2 3[/b]        frames / units / registers;  [b]6[/b] bytes: the reads as the port delivered them
+               (time, gap in ms and characters, │ where a frame begins; ← → frame, Enter goes to it)
   [b]↑ ↓ PgUp PgDn[/b] move; [b]Home[/b] first; [b]End[/b] / [b]G[/b] follow the tail
   [b]Enter[/b]        focus the detail tree (select a node: its bytes light up in the hex dump)
   [b]p[/b]            jump to the paired request / response
@@ -123,6 +127,7 @@ class SnifferApp(App):
         # export / copy / raw bytes (issue 11)
         Binding("x", "export", "Export"),
         Binding("y", "copy_hex", "Copy hex", show=False),
+        Binding("6", "bytes_tab", "Bytes"),
     ]
 
     def __init__(self, sink: TuiSink, feed: Callable[[TuiSink, threading.Event], object] | None = None, *,
@@ -153,6 +158,7 @@ class SnifferApp(App):
         self._status_text = None
         self.notices: deque[str] = deque()  # lines a capture process said on stderr: shown as notifications
         self.export_status: str | None = None  # an export running on its worker: how far it is
+        self.reads = ReadRing()  # the byte view's last reads (sniffer.reads)
 
     # ---------------------------------------------------------------- layout
     def compose(self) -> ComposeResult:
@@ -167,6 +173,8 @@ class SnifferApp(App):
                 yield UnitsTable(self.store, self.registry, id="unitstable")
             with TabPane("Registers", id="registers"):
                 yield RegisterWatch(self.store, id="regwatch")
+            with TabPane("Bytes", id="bytes"):
+                yield BytesPane(self.reads, self.store, id="bytespane")
         yield Static("", id="status")
         yield Footer()
 
@@ -177,6 +185,7 @@ class SnifferApp(App):
         self.status = self.query_one("#status", Static)
         self.tabs = self.query_one(TabbedContent)
         self.filter_bar = self.query_one("#filterbar", Input)
+        self.byte_view = self.query_one("#byteview", ByteView)
         self.frame_list.focus()
         self.set_interval(1 / self.poll_hz, self.poll)
         if self.feed is not None:
@@ -230,6 +239,10 @@ class SnifferApp(App):
         if batch:
             self.store.add(batch)
             self.frame_list.refresh_rows()
+        reads = self.sink.drain_reads()
+        if reads:
+            self.reads.add(reads)
+            self._bytes_shown()
         self._ticks += 1
         now = self.clock()
         when, n0, b0 = self._rate
@@ -411,9 +424,45 @@ class SnifferApp(App):
 
     def action_copy_hex(self) -> None:
         f = self.selected_frame
+        if self.tabs.active == "bytes":  # the byte view's frame
+            row = None if self.byte_view.frame is None else self.store.row_of.get(self.byte_view.frame)
+            f = None if row is None else self.store.frame(row)
         if f is None:
             self.notify("no frame selected", timeout=2)
             return
         self.copy_to_clipboard(f.raw.hex())
         self.notify(f"copied frame #{f.index}: {len(f.raw)} bytes, {f.raw[:24].hex(' ')}"
                     + (" …" if len(f.raw) > 24 else ""), timeout=3, markup=False)
+
+    # ---------------------------------------------------------------- the byte view (issue 11)
+    def action_bytes_tab(self) -> None:
+        self.tabs.active = "bytes"
+        self.byte_view.focus()
+
+    @on(TabbedContent.TabActivated, pane="#bytes")
+    def _bytes_tab_activated(self) -> None:
+        self._bytes_follow_list()
+        self._bytes_shown()
+
+    def _bytes_follow_list(self) -> None:
+        """Opened, the byte view shows the frame selected in the list (the newest read while the list follows)."""
+        f = self.selected_frame
+        self.byte_view.follow = self.frame_list.follow or f is None
+        if not self.byte_view.follow:
+            self.byte_view.show_frame(f.index)
+
+    def _bytes_shown(self) -> None:
+        if self.tabs.active == "bytes":
+            self.byte_view.char_ns = char_ns(self.sink.info)
+            self.byte_view.refresh_reads()
+
+    def on_byte_view_chosen(self, message: ByteView.Chosen) -> None:
+        row = self.store.row_of.get(message.index)
+        if row is None:
+            self.notify(f"frame #{message.index} is not in this view (older than what it was sent)", timeout=3)
+        elif self.store.pos_of_row(row) is None:
+            self.notify(f"frame #{message.index} is filtered out of the list (c clears the filters)", timeout=3)
+        else:
+            self.tabs.active = "frames"
+            self.frame_list.select_row(row)
+            self.frame_list.focus()
