@@ -28,8 +28,8 @@ RING_READS = 10_000  # reads a viewer keeps (and a publisher keeps for viewers t
 RING_BYTES = 1 << 20  # ... and at most this many of their bytes
 
 
-@dataclass(slots=True, frozen=True)
-class Read:
+@dataclass(slots=True)
+class Read:  # not frozen: 2.5 times quicker to make (the capture thread makes one per read); never changed
     """One read.  `marks`: (position in `data`, frame index) of the frame its first byte went to (position 0)
     and of every frame that begins later in it; `cont`: byte 0 continues a frame begun in an earlier read."""
 
