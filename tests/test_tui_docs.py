@@ -19,6 +19,7 @@ SHOTS = [
     ("tui-errors-only.svg", "errors.mcap", ["e", "home"]),
     ("tui-units.svg", "errors.mcap", ["2"]),
     ("tui-registers.svg", "a510.mcap", ["3"] + ["down"] * 8),
+    ("tui-bytes.svg", "errors.mcap", ["home"] + ["down"] * 6 + ["6"]),
 ]
 
 
