@@ -171,3 +171,16 @@ def test_y_copies_the_selected_frames_hex(tmp_path):
             assert app.clipboard == f.raw.hex() and len(f.raw) > 4
             assert notes(app)[-1].startswith(f"copied frame #{f.index}: {len(f.raw)} bytes, {f.raw[:4].hex(' ')}")
     asyncio.run(go())
+
+
+def test_help_and_readme_name_the_keys_of_export_copy_and_the_byte_view():
+    from pathlib import Path
+
+    from sniffer.tui.app import HELP, SnifferApp
+
+    keys = {b.key for b in SnifferApp.BINDINGS}
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    for key, words in (("x", "export"), ("y", "copy"), ("6", "bytes")):
+        assert key in keys
+        assert f"[b]{key}[/b]" in HELP and words in HELP.split(f"[b]{key}[/b]")[1][:40].lower()
+        assert f"`{key}`" in readme

@@ -34,7 +34,7 @@ from textual.widgets import Static
 
 from ..line import LineSettings
 from ..reads import RING_READS, Read
-from .framelist import S_CURSOR, S_REQ, S_RSP, row_style
+from .framelist import MOVE_KEYS, S_CURSOR, S_REQ, S_RSP, row_style
 from .model import ROLES, FrameStore
 from .readring import ReadRing
 
@@ -67,12 +67,7 @@ class ByteView(ScrollView, can_focus=True):
     """Lines are reads of the ring (a long read takes several); `cursor` is a read's seq."""
 
     BINDINGS: ClassVar[list[Binding]] = [
-        Binding("up,k", "cursor(-1)", "Up", show=False),
-        Binding("down,j", "cursor(1)", "Down", show=False),
-        Binding("pageup", "page(-1)", "PgUp", show=False),
-        Binding("pagedown", "page(1)", "PgDn", show=False),
-        Binding("home", "first", "First", show=False),
-        Binding("end,G", "last", "Tail", show=False),
+        *MOVE_KEYS,
         Binding("left", "step_frame(0)", "Prev frame", show=False),
         Binding("right", "step_frame(1)", "Next frame", show=False),
         Binding("enter", "choose", "Go to frame", show=False),

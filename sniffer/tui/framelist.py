@@ -87,17 +87,21 @@ def format_row(f: Frame, fl: int, t0_ns: int, marked: bool) -> Text:
     return text
 
 
+# moving in a long list (the frame list, the byte view): each has the actions cursor, page, first and last
+MOVE_KEYS = (
+    Binding("up,k", "cursor(-1)", "Up", show=False),
+    Binding("down,j", "cursor(1)", "Down", show=False),
+    Binding("pageup", "page(-1)", "PgUp", show=False),
+    Binding("pagedown", "page(1)", "PgDn", show=False),
+    Binding("home", "first", "First", show=False),
+    Binding("end,G", "last", "Tail", show=False),
+)
+
+
 class FrameList(ScrollView, can_focus=True):
     """Rows are positions in `store.view`; `cursor` is one of them."""
 
-    BINDINGS: ClassVar[list[Binding]] = [
-        Binding("up,k", "cursor(-1)", "Up", show=False),
-        Binding("down,j", "cursor(1)", "Down", show=False),
-        Binding("pageup", "page(-1)", "PgUp", show=False),
-        Binding("pagedown", "page(1)", "PgDn", show=False),
-        Binding("home", "first", "First", show=False),
-        Binding("end,G", "last", "Tail", show=False),
-    ]
+    BINDINGS: ClassVar[list[Binding]] = [*MOVE_KEYS]
     DEFAULT_CSS = "FrameList { height: 1fr; }"
 
     cursor = reactive(-1, always_update=True, repaint=False)
