@@ -186,3 +186,18 @@ def test_an_attached_viewer_gets_the_reads_through_the_socket(tmp_path):
     att = late["att"]
     assert att.earlier_frames > 0 and 0 < att.header["backlog_reads"] < len(expected)
     assert late["reads"] == expected  # the reads kept (all of them: fewer than RING_READS), then the rest
+
+
+def test_reads_a_viewer_never_got_are_said_lost_not_a_gap():
+    async def go():
+        sink = filled_sink()
+        reads = sink.drain_reads()
+        sink.reads(reads[:10] + reads[12:])  # a viewer that fell behind had two reads dropped
+        app = SnifferApp(sink, None, clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            app.poll()
+            await pilot.press("6")
+            lost = len(reads[10].data) + len(reads[11].data)
+            assert f"{lost}B lost" in line_text(app, 10) and "ms" not in line_text(app, 10).split("B lost")[0]
+            assert "ms" in line_text(app, 9) and "ms" in line_text(app, 11)
+    asyncio.run(go())

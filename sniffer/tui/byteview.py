@@ -8,7 +8,9 @@ frame list's: request, response, error, exception, noise ...), the frames
 they went to are listed after them, and the selected frame's bytes are
 highlighted.  The gap: per read (a USB adapter), from the previous read's
 return to this one's; per byte (a logic analyzer), the silence from the end
-of the previous read's last byte to this read's first.
+of the previous read's last byte to this read's first.  Where reads never
+came (a viewer that fell behind has reads dropped) the gap says how many
+bytes are missing ("34B lost") instead of a time.
 
 Keys: ↑ ↓ PgUp PgDn Home End/G move between reads (End follows the newest);
 ← → the previous / next frame; Enter goes to the selected frame in the
@@ -224,6 +226,8 @@ class ByteView(ScrollView, can_focus=True):
         prev = self.ring.get(seq - 1)
         if prev is None:
             return "", ""
+        if prev.offset + len(prev.data) != r.offset:  # reads between them never came (a viewer fell behind)
+            return f"{r.offset - prev.offset - len(prev.data)}B lost", ""
         ch = self.char_ns
         if r.last_ns is not None and prev.last_ns is not None:  # per byte: silence between the two
             gap = r.t_ns - prev.last_ns - (ch or 0)
