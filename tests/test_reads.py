@@ -3,7 +3,7 @@
 import random
 
 import pytest
-from tui_helpers import SIM, SIM_CAPTURES, replay_frames, replay_reads
+from tui_helpers import SIM, SIM_CAPTURES, frames_from_reads, replay_frames, replay_reads
 
 from sniffer.events import Chunk
 from sniffer.reads import Read, ReadMarker
@@ -16,15 +16,6 @@ from sniffer.tui.readring import ReadRing
 def chunks_of(name: str) -> list[Chunk]:
     _, events = open_replay(str(SIM / name))
     return [ev for ev in events if type(ev) is Chunk]
-
-
-def frames_from_reads(reads) -> dict[int, bytes]:
-    """Each frame's bytes put together from the reads, byte by byte, by the frame each byte went to."""
-    got: dict[int, bytearray] = {}
-    for r in reads:
-        for k, b in enumerate(r.data):
-            got.setdefault(r.frame_at(k), bytearray()).append(b)
-    return {i: bytes(v) for i, v in got.items()}
 
 
 @pytest.mark.parametrize("name", SIM_CAPTURES)

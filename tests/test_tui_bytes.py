@@ -5,10 +5,11 @@ import asyncio
 import threading
 import time
 
-from tui_helpers import SIM, filled_sink, replay_frames, replay_reads
+from tui_helpers import SIM, demo_viewer, filled_sink, frames_from_reads, replay_frames, replay_reads
 
 from decoders.registry import default_registry
 from sniffer.attach import Attachment, attach_feed
+from sniffer.events import Chunk
 from sniffer.line import LineSettings
 from sniffer.pipeline import Pipeline
 from sniffer.session import CaptureSpec, Session
@@ -201,3 +202,24 @@ def test_reads_a_viewer_never_got_are_said_lost_not_a_gap():
             assert f"{lost}B lost" in line_text(app, 10) and "ms" not in line_text(app, 10).split("B lost")[0]
             assert "ms" in line_text(app, 9) and "ms" in line_text(app, 11)
     asyncio.run(go())
+
+
+def test_the_live_demo_sends_its_reads_from_the_capture_process(tmp_path):
+    """`sniffer demo` on a terminal: the capture a process of its own (a pty bus, the MCAP), the TUI attached;
+    the byte view's reads are the reads the capture recorded, each byte marked with the frame it went to."""
+    async def go(app):
+        async with app.run_test(size=SIZE) as pilot:
+            await until(pilot, lambda: app.caught_up and len(app.store) == app.sink.frames_in)
+            app.poll()
+            await pilot.press("6")
+            assert app.feed_error is None and len(app.reads) > 20
+            await pilot.press("q")
+
+    with demo_viewer(tmp_path, "errors", 1.5) as viewer:
+        asyncio.run(go(viewer.app))
+    assert viewer.rc() == 0
+    app = viewer.app
+    _, events = open_replay(str(tmp_path / "d.mcap"))
+    recorded = [ev for ev in events if type(ev) is Chunk]
+    assert [(r.t_ns, r.data) for r in app.reads.reads] == [(c.t_ns, c.data) for c in recorded]
+    assert frames_from_reads(app.reads.reads) == {f.index: f.raw for f in app.store.frames}

@@ -40,6 +40,15 @@ def replay_reads(name: str = "errors.mcap"):
     return _decode(name)[3]
 
 
+def frames_from_reads(reads) -> dict[int, bytes]:
+    """Each frame's bytes put together from reads (sniffer.reads), byte by byte, by the frame each went to."""
+    got: dict[int, bytearray] = {}
+    for r in reads:
+        for k, b in enumerate(r.data):
+            got.setdefault(r.frame_at(k), bytearray()).append(b)
+    return {i: bytes(v) for i, v in got.items()}
+
+
 def registry_shadow(registry) -> dict:
     """{(unit, table, address): raw} of the decoders' final register shadow (every unit's UnitState)."""
     return {(unit, table, a): v for unit, st in registry.states.items() for (table, a), v in st.snapshot().items()}
