@@ -156,7 +156,7 @@ def test_model_and_sink_do_not_import_textual():
     import subprocess
     import sys
 
-    code = ("import sys, sniffer.tui.model, sniffer.tui.sink, sniffer.tui.filters; "
+    code = ("import sys, sniffer.tui.model, sniffer.tui.sink, sniffer.tui.filters, sniffer.tui.goto; "
             "sys.exit(1 if any(m == 'textual' or m.startswith('textual.') for m in sys.modules) else 0)")
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
 
