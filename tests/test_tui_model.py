@@ -4,18 +4,11 @@ import random
 import threading
 
 import pytest
-from tui_helpers import SIM_CAPTURES, registry_shadow, replay_frames
+from tui_helpers import SIM_CAPTURES, registry_shadow, replay_frames, store_of
 
 from sniffer.tui.filters import filter_expr, parse_filter
 from sniffer.tui.model import F_EXC, F_NOISE, F_PROBLEM, F_TIMEOUT, Filter, FrameStore, frame_flags
 from sniffer.tui.sink import TuiSink
-
-
-def store_of(name="errors.mcap") -> FrameStore:
-    info, frames, _ = replay_frames(name)
-    s = FrameStore(info.t0_ns)
-    s.add(frames)
-    return s
 
 
 def test_every_frame_in_view_and_rows_map_indexes():

@@ -3,8 +3,9 @@
 from datetime import datetime, timedelta, timezone
 
 import pytest
-from tui_helpers import replay_frames
+from tui_helpers import replay_frames, store_of
 
+from sniffer.tui.framelist import MIN_SUMMARY, fit_columns, format_row
 from sniffer.tui.goto import Target, nearest_shown, parse_goto, resolve
 from sniffer.tui.model import FrameStore
 from sniffer.tui.timebase import REF, REL, WALL, TimeBase, delta_text, parse_duration
@@ -141,13 +142,6 @@ def test_nearest_shown_row():
     assert nearest_shown([], 3) is None
 
 
-def store_of(name="errors.mcap") -> FrameStore:
-    info, frames, _ = replay_frames(name)
-    s = FrameStore(info.t0_ns)
-    s.add(frames)
-    return s
-
-
 def test_resolve_a_frame_number_a_time_and_a_hidden_frame():
     s = store_of()
     first, last = s.frames[0].index, s.frames[-1].index
@@ -163,7 +157,8 @@ def test_resolve_a_frame_number_a_time_and_a_hidden_frame():
     hidden = next(r for r in range(30, len(s)) if s.pos_of_row(r) is None)
     row, note = resolve(s, Target(index=s.frames[hidden].index))
     assert row == nearest_shown(s.view, hidden) and s.frames[row].unit == 2
-    assert note == f"#{s.frames[hidden].index} is hidden by the filter: at #{s.frames[row].index}, the nearest shown frame"
+    assert note == f"#{s.frames[hidden].index} is hidden by the filter: at #{s.frames[row].index}, " \
+                   "the nearest shown frame"
     row, note = resolve(s, Target(t_ns=s.t_ns[hidden], text="1.5s"))
     assert row == nearest_shown(s.view, hidden)
     assert note.startswith(f"the first frame at or after 1.5s (#{s.frames[hidden].index}) is hidden by the filter")
@@ -181,3 +176,41 @@ def test_resolve_past_a_paused_view():
     row, note = resolve(s, Target(index=frames[80].index))
     assert row == 49 and note == f"#{frames[80].index} is the paused view ends before it: at #{frames[49].index}, " \
                                  "the nearest shown frame"
+
+
+def test_columns_fit_the_width_and_keep_the_summary():
+    s = store_of()
+    tb = s.time
+    span = (s.t_ns[0], s.last_t_ns, s.frames[-1].index)
+    wide = fit_columns(138, tb, *span)
+    assert [c.key for c in wide.columns] == ["mark", "time", "dt", "dir", "unit", "model", "fc", "link", "lat"]
+    narrow = fit_columns(78, tb, *span)  # 80 columns less the scrollbar
+    assert narrow.summary >= MIN_SUMMARY and not narrow.has("model") and narrow.has("dt") and narrow.has("lat")
+    tb.mode = WALL
+    tb.wall_anchor_ns = 1
+    wall = fit_columns(78, tb, *span)
+    assert wall.summary >= MIN_SUMMARY and wall.has("dt") and not wall.has("fc")
+    tb.mode = REL
+    big = fit_columns(78, tb, s.t0_ns, s.t0_ns + 5000 * S, 999_999)  # an hour and a half, a million frames
+    assert big.summary >= MIN_SUMMARY and big.has("lat") and big.has("link")
+    tiny = fit_columns(40, tb, *span)  # nothing more to drop: the summary gets what is left
+    assert [c.key for c in tiny.columns] == ["mark", "time", "dir", "unit", "link"]
+
+
+@pytest.mark.parametrize("width", [78, 100, 138])
+def test_rows_line_up_under_the_header(width):
+    s = store_of()
+    tb = s.time
+    tb.toggle_reference(10, s.t_ns[10], s.frames[10].index)
+    lay = fit_columns(width, tb, s.t_ns[0], s.last_t_ns, s.frames[-1].index)
+    head = lay.header
+    summary_at = head.index(" summary") + 1
+    for row in range(1, 60):
+        text = format_row(s.frames[row], s.flags[row], lay, tb, row == 3, row == 10, s.t_ns[row - 1]).plain
+        assert len(text) <= width
+        assert text[summary_at - 1] == " " and text[summary_at] != " "  # the summary starts under its title
+        if row == 10:
+            assert "*REF*" in text[:summary_at]
+        if lay.has("dt"):
+            end = head.index("Δt") + 2
+            assert text[:end].rstrip().endswith(delta_text(s.t_ns[row] - s.t_ns[row - 1]))

@@ -9,6 +9,7 @@ from decoders.registry import default_registry
 from sniffer.line import LineSettings
 from sniffer.pipeline import Pipeline
 from sniffer.sources.replay import open_replay
+from sniffer.tui.model import FrameStore
 from sniffer.tui.sink import TuiSink
 
 SIM = Path(__file__).resolve().parent.parent / "captures" / "sim"
@@ -34,6 +35,14 @@ def replay_frames(name: str = "errors.mcap"):
     return _decode(name)
 
 
+def store_of(name: str = "errors.mcap") -> FrameStore:
+    """A FrameStore holding a simulated capture's frames."""
+    info, frames, _ = replay_frames(name)
+    s = FrameStore(info.t0_ns)
+    s.add(frames)
+    return s
+
+
 def registry_shadow(registry) -> dict:
     """{(unit, table, address): raw} of the decoders' final register shadow (every unit's UnitState)."""
     return {(unit, table, a): v for unit, st in registry.states.items() for (table, a), v in st.snapshot().items()}
@@ -48,3 +57,16 @@ def filled_sink(name: str = "errors.mcap") -> TuiSink:
     sink.bytes_in = sum(len(f.raw) for f in frames)
     sink.close()
     return sink
+
+
+def screen_text(app) -> str:
+    """What the terminal shows now, as plain text lines (what a user reads, cut to the screen's size)."""
+    import io
+
+    from rich.console import Console
+
+    w, h = app.size
+    console = Console(width=w, height=h, file=io.StringIO(), force_terminal=True, color_system="truecolor",
+                      record=True, legacy_windows=False, safe_box=False)
+    console.print(app.screen._compositor.render_update(full=True))
+    return console.export_text()
