@@ -142,12 +142,18 @@ def format_row(f: Frame, fl: int, lay: Layout, tb: TimeBase, marked: bool, is_re
               "time": S_REF if is_ref else None}
     text = Text(no_wrap=True, overflow="ellipsis")
     text.append("*" if marked else " ", S_MARK)
-    text.append(cells["mark"][1:] + " ")
+    plain = [cells["mark"][1:], " "]  # runs without a style of their own go in as one piece (fewer spans)
     for c in lay.columns[1:]:
-        cell = cells[c.key]
-        text.append(cell.rjust(c.width) if c.right else cell.ljust(c.width), styles.get(c.key))
-        text.append(" ")
-    text.append(summary_text(f))
+        cell = cells[c.key].rjust(c.width) if c.right else cells[c.key].ljust(c.width)
+        style = styles.get(c.key)
+        if style is None:
+            plain += (cell, " ")
+        else:
+            text.append("".join(plain))
+            text.append(cell, style)
+            plain = [" "]
+    plain.append(summary_text(f))
+    text.append("".join(plain))
     st = row_style(fl)
     if st is not None:
         text.stylize(st, 1)
