@@ -4,18 +4,11 @@ import random
 import threading
 
 import pytest
-from tui_helpers import SIM_CAPTURES, registry_shadow, replay_frames
+from tui_helpers import SIM_CAPTURES, registry_shadow, replay_frames, store_of
 
 from sniffer.tui.filters import filter_expr, parse_filter
 from sniffer.tui.model import F_EXC, F_NOISE, F_PROBLEM, F_TIMEOUT, Filter, FrameStore, frame_flags
 from sniffer.tui.sink import TuiSink
-
-
-def store_of(name="errors.mcap") -> FrameStore:
-    info, frames, _ = replay_frames(name)
-    s = FrameStore(info.t0_ns)
-    s.add(frames)
-    return s
 
 
 def test_every_frame_in_view_and_rows_map_indexes():
@@ -156,7 +149,7 @@ def test_model_and_sink_do_not_import_textual():
     import subprocess
     import sys
 
-    code = ("import sys, sniffer.tui.model, sniffer.tui.sink, sniffer.tui.filters; "
+    code = ("import sys, sniffer.tui.model, sniffer.tui.sink, sniffer.tui.filters, sniffer.tui.goto; "
             "sys.exit(1 if any(m == 'textual' or m.startswith('textual.') for m in sys.modules) else 0)")
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
 

@@ -10,6 +10,7 @@ from decoders.registry import default_registry
 from sniffer.line import LineSettings
 from sniffer.pipeline import Pipeline
 from sniffer.sources.replay import open_replay
+from sniffer.tui.model import FrameStore
 from sniffer.tui.sink import TuiSink
 
 SIM = Path(__file__).resolve().parent.parent / "captures" / "sim"
@@ -49,6 +50,14 @@ def frames_from_reads(reads) -> dict[int, bytes]:
     return {i: bytes(v) for i, v in got.items()}
 
 
+def store_of(name: str = "errors.mcap") -> FrameStore:
+    """A FrameStore holding a simulated capture's frames."""
+    info, frames, _ = replay_frames(name)
+    s = FrameStore(info.t0_ns)
+    s.add(frames)
+    return s
+
+
 def registry_shadow(registry) -> dict:
     """{(unit, table, address): raw} of the decoders' final register shadow (every unit's UnitState)."""
     return {(unit, table, a): v for unit, st in registry.states.items() for (table, a), v in st.snapshot().items()}
@@ -78,3 +87,14 @@ def demo_viewer(tmp_path, scenario: str, seconds: float, **spec):
                        f"demo {scenario}") as viewer:
         assert viewer.start(), "the demo capture did not start"
         yield viewer
+def screen_text(app) -> str:
+    """What the terminal shows now, as plain text lines (what a user reads, cut to the screen's size)."""
+    import io
+
+    from rich.console import Console
+
+    w, h = app.size
+    console = Console(width=w, height=h, file=io.StringIO(), force_terminal=True, color_system="truecolor",
+                      record=True, legacy_windows=False, safe_box=False)
+    console.print(app.screen._compositor.render_update(full=True))
+    return console.export_text()

@@ -16,7 +16,7 @@ from typing import ClassVar
 from textual import on
 from textual.app import App, ComposeResult
 from textual.binding import Binding
-from textual.containers import Vertical
+from textual.containers import Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Footer, Input, Static, TabbedContent, TabPane
 
@@ -24,6 +24,8 @@ from .byteview import BytesPane, ByteView, char_ns
 from .detail import DetailPane
 from .filters import filter_expr, parse_filter
 from .framelist import FrameList
+from .goto import parse_goto, resolve
+from .gotobar import GotoBar
 from .model import FrameStore
 from .readring import ReadRing
 from .registers import RegisterWatch
@@ -45,6 +47,10 @@ HELP = """\
   [b]/[/b]            filter bar: words search the line; u:1,2  fc:3,16  role:req  err
   [b]c[/b]            clear all filters
   [b]space[/b]        pause the view (capture goes on); again to resume
+  [b]t[/b]            times since the start → wall clock → from the time reference (the header says which)
+  [b]T[/b]            this frame is the time reference (*REF*); T on it again clears it
+  [b]g[/b]            go to frame 1234 (or #1234), or to the first frame at or after a time: 12.5s, 350ms
+               (from the reference when times are shown from it), 19:22:01.250 (wall clock)
   [b]m[/b]            bookmark; [b]][/b] / [b]\\[[/b] next / previous bookmark
   [b]x[/b]            export the filtered view or the bookmarks (MCAP, pcap, CSV) to a file
   [b]y[/b]            copy the selected frame's bytes as hex to the clipboard (OSC 52)
@@ -57,17 +63,15 @@ The selected frame's pair has a grey background; ←/→ #n names it.
 """
 
 
-LIST_HEADER = (f"   {'time (s)':>12} {'dir':5} {'unit':4} {'model':<8} {'fc':4} {'frame→pair':<14} {'latency':>9} "
-               "summary  [problems]")
-
-
 class HelpScreen(ModalScreen):
     BINDINGS: ClassVar[list[Binding]] = [Binding("escape,q,question_mark", "dismiss", "Close")]
-    DEFAULT_CSS = "HelpScreen { align: center middle; } HelpScreen > Static { width: 100; height: auto; " \
-                  "border: thick $primary; background: $surface; padding: 1 2; }"
+    # at most the screen (80x24 too): what does not fit scrolls (arrows, PgUp / PgDn)
+    DEFAULT_CSS = "HelpScreen { align: center middle; } HelpScreen > VerticalScroll { width: 100; max-width: 100%; " \
+                  "height: auto; max-height: 100%; border: thick $primary; background: $surface; padding: 1 2; }"
 
     def compose(self) -> ComposeResult:
-        yield Static(HELP)
+        with VerticalScroll():
+            yield Static(HELP)
 
 
 class ConfirmQuit(ModalScreen[bool]):
@@ -99,7 +103,6 @@ class SnifferApp(App):
     #status { height: 1; background: $panel; padding: 0 1; }
     TabbedContent { height: 1fr; }
     #framespane { height: 1fr; }
-    #listhead { height: 1; color: $text-muted; text-style: bold; }
     FrameList { height: 3fr; }
     DetailPane { height: 2fr; }
     """
@@ -128,6 +131,10 @@ class SnifferApp(App):
         Binding("x", "export", "Export"),
         Binding("y", "copy_hex", "Copy hex", show=False),
         Binding("6", "bytes_tab", "Bytes"),
+        # time: the base the list shows, a time reference, go to a frame or a time (priority: see slash)
+        Binding("t", "time_base", "Time"),
+        Binding("T", "time_reference", "Time ref", show=False),
+        Binding("g", "goto_bar", "Go to", priority=True),
     ]
 
     def __init__(self, sink: TuiSink, feed: Callable[[TuiSink, threading.Event], object] | None = None, *,
@@ -164,9 +171,9 @@ class SnifferApp(App):
     def compose(self) -> ComposeResult:
         yield Input(placeholder="filter: words  u:1,2  fc:3  role:req|rsp|noise  err   (Enter applies, Esc closes)",
                     id="filterbar")
+        yield GotoBar(id="gotobar")
         with TabbedContent(initial="frames"):
             with TabPane("Frames", id="frames"), Vertical(id="framespane"):
-                yield Static(LIST_HEADER, id="listhead", markup=False)
                 yield FrameList(self.store, id="list")
                 yield DetailPane(id="detail")
             with TabPane("Units", id="units"):
@@ -235,6 +242,7 @@ class SnifferApp(App):
                         timeout=8 if bad else 4)
         if self.sink.info is not None and not len(self.store):
             self.store.t0_ns = self.sink.info.t0_ns
+            self.store.time.wall_anchor_ns = self.sink.info.wall_anchor_ns
         batch = self.sink.drain(self.max_batch)
         if batch:
             self.store.add(batch)
@@ -281,8 +289,15 @@ class SnifferApp(App):
 
     # ---------------------------------------------------------------- selection
     def on_frame_list_selected(self, message: FrameList.Selected) -> None:
-        row = message.row
-        self.detail.show(None if row is None else self.store.frame(row), self.store.t0_ns)
+        self.show_detail(message.row)
+
+    def show_detail(self, row: int | None) -> None:
+        """The detail of a row, its time in the list's base and its Δt to the previous shown frame."""
+        store = self.store
+        pos = None if row is None else store.pos_of_row(row)
+        prev = store.view[pos - 1] if pos else None
+        self.detail.show(None if row is None else store.frame(row), store.time,
+                         None if prev is None else (store.t_ns[prev], store.frame(prev).index))
 
     @property
     def selected_frame(self):
@@ -374,8 +389,8 @@ class SnifferApp(App):
 
     def action_filter_bar(self) -> None:
         bar = self.filter_bar
-        if self.focused is bar:  # a '/' typed in the filter itself
-            bar.insert_text_at_cursor("/")
+        if isinstance(self.focused, Input):  # a '/' typed in the filter (or another bar) itself
+            self.focused.insert_text_at_cursor("/")
             return
         if self.screen is not self.screen_stack[0]:  # help or a question on top: not now
             return
@@ -466,3 +481,43 @@ class SnifferApp(App):
             self.tabs.active = "frames"
             self.frame_list.select_row(row)
             self.frame_list.focus()
+    # ---------------------------------------------------------------- time and go to
+    def _after_time_change(self) -> None:
+        self.frame_list.refresh_rows()  # the columns fit the new times, the header names the base
+        self.show_detail(self.frame_list.selected_row)
+
+    def action_time_base(self) -> None:
+        if self.store.time.cycle() is None:
+            self.notify("Times are since the start only: this capture has no wall-clock start and no time "
+                        "reference is set (T sets one)", timeout=4)
+            return
+        self._after_time_change()
+
+    def action_time_reference(self) -> None:
+        row = self.frame_list.selected_row
+        if row is not None:
+            f = self.store.frame(row)
+            self.store.time.toggle_reference(row, f.t_ns, f.index)
+            self._after_time_change()
+
+    def action_goto_bar(self) -> None:
+        if isinstance(self.focused, Input):  # a 'g' typed in a bar is text
+            self.focused.insert_text_at_cursor("g")
+        elif self.screen is self.screen_stack[0]:  # not under the help or a question
+            self.query_one("#gotobar", GotoBar).open()
+
+    @on(Input.Submitted, "#gotobar")
+    def goto(self, event: Input.Submitted) -> None:
+        """Go where the bar says; bad input: one error line, the bar stays open to fix it."""
+        bar = self.query_one("#gotobar", GotoBar)
+        if event.value.strip():
+            try:
+                row, note = resolve(self.store, parse_goto(event.value, self.store.time, self.store.last_t_ns))
+            except ValueError as e:
+                self.notify(str(e), severity="error", timeout=5)
+                return
+            self.tabs.active = "frames"
+            self.frame_list.select_row(row)
+            if note:
+                self.notify(note, severity="warning", timeout=5)
+        bar.action_close()

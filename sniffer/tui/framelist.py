@@ -7,6 +7,7 @@ End (or G) follows again.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import ClassVar
 
 from rich.style import Style
@@ -20,6 +21,7 @@ from textual.strip import Strip
 
 from ..frame import Frame
 from .model import F_ERROR, F_EXC, F_FAULT, F_NOISE, F_TIMEOUT, F_WARN, FrameStore
+from .timebase import TimeBase, delta_text
 
 ROLE_TAG = {"request": "->REQ", "response": "<-RSP", "unknown": " ??? ", "noise": "NOISE"}
 S_ERROR = Style(color="bright_red", bold=True)
@@ -33,6 +35,7 @@ S_RSP = Style(color="green")
 S_CURSOR = Style(bgcolor="grey30", bold=True)
 S_PAIR = Style(bgcolor="grey19")
 S_MARK = Style(color="bright_blue", bold=True)
+S_REF = Style(color="bright_blue", bold=True, reverse=True)  # the time reference's *REF*
 
 
 def row_style(fl: int) -> Style | None:
@@ -49,41 +52,112 @@ def row_style(fl: int) -> Style | None:
     return None
 
 
-def format_row(f: Frame, fl: int, t0_ns: int, marked: bool) -> Text:
-    t = (f.t_ns - t0_ns) / 1e9
+MIN_SUMMARY = 20  # the summary keeps at least this many characters: narrower lists drop columns first
+
+
+@dataclass(frozen=True)
+class Column:
+    key: str
+    title: str
+    width: int
+    right: bool = False  # right-aligned
+    drop: int = 0  # 0: always shown; else dropped in this order (1 first) when the summary would be too narrow
+
+
+@dataclass(frozen=True)
+class Layout:
+    """The frame list's columns at one width: which are shown, how wide, and the header line."""
+
+    columns: tuple[Column, ...]
+    summary: int  # characters left for the summary
+    header: str
+
+    def has(self, key: str) -> bool:
+        return any(c.key == key for c in self.columns)
+
+
+def fit_columns(width: int, tb: TimeBase, first_ns: int, last_ns: int, last_index: int) -> Layout:
+    """The columns that fit `width` (each followed by a space), the summary getting what is left.
+
+    Widths follow the capture (the time column as wide as its times, the frame numbers as long as
+    the last one's); below MIN_SUMMARY characters for the summary the least useful columns go first:
+    the model (the detail and Units show it), the function code (the summary names it), Δt, latency.
+    """
+    digits = len(str(max(last_index, 0)))
+    cols = [Column("mark", "", 3), Column("time", tb.title(), tb.width(first_ns, last_ns), right=True),
+            Column("dt", "Δt", 8, right=True, drop=3), Column("dir", "dir", 5), Column("unit", "unit", 4),
+            Column("model", "model", 8, drop=1), Column("fc", "fc", 4, drop=2),
+            Column("link", "frame→pair", 2 * digits + 3), Column("lat", "latency", 8, right=True, drop=4)]
+    cols = [Column(c.key, c.title, max(c.width, len(c.title)), c.right, c.drop) for c in cols]
+    for drop in range(1, 5):
+        if width - sum(c.width + 1 for c in cols) >= MIN_SUMMARY:
+            break
+        cols = [c for c in cols if c.drop != drop]
+    summary = max(width - sum(c.width + 1 for c in cols), 0)
+    head = " ".join(c.title.rjust(c.width) if c.right else c.title.ljust(c.width) for c in cols)
+    head += f" summary [problems]   {tb.describe()}"
+    return Layout(tuple(cols), summary, head[:width])
+
+
+def _mark(fl: int) -> str:
     if fl & F_ERROR:
-        mark = "!!"
-    elif fl & F_EXC:
-        mark = "E "
-    elif fl & F_FAULT:
-        mark = "F "
-    elif fl & F_TIMEOUT:
-        mark = "T "
-    else:
-        mark = "! " if fl & (F_WARN | F_NOISE) else "  "
-    role = ROLE_TAG.get(f.role, " ??? ")
-    unit = "  -" if f.unit is None else f"{f.unit:3d}"
-    model = (f.model or "")[:8]
-    fc = "--" if f.function is None else f"{f.function:02X}"
-    link = f"#{f.index}" + (f"{'→' if f.role == 'request' else '←'}#{f.pair}" if f.pair is not None else "")
-    lat = f"{f.latency_ms:7.1f}ms" if f.latency_ms is not None and f.role == "response" else " " * 9
+        return "!!"
+    if fl & F_EXC:
+        return "E "
+    if fl & F_FAULT:
+        return "F "
+    if fl & F_TIMEOUT:
+        return "T "
+    return "! " if fl & (F_WARN | F_NOISE) else "  "
+
+
+def summary_text(f: Frame) -> str:
+    """The summary column's text: the decoder's summary, a bad CRC and the problems' codes; a noise frame's bytes."""
     if f.protocol == "noise":
-        summary = f"{len(f.raw)}B {f.raw[:16].hex(' ')}  [{f.noise_reason}]"
-    else:
-        summary = f.summary
-        if f.crc_ok is False:
-            summary = "CRC! " + summary
-        notes = [a.code for a in f.annotations if a.severity != "info"]
-        if notes:
-            summary += "  [" + ", ".join(notes) + "]"
+        return f"{len(f.raw)}B {f.raw[:16].hex(' ')}  [{f.noise_reason}]"
+    summary = f.summary
+    if f.crc_ok is False:
+        summary = "CRC! " + summary
+    notes = [a.code for a in f.annotations if a.severity != "info"]
+    if notes:
+        summary += "  [" + ", ".join(notes) + "]"
+    return summary
+
+
+def format_row(f: Frame, fl: int, lay: Layout, tb: TimeBase, marked: bool, is_ref: bool = False,
+               prev_t_ns: int | None = None) -> Text:
+    """One line of the list in `lay`'s columns; `prev_t_ns` is the previous shown frame's time (Δt)."""
+    cells = {
+        "mark": ("*" if marked else " ") + _mark(fl),
+        "time": "*REF*" if is_ref else tb.text(f.t_ns),
+        "dt": "" if prev_t_ns is None else delta_text(f.t_ns - prev_t_ns),
+        "dir": ROLE_TAG.get(f.role, " ??? "),
+        "unit": "u  -" if f.unit is None else f"u{f.unit:3d}",
+        "model": (f.model or "")[:8],
+        "fc": "fc--" if f.function is None else f"fc{f.function:02X}",
+        "link": f"#{f.index}" + (f"{'→' if f.role == 'request' else '←'}#{f.pair}" if f.pair is not None else ""),
+        "lat": f"{f.latency_ms:6.1f}ms" if f.latency_ms is not None and f.role == "response" else "",
+    }
+    styles = {"dir": S_REQ if f.role == "request" else S_RSP if f.role == "response" else None,
+              "time": S_REF if is_ref else None}
     text = Text(no_wrap=True, overflow="ellipsis")
     text.append("*" if marked else " ", S_MARK)
-    text.append(f"{mark}{t:12.6f} ")
-    text.append(f"{role} ", S_REQ if f.role == "request" else S_RSP if f.role == "response" else None)
-    text.append(f"u{unit} {model:<8} fc{fc} {link:<14} {lat} {summary}")
+    plain = [cells["mark"][1:], " "]  # runs without a style of their own go in as one piece (fewer spans)
+    for c in lay.columns[1:]:
+        cell = cells[c.key].rjust(c.width) if c.right else cells[c.key].ljust(c.width)
+        style = styles.get(c.key)
+        if style is None:
+            plain += (cell, " ")
+        else:
+            text.append("".join(plain))
+            text.append(cell, style)
+            plain = [" "]
+    plain.append(summary_text(f))
+    text.append("".join(plain))
     st = row_style(fl)
     if st is not None:
         text.stylize(st, 1)
+    text.truncate(sum(c.width + 1 for c in lay.columns) + lay.summary, overflow="ellipsis")
     return text
 
 
@@ -99,10 +173,16 @@ MOVE_KEYS = (
 
 
 class FrameList(ScrollView, can_focus=True):
-    """Rows are positions in `store.view`; `cursor` is one of them."""
+    """Rows are positions in `store.view`; `cursor` is one of them.  The first line is the header, drawn
+    with the rows (so it always names their columns and time base); rows start on the second."""
 
     BINDINGS: ClassVar[list[Binding]] = [*MOVE_KEYS]
-    DEFAULT_CSS = "FrameList { height: 1fr; }"
+    COMPONENT_CLASSES: ClassVar[set[str]] = {"framelist--header"}
+    # rows fit the width: nothing to scroll to sideways
+    DEFAULT_CSS = """
+    FrameList { height: 1fr; overflow-x: hidden; }
+    FrameList > .framelist--header { color: $text-muted; text-style: bold; }
+    """
 
     cursor = reactive(-1, always_update=True, repaint=False)
 
@@ -116,12 +196,17 @@ class FrameList(ScrollView, can_focus=True):
         self.store = store
         self.follow = True
         self._seen_generation = -1
+        self._extent = (0, 0, 0)  # (first t_ns, last t_ns, last frame number): what the column widths fit
+        self._layout: tuple[tuple, Layout] | None = None  # (what it was fitted to, the layout)
 
     # ---- data
     def refresh_rows(self) -> None:
         """Called by the App after the store changed."""
         n = len(self.store.view)
-        self.virtual_size = Size(max(self.size.width, 200), n)
+        store = self.store
+        if len(store):
+            self._extent = (store.t_ns[0], store.last_t_ns, store.frame(len(store) - 1).index)
+        self.virtual_size = Size(self.scrollable_content_region.width, n + 1)  # the header and the rows
         if self.follow and n:
             if self.cursor != n - 1:
                 self.cursor = n - 1
@@ -149,9 +234,14 @@ class FrameList(ScrollView, can_focus=True):
         self.refresh()
         self.post_message(self.Selected(self.selected_row))
 
+    @property
+    def rows_shown(self) -> int:
+        """How many rows fit under the header."""
+        return max(self.scrollable_content_region.height - 1, 1)
+
     def scroll_to_region_visible(self, pos: int) -> None:
-        top = round(self.scroll_offset.y)
-        h = max(self.scrollable_content_region.height, 1)
+        top = round(self.scroll_offset.y)  # the row under the header
+        h = self.rows_shown
         if pos < top:
             self.scroll_to(y=pos, animate=False, immediate=True)
         elif pos >= top + h:
@@ -170,7 +260,7 @@ class FrameList(ScrollView, can_focus=True):
         self._move_to(self.cursor + delta)
 
     def action_page(self, direction: int) -> None:
-        self._move_to(self.cursor + direction * max(self.scrollable_content_region.height - 1, 1))
+        self._move_to(self.cursor + direction * max(self.rows_shown - 1, 1))
 
     def action_first(self) -> None:
         self._move_to(0)
@@ -183,20 +273,38 @@ class FrameList(ScrollView, can_focus=True):
         self.follow = False  # reading back: stop following the tail
 
     def on_click(self, event) -> None:
-        pos = round(self.scroll_offset.y) + event.y
-        if 0 <= pos < len(self.store.view):
+        pos = round(self.scroll_offset.y) + event.y - 1  # line 0 is the header
+        if event.y > 0 and 0 <= pos < len(self.store.view):
             self._move_to(pos)
+
+    # ---- columns
+    def layout_columns(self) -> Layout:
+        """The columns for the current width and time base (fitted again when either changed)."""
+        width = self.scrollable_content_region.width
+        key = (width, self.store.time.version, self._extent)
+        if self._layout is None or self._layout[0] != key:
+            self._layout = (key, fit_columns(width, self.store.time, *self._extent))
+        return self._layout[1]
+
+    def on_resize(self, event) -> None:
+        self.refresh_rows()
 
     # ---- Line API
     def render_line(self, y: int) -> Strip:
         scroll_x, scroll_y = self.scroll_offset
-        pos = scroll_y + y
         width = self.scrollable_content_region.width
+        if y == 0:
+            head = Text(self.layout_columns().header, no_wrap=True, end="")
+            return Strip(head.render(self.app.console), head.cell_len).crop_extend(
+                0, width, self.get_component_rich_style("framelist--header"))
+        pos = scroll_y + y - 1
         store = self.store
         if pos >= len(store.view) or pos < 0:
             return Strip.blank(width, self.rich_style)
         row = store.view[pos]
-        text = format_row(store.frame(row), store.flags[row], store.t0_ns, row in store.bookmarks)
+        tb = store.time
+        text = format_row(store.frame(row), store.flags[row], self.layout_columns(), tb, row in store.bookmarks,
+                          row == tb.ref_row, store.t_ns[store.view[pos - 1]] if pos else None)
         sel = self.selected_row
         if pos == self.cursor:
             text.stylize(S_CURSOR)

@@ -25,6 +25,7 @@ from ..codes import Annotation
 from ..frame import Frame
 from .framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, RowIndex, matches_text
 from .shadow import RegisterBook, RegisterValue
+from .timebase import TimeBase
 
 # per-frame flag bits
 F_ERROR = 1  # an error annotation or bad CRC
@@ -147,7 +148,7 @@ class FrameStore:
     """All frames of a capture plus what the views need to find them quickly."""
 
     def __init__(self, t0_ns: int = 0, *, block: int = BLOCK, frame_cache: int = FRAME_CACHE) -> None:
-        self.t0_ns = t0_ns
+        self.time = TimeBase(t0_ns)  # how times are shown: since the start, wall clock, from a reference
         self.blocks = FrameBlocks(block, frame_cache)
         self.frames = FrameSeq(self.blocks)
         # columns, one entry per row
@@ -169,6 +170,14 @@ class FrameStore:
         self.bytes_total = 0
         self.noise_bytes = 0
         self.generation = 0  # bumped on every change the views must redraw for
+
+    @property
+    def t0_ns(self) -> int:
+        return self.time.t0_ns
+
+    @t0_ns.setter
+    def t0_ns(self, t0_ns: int) -> None:
+        self.time.t0_ns = t0_ns
 
     # ------------------------------------------------------------- intake
     def __len__(self) -> int:
