@@ -23,48 +23,20 @@ from dataclasses import dataclass, field
 
 from ..codes import Annotation
 from ..frame import Frame
+from ..frameflags import (  # the store's flag column (re-exported for the views)
+    F_CRC, F_ERROR, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN, frame_flags,
+)
 from .framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, RowIndex, matches_text
 from .shadow import RegisterBook, RegisterValue
 
-# per-frame flag bits
-F_ERROR = 1  # an error annotation or bad CRC
-F_WARN = 2  # a warning annotation
-F_EXC = 4  # exception response
-F_TIMEOUT = 8  # request without (timely) response
-F_NOISE = 16
-F_FAULT = 32  # the drive reports a fault or alarm (model.fault / model.alarm): a problem of the machine
-F_PROBLEM = F_ERROR | F_WARN | F_EXC | F_TIMEOUT | F_NOISE | F_FAULT
-FAULT_CODES = frozenset({"model.fault", "model.alarm"})
-
-TIMEOUT_CODES = frozenset({"pair.timeout", "pair.no_response"})
 ROLES = ("request", "response", "unknown", "noise")
 ROLE_CODE = {r: i for i, r in enumerate(ROLES)}
 _NO_ROLE = 255  # a role outside ROLES (none today)
 _LAT_KEEP = 2048  # latencies kept per unit for the median
 _RATE_WINDOW_NS = 10_000_000_000  # poll rate over the last 10 s of capture time
 
-__all__ = ["F_ERROR", "F_EXC", "F_FAULT", "F_NOISE", "F_PROBLEM", "F_TIMEOUT", "F_WARN", "Filter", "FrameStore",
-           "RegisterValue", "RowIndex", "UnitStats", "frame_flags", "frame_from_record"]
-
-
-def frame_flags(f: Frame) -> int:
-    fl = 0
-    if f.protocol == "noise":
-        fl |= F_NOISE
-    if f.crc_ok is False:
-        fl |= F_ERROR
-    if f.exception:
-        fl |= F_EXC
-    for a in f.annotations:
-        if a.code in FAULT_CODES:  # the drive's own trip, not a fault of the line: its own colour
-            fl |= F_FAULT
-        elif a.severity == "error":
-            fl |= F_ERROR
-        elif a.severity == "warning":
-            fl |= F_WARN
-        if a.code in TIMEOUT_CODES:
-            fl |= F_TIMEOUT
-    return fl
+__all__ = ["F_CRC", "F_ERROR", "F_EXC", "F_FAULT", "F_NOISE", "F_PROBLEM", "F_TIMEOUT", "F_WARN", "Filter",
+           "FrameStore", "RegisterValue", "RowIndex", "UnitStats", "frame_flags", "frame_from_record"]
 
 
 def frame_from_record(rec: dict, t0_ns: int = 0) -> Frame:
