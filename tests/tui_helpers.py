@@ -17,7 +17,7 @@ SIM_CAPTURES = sorted(p.name for p in SIM.glob("*.mcap"))
 
 @functools.cache
 def _decode(name: str):
-    info, events = open_replay(str(SIM / name))
+    info, events = open_replay(str(SIM / name) if "/" not in name else name)
     registry = default_registry(info.devices)
     sink = TuiSink()
     p = Pipeline(info, LineSettings(info.baud, info.parity or "N", info.stopbits or 1), registry, [sink],
@@ -30,8 +30,19 @@ def _decode(name: str):
 
 
 def replay_frames(name: str = "errors.mcap"):
-    """(CaptureInfo, frames, registry) of a simulated capture; frames are shared, do not mutate them."""
+    """(CaptureInfo, frames, registry) of a simulated capture (a name in captures/sim, or a path); frames are
+    shared, do not mutate them."""
     return _decode(name)
+
+
+def write_stress_capture(folder: Path, seconds: float = 1.0) -> str:
+    """An MCAP of `sniffer simulate --scenario stress` (4 units polled back to back, one read of 125 registers
+    0100H..017CH a cycle) in `folder`; a path for replay_frames / filled_sink."""
+    from sniffer.cli import main
+
+    path = str(folder / "stress.mcap")
+    assert main(["simulate", "--scenario", "stress", "--duration", str(seconds), "--out", path]) == 0
+    return path
 
 
 def registry_shadow(registry) -> dict:

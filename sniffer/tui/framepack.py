@@ -4,7 +4,8 @@ A decoded Frame with its points, annotations and strings costs 1.5-3 kB as
 Python objects; a million of them are gigabytes.  `FrameBlocks` keeps the
 newest frames (fewer than `block`) as objects and seals every `block` of them
 into one marshal dump compressed with zstd (50-70 bytes a frame on drive
-traffic), beside a compressed search text per block for the filter bar.  A
+traffic), beside a compressed search text per block for the filter bar
+(filterlang.search_text).  A
 frame asked for (a row on screen, the detail pane) is rebuilt from its block
 and kept in a small LRU, so the rows on screen cost one decompression per
 block and nothing after that.
@@ -26,6 +27,7 @@ from collections import OrderedDict
 import zstandard
 
 from ..codes import Annotation
+from ..filterlang import search_text
 from ..frame import Frame
 
 BLOCK = 256  # frames per sealed block
@@ -39,7 +41,6 @@ SLOTS = tuple("points" if s == "_points" else s for s in Frame.__slots__ if s no
 _ANN = SLOTS.index("annotations")
 _get = operator.attrgetter(*SLOTS)
 _SEP = "\x1e"  # between frames in a block's search text (record separator)
-_FIELD = "\x00"  # between fields of one frame's search text
 _PICKLED = 0x80  # a pickle (protocol >= 2) starts with 0x80; a marshal dump never does
 
 
@@ -59,24 +60,6 @@ def unpack(t) -> Frame:
     f.peer = None
     f.encoded = None
     return f
-
-
-def search_text(f: Frame) -> str:
-    """What the free-text filter searches in a frame: summary, annotation codes and details, hex,
-    model and noise reason (lower case where people type them)."""
-    parts = [f.summary.lower()]
-    for a in f.annotations:
-        parts.append(a.code)
-        parts.append(a.detail.lower())
-    parts.append(f.raw.hex())
-    parts.append(f.model or "")
-    parts.append((f.noise_reason or "").lower())
-    return _FIELD.join(parts)
-
-
-def matches_text(f: Frame, needle: str) -> bool:
-    """The free-text filter on one frame (needle lower case); a role name also matches that role."""
-    return needle == f.role or needle in search_text(f)
 
 
 def _encode(s: str) -> bytes:
@@ -183,6 +166,19 @@ class FrameBlocks:
         f = unpack(self._tuples(b)[i])
         self._remember(row, f)
         return f
+
+    def peek(self, row: int) -> Frame:
+        """The frame at a row, as `get`, but not remembered: a filter looking at many rows does not push
+        the rows on screen out of the cache."""
+        sealed = self.sealed_rows
+        if row >= sealed:
+            return self.tail[row - sealed]
+        f = self._frame_cache.get(row)
+        if f is not None:
+            return f
+        b, i = divmod(row, self.block)
+        data = self.packed[b]
+        return data[i] if type(data) is list else unpack(self._tuples(b)[i])
 
     def search(self, b: int, needle: bytes) -> list[int]:
         """Offsets (within sealed block b) of the frames whose search text contains needle (UTF-8)."""
