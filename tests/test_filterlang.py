@@ -6,7 +6,7 @@ filter code.  test_tui_model.py checks that the store's column answers equal the
 """
 
 import pytest
-from tui_helpers import replay_frames
+from tui_helpers import replay_frames, touches
 
 from sniffer.filterlang import Context, FilterError, Query, parse, register_ids
 from sniffer.filterlang.nodes import And, Compare, Field, Flag, Models, Not, Or, Regs, Roles, Text
@@ -24,28 +24,6 @@ def rows(name: str, text: str, ids: bool = False) -> list[int]:
 
 def where(name: str, pred) -> list[int]:
     return [i for i, f in enumerate(replay_frames(name)[1]) if pred(f)]
-
-
-def _word(adu: bytes, i: int) -> int:
-    return adu[i] << 8 | adu[i + 1]
-
-
-_TABLE = {1: "coil", 2: "discrete", 3: "holding", 4: "input", 5: "coil", 6: "holding", 15: "coil", 16: "holding"}
-
-
-def touches(f, addr: int, table: str = "holding") -> bool:
-    """Does a Modbus frame read or write register (or bit) `addr`?  A read request and a multiple write's
-    echo by their address and quantity fields (PDU bytes 1-4), any frame by the addresses of its decoded
-    points and of its register-shadow writes."""
-    adu, fc = f.adu, f.function or 0
-    if _TABLE.get(fc & 0x7F) != table:
-        return False
-    if f.crc_ok and len(adu) >= 6 and ((f.role == "request" and fc <= 4) or (f.role == "response" and fc in (15, 16))):
-        if _word(adu, 2) <= addr < _word(adu, 2) + _word(adu, 4):
-            return True
-    if any(t == table and s <= addr < s + len(v) for t, s, v in f.writes):
-        return True
-    return any(p.get("address") == addr for p in f.points)
 
 
 def point_values(f, name: str) -> list:

@@ -59,3 +59,25 @@ def filled_sink(name: str = "errors.mcap") -> TuiSink:
     sink.bytes_in = sum(len(f.raw) for f in frames)
     sink.close()
     return sink
+
+
+def _word(adu: bytes, i: int) -> int:
+    return adu[i] << 8 | adu[i + 1]
+
+
+_TABLE = {1: "coil", 2: "discrete", 3: "holding", 4: "input", 5: "coil", 6: "holding", 15: "coil", 16: "holding"}
+
+
+def touches(f, addr: int, table: str = "holding") -> bool:
+    """Does a Modbus frame read or write register (or bit) `addr`?  A read request and a multiple write's
+    echo by their address and quantity fields (PDU bytes 1-4), any frame by the addresses of its decoded
+    points and of its register-shadow writes."""
+    adu, fc = f.adu, f.function or 0
+    if _TABLE.get(fc & 0x7F) != table:
+        return False
+    if f.crc_ok and len(adu) >= 6 and ((f.role == "request" and fc <= 4) or (f.role == "response" and fc in (15, 16))):
+        if _word(adu, 2) <= addr < _word(adu, 2) + _word(adu, 4):
+            return True
+    if any(t == table and s <= addr < s + len(v) for t, s, v in f.writes):
+        return True
+    return any(p.get("address") == addr for p in f.points)
