@@ -320,13 +320,18 @@ class Compare(Node):
 
 # ---------------------------------------------------------------- logic
 @dataclass(frozen=True)
-class And(Node):
+class Group(Node):
+    """Terms joined by And or Or: as costly as its dearest."""
+
     items: tuple[Node, ...]
 
     @property
     def cost(self) -> int:
         return max(i.cost for i in self.items)
 
+
+@dataclass(frozen=True)
+class And(Group):
     def test(self, fx) -> bool:
         return all(i.test(fx) for i in self.items)
 
@@ -347,13 +352,7 @@ class And(Node):
 
 
 @dataclass(frozen=True)
-class Or(Node):
-    items: tuple[Node, ...]
-
-    @property
-    def cost(self) -> int:
-        return max(i.cost for i in self.items)
-
+class Or(Group):
     def test(self, fx) -> bool:
         return any(i.test(fx) for i in self.items)
 
