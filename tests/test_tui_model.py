@@ -263,7 +263,8 @@ FILTERS = [
     # the filter language: what the columns answer, what the search text answers, what only the frames can
     {"text": "reg:8448..8450"}, {"text": "reg:2520H"}, {"text": "reg:holding[8192] or reg:coil[3]"},
     {"text": "2524H"}, {"text": "holding[8455]"}, {"text": "lat>5ms"}, {"text": "lat:..3ms"},
-    {"text": "t:2s..4s"}, {"text": "t>20s or t<1s"}, {"text": "!u:1 (fc:3 or exc)"}, {"text": "model:a510 fault"},
+    {"text": "t:2s..4s"}, {"text": "t>20s or t<1s"}, {"text": "lat>2.5005ms or t<=1.0000000005s"},
+    {"text": "lat<3ms lat>=2000.5us u:0..3"}, {"text": "!u:1 (fc:3 or exc)"}, {"text": "model:a510 fault"},
     {"text": "not (crc or noise) role:rsp"}, {"text": '"Output frequency" > 10'}, {"text": "holding[8449] >= 3000"},
     {"text": '"Error description (fault code)" = OV'}, {"text": '"output current" u:2'}, {"text": "u!=1 fc=16"},
     {"text": "2524H >= 0.5Hz or warn"}, {"text": '"State signal (status word)" ~ "operation=run"'},

@@ -20,6 +20,7 @@ Leaves print as they were typed; `str(node)` is the filter's canonical text.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from ..frameflags import F_PROBLEM
@@ -27,6 +28,7 @@ from .facts import REG_FRAME, REG_MASK, REG_NONE, REG_SHIFT, TABLE_CODE
 from .values import Interval, RegRange
 
 Rows = set  # a set of row numbers
+_FAR_NEG, _FAR_POS = -(1 << 63), 1 << 63  # an open end of an interval on an integer column
 
 
 class Node:
@@ -98,19 +100,31 @@ class Field(Node):
         v = self.value(fx)
         return v is not None and self._inside(v)
 
+    def _bounds(self, shift: int, least: int | None) -> list[tuple[int, int]]:
+        """The intervals as inclusive integer bounds (every column holds integers), moved by `shift`
+        (t: the capture's start) and from `least` on (-1 means none in the unit and latency columns)."""
+        out = []
+        for iv in self.spans:
+            lo = _FAR_NEG if iv.lo is None else (math.floor(iv.lo) + 1 if iv.lo_excl else math.ceil(iv.lo))
+            hi = _FAR_POS if iv.hi is None else (math.ceil(iv.hi) - 1 if iv.hi_excl else math.floor(iv.hi))
+            out.append((lo + shift if least is None else max(lo, least), hi + shift))
+        return out
+
     def rows(self, cols, cand):
-        k, inside, pts = self.key, self._inside, self.points
-        if k == "t":
-            col, t0 = cols.t_ns, cols.t0_ns
-            return {r for r in cand if inside(col[r] - t0)}, set()
-        col = {"u": cols.unit, "fc": cols.function, "lat": cols.lat_us}[k]
+        k, pts = self.key, self.points
         if k == "fc":
+            col, inside = cols.function, self._inside
             if pts is not None:
                 return {r for r in cand if col[r] >= 0 and col[r] & 0x7F in pts}, set()
             return {r for r in cand if col[r] >= 0 and inside(col[r] & 0x7F)}, set()
-        if pts is not None and all(p >= 0 for p in pts):
+        if k == "u" and pts is not None and all(p >= 0 for p in pts):
+            col = cols.unit
             return {r for r in cand if col[r] in pts}, set()
-        return {r for r in cand if col[r] >= 0 and inside(col[r])}, set()
+        col = {"u": cols.unit, "t": cols.t_ns, "lat": cols.lat_us}[k]
+        out: Rows = set()
+        for lo, hi in self._bounds(cols.t0_ns if k == "t" else 0, None if k == "t" else 0):
+            out.update(r for r in cand if lo <= col[r] <= hi)
+        return out, set()
 
     def __str__(self) -> str:
         return self.src
