@@ -25,12 +25,12 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from ..codes import Annotation
+from ..filterlang import Query, matches_text, register_cell, registers_of
 from ..frame import Frame
-from ..protocols import of_frame
 from ..frameflags import (  # the store's flag column (re-exported for the views)
     F_CRC, F_ERROR, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN, frame_flags,
 )
-from ..filterlang import Query, matches_text, register_cell, registers_of
+from ..protocols import of_frame
 from .filters import filter_query
 from .framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, RowIndex
 from .shadow import RegisterBook, RegisterValue
