@@ -278,14 +278,39 @@ def test_free_text_searches_every_point_name_unit_and_text():
                                                    or any("request" in a.detail.lower() for a in f.annotations))
 
 
-def test_an_arriving_frame_and_a_frame_from_its_record_pass_alike():
-    """An attached viewer rebuilds frames from their JSON records: the filter says the same of them."""
+@pytest.mark.parametrize("name", ["a510.mcap", "a510-ascii.mcap", "pd-series-ascii.mcap", "tds-v8.mcap"])
+def test_an_arriving_frame_and_a_frame_from_its_record_pass_alike(name):
+    """An attached viewer rebuilds frames from their JSON records (ADU from the raw bytes, RTU or ASCII):
+    the filter says the same of them."""
     from sniffer.records import frame_record
     from sniffer.tui.model import frame_from_record
 
-    info, frames, registry = replay_frames("a510.mcap")
+    info, frames, registry = replay_frames(name)
     ctx = Context(info.t0_ns, register_ids(registry))
-    for text in ("reg:2520H", '"Output frequency" > 30', "lat>10ms", "t:2s..5s", "fault", '"no fault"'):
+    again = [frame_from_record(frame_record(f, info.t0_ns), info.t0_ns) for f in frames]
+    assert [f.adu for f in again] == [f.adu for f in frames]
+    for text in ("reg:2520H", "reg:input[1]", "reg:Un-01", '"Output frequency" > 30', "lat>10ms", "t:2s..5s",
+                 "fault", '"no fault"', "0x2524", "role:req reg:0..0xFFFF"):
         q = Query(text)
-        assert [q.matches(f, ctx) for f in frames] == [
-            q.matches(frame_from_record(frame_record(f, info.t0_ns), info.t0_ns), ctx) for f in frames]
+        assert [q.matches(f, ctx) for f in frames] == [q.matches(f, ctx) for f in again]
+
+
+def test_a510_parameter_12_00_by_its_id():
+    """12-00 is the A510's one 32-bit parameter, at 2510H (high word) and 2511H (manual 1.0.3 l.1024): a read
+    of it, decoded by the real pipeline, is found by reg:12-00 and by the free word 12-00."""
+    from helpers import bursts, fr, run_events
+
+    from decoders.registry import default_registry
+    from sniffer.line import LineSettings
+
+    line = LineSettings(19200, "N", 1)
+    frames = run_events(bursts([fr("010325100002"), fr("0103040001E240")], line), line, devices={1: "a510"})
+    req, rsp = frames
+    assert rsp.points[0]["id"] == "12-00" and rsp.points[0]["value"] == 123456 and not req.points
+    ids = register_ids(default_registry({1: "a510"}))
+    assert ("a510", None, 0x2510, 0x2512) in ids["12-00"]
+    with_ids, without = Context(0, ids), Context(0)
+    for text, request in (("reg:12-00", True), ("12-00", True), ("reg:2511H", True),
+                          ('"Parameter 12-00" = 123456', False), ("12-00 >= 100000", False)):
+        assert [Query(text).matches(f, with_ids) for f in frames] == [request, True], text  # a value: the response
+    assert [Query("reg:12-00").matches(f, without) for f in frames] == [False, True]  # by the point's id only
