@@ -131,18 +131,27 @@ class Field(Node):
 
 
 @dataclass(frozen=True)
-class Roles(Node):
+class Choice(Node):
+    """One of some names, kept as a small code per row (role:req,rsp  model:a510)."""
+
     src: str
-    names: frozenset
+    names: frozenset  # lower case
 
     cost = 1
 
+    def value(self, frame) -> str:  # pragma: no cover - each kind has one
+        raise NotImplementedError
+
+    def column(self, cols) -> tuple:  # pragma: no cover - each kind has one
+        """(the column, {code: name})."""
+        raise NotImplementedError
+
     def test(self, fx) -> bool:
-        return fx.frame.role in self.names
+        return self.value(fx.frame) in self.names
 
     def rows(self, cols, cand):
-        codes = {cols.role_code[n] for n in self.names if n in cols.role_code}
-        col = cols.role
+        col, names = self.column(cols)
+        codes = {c for c, n in names.items() if (n or "").lower() in self.names}
         return {r for r in cand if col[r] in codes}, set()
 
     def __str__(self) -> str:
@@ -150,22 +159,21 @@ class Roles(Node):
 
 
 @dataclass(frozen=True)
-class Models(Node):
-    src: str
-    names: frozenset  # lower case
+class Roles(Choice):
+    def value(self, frame) -> str:
+        return frame.role
 
-    cost = 1
+    def column(self, cols) -> tuple:
+        return cols.role, {c: n for n, c in cols.role_code.items()}
 
-    def test(self, fx) -> bool:
-        return (fx.frame.model or "").lower() in self.names
 
-    def rows(self, cols, cand):
-        codes = {i for i, m in enumerate(cols.model_names) if (m or "").lower() in self.names}
-        col = cols.model
-        return {r for r in cand if col[r] in codes}, set()
+@dataclass(frozen=True)
+class Models(Choice):
+    def value(self, frame) -> str:
+        return (frame.model or "").lower()
 
-    def __str__(self) -> str:
-        return self.src
+    def column(self, cols) -> tuple:
+        return cols.model, dict(enumerate(cols.model_names))
 
 
 @dataclass(frozen=True)
