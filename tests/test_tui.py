@@ -3,7 +3,7 @@
 import asyncio
 
 import pytest
-from tui_helpers import demo_viewer, filled_sink, registry_shadow, replay_frames
+from tui_helpers import demo_viewer, filled_sink, registry_shadow, replay_frames, touches
 
 from sniffer.sources.mcapsrc import read_frames
 from sniffer.tui.app import SnifferApp
@@ -114,6 +114,84 @@ def test_filter_bar():
             assert app.store.view and all(app.store.frames[r].unit == 1 for r in app.store.view)
             await pilot.press("c")
             assert not app.store.filter.active
+    run(go())
+
+
+async def type_filter(pilot, text: str) -> None:
+    """'/' then the text, key by key as a user types it, then Enter."""
+    await pilot.press("slash")
+    await pilot.press(*text)
+    await pilot.press("enter")
+
+
+def test_filter_bar_finds_the_frames_touching_a_register():
+    async def go():
+        app = make_app("a510.mcap")
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, "reg:2520H")
+            frames = replay_frames("a510.mcap")[1]
+            want = [r for r, f in enumerate(frames) if touches(f, 0x2520)]
+            assert list(app.store.view) == want and len(want) > 20
+            assert {app.store.frames[r].role for r in want} == {"request", "response"}
+            assert app.focused is app.frame_list and "reg:2520H" in str(app.status.render())
+            await pilot.press("u")  # the unit key narrows it further, beside the bar's filter
+            unit = app.selected_frame.unit
+            assert list(app.store.view) == [r for r in want if frames[r].unit == unit]
+    run(go())
+
+
+def test_filter_bar_value_filter_and_the_bar_reopens_on_it():
+    async def go():
+        app = make_app("a510.mcap")
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, '"Output frequency" > 30 u:1')
+            frames = replay_frames("a510.mcap")[1]
+            want = [r for r, f in enumerate(frames) if f.unit == 1 and any(
+                p["name"] == "Output frequency" and p["value"] > 30 for p in f.points)]
+            assert list(app.store.view) == want and want
+            assert app.store.filter.units == {1}  # the plain u: is the field the u key toggles
+            await pilot.press("slash")
+            assert app.filter_bar.value == 'u:1 "Output frequency" > 30'  # the filter in force, canonical
+            await pilot.press("enter")
+            assert list(app.store.view) == want
+    run(go())
+
+
+def test_free_text_finds_a_register_the_summary_does_not_name(stress_mcap):
+    """Issue 11: `holding[300]` found 0 frames of the stress scenario though register 300 is read every
+    cycle (a summary names 6 of the 125 registers)."""
+    async def go():
+        app = SnifferApp(filled_sink(stress_mcap), None, source_label="stress", clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, "holding[300]")
+            frames = replay_frames(stress_mcap)[1]
+            want = [r for r, f in enumerate(frames) if touches(f, 300)]
+            assert len(want) > 20 and list(app.store.view) == want
+            assert not any("holding[300]" in frames[r].summary for r in want)
+    run(go())
+
+
+def test_a_bad_filter_says_where_and_the_old_one_stays():
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE, notifications=True) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, "u:2 fc:3")
+            view = list(app.store.view)
+            assert view and app.store.filter.units == {2}
+            await pilot.press("slash", "end", *" (lat>", "enter")
+            errors = [n.message for n in app._notifications if n.severity == "error"]
+            assert errors == ["filter error at column 15: '>' needs a value after it"]
+            assert app.filter_bar.has_class("shown") and app.focused is app.filter_bar  # fix it in place
+            assert app.filter_bar.value == "u:2 fc:3 (lat>"
+            assert list(app.store.view) == view and app.store.filter.units == {2}  # the old filter stays
+            await pilot.press("backspace", *"20ms)", "enter")
+            assert app.focused is app.frame_list
+            assert all(app.store.frames[r].latency_ms > 20 for r in app.store.view)
+            assert set(app.store.view) < set(view)
     run(go())
 
 

@@ -19,7 +19,7 @@ SIM_CAPTURES = sorted(p.name for p in SIM.glob("*.mcap"))
 
 @functools.cache
 def _decode(name: str):
-    info, events = open_replay(str(SIM / name))
+    info, events = open_replay(str(SIM / name) if "/" not in name else name)
     registry = default_registry(info.devices)
     sink = TuiSink()
     p = Pipeline(info, LineSettings(info.baud, info.parity or "N", info.stopbits or 1), registry, [sink],
@@ -32,7 +32,8 @@ def _decode(name: str):
 
 
 def replay_frames(name: str = "errors.mcap"):
-    """(CaptureInfo, frames, registry) of a simulated capture; frames are shared, do not mutate them."""
+    """(CaptureInfo, frames, registry) of a simulated capture (a name in captures/sim, or a path); frames are
+    shared, do not mutate them."""
     return _decode(name)[:3]
 
 
@@ -56,6 +57,16 @@ def store_of(name: str = "errors.mcap") -> FrameStore:
     s = FrameStore(info.t0_ns)
     s.add(frames)
     return s
+
+
+def write_stress_capture(folder: Path, seconds: float = 1.0) -> str:
+    """An MCAP of `sniffer simulate --scenario stress` (4 units polled back to back, one read of 125 registers
+    0100H..017CH a cycle) in `folder`; a path for replay_frames / filled_sink."""
+    from sniffer.cli import main
+
+    path = str(folder / "stress.mcap")
+    assert main(["simulate", "--scenario", "stress", "--duration", str(seconds), "--out", path]) == 0
+    return path
 
 
 def registry_shadow(registry) -> dict:
@@ -87,6 +98,8 @@ def demo_viewer(tmp_path, scenario: str, seconds: float, **spec):
                        f"demo {scenario}") as viewer:
         assert viewer.start(), "the demo capture did not start"
         yield viewer
+
+
 def screen_text(app) -> str:
     """What the terminal shows now, as plain text lines (what a user reads, cut to the screen's size)."""
     import io
@@ -98,3 +111,25 @@ def screen_text(app) -> str:
                       record=True, legacy_windows=False, safe_box=False)
     console.print(app.screen._compositor.render_update(full=True))
     return console.export_text()
+
+
+def _word(adu: bytes, i: int) -> int:
+    return adu[i] << 8 | adu[i + 1]
+
+
+_TABLE = {1: "coil", 2: "discrete", 3: "holding", 4: "input", 5: "coil", 6: "holding", 15: "coil", 16: "holding"}
+
+
+def touches(f, addr: int, table: str = "holding") -> bool:
+    """Does a Modbus frame read or write register (or bit) `addr`?  A read request and a multiple write's
+    echo by their address and quantity fields (PDU bytes 1-4), any frame by the addresses of its decoded
+    points and of its register-shadow writes."""
+    adu, fc = f.adu, f.function or 0
+    if _TABLE.get(fc & 0x7F) != table:
+        return False
+    if f.crc_ok and len(adu) >= 6 and ((f.role == "request" and fc <= 4) or (f.role == "response" and fc in (15, 16))):
+        if _word(adu, 2) <= addr < _word(adu, 2) + _word(adu, 4):
+            return True
+    if any(t == table and s <= addr < s + len(v) for t, s, v in f.writes):
+        return True
+    return any(p.get("address") == addr for p in f.points)

@@ -21,6 +21,7 @@ from textual.screen import ModalScreen
 from textual.widgets import Footer, Input, Static, TabbedContent, TabPane
 
 from .byteview import BytesPane, ByteView, char_ns
+from ..filterlang import register_ids
 from .detail import DetailPane
 from .filters import filter_expr, parse_filter
 from .framelist import FrameList
@@ -44,7 +45,10 @@ HELP = """\
   [b]n[/b] / [b]N[/b]        next / previous problem (error, exception, timeout, drive fault, noise)
   [b]e[/b]            errors only (toggle)
   [b]u[/b] / [b]f[/b]        only this frame's unit / function (toggle)
-  [b]/[/b]            filter bar: words search the line; u:1,2  fc:3,16  role:req  err
+  [b]/[/b]            filter bar; Enter applies (a bad filter says where, and the old one stays):
+               words find names, texts, registers (holding[300] 2520H 12-00), codes, hex;
+               u:1,2 fc:3 role:rsp reg:2520H..2525H model:a510 t:10s..20s "Output frequency">50
+               lat>20ms  err crc exc timeout fault noise warn  not and or ( )  (README: Filter language)
   [b]c[/b]            clear all filters
   [b]space[/b]        pause the view (capture goes on); again to resume
   [b]t[/b]            times since the start → wall clock → from the time reference (the header says which)
@@ -151,7 +155,7 @@ class SnifferApp(App):
         self.registry = registry  # read only, for the units table's given / guessed models
         self.poll_hz = poll_hz
         self.max_batch = max_batch
-        self.store = FrameStore()  # its register watch applies the frames' `writes`
+        self.store = FrameStore(ids=register_ids(registry))  # its register watch applies the frames' `writes`
         self.feed_error: BaseException | None = None
         self.feed_result = None
         self._thread: threading.Thread | None = None
@@ -169,8 +173,8 @@ class SnifferApp(App):
 
     # ---------------------------------------------------------------- layout
     def compose(self) -> ComposeResult:
-        yield Input(placeholder="filter: words  u:1,2  fc:3  role:req|rsp|noise  err   (Enter applies, Esc closes)",
-                    id="filterbar")
+        yield Input(placeholder='filter: words  u:1,2  fc:3  reg:2520H  "Output frequency" > 50  lat>20ms  t:10s..20s  '
+                                'err  not/and/or (...)   (Enter applies, Esc closes)', id="filterbar")
         yield GotoBar(id="gotobar")
         with TabbedContent(initial="frames"):
             with TabPane("Frames", id="frames"), Vertical(id="framespane"):
