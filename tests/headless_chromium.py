@@ -54,15 +54,19 @@ SCREEN = """(() => {
   return rows.join("\\n");
 })()"""
 
-# resolves with the screen once it differs from `before` (checked after each write xterm.js parses)
-SCREEN_CHANGE = """((before) => new Promise((resolve) => {
+# arms window.__shown: a promise of the milliseconds from the next key the page gets (keydown) to the
+# first write xterm.js parses after which the terminal's text holds `marker`
+ARM_KEY_TO_TEXT = """((marker) => {
   const screen = () => %s;
-  if (screen() !== before) { resolve(screen()); return; }
-  const sub = window.__terminal.onWriteParsed(() => {
-    const now = screen();
-    if (now !== before) { sub.dispose(); resolve(now); }
+  if (screen().includes(marker)) throw new Error("already on the screen: " + marker);
+  let keyAt = null;
+  window.addEventListener("keydown", () => { keyAt ??= performance.now(); }, {capture: true, once: true});
+  window.__shown = new Promise((resolve) => {
+    const sub = window.__terminal.onWriteParsed(() => {
+      if (keyAt !== null && screen().includes(marker)) { sub.dispose(); resolve(performance.now() - keyAt); }
+    });
   });
-}))""" % SCREEN
+})""" % SCREEN
 
 # key name -> (key, code, Windows virtual key code, text)
 SPECIAL_KEYS = {
@@ -269,9 +273,12 @@ class Chromium:
         """The terminal's text, one line a row; None until the page's terminal exists."""
         return await self.evaluate(SCREEN)
 
-    async def screen_change(self, before: str) -> str:
-        """Wait (in the page) for the terminal's text to differ from `before`; the new text."""
-        return await self.evaluate(f"{SCREEN_CHANGE}({json.dumps(before)})", await_promise=True)
+    async def key_to_text(self, key: str, marker: str, timeout: float = 60.0) -> float:
+        """Press `key`; the milliseconds, timed in the page, from its keydown to the first write to the
+        terminal after which the screen holds `marker` (not on the screen before the key)."""
+        await self.evaluate(f"{ARM_KEY_TO_TEXT}({json.dumps(marker)})")
+        await self.press(key)
+        return await asyncio.wait_for(self.evaluate("window.__shown", await_promise=True), timeout)
 
     async def wait_for(self, cond, what: str, timeout: float = 60.0) -> str:
         """Wait until cond(screen text) holds; the screen then.  Fails with the last screen seen."""
