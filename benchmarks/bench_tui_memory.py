@@ -61,6 +61,8 @@ def _filters(store) -> dict:
                       ("text hex '0110200'", {"text": "0110200"}),
                       ("text 'holding[8449]'", {"text": "holding[8449]"}),
                       ("unit 3 + text 'crc'", {"units": frozenset({3}), "text": "crc"}),
+                      ("reg:8449 lat>5ms", {"units": None, "text": "reg:8449 lat>5ms"}),
+                      ("value holding[8449] >= 3000", {"text": "holding[8449] >= 3000"}),
                       ("clear", {"units": None, "text": ""})):
         t = time.perf_counter()
         store.update_filter(**kw)

@@ -15,12 +15,12 @@ import time
 from collections.abc import Iterator
 
 from .events import CaptureInfo
-from .stream_format import CONTROL_PREFIX, STREAM_VERSION, Address, parse_address
+from .stream_format import CONTROL_PREFIX, STREAM_VERSION, Address, parse_address, parse_reads
 from .records import loads
 from .sources import CaptureError
 
 
-def _connect(addr: Address, timeout_s: float) -> socket.socket:
+def connect(addr: Address, timeout_s: float) -> socket.socket:
     if addr.path is not None:
         s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         target: object = addr.path
@@ -56,7 +56,7 @@ class Attachment:
 
     def __init__(self, spec: str, *, timeout_s: float = 10.0) -> None:
         self.address = parse_address(spec)
-        self.sock = _connect(self.address, timeout_s)
+        self.sock = connect(self.address, timeout_s)
         self._buf = b""
         self._first: list[bytes] = []
         try:
@@ -152,6 +152,8 @@ def attach_feed(att: Attachment):
                 for line in lines:
                     if line.startswith(CONTROL_PREFIX):
                         msg = att.control(line)
+                        if msg.get("sniffer") == "reads":  # the byte view's reads, marked by the capture
+                            sink.reads(parse_reads(msg, t0))
                         if "bytes_in" in msg:
                             sink.bytes_in = msg["bytes_in"]
                         sink.skipped_frames = att.skipped

@@ -1,7 +1,7 @@
 """`sniffer serve`: the TUI in a browser (textual-serve), any number of viewers.
 
 textual-serve starts one app process per browser connection, so the capture
-cannot live in the UI: `serve` starts it as a process of its own
+cannot live in the UI: `serve` starts it as a process of its own (capture_process.py)
 (`sniffer live PORT ... --publish SOCKET` or `sniffer demo ... --publish
 SOCKET`), waits until it publishes, then serves `sniffer attach SOCKET --tui`
 to browsers.  Terminal users attach to the same socket.  Ctrl-C stops the
@@ -15,13 +15,11 @@ import os
 import shlex
 import signal
 import socket
-import subprocess
 import sys
 import tempfile
 import threading
-import time
 
-WAIT_FOR_CAPTURE_S = 30.0
+from .capture_process import CaptureProcess, capture_argv
 
 
 class ServeUsageError(Exception):
@@ -33,25 +31,10 @@ def default_socket() -> str:
     return os.path.join(where, f"sniffer-{os.getpid()}.sock")
 
 
-def capture_argv(spec, command: str, sock: str) -> list[str]:
-    """The command line of the capture process: the spec's own flags (CaptureSpec.to_argv), publishing on sock."""
-    spec = spec.with_(publish=sock, headless=True, stream=None)
-    return [sys.executable, "-m", "sniffer", *spec.to_argv(command)]
-
-
 def viewer_command(sock: str) -> str:
     """The shell command textual-serve runs for each browser connection: `exec`, so the viewer is the
     process the server stops (not a shell in front of it), and it ends with the server (lifeline.py)."""
     return f"exec {shlex.quote(sys.executable)} -m sniffer attach {shlex.quote(sock)} --tui --exit-with-parent"
-
-
-def _publishing(sock: str) -> bool:
-    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
-        try:
-            s.connect(sock)
-        except OSError:
-            return False
-    return True
 
 
 def _check_http_port(host: str, port: int) -> None:
@@ -71,20 +54,6 @@ def _check_http_port(host: str, port: int) -> None:
 
 def _interrupt(signum, frame):
     raise KeyboardInterrupt
-
-
-def _stop(child: subprocess.Popen, timeout_s: float = 15.0) -> int:
-    """Ask the capture to stop as Ctrl-C would (it closes its MCAP), then wait for it."""
-    if child.poll() is None:
-        child.send_signal(signal.SIGINT)
-        try:
-            child.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            print("sniffer: the capture did not stop; killing it (its MCAP stays readable: sniffer repair)",
-                  file=sys.stderr)
-            child.kill()
-            child.wait()
-    return child.returncode
 
 
 def _server_class():
@@ -140,27 +109,17 @@ def run_serve(spec, args) -> int:
         from .commands.common import default_capture_name
 
         spec = spec.with_(out=default_capture_name())
-    argv = capture_argv(spec, "demo" if args.demo else "live", sock)
     _check_http_port(args.host, args.http_port)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"sniffer: note: serving on {args.host}: anyone who reaches port {args.http_port} there sees the "
               f"bus traffic (the viewers cannot write to the port)", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)  # as Ctrl-C until the web server takes the signals over
-    from .lifeline import die_with_parent
-
-    # the capture ends (as on Ctrl-C: its MCAP closed) if this process is killed without stopping it
-    child = subprocess.Popen(argv, stdin=subprocess.DEVNULL, preexec_fn=lambda: die_with_parent(signal.SIGINT))
+    capture = CaptureProcess(capture_argv(spec, "demo" if args.demo else "live", sock), sock)
+    child = capture.child
     stopping = threading.Event()
     try:
-        deadline = time.monotonic() + WAIT_FOR_CAPTURE_S
-        while not _publishing(sock):
-            if child.poll() is not None:
-                return child.returncode or 1  # it said why on stderr
-            if time.monotonic() > deadline:
-                print(f"sniffer: error: the capture did not publish on {sock} within {WAIT_FOR_CAPTURE_S:.0f} s",
-                      file=sys.stderr)
-                return 1
-            time.sleep(0.05)
+        if not capture.wait_publishing():
+            return capture.rc()  # it said why on stderr
 
         def _watch():
             rc = child.wait()
@@ -179,5 +138,5 @@ def run_serve(spec, args) -> int:
             pass
     finally:
         stopping.set()
-        rc = _stop(child)
+        rc = capture.stop()
     return rc if rc and rc > 0 else 0

@@ -3,8 +3,9 @@
 import asyncio
 
 import pytest
-from tui_helpers import filled_sink, registry_shadow, replay_frames
+from tui_helpers import demo_viewer, filled_sink, registry_shadow, replay_frames, touches
 
+from sniffer.sources.mcapsrc import read_frames
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.model import F_PROBLEM
 from sniffer.tui.sink import TuiSink
@@ -113,6 +114,84 @@ def test_filter_bar():
             assert app.store.view and all(app.store.frames[r].unit == 1 for r in app.store.view)
             await pilot.press("c")
             assert not app.store.filter.active
+    run(go())
+
+
+async def type_filter(pilot, text: str) -> None:
+    """'/' then the text, key by key as a user types it, then Enter."""
+    await pilot.press("slash")
+    await pilot.press(*text)
+    await pilot.press("enter")
+
+
+def test_filter_bar_finds_the_frames_touching_a_register():
+    async def go():
+        app = make_app("a510.mcap")
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, "reg:2520H")
+            frames = replay_frames("a510.mcap")[1]
+            want = [r for r, f in enumerate(frames) if touches(f, 0x2520)]
+            assert list(app.store.view) == want and len(want) > 20
+            assert {app.store.frames[r].role for r in want} == {"request", "response"}
+            assert app.focused is app.frame_list and "reg:2520H" in str(app.status.render())
+            await pilot.press("u")  # the unit key narrows it further, beside the bar's filter
+            unit = app.selected_frame.unit
+            assert list(app.store.view) == [r for r in want if frames[r].unit == unit]
+    run(go())
+
+
+def test_filter_bar_value_filter_and_the_bar_reopens_on_it():
+    async def go():
+        app = make_app("a510.mcap")
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, '"Output frequency" > 30 u:1')
+            frames = replay_frames("a510.mcap")[1]
+            want = [r for r, f in enumerate(frames) if f.unit == 1 and any(
+                p["name"] == "Output frequency" and p["value"] > 30 for p in f.points)]
+            assert list(app.store.view) == want and want
+            assert app.store.filter.units == {1}  # the plain u: is the field the u key toggles
+            await pilot.press("slash")
+            assert app.filter_bar.value == 'u:1 "Output frequency" > 30'  # the filter in force, canonical
+            await pilot.press("enter")
+            assert list(app.store.view) == want
+    run(go())
+
+
+def test_free_text_finds_a_register_the_summary_does_not_name(stress_mcap):
+    """Issue 11: `holding[300]` found 0 frames of the stress scenario though register 300 is read every
+    cycle (a summary names 6 of the 125 registers)."""
+    async def go():
+        app = SnifferApp(filled_sink(stress_mcap), None, source_label="stress", clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, "holding[300]")
+            frames = replay_frames(stress_mcap)[1]
+            want = [r for r, f in enumerate(frames) if touches(f, 300)]
+            assert len(want) > 20 and list(app.store.view) == want
+            assert not any("holding[300]" in frames[r].summary for r in want)
+    run(go())
+
+
+def test_a_bad_filter_says_where_and_the_old_one_stays():
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE, notifications=True) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, "u:2 fc:3")
+            view = list(app.store.view)
+            assert view and app.store.filter.units == {2}
+            await pilot.press("slash", "end", *" (lat>", "enter")
+            errors = [n.message for n in app._notifications if n.severity == "error"]
+            assert errors == ["filter error at column 15: '>' needs a value after it"]
+            assert app.filter_bar.has_class("shown") and app.focused is app.filter_bar  # fix it in place
+            assert app.filter_bar.value == "u:2 fc:3 (lat>"
+            assert list(app.store.view) == view and app.store.filter.units == {2}  # the old filter stays
+            await pilot.press("backspace", *"20ms)", "enter")
+            assert app.focused is app.frame_list
+            assert all(app.store.frames[r].latency_ms > 20 for r in app.store.view)
+            assert set(app.store.view) < set(view)
     run(go())
 
 
@@ -259,47 +338,30 @@ def test_mouse_click_selects(name):
             await loaded(app, pilot)
             await pilot.press("home")
             await pilot.click("#list", offset=(10, 3))
-            assert app.frame_list.cursor == 3
+            assert app.frame_list.cursor == 2  # the list's line 3: its first line is the header
+            await pilot.click("#list", offset=(10, 0))  # the header selects nothing
+            assert app.frame_list.cursor == 2
     run(go())
-
-
-def _demo_app(tmp_path, scenario: str, seconds: float):
-    """The App over `sniffer demo`'s session (the simulated bus on a pty, captured live to an MCAP)."""
-    from sniffer.commands.capture import capture_session
-    from sniffer.session import CaptureSpec
-    from sniffer.simulator.scenario import get_scenario
-    from sniffer.simulator.sources import DemoSource
-    from sniffer.tui.run import session_app
-    from sniffer.tui.sink import TuiSink
-
-    out = str(tmp_path / "d.mcap")
-    sink = TuiSink()
-    session = capture_session(CaptureSpec(out=out), DemoSource(get_scenario(scenario), 1, seconds), f"demo {scenario}",
-                              tui_sink=sink)
-    session.open()
-    return session_app(session, sink, source_label=f"demo {scenario}", capture_path=out, live=True)
 
 
 def test_demo_feed_live_path(tmp_path):
-    """The live path for real: the simulated bus on a pty, captured by capture() on the feed thread."""
-    async def go():
-        app = _demo_app(tmp_path, "errors", 1.5)
+    """The live path for real: the simulated bus on a pty, captured by its own process, viewed over its socket."""
+    async def go(app):
         async with app.run_test(size=SIZE) as pilot:
-            for _ in range(300):
-                await pilot.pause(0.05)
-                if app.caught_up and len(app.store) == app.sink.frames_in:
-                    break
+            assert await until(pilot, lambda: app.caught_up and len(app.store) == app.sink.frames_in, 300)
             assert app.feed_error is None, app.feed_error
             assert len(app.store) > 20 and app.store.units
             assert app.capture_size() and app.capture_size() > 0
-            await pilot.press("q")
+            await pilot.press("q")  # the capture has ended: no question
 
-    run(go())
+    with demo_viewer(tmp_path, "errors", 1.5) as viewer:
+        run(go(viewer.app))
+    assert viewer.rc() == 0
+    assert [r["raw"] for r in read_frames(str(tmp_path / "d.mcap"))] == [f.raw.hex() for f in viewer.app.store.frames]
 
 
 def test_quit_stops_a_running_capture(tmp_path):
-    async def go():
-        app = _demo_app(tmp_path, "default", 60)
+    async def go(app, capture):
         async with app.run_test(size=SIZE) as pilot:
             assert await until(pilot, lambda: len(app.store) > 10)
             await pilot.press("q")  # a live capture asks first (issue 11): n, Esc and q go back to it
@@ -313,11 +375,16 @@ def test_quit_stops_a_running_capture(tmp_path):
                     await pilot.press("q")
             n = len(app.store)
             assert await until(pilot, lambda: len(app.store) > n)  # still capturing after three refusals
+            assert capture.returncode is None
             await pilot.press("q", "y")
-        assert not app._thread.is_alive()  # stop event -> capture finished, MCAP closed
-        assert app.sink.closed.is_set() and app.feed_error is None
 
-    run(go())
+    with demo_viewer(tmp_path, "default", 60) as viewer:
+        run(go(viewer.app, viewer.capture))
+    # the capture stopped as on Ctrl-C: exit 0, MCAP closed (no .part left) and holding what the viewer saw
+    assert viewer.rc() == 0 and not (tmp_path / "d.mcap.part").exists()
+    saved = [r["raw"] for r in read_frames(str(tmp_path / "d.mcap"))]
+    shown = [f.raw.hex() for f in viewer.app.store.frames]
+    assert len(saved) >= len(shown) > 10 and saved[:len(shown)] == shown
 
 
 def test_status_bar_shows_the_size_of_a_capture_being_written(tmp_path):
@@ -476,8 +543,7 @@ def test_the_status_bar_says_when_the_view_stops_following_the_tail(tmp_path):
     """Issue 11: when the view stops following new frames (a move up, a filter), the screen says so."""
     from sniffer.tui.status import status_text
 
-    async def go():
-        app = _demo_app(tmp_path, "default", 60)
+    async def go(app):
         async with app.run_test(size=SIZE) as pilot:
             assert await until(pilot, lambda: len(app.store) > 10)
             assert "not following" not in status_text(app).plain
@@ -486,4 +552,6 @@ def test_the_status_bar_says_when_the_view_stops_following_the_tail(tmp_path):
             await pilot.press("end")
             assert "not following" not in status_text(app).plain
             await pilot.press("q", "y")
-    run(go())
+
+    with demo_viewer(tmp_path, "default", 60) as viewer:
+        run(go(viewer.app))

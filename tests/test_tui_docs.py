@@ -20,6 +20,7 @@ SHOTS = [
     ("tui-units.svg", "errors.mcap", ["2"]),
     ("tui-registers.svg", "a510.mcap", ["3"] + ["down"] * 8),
     ("tui-transactions.svg", "errors.mcap", ["4", "home", "n", "n", "n"]),
+    ("tui-bytes.svg", "errors.mcap", ["home"] + ["down"] * 6 + ["6"]),
 ]
 
 

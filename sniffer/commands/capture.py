@@ -2,6 +2,8 @@
 
 Whatever ends the capture (Ctrl-C, SIGTERM, --duration, the TUI's quit, a full
 disk, the source failing) the pipeline is flushed and the MCAP closed and kept.
+With the TUI the capture is a process of its own and the TUI a viewer of it
+(tui/run.py run_capture_tui): the UI never shares the reader's interpreter.
 """
 
 from __future__ import annotations
@@ -19,6 +21,10 @@ def cmd_live(spec: CaptureSpec, args) -> int:
     if not args.no_out and not spec.out:
         spec = spec.with_(out=default_capture_name())
     line = spec.resolve(None, need_baud=False).line  # flags > bus file > defaults: the port's settings
+    if tui_wanted(spec):
+        from ..tui.run import run_capture_tui
+
+        return run_capture_tui(spec, "live", spec.port)
     source = SerialSource(spec.port, line)
     return _capture(spec, source, spec.port, inputs=[spec.port])
 
@@ -29,6 +35,10 @@ def cmd_demo(spec: CaptureSpec, args) -> int:
     if args.no_out:
         spec = spec.with_(out=None)
     scenario = scenario_named(spec.scenario or "default")
+    if tui_wanted(spec):
+        from ..tui.run import run_capture_tui
+
+        return run_capture_tui(spec, "demo", f"demo {scenario.name}")
     source = DemoSource(scenario, spec.seed, spec.duration_s)
     # the bus ends the demo (DemoSource stops after the scenario's duration): no deadline of the session's own
     rc = _capture(spec.with_(duration_s=0.0), source, f"demo {scenario.name}",
@@ -39,32 +49,19 @@ def cmd_demo(spec: CaptureSpec, args) -> int:
     return rc
 
 
-def capture_session(spec: CaptureSpec, source, label: str, *, tui_sink=None, inputs=()) -> Session:
-    """The session of a capture: the TUI's sink (or the stdout stream), the MCAP file, the viewers' socket;
-    its files are kept whatever ends it.  Outputs are checked now; nothing is opened yet."""
-    sinks = capture_sinks(spec, label, stream=tui_sink is None, inputs=inputs)
-    if tui_sink is not None:
-        sinks.insert(0, tui_sink)
+def capture_session(spec: CaptureSpec, source, label: str, *, inputs=()) -> Session:
+    """The session of a capture: the stdout stream, the MCAP file, the viewers' socket; its files are kept
+    whatever ends it.  Outputs are checked now; nothing is opened yet."""
+    sinks = capture_sinks(spec, label, stream=True, inputs=inputs)
     return Session(spec, source, sinks, keep_partial=True, need_baud=False)
 
 
 def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None) -> int:
-    tui = tui_wanted(spec)
-    tui_sink = None
-    if tui:
-        from ..tui.sink import TuiSink
-
-        tui_sink = TuiSink()
-    session = capture_session(spec, source, label, tui_sink=tui_sink, inputs=inputs)
+    session = capture_session(spec, source, label, inputs=inputs)
     on_signals(session.stop)
     session.open()  # a missing port, a bad setting: one line, and nothing created
     where = f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)" if spec.out else ""
     say(f"{what() if what else 'capturing ' + label} at {session.resolved.describe()} (read-only){where}")
-    if tui:
-        from ..tui.run import run_session_tui
-
-        rc = run_session_tui(session, tui_sink, source_label=label, capture_path=spec.out, live=True)
-        return rc or report(session)
     session.run()
     print(summary_line(session), file=sys.stderr)
     return report(session)

@@ -23,6 +23,15 @@ can start a motor.  So:
 
 One reader thread does every read and every Tick, so the event stream is in
 time order by construction; the consumer only drains a queue.
+
+Reads must not come late: a read that comes after the answer has arrived too
+holds request and answer together, and the answer has no latency.  The reader
+waits in select() without the interpreter, but getting it back after the wake
+took up to CPython's switch interval (5 ms) while the decoding thread held it:
+on the 115200 stress line (answers ~1 ms after their request) 12-19 % of the
+answers came in their request's read.  `open()` lowers the interval to
+READER_SWITCH_S for the process (a capture process, see capture_process.py;
+1-3 % then; what is left is the scheduler of a loaded machine).
 """
 
 from __future__ import annotations
@@ -32,6 +41,7 @@ import fcntl
 import os
 import select
 import stat
+import sys
 import termios
 import threading
 import time
@@ -44,6 +54,7 @@ from ..lowlatency import request_low_latency
 from . import CaptureError
 
 READ_SIZE = 4096
+READER_SWITCH_S = 0.0005  # the longest the reader waits for the interpreter after a read is due
 PORT_POLL_S = 0.2  # how often a lost port is looked for, and a live one's path checked
 # Errors that mean "the adapter went away", not "this program is broken".
 LOST_ERRNOS = {errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF}
@@ -91,6 +102,7 @@ class SerialSource:
         if self.info is not None:
             return self.info
         fd = self._open_port()
+        sys.setswitchinterval(min(sys.getswitchinterval(), READER_SWITCH_S))  # see the module doc
         t0 = time.monotonic_ns()
         wall = time.time_ns()
         try:

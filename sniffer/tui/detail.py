@@ -14,9 +14,11 @@ from __future__ import annotations
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
+from textual.css.query import NoMatches
 from textual.widgets import Static, Tree
 
 from ..frame import Frame
+from .timebase import TimeBase, delta_text
 
 HL = "black on yellow"
 
@@ -67,7 +69,8 @@ class DetailPane(Vertical):
     def __init__(self, **kw) -> None:
         super().__init__(**kw)
         self.frame: Frame | None = None
-        self.t0_ns = 0
+        self.time = TimeBase()
+        self.prev: tuple[int, int] | None = None
         self.span: tuple[int, int] | None = None
         self._entry = None  # the node the cursor goes to when the tree is entered
 
@@ -77,16 +80,24 @@ class DetailPane(Vertical):
         yield tree
         yield Static("", id="hex")
 
-    def show(self, f: Frame | None, t0_ns: int = 0) -> None:
-        self.frame, self.t0_ns, self.span, self._entry = f, t0_ns, None, None
-        tree = self.query_one("#fields", Tree)
+    def on_mount(self) -> None:
+        if self.frame is not None:  # selected before the tree was composed (a feed can be that quick)
+            self.show(self.frame, self.time, self.prev)
+
+    def show(self, f: Frame | None, time: TimeBase | None = None, prev: tuple[int, int] | None = None) -> None:
+        """Show a frame, its time in `time`'s base; `prev` is the previous shown frame's (t_ns, number) for Δt."""
+        self.frame, self.span, self._entry = f, None, None
+        self.time, self.prev = time or TimeBase(), prev
+        try:
+            tree = self.query_one("#fields", Tree)
+        except NoMatches:
+            return  # not composed yet: on_mount shows it
         tree.clear()
         if f is None:
             tree.root.set_label("no frame selected")
             self._hex()
             return
-        t = (f.t_ns - t0_ns) / 1e9
-        head = f"#{f.index} {f.role} t={t:.6f}s {len(f.raw)}B"
+        head = f"#{f.index} {f.role} t={self.time.full_text(f.t_ns)} {len(f.raw)}B"
         if f.unit is not None:
             head += f" unit {f.unit}"
         if f.function is not None:
@@ -104,6 +115,7 @@ class DetailPane(Vertical):
             wire.add_leaf(f"pair: #{f.pair}" + (f"  latency {f.latency_ms:.2f} ms" if f.latency_ms is not None else ""))
         if f.noise_reason:
             wire.add_leaf(f"noise: {f.noise_reason}")
+        self._add_time(tree.root, f)
         if f.summary:
             tree.root.add_leaf(f"summary: {f.summary}")
         if f.exception:
@@ -134,6 +146,14 @@ class DetailPane(Vertical):
                 self._entry = self._entry or leaf
         tree.root.expand()
         self._hex()
+
+    def _add_time(self, parent, f: Frame) -> None:
+        """The frame's time in every base (collapsed: the root line has it in the one in use)."""
+        node = parent.add("time", expand=False)
+        for line in self.time.all_texts(f.t_ns):
+            node.add_leaf(line)
+        if self.prev is not None:
+            node.add_leaf(f"Δt: {delta_text(f.t_ns - self.prev[0])} after #{self.prev[1]} (the previous frame shown)")
 
     def _add_fields(self, parent, fields) -> None:
         for item in fields:

@@ -98,16 +98,16 @@ def unanswered_line(st: LatencyStats) -> str:
     return "  ".join(parts)
 
 
-def histogram_text(st: LatencyStats, title: str) -> Text:
+def histogram_text(st: LatencyStats, title: str, bar_rows: int = BAR_ROWS) -> Text:
     """Title and figures, the unanswered counts, then a column of block characters per bin, its label, its count."""
     text = Text(no_wrap=True, overflow="ellipsis")
     text.append(f"{title}: ", "bold")
     text.append(figures_line(st) + "\n")
     text.append(unanswered_line(st) + "\n", "yellow" if st.timeouts or st.no_response else "dim")
     top = max(st.bins) or 1
-    levels = [0 if c == 0 else max(1, round(c * BAR_ROWS * 8 / top)) for c in st.bins]
+    levels = [0 if c == 0 else max(1, round(c * bar_rows * 8 / top)) for c in st.bins]
     pad = " " * _LEFT
-    for r in range(BAR_ROWS, 0, -1):  # the top row first
+    for r in range(bar_rows, 0, -1):  # the top row first
         line = "".join(_BLOCKS[min(max(lv - (r - 1) * 8, 0), 8)] * (COL - 1) + " " for lv in levels)
         text.append(f"{pad}{line}\n", "cyan")
     text.append(f"{'ms':>{_LEFT - 1}} " + "".join(f"{lab:<{COL}}" for lab in BIN_LABELS) + "\n", "dim")

@@ -1,20 +1,29 @@
-"""Run the App over a feed: a capture session (live, demo, replay) or a viewer attached to one.
+"""Run the App over a feed: a live capture in a process of its own, a replay, or a viewer attached to one.
 
-The session is built and opened by the command (sniffer.commands), so a bad
-port or file fails with one line before the UI starts; its sinks include the
-TuiSink, and its `run()` goes on a worker thread while the App (main thread)
-only views the store.  Quitting the App sets the session's stop event, which
-ends the capture cleanly (files closed and kept).
+A live capture (`sniffer live`, `sniffer demo` on a terminal) is never run in
+the App's interpreter: `run_capture_tui` starts it as a process of its own
+(capture_process.py) and the App views it over the capture's socket, as
+`sniffer attach` does, so nothing the UI does can delay a read.  A bad port
+or setting fails with the capture's one line before the UI starts; quitting
+asks, then stops the capture as Ctrl-C would (its MCAP closed and kept).
+
+A replay's session is built and opened by the command (sniffer.commands);
+its sinks include the TuiSink, and its `run()` goes on a worker thread while
+the App (main thread) only views the store.  Quitting the App sets the
+session's stop event.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 from collections.abc import Callable
 
 from .app import SnifferApp
 from .sink import TuiSink
+
+VIEWER_NICE = 5  # the viewer of a capture it started runs at lower priority than the capture
 
 
 def make_app(feed: Callable[[TuiSink, threading.Event], object], *, sink: TuiSink | None = None,
@@ -61,8 +70,82 @@ def _run(app: SnifferApp) -> int:
     return 0
 
 
-def run_session_tui(session, sink: TuiSink, *, source_label: str, capture_path: str | None = None,
-                    live: bool = False) -> int:
-    """Run the App over an opened session whose sinks include `sink`, until the user quits (`live`: a
-    capture running here, so quitting asks first)."""
-    return _run(session_app(session, sink, source_label=source_label, capture_path=capture_path, live=live))
+def run_session_tui(session, sink: TuiSink, *, source_label: str, capture_path: str | None = None) -> int:
+    """Run the App over an opened session whose sinks include `sink`, until the user quits."""
+    return _run(session_app(session, sink, source_label=source_label, capture_path=capture_path))
+
+
+class CaptureViewer:
+    """A capture started as a process of its own and this process's App attached to it (`with` ends both:
+    the capture stopped as Ctrl-C would, its stderr printed, its private socket removed).
+
+    `start()` returns False when the capture never published (a missing port, a bad setting): it said why
+    in one line, and `rc()` is its exit status."""
+
+    def __init__(self, spec, command: str, label: str) -> None:
+        from ..capture_process import CaptureProcess, capture_argv, private_socket
+
+        self.label = label
+        self.sock, self._cleanup = (spec.publish, lambda: None) if spec.publish else private_socket()
+        self.capture = CaptureProcess(capture_argv(spec, command, self.sock), self.sock, relay_stderr=True)
+        self.app: SnifferApp | None = None
+        self.attachment = None
+
+    def start(self) -> bool:
+        from ..attach import Attachment, attach_feed
+        from ..sources import CaptureError
+
+        if not self.capture.wait_publishing():
+            self.capture.stderr.release(wait_eof=True)  # its one line
+            return False
+        try:
+            att = Attachment(self.sock)
+        except CaptureError as e:
+            print(f"sniffer: error: {e}", file=sys.stderr)
+            return False
+        self.attachment = att
+        try:  # on a busy machine the capture gets the CPU first: the view can wait, a read cannot
+            os.nice(VIEWER_NICE)
+        except OSError:
+            pass
+        self.app = make_app(attach_feed(att), source_label=self.label, capture_path=att.capture_path, live=True)
+        self.capture.stderr.hold(self.app.notices.append)  # the terminal is the App's: notifications meanwhile
+        return True
+
+    def rc(self) -> int:
+        app = self.app
+        if app is not None and app.feed_error is not None and self.capture.rc() == 0:
+            print(f"sniffer: error: {app.feed_error}", file=sys.stderr)
+            return 1
+        return self.capture.rc() if self.capture.returncode is not None else 1
+
+    def close(self) -> None:
+        if self.app is not None:
+            self.app.stop_feed()
+        self.capture.stop(ending=self.attachment is not None and self.attachment.ended is not None)
+        self.capture.stderr.release(wait_eof=True)  # its summary line, its errors
+        self._cleanup()
+
+    def __enter__(self) -> "CaptureViewer":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def run_capture_tui(spec, command: str, label: str) -> int:
+    """`sniffer live|demo` with the TUI: the capture as a process of its own (publishing on a private
+    socket, or on --publish's), the App attached to it; the capture's exit status is the command's."""
+    import signal
+
+    with CaptureViewer(spec, command, label) as viewer:
+        if not viewer.start():
+            return viewer.rc()
+        app = viewer.app
+        previous = {sig: signal.signal(sig, lambda *_: app.exit()) for sig in (signal.SIGTERM, signal.SIGHUP)}
+        try:
+            app.run()
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+    return viewer.rc()

@@ -10,6 +10,7 @@ transaction with a problem.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import ClassVar
 
 from rich.text import Text
@@ -21,16 +22,38 @@ from textual.widgets import Static
 
 from ..frame import Frame
 from .framelist import S_CURSOR, row_mark, row_style
-from .latency import histogram_text
+from .latency import BAR_ROWS, histogram_text
 from .model import F_PROBLEM, FrameStore
 from .transactions import BROADCAST, EXCEPTION, KIND_TEXT, PENDING, UNANSWERED
 from .vlist import CursorList
 
-ASKED = 32  # characters of the request's summary shown
-ANSWER = 38
 VALUES = 6  # values shown of a read's answer
-HEADER = (f"   {'time (s)':>12} {'unit':4} {'model':<8} {'fc':4} {'latency':>9} {'asked':<{ASKED}}   "
-          f"{'answer':<{ANSWER}}  [problems]")
+
+
+@dataclass(frozen=True)
+class Columns:
+    """What fits a width: the time column's width (the store's time base: since the start, wall clock, from
+    the reference), the model column or not, how wide the asked and answer columns are."""
+
+    time: int = 12
+    model: bool = True
+    asked: int = 32
+    answer: int = 38
+
+
+def fit_columns(width: int, time: int = 12) -> Columns:
+    """The columns for a width: the model goes under 110 characters, asked and answer share the rest (each
+    within 12..48 and 12..60 characters; past that, the problems have the room)."""
+    model = width >= 110
+    rest = width - (3 + time + 1 + 5 + (9 if model else 0) + 5 + 10) - 3 - 1
+    asked = min(max(rest * 4 // 9, 12), 48)
+    return Columns(time, model, asked, min(max(rest - asked, 12), 60))
+
+
+def header(time_title: str, cols: Columns) -> str:
+    model = f"{'model':<8} " if cols.model else ""
+    return (f"   {time_title:>{cols.time}} {'unit':4} {model}{'fc':4} {'latency':>9} {'asked':<{cols.asked}}   "
+            f"{'answer':<{cols.answer}}  [problems]")
 # what the answer column already says
 _SAID = frozenset({"pair.no_response", "pair.timeout", "pair.end_of_capture", "pair.orphan_response"})
 
@@ -80,22 +103,22 @@ def problems(frames) -> list[str]:
     return out
 
 
-def format_tx(store: FrameStore, tx: int) -> Text:
+def format_tx(store: FrameStore, tx: int, cols: Columns = Columns()) -> Text:
     txs = store.transactions
     req_row, rsp_row = txs.rows(tx)
     req = store.frame(req_row) if req_row >= 0 else None
     rsp = store.frame(rsp_row) if rsp_row >= 0 else None
     f0 = req if req is not None else rsp
     kind, fl = txs.kind[tx], txs.flags[tx]
-    t = (f0.t_ns - store.t0_ns) / 1e9
     fc = "--" if f0.function is None else f"{f0.function & 0x7F:02X}"  # an exception answers its request's
     lat = rsp.latency_ms if rsp is not None and req is not None else None
     lat_s = f"{lat:7.1f}ms" if lat is not None else " " * 9
     notes = problems(f for f in (req, rsp) if f is not None)
     text = Text(no_wrap=True, overflow="ellipsis")
-    text.append(f" {row_mark(fl)}{t:12.6f} u{f0.unit:3d} {(f0.model or '')[:8]:<8} fc{fc} ")
-    text.append(f"{lat_s} {_clip(asked_text(req, rsp), ASKED):<{ASKED}} → ")
-    text.append(f"{_clip(answer_text(kind, req, rsp), ANSWER):<{ANSWER}}")
+    model = f"{(f0.model or '')[:8]:<8} " if cols.model else ""
+    text.append(f" {row_mark(fl)}{store.time.text(f0.t_ns):>{cols.time}} u{f0.unit:3d} {model}fc{fc} ")
+    text.append(f"{lat_s} {_clip(asked_text(req, rsp), cols.asked):<{cols.asked}} → ")
+    text.append(f"{_clip(answer_text(kind, req, rsp), cols.answer):<{cols.answer}}")
     if notes:
         text.append("  [" + ", ".join(notes) + "]")
     st = row_style(fl)
@@ -141,8 +164,13 @@ class TransactionList(CursorList):
     def selected_tx(self) -> int | None:
         return self.selected
 
+    def columns(self) -> Columns:
+        store, tb = self.store, self.store.time
+        time = max(tb.width(store.t_ns[0], store.last_t_ns) if len(store) else 8, len(tb.title()))
+        return fit_columns(self.scrollable_content_region.width, time)
+
     def line_text(self, pos: int) -> Text:
-        text = format_tx(self.store, self.store.transactions.view[pos])
+        text = format_tx(self.store, self.store.transactions.view[pos], self.columns())
         if pos == self.cursor:
             text.stylize(S_CURSOR)
         return text
@@ -217,8 +245,12 @@ class TransactionsPane(Vertical):
         flt = self.store.filter
         what = (f"{len(txs.view)} of {len(txs)} transactions; filter {flt.describe()}: a transaction shows when "
                 "its request or its response passes it" if flt.active else f"{len(txs)} transactions")
-        head = HEADER + "\n" + what + ("  (paused)" if self.store.paused else "")
+        tb = self.store.time
+        head = (header(tb.title(), lst.columns()) + "\n" + what + ("  (paused)" if self.store.paused else "")
+                + f"   {tb.describe()}")
         if head != self._head:
+            if self._head is not None and self._head.split("\n")[0] != head.split("\n")[0]:
+                lst.refresh()  # another time base: the lines' times change
             self._head = head
             self.query_one("#txhead", Static).update(head)
         self.refresh_histogram()
@@ -230,13 +262,19 @@ class TransactionsPane(Vertical):
         whole = tx is None or self.list.all_units or self.list.follow
         unit = None if whole else self.store.frame(txs.first_row(tx)).unit
         st = txs.all_units if unit is None else txs.stats(unit)
-        key = (unit, st.count, st.timeouts, st.no_response, st.end_of_capture, st.unmeasured)
+        rows = BAR_ROWS if self.app.size.height >= 36 else 2  # 80x24: the list keeps 10 lines
+        key = (unit, rows, st.count, st.timeouts, st.no_response, st.end_of_capture, st.unmeasured)
         if key == self._hist:
             return
         self._hist = key
         model = self.store.units[unit].model if unit in self.store.units else None
         title = "latency, all units" if unit is None else f"latency, unit {unit}" + (f" ({model})" if model else "")
-        self.query_one("#histogram", Static).update(histogram_text(st, title))
+        hist = self.query_one("#histogram", Static)
+        hist.styles.height = rows + 5  # its border, the figures (2), the bars, the bins (2)
+        hist.update(histogram_text(st, title, rows))
+
+    def on_resize(self, event) -> None:
+        self.refresh_view()  # the columns fit the width, the histogram the height
 
     def on_transaction_list_highlighted(self, message: TransactionList.Highlighted) -> None:
         self.refresh_histogram()

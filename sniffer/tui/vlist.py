@@ -1,8 +1,9 @@
 """A virtual list with a cursor: a Line-API ScrollView that formats only the rows on screen (like toolong).
 
-The frame list and the transaction list are both this: `count()` rows, `line_text(pos)` for one of
-them, a cursor moved by the keys or a click, and a list that follows the tail until the user moves
-up (End or G follows again).
+The frame list and the transaction list are both this: `positions()` shown a row each, `line_text(pos)`
+for one of them, a cursor moved by the keys or a click, and a list that follows the tail until the
+user moves up (End or G follows again).  A list may draw `header_lines` lines of its own above the
+rows (`header_strip`), which do not scroll.
 """
 
 from __future__ import annotations
@@ -17,17 +18,23 @@ from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
 
+# moving in a long list (the frame list, the transactions, the byte view): each has the actions cursor, page,
+# first and last
+MOVE_KEYS = (
+    Binding("up,k", "cursor(-1)", "Up", show=False),
+    Binding("down,j", "cursor(1)", "Down", show=False),
+    Binding("pageup", "page(-1)", "PgUp", show=False),
+    Binding("pagedown", "page(1)", "PgDn", show=False),
+    Binding("home", "first", "First", show=False),
+    Binding("end,G", "last", "Tail", show=False),
+)
+
+
 class CursorList(ScrollView, can_focus=True):
     """Rows are positions 0..count()-1; `cursor` is one of them (-1: none)."""
 
-    BINDINGS: ClassVar[list[Binding]] = [
-        Binding("up,k", "cursor(-1)", "Up", show=False),
-        Binding("down,j", "cursor(1)", "Down", show=False),
-        Binding("pageup", "page(-1)", "PgUp", show=False),
-        Binding("pagedown", "page(1)", "PgDn", show=False),
-        Binding("home", "first", "First", show=False),
-        Binding("end,G", "last", "Tail", show=False),
-    ]
+    BINDINGS: ClassVar[list[Binding]] = [*MOVE_KEYS]
+    header_lines = 0  # lines drawn above the rows by header_strip
 
     cursor = reactive(-1, always_update=True, repaint=False)
 
@@ -61,11 +68,19 @@ class CursorList(ScrollView, can_focus=True):
     def cursor_moved(self) -> None:
         """Called after every cursor change (a subclass posts its message)."""
 
+    def header_strip(self, y: int, width: int) -> Strip:
+        """Header line y (< header_lines)."""
+        raise NotImplementedError
+
+    def virtual_width(self) -> int:
+        """How wide the rows may be (wider than the view: scrolled sideways)."""
+        return max(self.size.width, 200)
+
     # ---- data
     def refresh_rows(self) -> None:
         """Called after the rows changed."""
         n = self.count()
-        self.virtual_size = Size(max(self.size.width, 200), n)
+        self.virtual_size = Size(self.virtual_width(), n + self.header_lines)
         if self.follow and n:
             if self.cursor != n - 1:
                 self.cursor = n - 1
@@ -75,8 +90,12 @@ class CursorList(ScrollView, can_focus=True):
         self.refresh()
 
     def on_resize(self, event) -> None:
-        if self.follow and self.count():  # shown for the first time (a tab opened): the tail is in view
-            self.scroll_end(animate=False, immediate=True)
+        self.refresh_rows()  # shown for the first time (a tab opened): the tail comes into view
+
+    @property
+    def rows_shown(self) -> int:
+        """How many rows fit under the header."""
+        return max(self.scrollable_content_region.height - self.header_lines, 1)
 
     def watch_cursor(self, old: int, new: int) -> None:
         if new >= 0:
@@ -85,8 +104,8 @@ class CursorList(ScrollView, can_focus=True):
         self.cursor_moved()
 
     def scroll_to_region_visible(self, pos: int) -> None:
-        top = round(self.scroll_offset.y)
-        h = max(self.scrollable_content_region.height, 1)
+        top = round(self.scroll_offset.y)  # the row under the header
+        h = self.rows_shown
         if pos < top:
             self.scroll_to(y=pos, animate=False, immediate=True)
         elif pos >= top + h:
@@ -105,7 +124,7 @@ class CursorList(ScrollView, can_focus=True):
         self._move_to(self.cursor + delta)
 
     def action_page(self, direction: int) -> None:
-        self._move_to(self.cursor + direction * max(self.scrollable_content_region.height - 1, 1))
+        self._move_to(self.cursor + direction * max(self.rows_shown - 1, 1))
 
     def action_first(self) -> None:
         self._move_to(0)
@@ -118,8 +137,8 @@ class CursorList(ScrollView, can_focus=True):
         self.follow = False  # reading back: stop following the tail
 
     def clicked_pos(self, event) -> int | None:
-        pos = round(self.scroll_offset.y) + event.y
-        return pos if 0 <= pos < self.count() else None
+        pos = round(self.scroll_offset.y) + event.y - self.header_lines
+        return pos if event.y >= self.header_lines and 0 <= pos < self.count() else None
 
     def on_click(self, event) -> None:
         pos = self.clicked_pos(event)
@@ -129,8 +148,10 @@ class CursorList(ScrollView, can_focus=True):
     # ---- Line API
     def render_line(self, y: int) -> Strip:
         scroll_x, scroll_y = self.scroll_offset
-        pos = scroll_y + y
         width = self.scrollable_content_region.width
+        if y < self.header_lines:
+            return self.header_strip(y, width)
+        pos = scroll_y + y - self.header_lines
         if pos >= self.count() or pos < 0:
             return Strip.blank(width, self.rich_style)
         segments = [s for s in self.line_text(pos).render(self.app.console) if s.text != "\n"]

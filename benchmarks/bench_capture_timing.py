@@ -1,0 +1,156 @@
+"""Does anything spoil a live capture's timing?  The TUI open or not, and the reader's interpreter wait.
+
+    .venv/bin/python benchmarks/bench_capture_timing.py [--scenario stress] [--seconds 20] [--repeat 2]
+
+A simulated line (PtyBus) is played from a feeder process of its own onto a pty; `sniffer live` reads the
+other end, exactly as it reads an adapter, in these configurations (each `--repeat` times, interleaved so
+the machine's load falls on all alike):
+
+* headless            `sniffer live PORT --headless --out F.mcap`
+* tui                 `sniffer live PORT --out F.mcap` on a terminal (a pty): the TUI attached to the
+                      capture process it started (issue 11)
+* headless, 5 ms GIL  the peer: the capture as before issue 11, its reader waiting up to CPython's default
+                      switch interval for the interpreter (READER_SWITCH_S patched back to 5 ms)
+
+For each: responses, responses with no latency (their request came in the same read: glued), responses
+timed before their request ended, and the read lateness (time of the read holding a frame's last byte minus
+the time the feeder wrote it; both the host's monotonic clock) p50 / p90 / p99 / max.  Also the load
+average, since a loaded machine delays reads whatever the sniffer does.  Figures are printed, nothing asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import bisect
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))
+
+from terminal import Terminal
+
+from sniffer.events import Chunk
+from sniffer.sources.mcapsrc import open_mcap, read_frames
+
+FEEDER = r"""
+import json, sys, time
+from sniffer.simulator.bus import simulate
+from sniffer.simulator.ptybus import PtyBus
+from sniffer.simulator.scenario import get_scenario
+sc = get_scenario(sys.argv[1])
+frames = list(simulate(sc, sc.line, float(sys.argv[2]), 3))
+times = []
+class Timed(PtyBus):
+    def _write_all(self, data, stop_event):
+        ok = super()._write_all(data, stop_event)
+        times.append(time.monotonic_ns())
+        return ok
+with Timed() as bus:
+    print(bus.port, sc.line.baud, sc.line.parity, sc.line.stopbits, flush=True)
+    sys.stdin.readline()
+    bus.play(frames)
+    time.sleep(0.5)
+    json.dump(times, open(sys.argv[3], "w"))
+    print("done", bus.bytes_received_from_sniffer, flush=True)
+    sys.stdin.readline()
+"""
+
+OLD_SWITCH = ("import sys, sniffer.sources.serial_live as s; s.READER_SWITCH_S = 0.005; "
+              "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
+
+
+def run_one(kind: str, scenario: str, seconds: float, work: Path) -> dict:
+    times_path, out = work / f"{kind}.times.json", work / f"{kind}.mcap"
+    for p in (times_path, out):
+        p.unlink(missing_ok=True)
+    feeder = subprocess.Popen([sys.executable, "-c", FEEDER, scenario, str(seconds), str(times_path)],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    port, baud, parity, stop = feeder.stdout.readline().split()
+    head = [sys.executable, "-c", OLD_SWITCH] if kind == "headless-5ms" else [sys.executable, "-m", "sniffer"]
+    argv = [*head, "live", port, "--baud", baud, "--parity", parity, "--stopbits", stop, "--out", str(out)]
+    term = Terminal(argv if kind == "tui" else argv + ["--headless", "--quiet"])
+    cpu0 = os.times()
+    try:
+        if not term.wait_for(port):
+            raise SystemExit(f"{kind}: the capture did not start: {term.screen[-500:]!r}")
+        time.sleep(1.0)
+        feeder.stdin.write("go\n")
+        feeder.stdin.flush()
+        while True:
+            term.read(0.2)
+            line = feeder.stdout.readline() if _ready(feeder.stdout) else ""
+            if line.startswith("done"):
+                written_back = int(line.split()[1])
+                break
+        if kind == "tui":
+            term.type("q")
+            term.wait_for("Stop the live capture", 10)
+            term.type("y")
+        else:
+            os.kill(term.proc.pid, signal.SIGINT)
+    finally:
+        rc = term.finish()
+        feeder.stdin.write("q\n")
+        feeder.stdin.close()
+        feeder.wait()
+    cpu1 = os.times()
+    return {"kind": kind, "rc": rc, "written_back": written_back, "children_cpu_s":
+            (cpu1.children_user + cpu1.children_system) - (cpu0.children_user + cpu0.children_system),
+            **figures(out, json.loads(times_path.read_text()))}
+
+
+def _ready(f) -> bool:
+    import select
+
+    return bool(select.select([f], [], [], 0)[0])
+
+
+def figures(mcap: Path, written: list[int]) -> dict:
+    recs = read_frames(str(mcap))
+    by = {r["index"]: r for r in recs}
+    rsp = [r for r in recs if r.get("role") == "response"]
+    _, events = open_mcap(str(mcap))
+    reads = sorted(ev.t_ns for ev in events if type(ev) is Chunk)
+    late = sorted((reads[i] - w) / 1e6 for w in written if (i := bisect.bisect_left(reads, w)) < len(reads))
+
+    def q(p: float) -> float:
+        return late[min(len(late) - 1, int(p * len(late)))] if late else float("nan")
+
+    return {"frames": len(recs), "responses": len(rsp), "no_latency": sum(r.get("latency_ms") is None for r in rsp),
+            "before_request": sum(1 for r in rsp if r.get("pair") in by
+                                  and r["t"] < by[r["pair"]].get("t_end", by[r["pair"]]["t"])),
+            "late_p50": q(.5), "late_p90": q(.9), "late_p99": q(.99), "late_max": late[-1] if late else float("nan")}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--scenario", default="stress")
+    ap.add_argument("--seconds", type=float, default=20.0)
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--kinds", default="headless,tui,headless-5ms")
+    a = ap.parse_args()
+    print(f"{a.scenario}, {a.seconds:.0f} s per run, {os.cpu_count()} CPUs; load average at start "
+          f"{os.getloadavg()[0]:.2f}")
+    print(f"{'run':<14} {'responses':>9} {'no latency':>14} {'before req':>10} "
+          f"{'read late ms p50':>16} {'p90':>6} {'p99':>7} {'max':>7} {'load':>5}")
+    with tempfile.TemporaryDirectory() as d:
+        for _ in range(a.repeat):
+            for kind in a.kinds.split(","):
+                r = run_one(kind, a.scenario, a.seconds, Path(d))
+                n = r["responses"]
+                print(f"{kind:<14} {n:>9} {r['no_latency']:>6} ({100 * r['no_latency'] / max(n, 1):4.1f} %) "
+                      f"{r['before_request']:>10} {r['late_p50']:>16.2f} {r['late_p90']:>6.2f} {r['late_p99']:>7.2f} "
+                      f"{r['late_max']:>7.1f} {os.getloadavg()[0]:>5.2f}"
+                      + ("" if r["rc"] == 0 and r["written_back"] == 0 else
+                         f"  (exit {r['rc']}, {r['written_back']} bytes written back!)"), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,64 @@
+"""A command on a pseudo-terminal of its own, as a user's terminal runs it (tests and benchmarks)."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import pty
+import select
+import struct
+import subprocess
+import termios
+import time
+
+HANG_S = 60.0
+
+
+class Terminal:
+    """A command on a pty of its own, as a terminal runs it: what it draws is read and kept, keys are typed."""
+
+    def __init__(self, argv: list[str], cols: int = 120, rows: int = 40) -> None:
+        self.master, slave = pty.openpty()
+        fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, cols, 0, 0))
+        env = dict(os.environ, TERM="xterm-256color", COLUMNS=str(cols), LINES=str(rows))
+        env.pop("CI", None)  # Textual is the same either way; keep CI's own settings out of the App
+        self.proc = subprocess.Popen(argv, stdin=slave, stdout=slave, stderr=slave, env=env, start_new_session=True,
+                                     close_fds=True)
+        os.close(slave)
+        self.screen = bytearray()
+
+    def read(self, timeout_s: float = 0.1) -> None:
+        while select.select([self.master], [], [], timeout_s)[0]:
+            try:
+                data = os.read(self.master, 65536)
+            except OSError:  # EIO: the command closed the terminal
+                return
+            if not data:
+                return
+            self.screen += data
+            timeout_s = 0
+
+    def wait_for(self, text: str, timeout_s: float = HANG_S) -> bool:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            self.read()
+            if text.encode() in self.screen:
+                return True
+            if self.proc.poll() is not None:
+                self.read()
+                return text.encode() in self.screen
+        return False
+
+    def type(self, keys: str) -> None:
+        os.write(self.master, keys.encode())
+
+    def finish(self, timeout_s: float = HANG_S) -> int:
+        deadline = time.monotonic() + timeout_s
+        while self.proc.poll() is None and time.monotonic() < deadline:
+            self.read()
+        if self.proc.poll() is None:
+            self.proc.kill()
+        rc = self.proc.wait()
+        self.read()
+        os.close(self.master)
+        return rc
