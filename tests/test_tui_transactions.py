@@ -272,6 +272,13 @@ def test_the_frame_filter_applies_to_transactions():
             assert lst.count() and all(app.store.frame(txs.first_row(t)).unit == unit for t in txs.view)
             await pilot.press("n")
             assert txs.flags[lst.selected_tx] & F_PROBLEM
+            await pilot.press("slash", *"lat>5ms", "enter")  # the filter language: answers slower than 5 ms
+            assert lst.count() and all(app.store.frame(txs.rsp[t]).latency_ms > 5 for t in txs.view)
+            await pilot.press("c", "T")  # times from a reference frame (T), as the frame list shows them
+            ref = app.store.time.ref_index
+            assert f"from #{ref}" in str(app.tx_pane.query_one("#txhead").render())
+            tx = lst.selected_tx
+            assert app.store.time.text(app.store.frame(txs.first_row(tx)).t_ns) in lst.line_text(lst.cursor).plain
     run(go())
 
 
