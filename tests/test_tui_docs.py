@@ -17,6 +17,8 @@ SHOTS = [
     ("tui-frames.svg", "errors.mcap", ["home", "n", "n", "n", "n"]),
     ("tui-detail.svg", "a510.mcap", ["home"] + ["down"] * 5 + ["enter"] + ["down"] * 6),
     ("tui-errors-only.svg", "errors.mcap", ["e", "home"]),
+    # a drive trip (issue 11): the filter `fault`, a frame, its detail on the fault's annotation (bytes lit)
+    ("tui-faults.svg", "a510.mcap", ["slash", *"fault", "enter", "home", "n", "enter", "end", "up"]),
     ("tui-units.svg", "errors.mcap", ["2"]),
     ("tui-registers.svg", "a510.mcap", ["3"] + ["down"] * 8),
     ("tui-transactions.svg", "errors.mcap", ["4", "home", "n", "n", "n"]),
