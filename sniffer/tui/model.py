@@ -33,6 +33,7 @@ from ..frameflags import (  # the store's flag column (re-exported for the views
 from ..protocols import of_frame
 from .filters import filter_query
 from .framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, RowIndex
+from .history import CAP
 from .shadow import RegisterBook, RegisterValue
 from .timebase import TimeBase
 from .transactions import Transactions
@@ -129,7 +130,7 @@ class FrameStore:
     """All frames of a capture plus what the views need to find them quickly."""
 
     def __init__(self, t0_ns: int = 0, *, block: int = BLOCK, frame_cache: int = FRAME_CACHE,
-                 ids: dict | None = None) -> None:
+                 ids: dict | None = None, history_cap: int = CAP) -> None:
         self.time = TimeBase(t0_ns)  # how times are shown: since the start, wall clock, from a reference
         self.blocks = FrameBlocks(block, frame_cache)
         self.frames = FrameSeq(self.blocks)
@@ -154,7 +155,7 @@ class FrameStore:
         self.view = array("q")  # rows passing the filter (up to the pause point)
         self.problems = array("q")  # rows with any problem flag (unfiltered)
         self.units: dict[int, UnitStats] = {}
-        self.book = RegisterBook()  # the frames' `writes` applied: the decoders' register shadow
+        self.book = RegisterBook(history_cap)  # the frames' `writes` applied: the decoders' register shadow
         self.registers = self.book.values  # (unit, table, address) -> RegisterValue
         self.transactions = Transactions()  # request + response as one entry, per-unit latency
         self.bookmarks: set[int] = set()
