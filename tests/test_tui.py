@@ -324,7 +324,7 @@ def test_register_watch_of_an_attached_viewer_is_the_decoders_shadow():
             assert regs.row_count == len(app.store.registers) == sum(len(st.holding) for st in registry.states.values())
             watch = app.query_one("#regwatch")
             assert watch.chosen == (1, "holding", 9474)
-            assert "Frequency command" in str(app.query_one("#spark-label").render())
+            assert "Frequency command" in str(app.query_one("#log-label").render())
             cells = [str(c) for c in regs.get_row("1:holding:9474")]
             assert cells[:5] == ["1", "holding", "2502H", "Frequency command", "44.5"] and cells[6] == "4450"
     run(go())

@@ -95,3 +95,13 @@ def test_transactions_80x24(snap_compare):
         await pilot.press("4", "home", "n")
 
     assert snap_compare(make_app("errors.mcap"), terminal_size=(80, 24), run_before=before)
+
+
+def test_plot(snap_compare):
+    """Two registers of two units on the plot (Hz left, A right), zoomed twice around a cursor."""
+    async def before(pilot):
+        await _load(pilot)
+        await pilot.press("3", *["down"] * 6, "a", *["down"] * 21, "a", "5", "full_stop", *["comma"] * 20,
+                          "plus", "plus")
+
+    assert snap_compare(make_app("a510.mcap"), terminal_size=SIZE, run_before=before)

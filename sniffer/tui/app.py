@@ -28,6 +28,8 @@ from .framelist import FrameList
 from .goto import parse_goto, resolve
 from .gotobar import GotoBar
 from .model import FrameStore
+from .plot import JumpToFrame, PlotPane
+from .plotmodel import PlotSet
 from .readring import ReadRing
 from .registers import RegisterWatch
 from .sink import TuiSink
@@ -65,6 +67,10 @@ HELP = """\
                filter applies (a transaction shows if its request or its response passes)
     in it:     [b]Enter[/b] / a click on the selected line: its request in Frames; [b]h[/b] histogram
                of all units / this unit; [b]n[/b] / [b]N[/b] next / previous problem; [b]u[/b] / [b]f[/b] its unit / fc
+  [b]5[/b]            plot; in Registers [b]a[/b] adds / removes the register, [b]Enter[/b] opens its change log
+               (there [b]Enter[/b] goes to the change's frame, [b]Esc[/b] back)
+  Plot:        [b]+ -[/b] zoom  [b]← →[/b] pan  [b]0[/b] all, follow  [b], .[/b] cursor  [b]Enter[/b] / click: go to the
+               nearest sample's frame  [b]↑ ↓[/b] choose  [b]d[/b] remove  (mouse wheel: zoom)
   [b]?[/b]            this help;  [b]q[/b] quit: a live capture asks first (y stops it and closes
                its file); a replay or a viewer of `sniffer attach` just closes (the capture goes on)
 
@@ -122,6 +128,7 @@ class SnifferApp(App):
         Binding("2", "tab('units')", "Units"),
         Binding("3", "tab('registers')", "Registers"),
         Binding("4", "tab('transactions')", "Transactions", show=False),
+        Binding("5", "tab('plot')", "Plot", show=False),
         Binding("p", "pair", "Pair"),
         Binding("n", "problem(1)", "Next err"),
         Binding("N", "problem(0)", "Prev err", show=False),
@@ -190,10 +197,13 @@ class SnifferApp(App):
                 yield DetailPane(id="detail")
             with TabPane("Units", id="units"):
                 yield UnitsTable(self.store, self.registry, id="unitstable")
+            plots = PlotSet()  # the registers on the plot: added in the Registers tab, drawn in the Plot tab
             with TabPane("Registers", id="registers"):
-                yield RegisterWatch(self.store, id="regwatch")
+                yield RegisterWatch(self.store, plots, id="regwatch")
             with TabPane("Transactions", id="transactions"):
                 yield TransactionsPane(self.store, id="txpane")
+            with TabPane("Plot", id="plot"):
+                yield PlotPane(self.store, plots, id="plotpane")
             with TabPane("Bytes", id="bytes"):
                 yield BytesPane(self.reads, self.store, id="bytespane")
         yield Static("", id="status")
@@ -294,6 +304,8 @@ class SnifferApp(App):
             self.tabs.query_one("#regwatch", RegisterWatch).update_rows()
         elif active == "transactions":
             self.tx_pane.refresh_view()
+        elif active == "plot":
+            self.tabs.query_one("#plotpane", PlotPane).update_plot()
 
     def capture_size(self) -> int | None:
         path = self.capture_path or self.sink.capture_path
@@ -345,12 +357,23 @@ class SnifferApp(App):
             self.frame_list.focus()
         elif tab == "transactions":
             self.tx_pane.list.focus()
+        elif tab == "plot":  # the plot takes the keys (zoom, pan, cursor)
+            self.query_one("#plotview").focus()
         else:  # the tab's table takes the keys (arrows move in it at once)
             from textual.widgets import DataTable
 
             pane = self.query_one("#unitstable" if tab == "units" else "#regwatch")
             table = pane if isinstance(pane, DataTable) else pane.query_one(DataTable)
             table.focus()
+
+    def on_jump_to_frame(self, message: JumpToFrame) -> None:
+        """A change in the change log or a sample on the plot: its frame in the Frames tab."""
+        row = self.store.row_of.get(message.index)
+        if row is None or self.store.pos_of_row(row) is None:
+            self.notify(f"frame #{message.index} is not in the list (filtered out or paused?)", timeout=3)
+            return
+        self.action_tab("frames")
+        self.frame_list.select_row(row)
 
     def action_pair(self) -> None:
         row = self.frame_list.selected_row

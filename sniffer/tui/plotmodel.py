@@ -329,7 +329,7 @@ def _unit_positions(traces: list[Trace]) -> list[int]:
 
 
 def _unit_text(ax: Axis | None) -> str:
-    return "" if ax is None else (ax.unit or "(no unit)")[:LEFT_W - 1]
+    return "" if ax is None else (ax.unit or "no unit")[:LEFT_W - 1]
 
 
 def _y_labels(ax: Axis | None, rows: int) -> dict[int, str]:

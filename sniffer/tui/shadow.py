@@ -55,6 +55,17 @@ class RegisterValue:
     id: str = ""
     words: int = 1  # registers the value takes (address .. address + words - 1)
 
+    @property
+    def address_text(self) -> str:
+        """The address as the manuals write it: "2520H", or "2510H..2511H" for a value of several registers."""
+        a = self.address
+        return f"{a:04X}H" if self.words == 1 else f"{a:04X}H..{a + self.words - 1:04X}H"
+
+    @property
+    def title(self) -> str:
+        """The name, led by the parameter id where the map has one (and the name does not hold it)."""
+        return self.name if not self.id or self.id in self.name else f"{self.id} {self.name}"
+
 
 _NUMBER = (int, float)  # not bool: a bit is plotted from its raw value
 
