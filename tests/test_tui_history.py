@@ -7,7 +7,7 @@ import random
 import pytest
 from tui_helpers import replay_frames
 
-from sniffer.tui.history import CHANGE, GAP, Series
+from sniffer.tui.history import BUDGET, CAP, CHANGE, GAP, Series, cap_for
 from sniffer.tui.model import FrameStore
 from sniffer.tui.plotmodel import PlotSet, TimeWindow, Trace, column_ranges, nice_step, render, tick_text
 
@@ -160,7 +160,17 @@ def test_series_thinning_on_synthetic_signals():
         if name == "noisy":
             assert any(f & GAP for f in h.fl)  # changes thinned out, and marked so
     assert h.nearest(50_000.5 * 10_000_000)[2] in range(49_000, 51_000)
-    assert h.nearest(10**18) == (h.t_end, h.v[-1], 99_999)  # the latest sample, kept or not
+    assert h.nearest(10**18) == (99_999 * 10_000_000, h.v[-1], 99_999) == (*h.end[:1], h.v[-1], h.end[1])
+
+
+def test_many_registers_share_the_history_budget():
+    assert [cap_for(n) for n in (1, 128, 644, 5000)] == [CAP, CAP, BUDGET // 644, 1024]
+    info, frames, _ = replay_frames("errors.mcap")
+    s = FrameStore(info.t0_ns)
+    s.add(frames)
+    n = len(s.registers)
+    assert n > 128 and {rv.history.cap for rv in s.registers.values()} == {BUDGET // n}
+    assert n * BUDGET // n * 25 <= 27_000_000  # 25 bytes a sample: the budget is about 26 MB
 
 
 # ---------------------------------------------------------------- plot model
@@ -173,7 +183,7 @@ def _brute_columns(h: Series, lo: float, hi: float, n: int):
         before = [v for t, v in zip(h.t, h.v) if t < a]
         inside = [v for t, v in zip(h.t, h.v) if a <= t < b]
         vals = inside + before[-1:]
-        if not inside and (not before or a > h.t_end):
+        if not inside and (not before or a > h.end[0]):
             out.append(None)
         else:
             out.append((min(vals), max(vals)))

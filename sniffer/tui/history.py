@@ -2,7 +2,10 @@
 
 Every numeric value the register watch shows is a sample (`Series.add`).  Up to
 `cap` samples per register are kept as they came, in four `array` columns (t_ns,
-value, frame index, flags: 25 bytes a sample).  When a register has more, the
+value, frame index, flags: 25 bytes a sample).  The cap is 8,192 while there are
+at most 128 registers; past that the registers share a budget of 2**20 samples
+(26 MB), at least 1,024 each (`cap_for`: a capture of 644 registers keeps 1,628
+samples a register).  When a register has more, the
 history is thinned into time buckets (M4, as plotting libraries decimate a line):
 of each bucket's samples it keeps
 
@@ -15,8 +18,9 @@ and ends at each bucket's true value; a register that changes rarely keeps every
 change at its own frame (up to three changes per bucket), and a constant one one
 sample a bucket.  The first thinning makes buckets of the span so far / (cap / 8);
 the next ones double the bucket width (merging pairs of buckets by the same rule),
-so the whole capture stays evenly covered in at most `cap` samples.  New samples
-land in the open bucket by the same rule as they arrive.
+so the whole capture stays evenly covered in at most `cap` samples.  In the open
+bucket (the latest) a sample is kept if its value changed, and the bucket is
+reduced by the same rule every 32 samples and when the next one opens.
 
 Flags: CHANGE (the value differs from the kept sample before it; the first
 sample too) and GAP (value changes between the kept sample before it and this
@@ -28,7 +32,15 @@ from __future__ import annotations
 import bisect
 from array import array
 
-CAP = 8192  # samples kept per register (25 B each: at most 200 kB a register)
+CAP = 8192  # samples kept per register at most (25 B each: 200 kB a register)
+BUDGET = 1 << 20  # samples kept over all registers (26 MB): with more than 128 registers each keeps less
+MIN_CAP = 1024  # ... but never less than this
+OPEN = 32  # samples the open bucket may hold before it is reduced (reduced again as it closes)
+
+
+def cap_for(registers: int, cap: int = CAP, budget: int = BUDGET) -> int:
+    """The samples each of `registers` registers keeps: `cap`, less when the budget is shared by many."""
+    return max(min(cap, budget // max(registers, 1)), min(MIN_CAP, cap))
 CHANGE = 1
 GAP = 2
 
@@ -50,71 +62,46 @@ class Series:
         self.bucket = -1  # the open bucket (the one new samples go to)
         self.start = 0  # position of the open bucket's first kept sample
         self.seen = 0  # samples added
-        self.changes = 0  # value changes among them (the first value is not one)
+        self.changes = -1  # value changes among them (the first value is not one: -1 before it)
         self.last = None  # the latest value
-        self.t_end = 0  # the latest sample (kept or not): where the line ends
+        self.t_end = 0  # the latest sample not kept (see `end`)
         self.ix_end = -1
         self.thins = 0  # times the history was thinned (views rebuild what they derived)
 
     # ------------------------------------------------------------ intake
     def add(self, t_ns: int, value, index: int) -> None:
-        """A new sample (in arrival order)."""
-        self.t_end, self.ix_end = t_ns, index
-        seen = self.seen
-        self.seen = seen + 1
-        changed = not seen or value != self.last
-        if changed:
-            if seen:
-                self.changes += 1
-            self.last = value
+        """A new sample (in arrival order).  The hot path of the register watch: kept short."""
+        self.seen += 1
         w = self.width
-        if not w:
-            self.t.append(t_ns)
-            self.v.append(value)
-            self.ix.append(index)
-            self.fl.append(CHANGE if changed else 0)
-        else:
-            b = max((t_ns - self.origin) // w, self.bucket)  # a time going back stays in the open bucket
-            if b != self.bucket:
-                self.bucket, self.start = b, len(self.t)
-                self.t.append(t_ns)
-                self.v.append(value)
-                self.ix.append(index)
-                self.fl.append(CHANGE if changed else 0)
-            elif changed:
-                s, vs = self.start, self.v
-                last = len(vs) - 1
-                lo, hi = min(vs[s:]), max(vs[s:])
-                if lo < value < hi:  # not an extreme: it becomes the bucket's final value
-                    if last == s or vs.index(lo, s) == last or vs.index(hi, s) == last:
-                        self.t.append(t_ns)  # the final value so far is an extreme or the first: kept
-                        vs.append(value)
-                        self.ix.append(index)
-                        self.fl.append(CHANGE)
-                        if len(vs) > self.cap:
-                            self._thin()
-                        return
-                    # the final value so far was neither: this one takes its place
-                    self.t[last], self.ix[last] = t_ns, index
-                    self.fl[last] = (CHANGE if value != vs[last - 1] else 0) | GAP
-                    vs[last] = value
-                    return
-                # a new extreme: the bucket's kept samples and this one, reduced again
-                group = _reduce(self.t[s:], self.v[s:], self.ix[s:], self.fl[s:] + array("B", [CHANGE]),
-                                t_ns, value, index, self.v[s - 1] if s else None)
-                del self.t[s:], self.v[s:], self.ix[s:], self.fl[s:]
-                self._extend(group)
-            else:  # unchanged: the bucket's kept samples stand for it
+        if value == self.last:
+            if w and (t_ns - self.origin) // w <= self.bucket:  # unchanged in the open bucket: its kept
+                self.t_end, self.ix_end = t_ns, index  # samples stand for it (a time going back stays in it)
                 return
-        if len(self.t) > self.cap:
+            flag = 0
+        else:
+            self.changes += 1
+            self.last = value
+            flag = CHANGE
+        if w and (t_ns - self.origin) // w > self.bucket:  # a new bucket: the one before is reduced
+            if len(self.v) - self.start > 4:
+                self._reduce_open()
+            self.bucket, self.start = (t_ns - self.origin) // w, len(self.v)
+        self.t.append(t_ns)
+        self.v.append(value)
+        self.ix.append(index)
+        self.fl.append(flag)
+        if w and len(self.v) - self.start > OPEN:
+            self._reduce_open()
+        if len(self.v) > self.cap:
             self._thin()
 
-    def _extend(self, group) -> None:
-        t, v, ix, fl = group
-        self.t.extend(t)
-        self.v.extend(v)
-        self.ix.extend(ix)
-        self.fl.extend(fl)
+    def _reduce_open(self) -> None:
+        """The open bucket's samples reduced to its first / min / max / start of the final value."""
+        s = self.start
+        group = _reduce(self.t[s:], self.v[s:], self.ix[s:], self.fl[s:], self.v[s - 1] if s else None)
+        del self.t[s:], self.v[s:], self.ix[s:], self.fl[s:]
+        for col, part in zip((self.t, self.v, self.ix, self.fl), group):
+            col.extend(part)
 
     def _thin(self) -> None:
         """Too many samples: (wider) buckets, each reduced to its first / min / max / last change; the
@@ -132,9 +119,8 @@ class Series:
             self._rebucket()
 
     def _rebucket(self) -> None:
-        t = self.t
+        t, v, ix, fl = self.t, self.v, self.ix, self.fl
         w, o = self.width, self.origin
-        v, ix, fl = self.v, self.ix, self.fl
         out = array("q"), array("d"), array("q"), array("B")
         n, i, start = len(t), 0, 0
         prev = None
@@ -144,10 +130,8 @@ class Series:
             while j < n and (t[j] - o) // w <= b:
                 j += 1
             start = len(out[0])
-            if j - i == 1:  # alone in its bucket: kept as it is
-                group = t[i:j], v[i:j], ix[i:j], fl[i:j]
-            else:
-                group = _reduce(t[i:j - 1], v[i:j - 1], ix[i:j - 1], fl[i:j], t[j - 1], v[j - 1], ix[j - 1], prev)
+            group = (t[i:j], v[i:j], ix[i:j], fl[i:j]) if j - i == 1 else \
+                _reduce(t[i:j], v[i:j], ix[i:j], fl[i:j], prev)
             for col, part in zip(out, group):
                 col.extend(part)
             prev = out[1][-1]
@@ -171,6 +155,13 @@ class Series:
         """Samples before this position never change again until the next thinning (`thins`)."""
         return self.start if self.width else len(self.v)
 
+    @property
+    def end(self) -> tuple[int, int]:
+        """(t_ns, frame index) of the latest sample, kept or not: where the line ends."""
+        if self.t and self.t[-1] >= self.t_end:
+            return self.t[-1], self.ix[-1]
+        return self.t_end, self.ix_end
+
     def nearest(self, t_ns: float) -> tuple[int, float, int] | None:
         """(t_ns, value, frame index) of the kept sample nearest to t_ns (the latest sample counts too)."""
         t = self.t
@@ -181,8 +172,9 @@ class Series:
         for j in (i - 1, i):
             if 0 <= j < len(t) and (best is None or abs(t[j] - t_ns) < abs(t[best] - t_ns)):
                 best = j
-        if abs(self.t_end - t_ns) < abs(t[best] - t_ns):
-            return self.t_end, self.v[-1], self.ix_end
+        t_end, ix_end = self.end
+        if abs(t_end - t_ns) < abs(t[best] - t_ns):
+            return t_end, self.v[-1], ix_end
         return t[best], self.v[best], self.ix[best]
 
     def change_positions(self, start: int = 0) -> list[int]:
@@ -195,22 +187,21 @@ class Series:
         return self.t[pos], self.ix[pos], self.v[pos - 1] if pos else None, self.v[pos], bool(self.fl[pos] & GAP)
 
 
-def _reduce(ts, vs, ixs, fls, t_new, v_new, ix_new, prev) -> tuple:
-    """One bucket's samples (the arrays, then the last sample on its own; fls includes its flags)
-    reduced to first / min / max / start of the final value, flags made relative to what is kept.
+def _reduce(ts, vs, ixs, fls, prev) -> tuple:
+    """One bucket's samples reduced to the first, the first minimum, the first maximum and the start of
+    the final value, flags made relative to what is kept: CHANGE where the value differs from the kept
+    sample before, GAP where a dropped sample between them was a change (or followed one dropped earlier).
     `prev` is the value of the kept sample before the bucket (None: there is none)."""
-    ts, vs, ixs = list(ts) + [t_new], list(vs) + [v_new], list(ixs) + [ix_new]
     n = len(vs)
     final = n - 1
     while final > 0 and not fls[final]:  # unchanged samples at the end: the final value began earlier
         final -= 1
-    keep = sorted({0, vs.index(min(vs)), vs.index(max(vs)), final})
-    out = [], [], [], []
+    lo, hi = min(vs), max(vs)
+    keep = {0, vs.index(lo), vs.index(hi), final}
+    out = array("q"), array("d"), array("q"), array("B")
     gap = False
-    k = 0
     for i in range(n):
-        if k < len(keep) and keep[k] == i:
-            k += 1
+        if i in keep:
             flag = (CHANGE if prev is None or vs[i] != prev else 0) | (GAP if gap or fls[i] & GAP else 0)
             for col, x in zip(out, (ts[i], vs[i], ixs[i], flag)):
                 col.append(x)

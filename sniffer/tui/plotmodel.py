@@ -159,7 +159,7 @@ def column_ranges(series, lo: float, hi: float, columns: int) -> list[tuple[floa
     dt = (hi - lo) / columns
     i = bisect.bisect_left(t, lo)
     carry = v[i - 1] if i else None
-    n, end = len(t), series.t_end
+    n, end = len(t), series.end[0]
     for c in range(columns):
         c_hi = lo + (c + 1) * dt
         j = bisect.bisect_left(t, c_hi, i, n)

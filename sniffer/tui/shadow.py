@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 from ..frame import Frame
 from ..protocols import of_frame
-from .history import CAP, Series
+from .history import CAP, Series, cap_for
 
 
 def table_of(f: Frame) -> str | None:
@@ -74,7 +74,8 @@ class RegisterBook:
     """The latest value of every register per unit, changes, history: the frames' `writes` applied."""
 
     def __init__(self, history_cap: int = CAP) -> None:
-        self.history_cap = history_cap  # samples kept per register (history.py thins beyond)
+        self.history_cap = history_cap  # samples kept per register at most (history.py thins beyond)
+        self._cap = history_cap  # what each keeps now: less as registers share the budget (history.cap_for)
         self.values: dict[tuple[int, str, int], RegisterValue] = {}
         # the latest point per register of a frame that wrote nothing itself (a write request, whose
         # response confirms it without points of its own)
@@ -167,8 +168,13 @@ class RegisterBook:
         rv = self.values.get(key)
         if rv is None:
             unit, table, addr = key
+            cap = cap_for(len(self.values) + 1, self.history_cap)
+            if cap != self._cap:  # one more register sharing the history budget: each keeps less
+                self._cap = cap
+                for other in self.values.values():
+                    other.history.cap = cap
             rv = self.values[key] = RegisterValue(unit, table, addr, f"{table}[{addr}]", raw, raw, None, "",
-                                                  t_ns, t_ns, history=Series(self.history_cap))
+                                                  t_ns, t_ns, history=Series(cap))
         elif rv.raw != raw:
             rv.changed_ns = t_ns
             rv.changes += 1
