@@ -126,9 +126,7 @@ class Series:
         prev = None
         while i < n:
             b = (t[i] - o) // w
-            j = i + 1
-            while j < n and (t[j] - o) // w <= b:
-                j += 1
+            j = max(bisect.bisect_left(t, o + (b + 1) * w, i), i + 1)  # the bucket's end (times ascend)
             start = len(out[0])
             group = (t[i:j], v[i:j], ix[i:j], fl[i:j]) if j - i == 1 else \
                 _reduce(t[i:j], v[i:j], ix[i:j], fl[i:j], prev)
@@ -192,20 +190,13 @@ def _reduce(ts, vs, ixs, fls, prev) -> tuple:
     the final value, flags made relative to what is kept: CHANGE where the value differs from the kept
     sample before, GAP where a dropped sample between them was a change (or followed one dropped earlier).
     `prev` is the value of the kept sample before the bucket (None: there is none)."""
-    n = len(vs)
-    final = n - 1
-    while final > 0 and not fls[final]:  # unchanged samples at the end: the final value began earlier
-        final -= 1
-    lo, hi = min(vs), max(vs)
-    keep = {0, vs.index(lo), vs.index(hi), final}
+    final = max(len(fls.tobytes().rstrip(b"\0")) - 1, 0)  # unchanged samples at the end: where it began
     out = array("q"), array("d"), array("q"), array("B")
-    gap = False
-    for i in range(n):
-        if i in keep:
-            flag = (CHANGE if prev is None or vs[i] != prev else 0) | (GAP if gap or fls[i] & GAP else 0)
-            for col, x in zip(out, (ts[i], vs[i], ixs[i], flag)):
-                col.append(x)
-            prev, gap = vs[i], False
-        elif fls[i]:
-            gap = True
+    last = -1
+    for i in sorted({0, vs.index(min(vs)), vs.index(max(vs)), final}):
+        gap = fls[i] & GAP or i - last > 1 and any(fls[last + 1:i])
+        flag = (CHANGE if prev is None or vs[i] != prev else 0) | (GAP if gap else 0)
+        for col, x in zip(out, (ts[i], vs[i], ixs[i], flag)):
+            col.append(x)
+        prev, last = vs[i], i
     return out
