@@ -148,6 +148,22 @@ def test_change_log_lists_the_changes_and_enter_goes_to_one():
     run(go())
 
 
+def test_going_to_a_frame_the_filter_hides_says_so():
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await pilot.press("slash", *"u:2", "enter")  # unit 1's frames are filtered out
+            assert app.store.filter.units == {2}
+            await pilot.press("3")
+            await highlight(pilot, (1, "holding", STATUS_WORD))
+            await pilot.press("enter", "enter")  # into the change log, then its latest change
+            await pilot.pause()
+            assert app.tabs.active == "registers"
+            assert any("is not in the list: filtered out" in n.message for n in app._notifications)
+    run(go())
+
+
 def test_the_plot_follows_the_tail_until_zoomed_into_the_past():
     async def go():
         info, frames, registry = replay_frames("a510.mcap")

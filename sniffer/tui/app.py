@@ -368,12 +368,7 @@ class SnifferApp(App):
 
     def on_jump_to_frame(self, message: JumpToFrame) -> None:
         """A change in the change log or a sample on the plot: its frame in the Frames tab."""
-        row = self.store.row_of.get(message.index)
-        if row is None or self.store.pos_of_row(row) is None:
-            self.notify(f"frame #{message.index} is not in the list (filtered out or paused?)", timeout=3)
-            return
-        self.action_tab("frames")
-        self.frame_list.select_row(row)
+        self.go_to_frame(message.index)
 
     def action_pair(self) -> None:
         row = self.frame_list.selected_row
@@ -527,11 +522,16 @@ class SnifferApp(App):
             self.byte_view.refresh_reads()
 
     def on_byte_view_chosen(self, message: ByteView.Chosen) -> None:
-        row = self.store.row_of.get(message.index)
+        self.go_to_frame(message.index)
+
+    def go_to_frame(self, index: int) -> None:
+        """Frame #index selected in the Frames tab (the byte view's Enter, a change, a plotted sample)."""
+        row = self.store.row_of.get(index)
         if row is None:
-            self.notify(f"frame #{message.index} is not in this view (older than what it was sent)", timeout=3)
+            self.notify(f"frame #{index} is not in this view (older than what it was sent)", timeout=3)
         elif self.store.pos_of_row(row) is None:
-            self.notify(f"frame #{message.index} is filtered out of the list (c clears the filters)", timeout=3)
+            self.notify(f"frame #{index} is not in the list: filtered out (c clears the filters) or after the "
+                        "pause (space resumes)", timeout=3)
         else:
             self.tabs.active = "frames"
             self.frame_list.select_row(row)

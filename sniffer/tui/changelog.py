@@ -23,25 +23,17 @@ from textual.reactive import reactive
 from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
+from .framelist import MOVE_KEYS, S_CURSOR
 from .plot import JumpToFrame, number
 from .shadow import RegisterValue
 
-S_CURSOR = Style(bgcolor="grey30", bold=True)
 S_THINNED = Style(color="grey62", italic=True)
 
 
 class ChangeLog(ScrollView, can_focus=True):
     """The changes of `register` (set with `show`); `cursor` is a line, -1 for none."""
 
-    BINDINGS: ClassVar[list[Binding]] = [
-        Binding("up", "move(-1)", "Up", show=False),
-        Binding("down", "move(1)", "Down", show=False),
-        Binding("pageup", "move(-20)", "PgUp", show=False),
-        Binding("pagedown", "move(20)", "PgDn", show=False),
-        Binding("home", "move(-1_000_000_000)", "First", show=False),
-        Binding("end", "move(1_000_000_000)", "Last", show=False),
-        Binding("enter", "jump", "Go to frame"),
-    ]
+    BINDINGS: ClassVar[list[Binding]] = [*MOVE_KEYS, Binding("enter", "jump", "Go to frame")]
     DEFAULT_CSS = "ChangeLog { height: 1fr; overflow-x: hidden; } ChangeLog:focus { background: $boost; }"
 
     cursor = reactive(-1, repaint=False)
@@ -88,10 +80,19 @@ class ChangeLog(ScrollView, can_focus=True):
         return self.register.history.change(self.positions[line])
 
     # ------------------------------------------------------------ keys
-    def action_move(self, step: int) -> None:
+    def action_cursor(self, step: int) -> None:
         n = len(self.positions)
         if n:
             self.cursor = max(0, min(n - 1, (self.cursor if self.cursor >= 0 else n - 1) + step))
+
+    def action_page(self, direction: int) -> None:
+        self.action_cursor(direction * max(self.scrollable_content_region.height - 1, 1))
+
+    def action_first(self) -> None:
+        self.action_cursor(-len(self.positions))
+
+    def action_last(self) -> None:
+        self.action_cursor(len(self.positions))
 
     def watch_cursor(self, line: int) -> None:
         if line >= 0:
