@@ -36,13 +36,13 @@ CAP = 8192  # samples kept per register at most (25 B each: 200 kB a register)
 BUDGET = 1 << 20  # samples kept over all registers (26 MB): with more than 128 registers each keeps less
 MIN_CAP = 1024  # ... but never less than this
 OPEN = 32  # samples the open bucket may hold before it is reduced (reduced again as it closes)
+CHANGE = 1
+GAP = 2
 
 
 def cap_for(registers: int, cap: int = CAP, budget: int = BUDGET) -> int:
     """The samples each of `registers` registers keeps: `cap`, less when the budget is shared by many."""
     return max(min(cap, budget // max(registers, 1)), min(MIN_CAP, cap))
-CHANGE = 1
-GAP = 2
 
 
 class Series:

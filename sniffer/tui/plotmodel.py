@@ -25,6 +25,9 @@ LEFT_W = 9  # left axis: 8 characters of labels and the axis line
 RIGHT_W = 9
 # a braille cell is 2 dots wide and 4 high: the bit of dot (x, y)
 _DOT = ((0x01, 0x08), (0x02, 0x10), (0x04, 0x20), (0x40, 0x80))
+# the dots of column dx from row a to row b of a cell, at once: _RUN[dx][a][b]
+_RUN = tuple(tuple(tuple(sum(_DOT[d][dx] for d in range(a, b + 1)) for b in range(4)) for a in range(4))
+             for dx in range(2))
 _AXIS, _CURSOR = "grey62", "on grey23"
 
 
@@ -280,10 +283,10 @@ def render(traces: list[Trace], lo: float, hi: float, width: int, height: int, t
                 continue
             y_top = min(max(round((ax.hi - e[1]) * scale), 0), py - 1)
             y_bot = min(max(round((ax.hi - e[0]) * scale), 0), py - 1)
-            cx, dx = divmod(x, 2)
-            for y in range(y_top, y_bot + 1):
-                cy, dy = divmod(y, 4)
-                bits[cy][cx] |= _DOT[dy][dx]
+            cx, run = x >> 1, _RUN[x & 1]
+            c_top, c_bot = y_top >> 2, y_bot >> 2
+            for cy in range(c_top, c_bot + 1):  # a cell's dots of the span at once
+                bits[cy][cx] |= run[y_top & 3 if cy == c_top else 0][y_bot & 3 if cy == c_bot else 3]
                 owner[cy][cx] = i
             s = cell_spans[cx]
             cell_spans[cx] = (y_top // 4, y_bot // 4) if s is None else (min(s[0], y_top // 4), max(s[1], y_bot // 4))
