@@ -129,8 +129,8 @@ def test_change_log_lists_the_changes_and_enter_goes_to_one():
             await pilot.press("3")
             await highlight(pilot, key)
             log = app.query_one("#changelog", ChangeLog)
-            assert 3 <= len(log.positions) == len(truth) < app.store.registers[key].history.seen
-            assert [log.change(i)[1] for i in range(len(log.positions))] == [ix for _, ix, _, _ in truth]
+            assert 3 <= log.count() == len(truth) < app.store.registers[key].history.seen
+            assert [log.change(i)[1] for i in range(log.count())] == [ix for _, ix, _, _ in truth]
             first = "".join(s.text for s in log.render_line(0))
             assert f"#{truth[0][1]}" in first and "first → " in first
             line = "".join(s.text for s in log.render_line(1))
@@ -145,6 +145,12 @@ def test_change_log_lists_the_changes_and_enter_goes_to_one():
             await pilot.press("enter")
             await pilot.pause()
             assert app.tabs.active == "frames" and app.selected_frame.index == truth[1][1]
+            await pilot.press("3")  # the tab as it was left; a click selects a change, a second one goes to it
+            await pilot.click("#changelog", offset=(4, 2))
+            assert app.tabs.active == "registers" and log.cursor == 2
+            await pilot.click("#changelog", offset=(4, 2))
+            await pilot.pause()
+            assert app.tabs.active == "frames" and app.selected_frame.index == truth[2][1]
     run(go())
 
 

@@ -52,7 +52,7 @@ class RegisterWatch(Vertical):
         with Horizontal(id="regbottom"):
             with Vertical(id="logside"):
                 yield Static(HINT, id="log-label")
-                yield ChangeLog(self.store.t0_ns, id="changelog")
+                yield ChangeLog(self.store, id="changelog")
             yield PlotView(self.store, self._one, removable=False, id="regplot")
 
     def on_mount(self) -> None:
@@ -116,7 +116,7 @@ class RegisterWatch(Vertical):
             return
         rv = self.store.registers.get(self.chosen) if self.chosen else None
         log = logs.first(ChangeLog)
-        log.show(rv, self.store.t0_ns)
+        log.show(rv)
         if rv is None:
             text = HINT
         elif not rv.history.seen:
