@@ -117,16 +117,23 @@ class LiveLine:
         """The start of the next frame (None: the line has said everything)."""
         return self._next.t_ns if self._next is not None else None
 
-    def step(self, settings) -> list[tuple[int, bytes]]:
+    @property
+    def known_ns(self) -> int:
+        """The wire is known (sent, then idle) up to here: the reads up to it are worked out."""
+        return self._until
+
+    def step(self, settings, keep_from_ns: int | None = None) -> list[tuple[int, bytes]]:
         """Send the next frame; (bus time, bytes) of the reads a tty set to `settings`
-        (pty_settings.PortSettings) gets from it, up to the start of the frame after it."""
+        (pty_settings.PortSettings) gets from it, up to the start of the frame after it.  A caller that
+        steps ahead of time keeps the wire from `keep_from_ns` on, for a `retune` then."""
         f = self._next
         if f is None:
             return []
         if settings != self.settings or self._receiver is None:
             self.settings = settings
             self._receiver = Receiver(settings.line, start_ns=f.t_ns, resync=self.resync)
-        self.wire.forget(self._receiver.horizon_ns)
+        horizon = self._receiver.horizon_ns
+        self.wire.forget(horizon if keep_from_ns is None else min(horizon, keep_from_ns))
         self.wire.send(f.raw, f.byte_t_ns)
         self.frames_sent += 1
         self._next = next(self._frames, None)
@@ -134,8 +141,8 @@ class LiveLine:
         return self._reads()
 
     def retune(self, settings, t_ns: int) -> list[tuple[int, bytes]]:
-        """The UART set to `settings` at bus time t_ns: the reads it gets from then on, up to the next
-        frame's start (they replace those `step` gave for after t_ns)."""
+        """The UART set to `settings` at bus time t_ns: the reads it gets from then on, up to `known_ns`
+        (they replace those `step` gave for after t_ns)."""
         self.settings = settings
         self._receiver = Receiver(settings.line, start_ns=t_ns, resync=self.resync)
         return self._reads()

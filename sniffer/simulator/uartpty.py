@@ -23,6 +23,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections import deque
 
 from ..line import LineSettings
 from ..pty_settings import PortSettings, read_settings
@@ -32,6 +33,7 @@ from .received import LiveLine
 from .scenario import Scenario
 
 FOREVER_S = 10 * 365 * 86400.0
+AHEAD_NS = 20_000_000  # reads are worked out this long before they are due
 
 
 class PtyLine:
@@ -70,19 +72,30 @@ class PtyLine:
         stop = stop or threading.Event()
         line = LiveLine(simulate(self.scenario, self.line, self.duration_s, self.seed), self.line, self.resync)
         offset = time.monotonic_ns() - (line.next_t_ns or 0)  # wall clock = bus time + offset
-        while (t := line.next_t_ns) is not None:
-            if not self.bus.wait_until(offset + t, stop) or not self._read_settings():
-                return
-            reads = line.step(self.settings)
-            while reads:
-                due, data = reads.pop(0)
-                if not self.bus.wait_until(offset + due, stop) or not self._read_settings():
-                    return
-                if self.settings != line.settings:  # the sniffer set its end to something else meanwhile
-                    reads = line.retune(self.settings, time.monotonic_ns() - offset)
-                    continue
-                self._write(data)
+        reads: deque[tuple[int, bytes]] = deque()
+        if not self._read_settings():
+            return
+        while True:
+            # the reads are worked out AHEAD_NS before they are due (the model takes CPU time), and
+            # worked out again from now if the sniffer sets its end to something else meanwhile
+            now = time.monotonic_ns() - offset
+            while line.next_t_ns is not None and line.known_ns < now + AHEAD_NS:
+                reads.extend(line.step(self.settings, keep_from_ns=now))
             self.frames_sent = line.frames_sent
+            if not reads:
+                if line.next_t_ns is None:
+                    break
+                if not self.bus.wait_until(offset + line.next_t_ns - AHEAD_NS, stop):
+                    return
+                continue
+            due, data = reads[0]
+            if not self.bus.wait_until(offset + due, stop) or not self._read_settings():
+                return
+            if self.settings != line.settings:
+                reads = deque(line.retune(self.settings, time.monotonic_ns() - offset))
+                continue
+            reads.popleft()
+            self._write(data)
         self.bus.drain()
 
     def _read_settings(self) -> bool:
