@@ -35,6 +35,9 @@ MISFIT = frozenset(c.code for c in (
     codes.LENGTH_MISMATCH, codes.STRUCTURE_MISMATCH, codes.FUNCTION_UNKNOWN, codes.PD_LEN_MISMATCH,
     codes.PD_FUNCTION_UNKNOWN, codes.PAIR_MISMATCH, codes.ASCII_NO_CRLF, codes.PD_NO_CRLF,
 ))
+# a silence between reads is sure beyond t3.5 plus this (covers a USB adapter's 16 ms latency timer; the
+# framers' 50 ms for live capture also covers a host that wakes late, and would hold decisions back here)
+READ_SLACK_NS = 20_000_000
 MIN_TIMING_CHARS = 24  # characters timed inside frames before the timing counts
 TIMING_TOLERANCE = 0.05  # measured bits per character within 5 % of the format's: it fits exactly
 FIT_COVERAGE, FIT_ERRORS = 0.8, 0.01
@@ -47,7 +50,7 @@ class Reading:
 
     def __init__(self, protocol, rx: LineSettings, mask: int | None = None) -> None:
         self.name = protocol.name
-        self.framer = protocol.framer(rx)
+        self.framer = protocol.framer_class(rx, read_slack_ns=READ_SLACK_NS)
         self.pairer = Pairer()
         self.mask = mask
         self.pos = 0  # characters the framer has decided on
@@ -129,6 +132,7 @@ class Evidence:
     both_parities: bool  # bytes of even and of odd popcount seen (a wrong parity would have shown)
     units: list[UnitSeen] = field(default_factory=list)
     bursts: int = 0  # runs of reads between silences
+    pending: int = 0  # bytes the framers have not decided on yet (the most of any protocol)
     hint: str | None = None  # the format the bytes point to (for the search's order)
     found: bool = False  # some protocol frames these bytes (maybe at another format): the baud is right
 
@@ -189,6 +193,7 @@ class Evidence:
         ev = cls(w.rx, (t_ns - w.t0_ns) / 1e9, w.chars, w.skipped, w.errors, w.nul_errors, scores, bits, timed,
                  min(even, odd) >= 3, best.units.seen() if scores[0].fit_frames else [])
         ev.bursts = w.bursts
+        ev.pending = w.chars - min(r.pos for r in w.readings.values())
         hinted = [h for h in w.hints.values() if h.fit_frames >= 2 and h.coverage > 0.5]
         ev.found = scores[0].fit_frames >= 2 or bool(hinted)
         ev.hint = _hint(w, ev, bool(hinted))

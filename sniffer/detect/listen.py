@@ -19,6 +19,7 @@ import time
 from collections.abc import Callable
 
 from ..line import LineSettings
+from ..lowlatency import request_low_latency
 from ..sources import CaptureError
 from ..sources.serial_port import configure, is_pty, open_read_only
 from .evidence import Evidence
@@ -42,6 +43,7 @@ class SerialPort:
         if self.fd is None:
             self.fd, rdev, _ = open_read_only(self.path, rx, marks=True)
             self._pty = is_pty(rdev)
+            request_low_latency(self.fd, self.path)  # reads as soon as the bytes come: sharper timing
             return
         try:
             configure(self.fd, rx, pty=self._pty, marks=True)

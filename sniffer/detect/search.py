@@ -86,8 +86,9 @@ class Search:
         if ev.found:  # the rate is right: is the format?
             return ((unfit and ev.chars >= 60) or (ev.fits and ev.chars >= ENOUGH_CHARS)
                     or (ev.best is None and ev.chars >= 100 and ev.bursts >= 4))
-        garbage = ev.errors >= HOPELESS_ERRORS * ev.chars and (ev.bursts >= 3 or ev.chars >= 200)
-        return garbage or ev.bursts >= 5
+        garbage = (ev.best is None and ev.errors >= HOPELESS_ERRORS * ev.chars
+                   and (ev.bursts >= 3 or ev.chars >= 200))
+        return garbage or (ev.bursts >= 5 and ev.pending < 64)  # (the framers may still be deciding)
 
     def add(self, ev: Evidence) -> None:
         self.windows.append(ev)

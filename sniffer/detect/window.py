@@ -28,7 +28,7 @@ from .evidence import Evidence, Reading
 
 SILENCE_MIN_NS = 2_000_000  # a read this long after the previous one starts a new burst
 SETTLE_NS = 20_000_000  # bytes read this soon after the setting changed may have come at the old one
-START_ANYWAY_NS = 50_000_000  # a line that is never silent this long: start anyway
+START_ANYWAY_NS = 200_000_000  # a line that is never silent this long: start anyway
 
 
 class Window:
