@@ -39,6 +39,8 @@ MISFIT = frozenset(c.code for c in (
 # framers' 50 ms for live capture also covers a host that wakes late, and would hold decisions back here)
 READ_SLACK_NS = 20_000_000
 MIN_TIMING_CHARS = 24  # characters timed inside frames before the timing counts
+MIN_SPAN_NS = 3_000_000  # a frame's reads must span this long to time it (a read can come 0.1-0.3 ms late)
+MIN_TIMED_NS = 30_000_000  # and the frames timed this long in all
 TIMING_TOLERANCE = 0.05  # measured bits per character within 5 % of the format's: it fits exactly
 FIT_COVERAGE, FIT_ERRORS = 0.8, 0.01
 CERTAIN_MARGIN = 0.25  # the best protocol's share of bytes in pairs ahead of the next one's
@@ -128,7 +130,7 @@ class Evidence:
     nul_errors: int
     scores: list[Score]  # best first
     bits_per_char: float | None  # measured inside fitting frames (None: not enough)
-    timed_chars: int
+    timed_s: float  # how long the timed spans inside frames add up to
     both_parities: bool  # bytes of even and of odd popcount seen (a wrong parity would have shown)
     units: list[UnitSeen] = field(default_factory=list)
     bursts: int = 0  # runs of reads between silences
@@ -200,7 +202,7 @@ class Evidence:
         return ev
 
 
-def _timing(reads: list[tuple[int, int]], spans: list[tuple[int, int]], baud: int) -> tuple[float | None, int]:
+def _timing(reads: list[tuple[int, int]], spans: list[tuple[int, int]], baud: int) -> tuple[float | None, float]:
     """Bits per character from the reads that end inside a fitting frame, before its last character.
 
     A read returns a little after its last character came: at most a character later when more
@@ -212,12 +214,12 @@ def _timing(reads: list[tuple[int, int]], spans: list[tuple[int, int]], baud: in
     for a, b in spans:
         i = bisect_left(ends, a + 1)  # the first read ending inside the frame
         j = bisect_right(ends, b - 1) - 1  # the last one ending before its last character
-        if j > i:
+        if j > i and reads[j][0] - reads[i][0] >= MIN_SPAN_NS:
             chars += ends[j] - ends[i]
             dt += reads[j][0] - reads[i][0]
-    if chars < MIN_TIMING_CHARS:
-        return None, chars
-    return dt / chars * baud / 1e9, chars
+    if chars < MIN_TIMING_CHARS or dt < MIN_TIMED_NS:
+        return None, dt / 1e9
+    return dt / chars * baud / 1e9, dt / 1e9
 
 
 def _hint(w, ev: Evidence, seven_bit: bool) -> str | None:

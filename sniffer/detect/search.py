@@ -84,7 +84,8 @@ class Search:
             return False
         unfit = ev.errors > max(1, ev.chars * FIT_ERRORS) or ev.timing == "impossible"
         if ev.found:  # the rate is right: is the format?
-            return ((unfit and ev.chars >= 60) or (ev.fits and ev.chars >= ENOUGH_CHARS)
+            timing_coming = ev.fmt in TWINS and ev.timing == "?" and ev.timed_s > 0  # long frames: wait for it
+            return ((unfit and ev.chars >= 60) or (ev.fits and ev.chars >= ENOUGH_CHARS and not timing_coming)
                     or (ev.best is None and ev.chars >= 100 and ev.bursts >= 4))
         garbage = (ev.best is None and ev.errors >= HOPELESS_ERRORS * ev.chars
                    and (ev.bursts >= 3 or ev.chars >= 200))
@@ -140,7 +141,9 @@ class Search:
             return Verdict("fits", best, ws)
         if all(r.rx.baud == best.rx.baud and TWINS.get(best.fmt) == r.fmt and r.best.protocol == best.best.protocol
                for r in rivals):
-            return Verdict("stop bits", best, ws, rivals)
+            # a UART set to 1 stop bit reads both alike: that one, unless the timing said 2
+            pick = min(fitting, key=lambda w: (w.timing != "exact", w.rx.stopbits))
+            return Verdict("stop bits", pick, ws, [w for w in fitting if w is not pick])
         return Verdict("several", best, ws, rivals)
 
 
