@@ -21,13 +21,14 @@ from __future__ import annotations
 
 from bisect import bisect_left, bisect_right
 from dataclasses import dataclass, field
+from statistics import median
 
 from .. import codes
 from ..events import Chunk
 from ..frame import REQUEST, RESPONSE
 from ..line import LineSettings
 from ..pairer import Pairer
-from .candidates import TWINS, fmt_of
+from .candidates import TWINS, fmt_of, setting
 from .units import UnitPolls, UnitSeen
 
 # a good CRC/LRC on a frame whose shape these codes question is no evidence for the protocol
@@ -38,10 +39,10 @@ MISFIT = frozenset(c.code for c in (
 # a silence between reads is sure beyond t3.5 plus this (covers a USB adapter's 16 ms latency timer; the
 # framers' 50 ms for live capture also covers a host that wakes late, and would hold decisions back here)
 READ_SLACK_NS = 20_000_000
-MIN_TIMING_CHARS = 24  # characters timed inside frames before the timing counts
 MIN_SPAN_NS = 3_000_000  # a frame's reads must span this long to time it (a read can come 0.1-0.3 ms late)
-MIN_TIMED_NS = 30_000_000  # and the frames timed this long in all
-TIMING_TOLERANCE = 0.05  # measured bits per character within 5 % of the format's: it fits exactly
+MIN_TIMED_FRAMES, MIN_TIMED_NS = 6, 40_000_000  # and this many frames timed, this long in all
+TIMING_TOLERANCE = 0.07  # measured bits per character within 7 % of the format's: it fits exactly
+TWIN_MARGIN = 0.2  # ... and for 8N1 / 8N2, nearer its own by this many bits than the other's
 FIT_COVERAGE, FIT_ERRORS = 0.8, 0.01
 CERTAIN_MARGIN = 0.25  # the best protocol's share of bytes in pairs ahead of the next one's
 CERTAIN_CHARS = 48  # the best protocol's coverage ahead of the next one's
@@ -156,6 +157,13 @@ class Evidence:
             return "impossible"
         return "exact" if self.bits_per_char <= bits * (1 + TIMING_TOLERANCE) else "slower"
 
+    def timing_tells_twins(self) -> bool:
+        """Does the characters' spacing say 8N1 rather than 8N2 (or the other way) for this format?"""
+        if self.timing != "exact":
+            return False
+        own, twin = self.rx.bits_per_char, setting(self.rx.baud, TWINS[self.fmt]).bits_per_char
+        return abs(self.bits_per_char - own) + TWIN_MARGIN < abs(self.bits_per_char - twin)
+
     @property
     def fits(self) -> bool:
         b = self.best
@@ -178,7 +186,7 @@ class Evidence:
             out.append("too few bytes of each parity to rule out the other parity settings")
         if b is not None and len(self.scores) > 1 and self.scores[1].paired > b.paired - CERTAIN_MARGIN:
             out.append(f"{self.scores[1].protocol} fits nearly as well as {b.protocol}")
-        if self.fmt in TWINS and self.timing != "exact":
+        if self.fmt in TWINS and not self.timing_tells_twins():
             out.append(f"{self.fmt} and {TWINS[self.fmt]} receive alike and the timing does not tell them apart "
                        f"({'not measurable' if self.timing == '?' else self.timing})")
         return out
@@ -207,19 +215,28 @@ def _timing(reads: list[tuple[int, int]], spans: list[tuple[int, int]], baud: in
 
     A read returns a little after its last character came: at most a character later when more
     characters follow (the adapter sends what it has), up to its latency timer after the frame's
-    last one.  Reads ending before the last character are late alike, and their differences exact.
+    last one.  Reads ending before the last character are late alike, and their differences exact
+    but for that lateness, which beats with the adapter's packet period (a frame's estimate can be
+    10 % off either way): the time over the characters of all frames averages it out.  A frame whose
+    read the host took late is left out (its estimate a third off the median).
     """
     ends = [n for _, n in reads]
-    chars = dt = 0
+    per_frame = []  # (bits per character, characters, time spanned)
     for a, b in spans:
         i = bisect_left(ends, a + 1)  # the first read ending inside the frame
         j = bisect_right(ends, b - 1) - 1  # the last one ending before its last character
-        if j > i and reads[j][0] - reads[i][0] >= MIN_SPAN_NS:
-            chars += ends[j] - ends[i]
-            dt += reads[j][0] - reads[i][0]
-    if chars < MIN_TIMING_CHARS or dt < MIN_TIMED_NS:
-        return None, dt / 1e9
-    return dt / chars * baud / 1e9, dt / 1e9
+        dt = reads[j][0] - reads[i][0] if j > i else 0
+        if dt >= MIN_SPAN_NS:
+            chars = ends[j] - ends[i]
+            per_frame.append((dt / chars * baud / 1e9, chars, dt))
+    if len(per_frame) < MIN_TIMED_FRAMES:
+        return None, sum(dt for *_, dt in per_frame) / 1e9
+    mid = median(bits for bits, *_ in per_frame)
+    kept = [(chars, dt) for bits, chars, dt in per_frame if 0.75 * mid <= bits <= 1.33 * mid]
+    timed = sum(dt for _, dt in kept)
+    if len(kept) < MIN_TIMED_FRAMES or timed < MIN_TIMED_NS:
+        return None, timed / 1e9
+    return timed / sum(chars for chars, _ in kept) * baud / 1e9, timed / 1e9
 
 
 def _hint(w, ev: Evidence, seven_bit: bool) -> str | None:

@@ -33,10 +33,11 @@ from ..line import LineSettings
 from .candidates import FORMATS_7, FORMATS_8, TWINS, fmt_of, setting
 from .evidence import FIT_ERRORS, Evidence
 
-MIN_WINDOW_S = 0.25
+MIN_WINDOW_S = 0.2
 MAX_WINDOW_S = 1.5
 MAX_FORMAT_WINDOW_S = 3.0  # at a rate the bytes frame at: a slow line gets longer to show its frames
 ENOUGH_CHARS = 400  # a fitting listen that heard this much is not going to change its mind
+MIN_FRAME = 4  # no protocol's frame is shorter
 HOPELESS_ERRORS = 0.3  # UART errors on this share of the bytes, and nothing framed: not this setting
 
 
@@ -87,9 +88,11 @@ class Search:
             timing_coming = ev.fmt in TWINS and ev.timing == "?" and ev.timed_s > 0  # long frames: wait for it
             return ((unfit and ev.chars >= 60) or (ev.fits and ev.chars >= ENOUGH_CHARS and not timing_coming)
                     or (ev.best is None and ev.chars >= 100 and ev.bursts >= 4))
-        garbage = (ev.best is None and ev.errors >= HOPELESS_ERRORS * ev.chars
-                   and (ev.bursts >= 3 or ev.chars >= 200))
-        return garbage or (ev.bursts >= 5 and ev.pending < 64)  # (the framers may still be deciding)
+        nothing = ev.best is None
+        garbage = nothing and ev.errors >= HOPELESS_ERRORS * ev.chars and (
+            (ev.bursts >= 3 and ev.chars >= 16) or ev.chars >= 200)
+        too_few = nothing and ev.bursts >= 2 and ev.chars < MIN_FRAME * ev.bursts  # a receiver slower than the line
+        return garbage or too_few or (ev.bursts >= 5 and ev.pending <= ev.chars // 4)  # (unless still deciding)
 
     def add(self, ev: Evidence) -> None:
         self.windows.append(ev)
@@ -142,7 +145,7 @@ class Search:
         if all(r.rx.baud == best.rx.baud and TWINS.get(best.fmt) == r.fmt and r.best.protocol == best.best.protocol
                for r in rivals):
             # a UART set to 1 stop bit reads both alike: that one, unless the timing said 2
-            pick = min(fitting, key=lambda w: (w.timing != "exact", w.rx.stopbits))
+            pick = min(fitting, key=lambda w: (not w.timing_tells_twins(), w.rx.stopbits))
             return Verdict("stop bits", pick, ws, [w for w in fitting if w is not pick])
         return Verdict("several", best, ws, rivals)
 

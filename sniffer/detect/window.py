@@ -26,7 +26,8 @@ from ..parmrk import NUL_ERROR, MarkReader
 from ..protocols import PROTOCOLS
 from .evidence import Evidence, Reading
 
-SILENCE_MIN_NS = 2_000_000  # a read this long after the previous one starts a new burst
+SILENCE_MIN_NS = 2_000_000  # a read this long after the previous one ends the bytes dropped at the start
+BURST_GAP_NS = 10_000_000  # bursts are counted at gaps this long (a host can take a read 5 ms late)
 SETTLE_NS = 20_000_000  # bytes read this soon after the setting changed may have come at the old one
 START_ANYWAY_NS = 200_000_000  # a line that is never silent this long: start anyway
 
@@ -37,6 +38,7 @@ class Window:
         self.t0_ns = t0_ns
         self.t_last_ns = t0_ns  # the last read, or the start
         self.gap_ns = max(SILENCE_MIN_NS, rx.t35_ns)
+        self.burst_gap_ns = max(BURST_GAP_NS, rx.t35_ns)
         self.started = False
         self.skipped = 0  # bytes before the first silence
         self.bursts = 0  # runs of reads between silences
@@ -61,7 +63,7 @@ class Window:
                 self.t_last_ns = t_ns
                 return
             self.started = True
-        if t_ns - self.t_last_ns >= self.gap_ns:
+        if t_ns - self.t_last_ns >= self.burst_gap_ns or not self.bursts:
             self.bursts += 1
         self.t_last_ns = t_ns
         if not data:

@@ -75,12 +75,14 @@ class PtyLine:
         reads: deque[tuple[int, bytes]] = deque()
         if not self._read_settings():
             return
+        checked = 0  # bus time the settings were last seen unchanged
         while True:
             # the reads are worked out AHEAD_NS before they are due (the model takes CPU time), and
-            # worked out again from now if the sniffer sets its end to something else meanwhile
+            # worked out again if the sniffer sets its end to something else meanwhile: from the last
+            # time the old settings were seen (it changed them somewhere since)
             now = time.monotonic_ns() - offset
             while line.next_t_ns is not None and line.known_ns < now + AHEAD_NS:
-                reads.extend(line.step(self.settings, keep_from_ns=now))
+                reads.extend(line.step(self.settings, keep_from_ns=checked))
             self.frames_sent = line.frames_sent
             if not reads:
                 if line.next_t_ns is None:
@@ -92,8 +94,9 @@ class PtyLine:
             if not self.bus.wait_until(offset + due, stop) or not self._read_settings():
                 return
             if self.settings != line.settings:
-                reads = deque(line.retune(self.settings, time.monotonic_ns() - offset))
+                reads = deque(line.retune(self.settings, checked))
                 continue
+            checked = due
             reads.popleft()
             self._write(data)
         self.bus.drain()
