@@ -15,7 +15,7 @@ import sys
 from ..detect.candidates import baud_order, parse_bauds, setting
 from ..detect.evidence import Evidence
 from ..detect.listen import SerialPort, listen
-from ..detect.report import bus_file, headline, table, units
+from ..detect.report import bus_file, headline, table, units, verdict_word
 from ..detect.search import Search
 from ..outputs import Output
 from ..settings import CaptureSpec
@@ -63,6 +63,6 @@ def cmd_detect(spec: CaptureSpec, args) -> int:
 
 def _progress(ev: Evidence) -> None:
     b = ev.best
-    frames = f"{b.fit_frames} {b.protocol} frames fit, {b.pairs} pairs" if b else "nothing frames"
-    state = "certain" if ev.certain else "fits" if ev.fits else "no"
-    say(f"{ev.rx.baud} {ev.fmt}: {ev.chars} bytes, {ev.errors} UART errors, {frames} ({ev.seconds:.1f} s): {state}")
+    frames = f", {b.fit_frames} {b.protocol} frames fit, {b.pairs} pairs" if b else ""
+    say(f"{ev.rx.baud} {ev.fmt} ({ev.seconds:.1f} s): {ev.chars} bytes, {ev.errors} UART errors{frames}: "
+        f"{verdict_word(ev)}")

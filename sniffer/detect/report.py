@@ -53,11 +53,18 @@ def table(v: Verdict) -> list[str]:
 def _row(w: Evidence) -> tuple[str, ...]:
     b = w.best
     bits = f"{w.bits_per_char:.1f} bits {w.timing}" if w.bits_per_char is not None else "-"
-    verdict = "certain" if w.certain else "fits" if w.fits else "no frames" if b is None else \
-        "UART errors" if w.errors else "too fast" if w.timing == "impossible" else "does not fit"
     return (_setting(w), b.protocol if b else "-", f"{w.seconds:.2f} s", str(w.chars), _errors(w),
             f"{b.fit_frames}/{b.frames}" if b else "0", str(b.pairs) if b else "0",
-            f"{b.paired:.0%}" if b else "-", bits, verdict)
+            f"{b.paired:.0%}" if b else "-", bits, verdict_word(w))
+
+
+def verdict_word(w: Evidence) -> str:
+    """A listen's verdict on its own setting, in a word or two."""
+    if w.certain or w.fits:
+        return "certain" if w.certain else "fits"
+    if w.best is None:
+        return "no frames"
+    return "UART errors" if w.errors else "too fast" if w.timing == "impossible" else "does not fit"
 
 
 def _setting(w: Evidence) -> str:
