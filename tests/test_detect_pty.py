@@ -142,3 +142,11 @@ def test_simulate_pty_serves_detect_and_live_until_stopped(tmp_path):
     assert sim.returncode == 0, err
     assert "0 bytes came from the other end" in err
     assert not os.path.lexists(link)  # the link went with the line
+
+
+def test_help_says_what_it_tries_and_the_exit_status():
+    r = run_sniffer("detect", "--help")
+    assert r.returncode == 0
+    for words in ("read-only", "921600", "8N2", "7E1", "PD-series", "exit status", "--write-bus", "--bauds",
+                  "--units-time", "sniffer live /dev/ttyUSB0 --bus line.toml"):
+        assert words in r.stdout

@@ -107,3 +107,30 @@ def test_pty_line_delivers_what_a_uart_at_the_sniffers_settings_receives(tmp_pat
     assert data[20:-20] in sent  # (the first and last bytes may belong to frames cut by the start or end)
     data, marks = MarkReader().feed(odd)
     assert len(marks) >= 0.9 * len(data) > 100  # the wrong parity: (nearly) every byte a parity error
+
+
+def test_simulate_receiver_settings_record_what_that_uart_received(tmp_path):
+    from sniffer.cli import main
+    from sniffer.sources.mcapsrc import open_mcap, read_frames
+
+    out = tmp_path / "odd.mcap"
+    assert main(["simulate", "--out", str(out), "--duration", "1", "--adapter", "wire",
+                 "--receiver-parity", "O"]) == 0
+    info, _ = open_mcap(str(out))
+    assert (info.baud, info.parity) == (19200, "O") and info.extra["simulated_line"] == "19200 8E1"
+    records = read_frames(str(out))
+    assert records and all(r["crc_ok"] for r in records if r["protocol"] != "noise")  # data bits right...
+    assert all(any(a["code"] == "uart.parity_error" for a in r["annotations"]) for r in records)  # ...all flagged
+    csv = tmp_path / "slow.csv"
+    assert main(["simulate", "--out", str(csv), "--duration", "1", "--receiver-baud", "9600"]) == 0
+    assert main(["replay", str(csv), "--baud", "9600", "--parity", "E", "--format", "jsonl"]) == 0
+
+
+def test_simulate_pty_refuses_a_path_that_is_not_its_link(tmp_path, capsys):
+    from sniffer.cli import main
+
+    taken = tmp_path / "taken"
+    taken.write_text("x")
+    assert main(["simulate", "--pty", str(taken)]) == 2
+    assert "exists; give a free path" in capsys.readouterr().err
+    assert taken.read_text() == "x"
