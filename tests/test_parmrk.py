@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import select
 import time
+from contextlib import contextmanager
 
 import pytest
 
@@ -37,6 +38,16 @@ def test_mark_reader_unmarks_and_keeps_state_across_reads():
         assert (a + b, ma + [(o + len(a), k) for o, k in mb]) == want
 
 
+@contextmanager
+def opened(path: str, line: LineSettings, marks: bool = True):
+    """(fd, what the driver ignored) of the port opened as detect opens it; closed after."""
+    fd, _, ignored = open_read_only(path, line, marks=marks)
+    try:
+        yield fd, ignored
+    finally:
+        os.close(fd)
+
+
 @pytest.fixture
 def pty():
     master, slave = os.openpty()
@@ -50,44 +61,40 @@ def pty():
 @pytest.mark.parametrize("marks", [True, False])
 def test_a_pty_line_reads_back_the_settings_the_sniffer_set(pty, line, marks):
     master, path = pty
-    fd, _, ignored = open_read_only(path, line, marks=marks)
-    try:
+    with opened(path, line, marks) as (_, ignored):
         # the pty itself keeps no parity and always 8 bits: the note carries them
         assert ("char_format" in ignored) == (line.parity != "N" or line.databits == 7)
         got = read_settings(master)
-        assert got.line == line
-        assert got.flags == InputFlags(parmrk=marks, inpck=marks)
-    finally:
-        os.close(fd)
+    assert got.line == line
+    assert got.flags == InputFlags(parmrk=marks, inpck=marks)
+
+
+def _read(fd, n: int) -> bytes:
+    got = b""
+    deadline = time.monotonic() + 5
+    while len(got) < n and time.monotonic() < deadline:
+        if select.select([fd], [], [], 0.1)[0]:
+            got += os.read(fd, 100)
+    return got
 
 
 def test_marks_written_to_the_pty_arrive_unchanged(pty):
     master, path = pty
-    fd, _, _ = open_read_only(path, LineSettings(19200, "E", 1), marks=True)
-    try:
+    with opened(path, LineSettings(19200, "E", 1)) as (fd, _):
         raw = tty_bytes(CHARS, read_settings(master).flags)
         os.write(master, raw)
-        got = b""
-        deadline = time.monotonic() + 5
-        while len(got) < len(raw) and time.monotonic() < deadline:
-            if select.select([fd], [], [], 0.1)[0]:
-                got += os.read(fd, 100)
-        assert got == raw  # PARMRK is off on the pty itself: its line discipline doubles no 0xFF
-        assert MarkReader().feed(got)[1] == [(2, ERROR), (3, NUL_ERROR), (4, ERROR)]
-    finally:
-        os.close(fd)
+        got = _read(fd, len(raw))
+    assert got == raw  # PARMRK is off on the pty itself: its line discipline doubles no 0xFF
+    assert MarkReader().feed(got)[1] == [(2, ERROR), (3, NUL_ERROR), (4, ERROR)]
 
 
 def test_reconfigure_keeps_the_port_read_only(pty):
     master, path = pty
-    fd, _, _ = open_read_only(path, LineSettings(9600, "N", 1), marks=True)
-    try:
+    with opened(path, LineSettings(9600, "N", 1)) as (fd, _):
         configure(fd, LineSettings(38400, "O", 1), pty=True, marks=True)
         assert read_settings(master).line == LineSettings(38400, "O", 1)
         with pytest.raises(OSError):
             os.write(fd, b"x")  # O_RDONLY: EBADF
-    finally:
-        os.close(fd)
 
 
 def test_not_a_tty_is_one_line(tmp_path):
