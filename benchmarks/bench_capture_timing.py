@@ -48,8 +48,8 @@ sc = get_scenario(sys.argv[1])
 frames = list(simulate(sc, sc.line, float(sys.argv[2]), 3))
 times = []
 class Timed(PtyBus):
-    def _write_all(self, data, stop_event):
-        ok = super()._write_all(data, stop_event)
+    def write_all(self, data, stop_event):
+        ok = super().write_all(data, stop_event)
         times.append(time.monotonic_ns())
         return ok
 with Timed() as bus:

@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/bench_tui.py [--sections terminal,inprocess] [--keys 80] [--repeat 1]
                                              [--before DIR] [--rates 1000,2000,5000,10000,20000]
                                              [--seconds 3] [--million] [--quick]
+    .venv/bin/python benchmarks/bench_tui.py --browser [--presses 50]
 
 Section "terminal" (the headline figures; benchmarks/tui_terminal.py, which runs alone too): the real
 commands on a pty, the screen kept by pyte, keys typed and timed until the screen shows their effect,
@@ -18,7 +19,14 @@ in 10 ms batches, as the capture thread would; the App runs headless under `run_
 time one poll tick or intake turn takes (the UI thread's longest stretches), and the latency of key
 presses (Pilot press -> handled) while frames keep arriving: it leaves out drawing and the terminal.
 `--million` also loads 1,000,000 frames into a FrameStore and times filters, next-error and
-drawing rows in the middle.  Figures are printed, nothing is asserted.
+drawing rows in the middle.
+
+`--browser` measures the browser view instead: `sniffer serve --demo --scenario stress` (capture,
+web server and one viewer per tab, each a process) with headless Chromium on its page
+(tests/headless_chromium.py, Debian's chromium).  It presses 2 and 1 in turn (Units tab, Frames tab)
+and times, in the page, from the key's keydown to the first write to the page's terminal after
+which the new tab's header is on screen; it prints median, p99 and max over the presses, and the
+CPU share of the viewer, the capture and Chromium meanwhile.  Figures are printed, nothing is asserted.
 """
 
 from __future__ import annotations
@@ -29,8 +37,10 @@ import copy
 import gc
 import os
 import resource
+import signal
 import statistics
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -192,6 +202,66 @@ def million(n: int) -> None:
     asyncio.run(draw())
 
 
+def cpu_seconds(pids: list[int]) -> float:
+    """User + system CPU time the processes have used so far."""
+    total = 0
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                fields = f.read().rpartition(")")[2].split()
+        except OSError:
+            continue
+        total += int(fields[11]) + int(fields[12])  # utime, stime (clock ticks)
+    return total / os.sysconf("SC_CLK_TCK")
+
+
+async def browser_presses(port: int, sock: str, profile: str, presses: int) -> dict:
+    from headless_chromium import Chromium
+    from serve_helpers import processes_in_session, processes_with
+
+    async with await Chromium.launch(profile) as browser:
+        await browser.open(f"http://127.0.0.1:{port}/")
+        await browser.wait_for(lambda s: "->REQ" in s, "frames in the frame list")
+        tabs = [("2", "lat med"), ("1", "frame→pair")]  # the Units tab's header, the Frames tab's
+        for key, marker in tabs:  # warm up: both tabs drawn once
+            await browser.key_to_text(key, marker)
+        who = {"viewer": processes_with(f"attach {sock} --tui"), "capture": processes_with(f"--publish {sock}"),
+               "chromium": processes_in_session(browser.proc.pid) + processes_with(profile)}
+        cpu0, t0 = {k: cpu_seconds(v) for k, v in who.items()}, time.perf_counter()
+        lat = []
+        for i in range(presses):
+            await asyncio.sleep(0.2)
+            lat.append(await browser.key_to_text(*tabs[i % 2]))
+        elapsed = time.perf_counter() - t0
+        cpu = {k: (cpu_seconds(v) - cpu0[k]) / elapsed for k, v in who.items()}
+        screen = await browser.screen()
+    rate = [line for line in screen.splitlines() if " fr/s " in line]
+    return {"lat": lat, "cpu": cpu, "status": rate[0].strip() if rate else "?"}
+
+
+def browser(presses: int) -> None:
+    from serve_helpers import start_serve
+
+    print(f"python {sys.version.split()[0]}, {os.cpu_count()} CPUs; browser view: sniffer serve --demo --scenario "
+          f"stress, headless Chromium 1400x900, {presses} presses of 2 / 1 (Units / Frames), 0.2 s apart")
+    with tempfile.TemporaryDirectory() as tmp:
+        sock = f"{tmp}/bench.sock"
+        proc, port = start_serve(Path(tmp), "--demo", "--scenario", "stress", "--no-out", "--socket", sock,
+                                 log=Path(tmp) / "serve.log")
+        try:
+            r = asyncio.run(browser_presses(port, sock, f"{tmp}/chromium", presses))
+        finally:
+            proc.send_signal(signal.SIGINT)
+            proc.wait(60)
+    for what, lat in (("both", r["lat"]), ("2 Units", r["lat"][0::2]), ("1 Frames", r["lat"][1::2])):
+        lat = sorted(lat)
+        p99 = statistics.quantiles(lat, n=100, method="inclusive")[98]
+        print(f"  key -> screen text (in the page), {what:8s}: median {statistics.median(lat):4.0f} ms, "
+              f"p99 {p99:4.0f} ms, min {lat[0]:4.0f} ms, max {lat[-1]:4.0f} ms")
+    print("  CPU, share of one core: " + ", ".join(f"{k} {100 * v:.0f} %" for k, v in r["cpu"].items()))
+    print(f"  status bar at the end: {r['status']}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sections", default="terminal,inprocess", help="terminal (headline), inprocess")
@@ -202,7 +272,12 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--million", action="store_true")
     ap.add_argument("--quick", action="store_true", help="2 rates, 2 s each, 200k-frame store")
+    ap.add_argument("--browser", action="store_true", help="the browser view's key latency instead (Chromium)")
+    ap.add_argument("--presses", type=int, default=50, help="with --browser: key presses timed (default 50)")
     a = ap.parse_args()
+    if a.browser:
+        browser(a.presses)
+        return
     sections = a.sections.split(",")
     if "terminal" in sections:
         print("== key-to-screen latency and CPU on a terminal (benchmarks/tui_terminal.py)")

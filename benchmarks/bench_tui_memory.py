@@ -1,6 +1,7 @@
 """Memory and speed of the TUI's frame store over a million-frame replay, against keeping every Frame.
 
     .venv/bin/python benchmarks/bench_tui_memory.py [--frames N] [--old-frames M] [--quick]
+    BENCH_MIX=stress .venv/bin/python benchmarks/bench_tui_memory.py --frames 200000 --skip-old
 
 1. Generate (not timed) the capture bench_pipeline.py uses: its drive-poll mix with errors at
    115200 8N1, seen through the FTDI read model, at least N frames (default 1,000,000).
@@ -15,6 +16,11 @@
      what the store held before (frames as objects); run with M frames (default N).
    Each prints: the process's peak RSS, its RSS before the first frame (imports, registry),
    bytes per frame = (peak - before) / frames, and rates.
+3. The register history (sniffer/tui/history.py) of the app and store runs: samples seen and kept,
+   registers thinned, the bytes of its arrays and objects; the time to draw the plot of the 8
+   registers with the most samples over the whole capture and over its last tenth (plotmodel.render,
+   200 x 40 cells), and to list the busiest register's changes.  BENCH_MIX=stress makes the capture
+   bench_pipeline's stress mix (125-register reads: hundreds of registers).
 Figures are printed, nothing is asserted.
 """
 
@@ -51,6 +57,32 @@ def _current_rss_mib() -> float:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
+def _history(store) -> dict:
+    """The register history's size, and what drawing the plot and listing changes cost on it."""
+    from sniffer.tui.plotmodel import PALETTE, Trace, render
+
+    hs = [rv.history for rv in store.registers.values()]
+    out = {"registers": len(hs), "seen": sum(h.seen for h in hs), "kept": sum(len(h) for h in hs),
+           "thinned": sum(1 for h in hs if h.thins), "most_kept": max((len(h) for h in hs), default=0),
+           "array_bytes": sum(sys.getsizeof(a) for h in hs for a in (h.t, h.v, h.ix, h.fl)),
+           "object_bytes": sum(sys.getsizeof(h) for h in hs)}
+    busiest = sorted(store.registers.values(), key=lambda rv: -rv.history.seen)[:len(PALETTE)]
+    traces = [Trace((rv.unit, rv.table, rv.address), rv.name, rv.eng_unit or "", c, rv.history)
+              for rv, c in zip(busiest, PALETTE)]
+    lo, hi = store.t0_ns, store.last_t_ns
+    for label, (a, b) in (("plot, whole capture", (lo, hi)), ("plot, last tenth", (hi - (hi - lo) / 10, hi))):
+        times = []
+        for _ in range(5):
+            t = time.perf_counter()
+            render(traces, a, b, 200, 40, lo, cursor_ns=(a + b) / 2)
+            times.append(time.perf_counter() - t)
+        out[label] = sorted(times)[2]
+    t = time.perf_counter()
+    n = len(busiest[0].history.change_positions()) if busiest else 0
+    out["change log of the busiest"] = (time.perf_counter() - t, n)
+    return out
+
+
 def _filters(store) -> dict:
     """Seconds per filter rebuild over the whole store, and the rows each leaves."""
     out = {}
@@ -61,6 +93,8 @@ def _filters(store) -> dict:
                       ("text hex '0110200'", {"text": "0110200"}),
                       ("text 'holding[8449]'", {"text": "holding[8449]"}),
                       ("unit 3 + text 'crc'", {"units": frozenset({3}), "text": "crc"}),
+                      ("reg:8449 lat>5ms", {"units": None, "text": "reg:8449 lat>5ms"}),
+                      ("value holding[8449] >= 3000", {"text": "holding[8449] >= 3000"}),
                       ("clear", {"units": None, "text": ""})):
         t = time.perf_counter()
         store.update_filter(**kw)
@@ -127,6 +161,7 @@ def child_store(folder: Path, keep_frames: bool, limit_frames: int | None) -> di
            "wall": wall, "add_s": t_add, "packed_bytes": store.blocks.packed_bytes,
            "registers": len(store.registers), "units": len(store.units)}
     if not keep_frames:
+        res["history"] = _history(store)
         res["filters"] = _filters(store)
     return res
 
@@ -160,6 +195,7 @@ def child_app(folder: Path) -> dict:
             res["frames"] = len(app.store)
             res["registers"] = len(app.store.registers)
             res["packed_bytes"] = app.store.blocks.packed_bytes
+            res["history"] = _history(app.store)
             res["filters"] = _filters(app.store)
             await pilot.press("q")
 
@@ -195,6 +231,7 @@ def main() -> None:
     ap.add_argument("--old-frames", type=int, default=None, help="frames for the old-approach run (default --frames)")
     ap.add_argument("--quick", action="store_true", help="100,000 frames")
     ap.add_argument("--skip-app", action="store_true")
+    ap.add_argument("--skip-old", action="store_true")
     ap.add_argument("--child")
     ap.add_argument("--folder")
     ap.add_argument("--limit", type=int)
@@ -216,7 +253,7 @@ def main() -> None:
         print(f"capture: {meta['scenario']} {meta['line']}, {meta['truth_frames']:,} wire frames, "
               f"{meta['bytes'] / 1e6:.1f} MB in {meta['chunks']:,} reads (generated in {meta['gen_s']} s, not timed)")
         results = {}
-        for kind in (() if a.skip_app else ("app",)) + ("store", "old"):
+        for kind in (() if a.skip_app else ("app",)) + ("store",) + (() if a.skip_old else ("old",)):
             results[kind] = run_child(kind, folder, old_n if kind == "old" else None)
             print(f"  {kind}: done", flush=True)
     print(f"\n{'run':<34} {'frames':>10} {'peak MiB':>9} {'start MiB':>9} {'B/frame':>9} {'wall':>8}")
@@ -232,11 +269,22 @@ def main() -> None:
         r = results["app"]
         print(f"target: whole process under {TARGET_MB} MB for the replay: "
               f"{'ok' if r['rss_peak'] < TARGET_MB else 'ABOVE'} ({r['rss_peak']:.0f} MiB peak)")
-    old, new = results["old"], results["store"]
-    per_old = (old["rss_peak"] - old["rss_before"]) * 2**20 / old["frames"]
-    per_new = (new["rss_peak"] - new["rss_before"]) * 2**20 / new["frames"]
-    print(f"old / new bytes per frame: {per_old / per_new:.1f}x; old extrapolated to {n:,} frames: "
-          f"{old['rss_before'] + per_old * n / 2**20:,.0f} MiB")
+    if "old" in results:
+        old, new = results["old"], results["store"]
+        per_old = (old["rss_peak"] - old["rss_before"]) * 2**20 / old["frames"]
+        per_new = (new["rss_peak"] - new["rss_before"]) * 2**20 / new["frames"]
+        print(f"old / new bytes per frame: {per_old / per_new:.1f}x; old extrapolated to {n:,} frames: "
+              f"{old['rss_before'] + per_old * n / 2**20:,.0f} MiB")
+    for kind in ("app", "store"):
+        if kind in results:
+            h = results[kind]["history"]
+            print(f"\nregister history of the {kind} run: {h['registers']:,} registers, {h['seen']:,} samples seen, "
+                  f"{h['kept']:,} kept ({h['thinned']:,} registers thinned, at most {h['most_kept']:,} a register): "
+                  f"arrays {h['array_bytes'] / 2**20:.1f} MiB + objects {h['object_bytes'] / 2**20:.2f} MiB")
+            for label in ("plot, whole capture", "plot, last tenth"):
+                print(f"  {label + ' (8 registers, 200x40)':<44} {h[label] * 1e3:8.1f} ms")
+            dt, changes = h["change log of the busiest"]
+            print(f"  {'change log of the busiest register':<44} {dt * 1e3:8.1f} ms  -> {changes:,} changes")
     for kind in ("app", "store"):
         if kind in results:
             print(f"\nfilters on the {kind} run's store ({results[kind]['frames']:,} frames):")

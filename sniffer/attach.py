@@ -15,7 +15,7 @@ import time
 from collections.abc import Iterator
 
 from .events import CaptureInfo
-from .stream_format import CONTROL_PREFIX, STREAM_VERSION, Address, parse_address
+from .stream_format import CONTROL_PREFIX, STREAM_VERSION, Address, parse_address, parse_reads
 from .records import loads
 from .sources import CaptureError
 
@@ -152,6 +152,8 @@ def attach_feed(att: Attachment):
                 for line in lines:
                     if line.startswith(CONTROL_PREFIX):
                         msg = att.control(line)
+                        if msg.get("sniffer") == "reads":  # the byte view's reads, marked by the capture
+                            sink.reads(parse_reads(msg, t0))
                         if "bytes_in" in msg:
                             sink.bytes_in = msg["bytes_in"]
                         sink.skipped_frames = att.skipped

@@ -4,6 +4,7 @@
     baud = 19200        # integer, 50..4000000
     parity = "E"        # N, E or O
     stopbits = 1        # 1 or 2
+    databits = 8        # 8 or 7 (optional; Modbus ASCII lines often run 7E1)
     protocol = "modbus-rtu"   # one of sniffer.protocols.NAMES (optional)
 
     [units]          # unit (0..255) = model id
@@ -17,7 +18,8 @@
                            # rules unit 0 (broadcast) frames; same as [units] 0 = "tds-v8".
                            # Without it a broadcast takes the model all units share, if one.
 
-Every field is checked before use; a bad one is BusFileError("<path>: <what>"),
+`format_bus_file` writes one (`sniffer detect --write-bus`), `load_bus_file`
+reads it.  Every field is checked before use; a bad one is BusFileError("<path>: <what>"),
 one line.  Unknown tables and keys are errors too, naming what was found: a
 typo such as `[unit]` or `buad = 9600` would otherwise be silently ignored
 and the capture decoded with the wrong settings.
@@ -33,7 +35,7 @@ from .tomlfile import read_toml
 BAUD_RANGE = (50, 4_000_000)
 TABLES = ("serial", "units", "timeouts_ms")
 TOP_KEYS = ("broadcast",)
-SERIAL_KEYS = ("baud", "parity", "stopbits", "protocol")
+SERIAL_KEYS = ("baud", "parity", "stopbits", "databits", "protocol")
 MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo
 
 
@@ -47,6 +49,7 @@ class BusFile:
     parity: str | None = None
     stopbits: int | None = None
     protocol: str | None = None
+    databits: int | None = None
     devices: dict[int, str] = field(default_factory=dict)
     timeouts_ms: dict[int, float] = field(default_factory=dict)
 
@@ -92,10 +95,13 @@ def _serial(path: str, serial: dict, bus: BusFile) -> None:
     stopbits = serial.get("stopbits")
     if stopbits is not None and (not _is_int(stopbits) or stopbits not in (1, 2)):
         raise BusFileError(f"{path}: [serial] stopbits must be 1 or 2, not {_show(stopbits)}")
+    databits = serial.get("databits")
+    if databits is not None and (not _is_int(databits) or databits not in (7, 8)):
+        raise BusFileError(f"{path}: [serial] databits must be 7 or 8, not {_show(databits)}")
     protocol = serial.get("protocol")
     if protocol is not None and protocol not in NAMES:
         raise BusFileError(f"{path}: [serial] protocol {_show(protocol)} is not one of {', '.join(NAMES)}")
-    bus.baud, bus.parity, bus.stopbits, bus.protocol = baud, parity, stopbits, protocol
+    bus.baud, bus.parity, bus.stopbits, bus.databits, bus.protocol = baud, parity, stopbits, databits, protocol
 
 
 def load_bus_file(path: str) -> BusFile:
@@ -127,3 +133,24 @@ def load_bus_file(path: str) -> BusFile:
                                f"0..{MAX_TIMEOUT_MS:.0f}, not {_show(ms)}")
         bus.timeouts_ms[unit] = float(ms)
     return bus
+
+
+def format_bus_file(bus: BusFile, comments: list[str] = (), trailer: list[str] = ()) -> str:
+    """The text of a bus file saying what `bus` says (comment lines before and after), as load_bus_file
+    reads it back."""
+    out = [f"# {c}" if c else "#" for c in comments]
+    serial = [(k, getattr(bus, k)) for k in ("baud", "parity", "stopbits", "databits", "protocol")]
+    if any(v is not None for _, v in serial):
+        out += ["[serial]"] + [f"{k} = {_toml(v)}" for k, v in serial if v is not None]
+    for title, table in (("units", bus.devices), ("timeouts_ms", bus.timeouts_ms)):
+        if table:
+            out += ["", f"[{title}]"] + [f"{unit} = {_toml(v)}" for unit, v in sorted(table.items())]
+    if trailer:
+        out += [""] + [f"# {c}" if c else "#" for c in trailer]
+    return "\n".join(out) + "\n"
+
+
+def _toml(v) -> str:
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return repr(v)

@@ -32,6 +32,25 @@ class _Parser(argparse.ArgumentParser):
 _SCENARIO_HELP = ("the simulated line (default: default): default, errors, fast, stress, tds-v8, a510, a510-ascii, "
                   "spl, spl-ascii, pd-series, pd-series-ascii")
 
+_DETECT_HELP = """\
+Listen to PORT (opened read-only: nothing is ever sent) at one setting after another
+and say which baud rate, character format and protocol the line runs, with the
+evidence: frames with a good CRC/LRC, request/response pairs, the UART's parity and
+framing errors (the tty marks them), and whether the characters come as fast as the
+format allows."""
+_DETECT_EPILOG = """\
+Tries 1200 ... 921600 baud (the common rates, most common first; --bauds adds others),
+8N1 8E1 8O1 8N2 (and 7E1 7O1 7N2 for ASCII lines), Modbus RTU, Modbus ASCII and the
+PD-series protocol, and stops as soon as one candidate is certain.
+
+exit status: 0 the line is settled (printed; written with --write-bus), 1 no traffic
+or no candidate fits (nothing is guessed, no file written), 2 bad flags or a port
+that cannot be opened.
+
+  sniffer detect /dev/ttyUSB0 --write-bus line.toml
+  sniffer live /dev/ttyUSB0 --bus line.toml"""
+
+
 def _number(kind, what: str, lo, hi):
     def parse(text: str):
         try:
@@ -131,16 +150,26 @@ def build_parser() -> argparse.ArgumentParser:
     decode_flags(s)
     stream_flags(s)
 
-    s = sub.add_parser("simulate", help="write a simulated capture (MCAP or byte CSV by extension)")
-    s.add_argument("--out", required=True, metavar="FILE", help="FILE.mcap or FILE.csv")
+    s = sub.add_parser("simulate", help="write a simulated capture (MCAP or byte CSV by extension), or serve a "
+                                        "simulated line on a pseudo-terminal (--pty)")
+    g = s.add_mutually_exclusive_group(required=True)
+    g.add_argument("--out", metavar="FILE", help="FILE.mcap or FILE.csv")
+    g.add_argument("--pty", metavar="PATH",
+                   help="serve the line on a pseudo-terminal, linked at PATH, until stopped (Ctrl-C): what a "
+                        "UART at the settings a program sets there receives (`sniffer detect PATH`, `live PATH`)")
     s.add_argument("--scenario", default="default", help=_SCENARIO_HELP)
-    s.add_argument("--duration", type=float, default=10.0, help="seconds of bus traffic (default 10)")
+    s.add_argument("--duration", type=float, default=None,
+                   help="seconds of bus traffic (default 10; with --pty: until stopped)")
     s.add_argument("--seed", type=int, default=1)
     s.add_argument("--adapter", choices=["wire", "usb"], default="usb",
                    help="timestamps per byte (logic analyzer) or per USB read (default usb)")
     s.add_argument("--param", action="append", metavar="KEY=VALUE",
                    help="change the scenario: a setting (poll_period_ms=50) or a unit's (unit2.rated_current_a=7.5)")
     serial_flags(s)
+    g = s.add_argument_group("receiver (--out): record what a sniffer set to other settings than the line's receives")
+    g.add_argument("--receiver-baud", type=_number(int, "--receiver-baud", 50, MAX_BAUD), metavar="BAUD")
+    g.add_argument("--receiver-parity", choices=["N", "E", "O"], type=str.upper)
+    g.add_argument("--receiver-stopbits", type=int, choices=[1, 2])
 
     s = sub.add_parser("demo", help="live capture of a simulated bus over a pseudo-terminal")
     s.add_argument("--scenario", default="default", help=_SCENARIO_HELP)
@@ -175,6 +204,22 @@ def build_parser() -> argparse.ArgumentParser:
                    help="where the capture publishes (default: a fresh one in $XDG_RUNTIME_DIR or /tmp)")
     g.add_argument("--publish-backlog", type=_number(int, "--publish-backlog", 0, 10_000_000), default=100_000,
                    metavar="N", help="frames a viewer that joins late gets first (default 100000)")
+
+    s = sub.add_parser(
+        "detect", formatter_class=argparse.RawDescriptionHelpFormatter,
+        help="find an unknown line's baud rate, parity, stop bits and protocol by listening (read-only)",
+        description=_DETECT_HELP, epilog=_DETECT_EPILOG)
+    s.add_argument("port", help="serial device, e.g. /dev/ttyUSB0")
+    s.add_argument("--bauds", action="append", metavar="RATES",
+                   help="more baud rates to try, first: 250000,31250 (repeatable)")
+    s.add_argument("--write-bus", metavar="FILE.toml", help="write the line's settings as a bus file for live --bus")
+    s.add_argument("--max-time", type=float, default=60.0, metavar="S",
+                   help="give up after S seconds of listening (default 60)")
+    s.add_argument("--quiet-time", type=float, default=5.0, metavar="S",
+                   help="no byte in the first S seconds: no traffic (default 5)")
+    s.add_argument("--units-time", type=float, default=2.0, metavar="S",
+                   help="once certain, listen S seconds more for the units and their poll periods (default 2)")
+    s.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
 
     s = sub.add_parser("repair", help="make a truncated (killed) or damaged capture readable by any MCAP reader")
     s.add_argument("file")

@@ -62,6 +62,17 @@ class Protocol:
             return None
         return self.tables.get(function & 0x7F)
 
+    def adu_of(self, raw: bytes) -> bytes:
+        """A frame's ADU (unit + PDU, binary) back from its wire bytes, as its framer set `Frame.adu`: RTU
+        framings end in a 2-byte CRC; ASCII is ':' + hex (ADU + LRC) + CRLF.  b"" where it does not read
+        (a frame rebuilt from its record, which keeps the raw bytes only)."""
+        if not self.text:
+            return raw[:-2]
+        try:
+            return bytes.fromhex(raw[1:].split(b"\r")[0].decode("ascii"))[:-1]
+        except ValueError:
+            return b""
+
     def raw_span(self, start: int, end: int, size: int) -> tuple[int, int]:
         """ADU bytes [start, end) as a span of a frame's `size` wire bytes (never empty).
 

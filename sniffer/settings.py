@@ -61,7 +61,7 @@ class LineChoice:
     def from_bus(cls, bus) -> LineChoice:
         if bus is None:
             return cls()
-        return cls(bus.baud, bus.parity, bus.stopbits, None, bus.protocol, dict(bus.devices),
+        return cls(bus.baud, bus.parity, bus.stopbits, bus.databits, bus.protocol, dict(bus.devices),
                    None, dict(bus.timeouts_ms))
 
 

@@ -7,7 +7,22 @@ asked, a TCP port; viewers (attach.py) connect and read newline-delimited JSON:
     {"index": 0, "t": ..., ...}   one frame record (sniffer.records) per frame
     {"sniffer": "status", ...}    about once a second: bytes in, frames, noise, MCAP size
     {"sniffer": "skipped", ...}   this viewer fell behind: that many frames were left out
+    {"sniffer": "reads", "r": [...]}  reads as the port delivered them (the TUI's byte view), see below
     {"sniffer": "end", ...}       the capture ended (last line)
+
+Reads (sniffer.reads.Read) travel in batches, a read once every byte of it is
+in a settled frame, each read a compact array:
+
+    [t, offset, "hex", cont, [pos, index, pos, index, ...]]   + [last, "channel"] when not per read / ""
+
+`t`: ns since the capture's t0 (per read: when it returned; per byte: its
+first byte); `offset`: bytes of the capture before it; `cont`: 1 if its first
+byte continues a frame begun in an earlier read; then (position, frame index)
+of the frame byte 0 went to and of each frame that begins in it; `last`: ns
+since t0 of its last byte (per-byte sources only).  A late viewer gets the
+last RING_READS reads after the frame backlog; a viewer that falls behind
+loses reads before frames.  Viewers that do not know the line skip it (as any
+control line of an unknown kind), so it needed no new STREAM_VERSION.
 
 The writer and the reader share this module; neither imports the other.
 """
@@ -17,6 +32,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
+from .reads import Read
 from .records import dumps
 from .sources import CaptureError
 
@@ -61,3 +77,28 @@ def parse_address(spec: str) -> Address:
 
 def control(kind: str, **fields) -> bytes:
     return dumps({"sniffer": kind, **fields}) + b"\n"
+
+
+def read_item(r: Read, t0_ns: int) -> bytes:
+    """One read as the array of a reads line (see the module doc)."""
+    item = [r.t_ns - t0_ns, r.offset, r.data.hex(), int(r.cont), [x for m in r.marks for x in m]]
+    if r.last_ns is not None or r.channel:
+        item += [None if r.last_ns is None else r.last_ns - t0_ns, r.channel]
+    return dumps(item)
+
+
+def reads_line(items: list[bytes]) -> bytes:
+    """A reads control line of reads already encoded by read_item."""
+    return b'{"sniffer":"reads","r":[' + b",".join(items) + b"]}\n"
+
+
+def parse_reads(msg: dict, t0_ns: int) -> list[Read]:
+    """The reads of a reads line (ValueError, KeyError, TypeError: a damaged one)."""
+    out = []
+    for item in msg.get("r") or ():
+        t, off, data, cont, flat = item[:5]
+        last, channel = (item[5:7] + [None, ""])[:2] if len(item) > 5 else (None, "")
+        marks = tuple((int(flat[k]), int(flat[k + 1])) for k in range(0, len(flat) - 1, 2))
+        out.append(Read(t0_ns + int(t), int(off), bytes.fromhex(data), marks, bool(cont),
+                        None if last is None else t0_ns + int(last), str(channel or "")))
+    return out

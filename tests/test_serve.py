@@ -20,6 +20,8 @@ import urllib.request
 
 import pytest
 from helpers import ListSink
+from serve_helpers import HANG_S, processes_with, start_serve
+from serve_helpers import wait as _wait
 from tui_helpers import SIM, demo_viewer, replay_frames
 
 from decoders.registry import default_registry
@@ -45,14 +47,6 @@ from sniffer.tui.sink import TuiSink
 from sniffer.tui.status import status_text
 
 LINE = LineSettings(19200, "E", 1)
-HANG_S = 60  # a bound on waiting for something that should happen, never an assertion on speed
-
-
-def _wait(cond, what: str, timeout: float = HANG_S) -> None:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        assert time.monotonic() < deadline, f"gave up waiting for {what}"
-        time.sleep(0.02)
 
 
 def read_stream(att: Attachment, *, start: threading.Event | None = None) -> list[dict]:
@@ -222,12 +216,6 @@ def test_demo_tui_publishes_to_a_viewer(tmp_path):
 
 
 # ---------------------------------------------------------------- (c) sniffer serve
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _listening(port: int) -> list[str]:
     """Local addresses (hex, as /proc/net/tcp* writes them) listening on `port`."""
     out = []
@@ -267,21 +255,11 @@ async def _browser(port: int, want: list[bytes], proc: subprocess.Popen) -> byte
 def test_serve_demo_in_a_browser(tmp_path):
     pytest.importorskip("textual_serve")
     pytest.importorskip("aiohttp")
-    port = _free_port()
     sock, out = tmp_path / "serve.sock", tmp_path / "served.mcap"
-    logs = tmp_path / "serve.err", tmp_path / "serve.out"  # textual-serve logs to stdout
     screen_seen = False
-    with open(logs[0], "w") as err, open(logs[1], "w") as stdout:
-        proc = subprocess.Popen([sys.executable, "-m", "sniffer", "serve", "--demo", "--scenario", "errors",
-                                 "--http-port", str(port), "--socket", str(sock), "--out", str(out)],
-                                cwd=tmp_path, stdout=stdout, stderr=err, stdin=subprocess.DEVNULL)
+    proc, port = start_serve(tmp_path, "--demo", "--scenario", "errors", "--socket", str(sock), "--out", str(out),
+                             log=tmp_path / "serve.log")
     try:
-        def up():
-            assert proc.poll() is None, f"serve exited: {logs[0].read_text()}"
-            with socket.socket() as s:
-                return s.connect_ex(("127.0.0.1", port)) == 0
-
-        _wait(up, "the web server")
         assert _listening(port) == ["0100007F"]  # 127.0.0.1 only, no other address, no IPv6
         with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=HANG_S) as page:
             html = page.read()
@@ -299,30 +277,12 @@ def test_serve_demo_in_a_browser(tmp_path):
         if not screen_seen:  # the test failed before the browser pressed Ctrl-C: stop it all the same
             proc.send_signal(signal.SIGINT)
         rc = proc.wait(HANG_S)
-    log = logs[0].read_text() + logs[1].read_text()
+    log = (tmp_path / "serve.log").read_text()
     assert rc == 0, log
     assert "Traceback" not in log and "sniffer: error" not in log
     frames = read_frames(str(out))  # the capture child closed its MCAP
     assert len(frames) > 0
     assert not sock.exists()
-
-
-def _processes_with(needle: str) -> list[int]:
-    """Live processes whose command line holds `needle` (zombies excluded)."""
-    out = []
-    for pid in os.listdir("/proc"):
-        if not pid.isdigit():
-            continue
-        try:
-            with open(f"/proc/{pid}/cmdline", "rb") as f:
-                cmd = f.read().replace(b"\0", b" ").decode(errors="replace")
-            with open(f"/proc/{pid}/stat") as f:
-                state = f.read().rpartition(")")[2].split()[0]
-        except OSError:
-            continue
-        if needle in cmd and state != "Z":
-            out.append(int(pid))
-    return out
 
 
 async def _visit(port: int, seen: threading.Event | None = None, stop: threading.Event | None = None) -> None:
@@ -358,40 +318,30 @@ def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
     viewers and the capture end with the server: sniffer/lifeline.py)."""
     pytest.importorskip("textual_serve")
     pytest.importorskip("aiohttp")
-    port = _free_port()
     sock = tmp_path / "leak.sock"
-    with open(tmp_path / "serve.log", "w") as log:
-        proc = subprocess.Popen([sys.executable, "-m", "sniffer", "serve", "--demo", "--http-port", str(port),
-                                 "--socket", str(sock), "--no-out"],
-                                cwd=tmp_path, stdout=log, stderr=log, stdin=subprocess.DEVNULL)
+    proc, port = start_serve(tmp_path, "--demo", "--socket", str(sock), "--no-out", log=tmp_path / "serve.log")
     try:
-        def up():
-            assert proc.poll() is None, (tmp_path / "serve.log").read_text()
-            with socket.socket() as s:
-                return s.connect_ex(("127.0.0.1", port)) == 0
-
-        _wait(up, "the web server")
         asyncio.run(_visits(port, 3))
-        _wait(lambda: not _processes_with(f"attach {sock} --tui"), "the ended visits' viewers to exit")
+        _wait(lambda: not processes_with(f"attach {sock} --tui"), "the ended visits' viewers to exit")
         # a visit still open when the server is killed outright
         seen, stop = threading.Event(), threading.Event()
         holder = threading.Thread(target=lambda: asyncio.run(_visit(port, seen, stop)), daemon=True)
         holder.start()
         _wait(seen.is_set, "the open visit's screen")
-        viewers = _processes_with(f"attach {sock} --tui")
-        capture = _processes_with(f"--publish {sock}")
+        viewers = processes_with(f"attach {sock} --tui")
+        capture = processes_with(f"--publish {sock}")
         assert len(viewers) == 1 and len(capture) == 1
         with open(f"/proc/{viewers[0]}/stat") as f:  # exec'd by the server's shell: no shell in between
             assert int(f.read().rpartition(")")[2].split()[1]) == proc.pid
         proc.kill()
         proc.wait(HANG_S)
         stop.set()
-        _wait(lambda: not _processes_with(f"attach {sock} --tui"), "the viewer to end with the server")
-        _wait(lambda: not _processes_with(f"--publish {sock}"), "the capture to end with the server")
+        _wait(lambda: not processes_with(f"attach {sock} --tui"), "the viewer to end with the server")
+        _wait(lambda: not processes_with(f"--publish {sock}"), "the capture to end with the server")
     finally:
         if proc.poll() is None:
             proc.kill()
-        for pid in _processes_with(str(sock)):
+        for pid in processes_with(str(sock)):
             os.kill(pid, signal.SIGKILL)
 
 

@@ -3,7 +3,7 @@
 import asyncio
 
 import pytest
-from tui_helpers import demo_viewer, filled_sink, registry_shadow, replay_frames
+from tui_helpers import demo_viewer, filled_sink, registry_shadow, replay_frames, touches
 
 from sniffer.sources.mcapsrc import read_frames
 from sniffer.tui.app import SnifferApp
@@ -80,7 +80,7 @@ def test_select_frame_and_detail_and_pair_jump():
             await pilot.press("enter")  # into the detail tree; its nodes light bytes up
             tree = app.detail.query_one("Tree")
             assert app.focused is tree
-            spans = []
+            spans = [app.detail.span]  # entering the tree selects the first point
             for _ in range(12):
                 await pilot.press("down")
                 spans.append(app.detail.span)
@@ -125,6 +125,84 @@ def test_filter_bar():
             assert app.store.view and all(app.store.frames[r].unit == 1 for r in app.store.view)
             await pilot.press("c")
             assert not app.store.filter.active
+    run(go())
+
+
+async def type_filter(pilot, text: str) -> None:
+    """'/' then the text, key by key as a user types it, then Enter."""
+    await pilot.press("slash")
+    await pilot.press(*text)
+    await pilot.press("enter")
+
+
+def test_filter_bar_finds_the_frames_touching_a_register():
+    async def go():
+        app = make_app("a510.mcap")
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, "reg:2520H")
+            frames = replay_frames("a510.mcap")[1]
+            want = [r for r, f in enumerate(frames) if touches(f, 0x2520)]
+            assert list(app.store.view) == want and len(want) > 20
+            assert {app.store.frames[r].role for r in want} == {"request", "response"}
+            assert app.focused is app.frame_list and "reg:2520H" in str(app.status.render())
+            await pilot.press("u")  # the unit key narrows it further, beside the bar's filter
+            unit = app.selected_frame.unit
+            assert list(app.store.view) == [r for r in want if frames[r].unit == unit]
+    run(go())
+
+
+def test_filter_bar_value_filter_and_the_bar_reopens_on_it():
+    async def go():
+        app = make_app("a510.mcap")
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, '"Output frequency" > 30 u:1')
+            frames = replay_frames("a510.mcap")[1]
+            want = [r for r, f in enumerate(frames) if f.unit == 1 and any(
+                p["name"] == "Output frequency" and p["value"] > 30 for p in f.points)]
+            assert list(app.store.view) == want and want
+            assert app.store.filter.units == {1}  # the plain u: is the field the u key toggles
+            await pilot.press("slash")
+            assert app.filter_bar.value == 'u:1 "Output frequency" > 30'  # the filter in force, canonical
+            await pilot.press("enter")
+            assert list(app.store.view) == want
+    run(go())
+
+
+def test_free_text_finds_a_register_the_summary_does_not_name(stress_mcap):
+    """Issue 11: `holding[300]` found 0 frames of the stress scenario though register 300 is read every
+    cycle (a summary names 6 of the 125 registers)."""
+    async def go():
+        app = SnifferApp(filled_sink(stress_mcap), None, source_label="stress", clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, "holding[300]")
+            frames = replay_frames(stress_mcap)[1]
+            want = [r for r, f in enumerate(frames) if touches(f, 300)]
+            assert len(want) > 20 and list(app.store.view) == want
+            assert not any("holding[300]" in frames[r].summary for r in want)
+    run(go())
+
+
+def test_a_bad_filter_says_where_and_the_old_one_stays():
+    async def go():
+        app = make_app()
+        async with app.run_test(size=SIZE, notifications=True) as pilot:
+            await loaded(app, pilot)
+            await type_filter(pilot, "u:2 fc:3")
+            view = list(app.store.view)
+            assert view and app.store.filter.units == {2}
+            await pilot.press("slash", "end", *" (lat>", "enter")
+            errors = [n.message for n in app._notifications if n.severity == "error"]
+            assert errors == ["filter error at column 15: '>' needs a value after it"]
+            assert app.filter_bar.has_class("shown") and app.focused is app.filter_bar  # fix it in place
+            assert app.filter_bar.value == "u:2 fc:3 (lat>"
+            assert list(app.store.view) == view and app.store.filter.units == {2}  # the old filter stays
+            await pilot.press("backspace", *"20ms)", "enter")
+            assert app.focused is app.frame_list
+            assert all(app.store.frames[r].latency_ms > 20 for r in app.store.view)
+            assert set(app.store.view) < set(view)
     run(go())
 
 
@@ -238,7 +316,7 @@ def test_new_frames_below_a_still_window_and_a_fast_tail(monkeypatch):
     """Issue 11 (CPU): frames arriving below a window that does not follow repaint nothing but the scroll
     extent; a followed tail that moves more than a screen between polls is drawn at most every
     TAIL_EVERY_S by the timer (a direct poll draws at once)."""
-    import sniffer.tui.framelist as framelist_module
+    import sniffer.tui.vlist as vlist_module
 
     async def go():
         app, sink, frames = growing_app(100)
@@ -249,10 +327,10 @@ def test_new_frames_below_a_still_window_and_a_fast_tail(monkeypatch):
             await pilot.press("home")
             sink.frames(frames[100:200])
             app.poll(0.01)
-            assert fl.cursor == 0 and fl.virtual_size.height == 200 and fl.scroll_offset.y == 0
+            assert fl.cursor == 0 and fl.virtual_size.height == 200 + fl.header_lines and fl.scroll_offset.y == 0
             await pilot.press("end")
             assert fl.cursor == 199 and fl.follow and app.detail.frame is app.store.frames[199]
-            monkeypatch.setattr(framelist_module, "TAIL_EVERY_S", 3600.0)
+            monkeypatch.setattr(vlist_module, "TAIL_EVERY_S", 3600.0)
             sink.frames(frames[200:210])  # fewer than a screen: drawn at once
             app.poll(0.01)
             assert fl.cursor == 209
@@ -345,7 +423,7 @@ def test_register_watch_of_an_attached_viewer_is_the_decoders_shadow():
             assert regs.row_count == len(app.store.registers) == sum(len(st.holding) for st in registry.states.values())
             watch = app.query_one("#regwatch")
             assert watch.chosen == (1, "holding", 9474)
-            assert "Frequency command" in str(app.query_one("#spark-label").render())
+            assert "Frequency command" in str(app.query_one("#log-label").render())
             cells = [str(c) for c in regs.get_row("1:holding:9474")]
             assert cells[:5] == ["1", "holding", "2502H", "Frequency command", "44.5"] and cells[6] == "4450"
     run(go())
@@ -359,7 +437,9 @@ def test_mouse_click_selects(name):
             await loaded(app, pilot)
             await pilot.press("home")
             await pilot.click("#list", offset=(10, 3))
-            assert app.frame_list.cursor == 3
+            assert app.frame_list.cursor == 2  # the list's line 3: its first line is the header
+            await pilot.click("#list", offset=(10, 0))  # the header selects nothing
+            assert app.frame_list.cursor == 2
     run(go())
 
 

@@ -17,8 +17,14 @@ SHOTS = [
     ("tui-frames.svg", "errors.mcap", ["home", "n", "n", "n", "n"]),
     ("tui-detail.svg", "a510.mcap", ["home"] + ["down"] * 5 + ["enter"] + ["down"] * 6),
     ("tui-errors-only.svg", "errors.mcap", ["e", "home"]),
+    # a drive trip (issue 11): the filter `fault`, a frame, its detail on the fault's annotation (bytes lit)
+    ("tui-faults.svg", "a510.mcap", ["slash", *"fault", "enter", "home", "n", "enter", "end", "up"]),
     ("tui-units.svg", "errors.mcap", ["2"]),
-    ("tui-registers.svg", "a510.mcap", ["3"] + ["down"] * 8),
+    ("tui-registers.svg", "a510.mcap", ["3"] + ["down"] * 2),
+    ("tui-transactions.svg", "errors.mcap", ["4", "home", "n", "n", "n"]),
+    # output frequency (unit 1) and output current (unit 2): Hz on the left axis, A on the right
+    ("tui-plot.svg", "a510.mcap", ["3"] + ["down"] * 6 + ["a"] + ["down"] * 21 + ["a", "5", "full_stop"]),
+    ("tui-bytes.svg", "errors.mcap", ["home"] + ["down"] * 6 + ["6"]),
 ]
 
 

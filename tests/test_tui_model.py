@@ -4,18 +4,12 @@ import random
 import threading
 
 import pytest
-from tui_helpers import SIM_CAPTURES, registry_shadow, replay_frames
+from tui_helpers import SIM_CAPTURES, registry_shadow, replay_frames, store_of
 
+from sniffer.filterlang import Context, Query
 from sniffer.tui.filters import filter_expr, parse_filter
 from sniffer.tui.model import F_EXC, F_NOISE, F_PROBLEM, F_TIMEOUT, Filter, FrameStore, frame_flags
 from sniffer.tui.sink import TuiSink
-
-
-def store_of(name="errors.mcap") -> FrameStore:
-    info, frames, _ = replay_frames(name)
-    s = FrameStore(info.t0_ns)
-    s.add(frames)
-    return s
 
 
 def test_every_frame_in_view_and_rows_map_indexes():
@@ -156,7 +150,7 @@ def test_model_and_sink_do_not_import_textual():
     import subprocess
     import sys
 
-    code = ("import sys, sniffer.tui.model, sniffer.tui.sink, sniffer.tui.filters; "
+    code = ("import sys, sniffer.tui.model, sniffer.tui.sink, sniffer.tui.filters, sniffer.tui.goto; "
             "sys.exit(1 if any(m == 'textual' or m.startswith('textual.') for m in sys.modules) else 0)")
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
 
@@ -177,8 +171,10 @@ def test_records_round_trip_into_the_store():
 
 
 # ---------------------------------------------------------------- the compact store
-def _brute_passes(f, flags, flt) -> bool:
-    """The filter as the store applied it when it kept every Frame (written out again, independently)."""
+def _brute_passes(f, flags, flt, ctx) -> bool:
+    """The filter frame by frame: its fields as the store applied them when it kept every Frame (written out
+    again, independently), its text in the filter language's meaning on one frame (test_filterlang.py holds
+    that against the decoded frames)."""
     if flt.errors_only and not flags & F_PROBLEM:
         return False
     if flt.units is not None and f.unit not in flt.units:
@@ -187,11 +183,7 @@ def _brute_passes(f, flags, flt) -> bool:
         return False
     if flt.roles is not None and f.role not in flt.roles:
         return False
-    if not flt.text:
-        return True
-    t = flt.text
-    return (t in f.summary.lower() or any(t in a.code or t in a.detail.lower() for a in f.annotations)
-            or t in f.raw.hex() or t in (f.model or "") or t in (f.noise_reason or "").lower() or t == f.role)
+    return not flt.text or Query(flt.text).matches(f, ctx)
 
 
 def _all_frames():
@@ -261,6 +253,15 @@ FILTERS = [
     {"text": "modbus.crc.mismatch"}, {"text": "a510"}, {"text": "noise"}, {"text": "request"},
     {"text": "response", "units": frozenset({2})}, {"text": "frequency", "roles": frozenset({"response"})},
     {"text": "no such thing"}, {"units": frozenset({3}), "text": "timeout", "errors_only": True},
+    # the filter language: what the columns answer, what the search text answers, what only the frames can
+    {"text": "reg:8448..8450"}, {"text": "reg:2520H"}, {"text": "reg:holding[8192] or reg:coil[3]"},
+    {"text": "2524H"}, {"text": "holding[8455]"}, {"text": "lat>5ms"}, {"text": "lat:..3ms"},
+    {"text": "t:2s..4s"}, {"text": "t>20s or t<1s"}, {"text": "lat>2.5005ms or t<=1.0000000005s"},
+    {"text": "lat<3ms lat>=2000.5us u:0..3"}, {"text": "!u:1 (fc:3 or exc)"}, {"text": "model:a510 fault"},
+    {"text": "not (crc or noise) role:rsp"}, {"text": '"Output frequency" > 10'}, {"text": "holding[8449] >= 3000"},
+    {"text": '"Error description (fault code)" = OV'}, {"text": '"output current" u:2'}, {"text": "u!=1 fc=16"},
+    {"text": "2524H >= 0.5Hz or warn"}, {"text": '"State signal (status word)" ~ "operation=run"'},
+    {"units": frozenset({1}), "text": '"Output frequency" != 0'}, {"text": "Hz !u:2"},
 ]
 
 
@@ -272,7 +273,8 @@ def test_filters_give_the_rows_a_brute_force_check_gives(kw):
     flt = s.update_filter(**kw)
     s.add(frames[300:])  # arriving under the filter: the per-frame test
     flags = [frame_flags(f) for f in frames]
-    want = [r for r, f in enumerate(frames) if _brute_passes(f, flags[r], flt)]
+    ctx = Context(info.t0_ns)
+    want = [r for r, f in enumerate(frames) if _brute_passes(f, flags[r], flt, ctx)]
     assert list(s.view) == want
     s.set_filter(flt)  # rebuilt from the columns and the packed search text
     assert list(s.view) == want

@@ -1,16 +1,26 @@
-"""`sniffer simulate`: write a simulated capture to MCAP or a byte CSV.
+"""`sniffer simulate`: write a simulated capture to MCAP or a byte CSV, or serve the line on a pty.
 
 The capture holds what a device would have recorded: per-byte times (a
 logic analyzer, --adapter wire) or per-read chunks of a USB adapter
 (--adapter usb, the default, with glued and split frames).  An MCAP also
 holds the decoded frames, like a live capture does, and says the scenario's
-protocol and drive models, so a replay decodes with them by default.
+protocol and drive models, so a replay decodes with them by default.  With
+--receiver-baud/--receiver-parity/--receiver-stopbits the device was set to
+other settings than the line's: the capture holds what its UART received
+(simulator/uart.py), errors flagged.
+
+--pty PATH serves the line on a pseudo-terminal linked at PATH until Ctrl-C or
+SIGTERM (the link is removed): what a UART at the settings a program sets on
+its end receives (simulator/uartpty.py), for `detect` and `live` without hardware.
 """
 
 from __future__ import annotations
 
+import os
+import threading
+
 from ..line import LineSettings
-from ..session import Session
+from ..session import Session, on_signals
 from ..settings import CaptureSpec
 from ..sinks import FileSink
 from .common import UsageError, report, say
@@ -20,6 +30,12 @@ def cmd_simulate(spec: CaptureSpec, args) -> int:
     from ..simulator.overrides import apply
     from ..simulator.sources import SimulatedSource, scenario_named
 
+    scenario = apply(scenario_named(spec.scenario or "default"), args.param)
+    base = scenario.line
+    f = spec.flags
+    line = LineSettings(f.baud or base.baud, f.parity or base.parity, f.stopbits or base.stopbits, base.databits)
+    if args.pty:
+        return _serve(scenario, line, spec.seed, spec.duration_s, args.pty)
     out = args.out
     if out.endswith(".csv"):
         fmt = "bytecsv"
@@ -27,13 +43,15 @@ def cmd_simulate(spec: CaptureSpec, args) -> int:
         fmt = "mcap"
     else:
         raise UsageError("--out must end in .mcap or .csv")
-    if spec.duration_s <= 0:
+    duration = spec.duration_s if args.duration is not None else 10.0
+    if duration <= 0:
         raise UsageError("--duration must be more than 0 seconds")
-    scenario = apply(scenario_named(spec.scenario or "default"), args.param)
-    base = scenario.line
-    f = spec.flags
-    line = LineSettings(f.baud or base.baud, f.parity or base.parity, f.stopbits or base.stopbits, base.databits)
-    source = SimulatedSource(scenario, line, spec.duration_s, spec.seed, args.adapter)
+    receiver = None
+    if args.receiver_baud or args.receiver_parity or args.receiver_stopbits:
+        receiver = LineSettings(args.receiver_baud or line.baud, args.receiver_parity or line.parity,
+                                args.receiver_stopbits or line.stopbits, line.databits)
+    source = SimulatedSource(scenario, line, duration, spec.seed, args.adapter, receiver=receiver)
+    recorded = receiver or line
     sink = FileSink(fmt, out)
     # the simulated bus is what it is: the flags set its line, the scenario its protocol and drives
     session = Session(spec.with_(duration_s=0.0), source, [sink], keep_partial=True)
@@ -41,13 +59,37 @@ def cmd_simulate(spec: CaptureSpec, args) -> int:
     if session.error:
         return report(session)
     if fmt == "bytecsv":
-        flags = f"--baud {line.baud} --parity {line.parity} --stopbits {line.stopbits}"
+        flags = f"--baud {recorded.baud} --parity {recorded.parity} --stopbits {recorded.stopbits}"
         if scenario.protocol != "modbus-rtu":
             flags += f" --protocol {scenario.protocol}"
         flags += "".join(f" --device {u}={m}" for u, m in sorted(scenario.devices.items()))
-        say(f"wrote {session.bytes_in} bytes of scenario '{scenario.name}' at {line.label()} to {out} "
+        say(f"wrote {session.bytes_in} bytes of scenario '{scenario.name}' at {_at(line, receiver)} to {out} "
             f"(replay with {flags})")
     else:
         say(f"wrote {session.frames_out} frames ({session.bytes_in} bytes) of scenario '{scenario.name}' "
-            f"at {line.label()} to {out}")
+            f"at {_at(line, receiver)} to {out}")
     return report(session)
+
+
+def _at(line: LineSettings, receiver: LineSettings | None) -> str:
+    return line.label() + (f", received at {receiver.label()}" if receiver and receiver != line else "")
+
+
+def _serve(scenario, line: LineSettings, seed: int, duration_s: float, path: str) -> int:
+    """The line on a pty linked at `path`, until stopped (or `duration_s`, if given)."""
+    from ..simulator.uartpty import PtyLine
+
+    if os.path.lexists(path):
+        if not (os.path.islink(path) and os.readlink(path).startswith("/dev/pts/")):
+            raise UsageError(f"--pty {path}: exists; give a free path for the link")
+        os.remove(path)  # the link of a simulated line that was killed
+    stop = threading.Event()
+    on_signals(stop)
+    with PtyLine(scenario, line, seed, duration_s) as pty:
+        pty.link(path)
+        say(f"simulated line '{scenario.name}' at {line.label()} {scenario.protocol} on {path} (-> {pty.port}); "
+            f"Ctrl-C stops")
+        pty.play(stop)
+        back = pty.bytes_received_from_sniffer
+    say(f"stopped after {pty.frames_sent} frames; {back} bytes came from the other end (a passive sniffer sends none)")
+    return 0

@@ -4,6 +4,8 @@
     chunks = wire_chunks(frames)          # a logic analyzer's view
     chunks = usb_chunks(frames, seed=1)   # a USB adapter's view
     PtyBus().play(frames)                 # a live port for the real serial source
+    received(frames, line, rx)            # what a UART at other settings receives (uart.py model)
+    PtyLine(scenario, line).play()        # a pty line that delivers what the sniffer's settings receive
 
 The generic drives keep a Delta-like layout (DriveMap); units named in a
 scenario's `devices` are drives of a real model (profiles.py: TDS-V8, TECO

@@ -97,16 +97,16 @@ class PtyBus:
                 first = f.t_ns
             # an adapter hands a frame over once its last byte is in: write at its end
             due = start + int((f.t_end_ns - first) / speed)
-            if not self._wait_until(due, stop_event):
+            if not self.wait_until(due, stop_event):
                 return PlayStats(n_frames, n_bytes, True)
-            if not self._write_all(f.raw, stop_event):
+            if not self.write_all(f.raw, stop_event):
                 return PlayStats(n_frames, n_bytes, True)
             n_frames += 1
             n_bytes += len(f.raw)
         self.drain()
         return PlayStats(n_frames, n_bytes, False)
 
-    def _wait_until(self, due_ns: int, stop_event: threading.Event | None) -> bool:
+    def wait_until(self, due_ns: int, stop_event: threading.Event | None) -> bool:
         while True:
             if stop_event is not None and stop_event.is_set():
                 return False
@@ -118,7 +118,7 @@ class PtyBus:
             if r:
                 self.drain()
 
-    def _write_all(self, data: bytes, stop_event: threading.Event | None) -> bool:
+    def write_all(self, data: bytes, stop_event: threading.Event | None) -> bool:
         view = memoryview(data)
         while view:
             if stop_event is not None and stop_event.is_set():

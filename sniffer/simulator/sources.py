@@ -9,7 +9,8 @@ the session's precedence rule).  The bus counts what the sniffer wrote back
 
 SimulatedSource (`sniffer simulate`): the same traffic as a logic analyzer
 (per-byte times) or a USB adapter (per-read chunks) would have recorded it,
-generated without waiting: the input of `simulate --out FILE.mcap|.csv`.
+generated without waiting: the input of `simulate --out FILE.mcap|.csv`; set to
+other settings than the line's (`receiver`), it records what its UART received.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from ..events import CaptureInfo
 from ..line import LineSettings
 from .bus import simulate
 from .chunks import usb_chunks, wire_chunks
+from .received import received
 from .scenario import Scenario, get_scenario
 
 LINGER_S = 0.3  # after the last frame: time for it to reach the sniffer before the capture ends
@@ -102,26 +104,30 @@ class SimulatedSource:
     """A scenario's traffic as a capture device would have recorded it, generated in-process."""
 
     def __init__(self, scenario: Scenario, line: LineSettings, duration_s: float, seed: int = 1,
-                 adapter: str = "usb") -> None:
+                 adapter: str = "usb", receiver: LineSettings | None = None) -> None:
         self.scenario = scenario
         self.line = line
+        self.receiver = receiver  # the device was set to these (None: the line's own)
         self.duration_s = duration_s
         self.seed = seed
         self.adapter = adapter
         self._stop = False
 
     def open(self) -> CaptureInfo:
-        sc, line = self.scenario, self.line
+        sc, line = self.scenario, self.receiver or self.line
+        extra = {"simulated_line": self.line.label()} if self.receiver else {}
         return CaptureInfo(
             source=f"simulator:{sc.name}:seed={self.seed}", port="(simulated)", baud=line.baud,
             parity=line.parity, stopbits=line.stopbits, databits=line.databits,
             time_source="read" if self.adapter == "usb" else "byte", t0_ns=0, wall_anchor_ns=0,
             sniffer_version=__version__, low_latency={"simulated": True, "adapter": self.adapter},
-            devices=dict(sc.devices), protocol=sc.protocol,
+            devices=dict(sc.devices), protocol=sc.protocol, extra=extra,
         )
 
     def events(self):
         frames = simulate(self.scenario, self.line, self.duration_s, self.seed)
+        if self.receiver is not None:
+            frames = received(frames, self.line, self.receiver)
         chunks = usb_chunks(frames, seed=self.seed) if self.adapter == "usb" else wire_chunks(frames)
         for ev in chunks:
             if self._stop:

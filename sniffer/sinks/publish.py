@@ -2,11 +2,13 @@
 
 The capture process owns the port and the MCAP file; any number of viewers
 (`sniffer attach`, the browser UI of `sniffer serve`) connect and read.
-A late viewer first gets the last `backlog` records, then the live stream.
-The capture thread only appends frames to a deque; a thread of its own
-serialises them (once for all viewers) and does the socket I/O.  A viewer
-that falls behind has frames skipped (and is told how many); it never makes
-the capture wait.  Nothing here touches the serial port.
+A late viewer first gets the last `backlog` records, then the last reads
+(RING_READS, for the byte view), then the live stream.  The capture thread
+only appends frames and reads to deques; a thread of its own marks the reads
+with their frames (sniffer.reads), serialises both (once for all viewers) and
+does the socket I/O.  A viewer that falls behind has reads dropped and frames
+skipped (and is told how many frames); it never makes the capture wait.
+Nothing here touches the serial port.
 """
 
 from __future__ import annotations
@@ -23,8 +25,9 @@ from .. import __version__
 from ..events import CaptureInfo, Chunk
 from ..frame import Frame
 from ..outputs import readable
+from ..reads import RING_READS, ReadMarker
 from ..records import frame_json
-from ..stream_format import STREAM_VERSION, Address, PublishError, control, parse_address
+from ..stream_format import STREAM_VERSION, Address, PublishError, control, parse_address, read_item, reads_line
 from .base import Sink
 
 
@@ -60,6 +63,12 @@ def _bind(addr: Address) -> socket.socket:
     return s
 
 
+def _take(queue: deque) -> list:
+    """Pop what a deque holds now (another thread may go on appending)."""
+    popleft = queue.popleft
+    return [popleft() for _ in range(len(queue))]
+
+
 class _Viewer:
     """One connected viewer: lines waiting to be written, at most `limit` of them."""
 
@@ -85,6 +94,7 @@ class _Viewer:
         self.wake.set()
 
     def push_control(self, line: bytes) -> None:
+        """A line it may miss when it is behind (status, reads)."""
         if len(self.pending) < self.limit:
             self.pending.append(line)
             self.wake.set()
@@ -127,7 +137,10 @@ class PublishSink(Sink):
         if self.address.path is None and self.address.port == 0:  # tcp:HOST:0 -> the port given
             self.address = Address(host=self.address.host, port=self._sock.getsockname()[1])
         self._new: deque[Frame] = deque()  # capture thread appends, publisher thread pops
+        self._chunks: deque[Chunk] = deque()  # likewise: the reads, marked with their frames there
+        self._marker = ReadMarker()  # publisher thread
         self._backlog: deque[bytes] = deque(maxlen=max(backlog, 0))
+        self._read_backlog: deque[bytes] = deque(maxlen=RING_READS)  # read_item()s
         self._viewers: set[_Viewer] = set()
         self._tasks: set[asyncio.Task] = set()
         self._t0 = 0
@@ -152,6 +165,7 @@ class PublishSink(Sink):
     def raw(self, event) -> None:
         if type(event) is Chunk:
             self.bytes_in += len(event.data)
+            self._chunks.append(event)
 
     def frame(self, frame: Frame) -> None:
         self._new.append(frame)
@@ -206,7 +220,7 @@ class PublishSink(Sink):
                 line = control("status", **self._stats())
                 for v in self._viewers:
                     v.push_control(line)
-        self._distribute()
+        self._distribute(end=True)
         self._end = control("end", **self._stats())
         for v in self._viewers:
             v.end(self._end)
@@ -227,22 +241,39 @@ class PublishSink(Sink):
         return {"frames": self.frames, "bytes_in": self.bytes_in, "noise_bytes": self.noise_bytes,
                 "capture_bytes": size}
 
-    def _distribute(self) -> None:
-        new = self._new
-        if not new:
-            return
+    def _distribute(self, end: bool = False) -> None:
+        chunks, frames = _take(self._chunks), _take(self._new)  # what is there now; the capture keeps appending
+        reads = self._marked_reads(chunks, frames, end)
+        if frames:
+            t0 = self._t0
+            lines = []
+            for f in frames:
+                if f.protocol == "noise":
+                    self.noise_bytes += len(f.raw)
+                lines.append(frame_json(f, t0) + b"\n")
+            self.frames += len(lines)
+            self._backlog.extend(lines)
+            for v in self._viewers:
+                v.push(lines)
+        if reads:  # after the frames their bytes went to
+            line = reads_line(reads)
+            for v in self._viewers:
+                v.push_control(line)
+
+    def _marked_reads(self, chunks: list[Chunk], frames: list[Frame], end: bool) -> list[bytes]:
+        """The reads whose frames have all settled, encoded (and kept for late viewers)."""
+        marker = self._marker
+        reads = []
+        for c in chunks:
+            reads += marker.chunk(c)
+        for f in frames:
+            reads += marker.frame(f.index, len(f.raw))
+        if end:
+            reads += marker.flush()
         t0 = self._t0
-        lines = []
-        popleft = new.popleft
-        for _ in range(len(new)):  # what is there now; the capture keeps appending
-            f = popleft()
-            if f.protocol == "noise":
-                self.noise_bytes += len(f.raw)
-            lines.append(frame_json(f, t0) + b"\n")
-        self.frames += len(lines)
-        self._backlog.extend(lines)
-        for v in self._viewers:
-            v.push(lines)
+        items = [read_item(r, t0) for r in reads]
+        self._read_backlog.extend(items)
+        return items
 
     async def _on_viewer(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         self._tasks.add(asyncio.current_task())
@@ -252,15 +283,19 @@ class PublishSink(Sink):
         self._viewers.add(v)
         if self._end is not None:  # connected as the capture ended
             v.end(self._end)
+        reads = list(self._read_backlog)
         header = control("header", stream=STREAM_VERSION, label=self.label, info=self.info.to_dict(),
                          capture_path=self.capture_path, earlier_frames=self.frames - len(backlog),
-                         backlog_frames=len(backlog), sniffer_version=__version__)
+                         backlog_frames=len(backlog), backlog_reads=len(reads), sniffer_version=__version__)
         try:
             writer.write(header)
             for i in range(0, len(backlog), 2000):
                 writer.write(b"".join(backlog[i:i + 2000]))
                 await writer.drain()
-            del backlog
+            for i in range(0, len(reads), 2000):
+                writer.write(reads_line(reads[i:i + 2000]))
+                await writer.drain()
+            del backlog, reads
             while True:
                 v.wake.clear()
                 lines = v.take()

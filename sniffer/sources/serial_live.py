@@ -6,15 +6,16 @@ can start a motor.  So:
 * the port is opened with os.open(O_RDONLY | O_NOCTTY | O_NONBLOCK), never
   through pyserial's Serial (its open() uses O_RDWR and then drives DTR/RTS
   and flushes buffers).  Subclassing it would mean overriding open() and
-  most of what it calls, so termios is done here directly; pyserial only
+  most of what it calls, so termios is done directly (serial_port.py); pyserial only
   lends its termios2 ioctl numbers (odd baud rates) and its sysfs walk for
   the adapter's USB identity.  A write on this fd fails with EBADF, and the
   class has no write() at all;
 * the tty line discipline can transmit on its own even without a writable
   fd: ECHO echoes received bytes back out, IXOFF sends XOFF when the input
-  buffer fills.  Raw mode clears them, and `_configure` reads the settings
-  back and refuses to capture if they did not stick.  The one window left is
-  between open() and tcsetattr() on a freshly plugged adapter (kernel
+  buffer fills.  Raw mode clears them, and the settings are read back and
+  the capture refused if they did not stick (serial_port.py, which `sniffer
+  detect` shares).  The one window left is between open() and tcsetattr()
+  on a freshly plugged adapter (kernel
   default termios has ECHO on): microseconds, and usb-serial keeps a tty's
   termios across close and reopen while the adapter stays plugged;
 * opening a tty raises DTR/RTS (the kernel does it, not us).  Adapters that
@@ -37,12 +38,9 @@ READER_SWITCH_S for the process (a capture process, see capture_process.py;
 from __future__ import annotations
 
 import errno
-import fcntl
 import os
 import select
-import stat
 import sys
-import termios
 import threading
 import time
 from collections import deque
@@ -52,6 +50,7 @@ from ..events import CaptureInfo, Chunk, Gap, Tick
 from ..line import LineSettings
 from ..lowlatency import request_low_latency
 from . import CaptureError
+from .serial_port import open_read_only
 
 READ_SIZE = 4096
 READER_SWITCH_S = 0.0005  # the longest the reader waits for the interpreter after a read is due
@@ -88,7 +87,7 @@ class SerialSource:
         self._thread: threading.Thread | None = None
         self._error: BaseException | None = None
         self._lost_reason = ""
-        self.ignored: dict = {}  # settings the driver dropped and why that is harmless (see _configure)
+        self.ignored: dict = {}  # settings the driver dropped and why that is harmless (serial_port.configure)
         self._ended = False
 
     # -- consumer side -------------------------------------------------------------
@@ -249,119 +248,5 @@ class SerialSource:
     # -- opening -------------------------------------------------------------------
 
     def _open_port(self) -> int:
-        try:
-            fd = os.open(self.port, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
-        except OSError as e:
-            raise CaptureError(f"{self.port}: {_open_error(e)}") from None
-        try:
-            st = os.fstat(fd)
-            if not stat.S_ISCHR(st.st_mode) or not os.isatty(fd):
-                raise CaptureError("not a serial port (not a tty)")
-            self.ignored = _configure(fd, self.line, os.major(st.st_rdev) in PTY_SLAVE_MAJORS)
-            self._rdev = st.st_rdev
-        except CaptureError as e:
-            os.close(fd)
-            raise CaptureError(f"{self.port}: {e}") from None
-        except BaseException:
-            os.close(fd)
-            raise
+        fd, self._rdev, self.ignored = open_read_only(self.port, self.line)
         return fd
-
-
-def _open_error(e: OSError) -> str:
-    if e.errno == errno.ENOENT:
-        return "no such port (adapter unplugged or wrong name?)"
-    if e.errno in (errno.EACCES, errno.EPERM):
-        return "permission denied (is your user in the dialout group?)"
-    if e.errno == errno.EBUSY:
-        return "port is busy (another program holds it exclusively)"
-    if e.errno in (errno.ENXIO, errno.ENODEV):
-        return "no device behind this port"
-    return e.strerror or str(e)
-
-
-# -- termios -----------------------------------------------------------------------
-
-# IGNPAR/IGNBRK would make UART drivers drop bad bytes, and bad bytes are what a sniffer is for.
-# INPCK off delivers them as received (unflagged: PARMRK marking could add FLAG_PARITY later).
-_IFLAG_OFF = (termios.IGNBRK | termios.IGNPAR | termios.BRKINT | termios.PARMRK | termios.ISTRIP | termios.INLCR
-              | termios.IGNCR | termios.ICRNL | termios.IXON | termios.IXOFF | termios.IXANY
-              | termios.INPCK | termios.IMAXBEL | getattr(termios, "IUCLC", 0))
-# ECHO* would transmit received bytes back: these are the flags that must never stay on.
-_LFLAG_OFF = (termios.ECHO | termios.ECHOE | termios.ECHOK | termios.ECHONL | termios.ICANON
-              | termios.ISIG | termios.IEXTEN | getattr(termios, "ECHOCTL", 0) | getattr(termios, "ECHOKE", 0))
-_MUST_BE_OFF = termios.ECHO | termios.ECHONL | termios.ICANON
-_FRAME_BITS = termios.CSIZE | termios.PARENB | termios.PARODD | termios.CSTOPB
-PTY_SLAVE_MAJORS = range(136, 144)  # UNIX98_PTY_SLAVE_MAJOR .. + UNIX98_PTY_MAJOR_COUNT
-
-
-def _configure(fd: int, line: LineSettings, pty: bool) -> dict:
-    """Raw receive at the line's settings, no flow control; the read-back is the judge.
-
-    Returns what the driver ignored and why that is acceptable (empty on a UART).
-    """
-    try:
-        iflag, oflag, cflag, lflag, _, _, cc = termios.tcgetattr(fd)
-    except termios.error as e:
-        raise CaptureError(f"not a serial port ({_termios_text(e)})") from None
-    iflag &= ~_IFLAG_OFF
-    oflag &= ~termios.OPOST
-    lflag &= ~_LFLAG_OFF
-    cflag &= ~(termios.CSIZE | termios.PARENB | termios.PARODD | termios.CSTOPB | termios.CRTSCTS)
-    cflag |= termios.CLOCAL | termios.CREAD
-    cflag |= termios.CS8 if line.databits == 8 else termios.CS7
-    if line.parity != "N":
-        cflag |= termios.PARENB | (termios.PARODD if line.parity == "O" else 0)
-    if line.stopbits == 2:
-        cflag |= termios.CSTOPB
-    # The fd is O_NONBLOCK and waits in select(); VMIN=1/VTIME=0 makes select() wake on the first byte.
-    cc[termios.VMIN] = 1
-    cc[termios.VTIME] = 0
-    speed = getattr(termios, f"B{line.baud}", None)
-    try:
-        termios.tcsetattr(fd, termios.TCSANOW,
-                          [iflag, oflag, cflag, lflag, speed or termios.B38400, speed or termios.B38400, cc])
-    except termios.error:
-        # glibc answers EINVAL after the ioctl succeeded when the driver dropped PARENB/CSIZE
-        # (a pty does); whatever it was, the read-back below decides.
-        pass
-    try:
-        if speed is None:
-            _set_custom_baud(fd, line.baud)
-        got_i, _, got_c, got_l, got_is, got_os, _ = termios.tcgetattr(fd)
-    except (termios.error, OSError) as e:
-        raise CaptureError(f"cannot configure the port: {_termios_text(e)}") from None
-    if got_i & termios.IXOFF or got_l & _MUST_BE_OFF:
-        raise CaptureError("the port kept echo or XOFF on; refusing to capture (it could transmit)")
-    if speed is not None and (got_is, got_os) != (speed, speed):
-        raise CaptureError(f"the driver refused {line.baud} baud")
-    ignored = {}
-    want = cflag & _FRAME_BITS
-    if got_c & _FRAME_BITS != want:
-        if not pty:
-            raise CaptureError(f"the driver refused the character format {line.databits}{line.parity}{line.stopbits}")
-        ignored["char_format"] = "a pseudo-terminal has no line: parity/stop bits do not apply"
-    # Bytes that arrived before raw mode have no usable time and may be mangled: drop them
-    # (TCIFLUSH discards input only; nothing is sent).
-    termios.tcflush(fd, termios.TCIFLUSH)
-    return ignored
-
-
-def _set_custom_baud(fd: int, baud: int) -> None:
-    """Non-standard rates (e.g. 250000) through termios2/BOTHER, as pyserial does."""
-    import array
-
-    from serial import serialposix
-
-    buf = array.array("i", [0] * 64)
-    fcntl.ioctl(fd, serialposix.TCGETS2, buf)
-    buf[2] = (buf[2] & ~termios.CBAUD) | serialposix.BOTHER
-    buf[9] = buf[10] = baud
-    fcntl.ioctl(fd, serialposix.TCSETS2, buf)
-
-
-def _termios_text(e: Exception) -> str:
-    args = getattr(e, "args", ())
-    if len(args) == 2 and isinstance(args[1], str):
-        return args[1]
-    return getattr(e, "strerror", None) or str(e)

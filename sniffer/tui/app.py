@@ -14,35 +14,64 @@ from collections import deque
 from collections.abc import Callable
 from typing import ClassVar
 
+from textual import on
 from textual.app import App, ComposeResult
 from textual.binding import Binding
-from textual.containers import Vertical
+from textual.containers import Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Footer, Input, Static, TabbedContent, TabPane
 
+from .byteview import BytesPane, ByteView, char_ns
+from ..filterlang import register_ids
 from .detail import DetailPane
 from .filters import filter_expr, parse_filter
 from .framelist import FrameList
+from .goto import parse_goto, resolve
+from .gotobar import GotoBar
 from .model import FrameStore
+from .plot import JumpToFrame, PlotPane
+from .plotmodel import PlotSet
+from .readring import ReadRing
 from .registers import RegisterWatch
 from .sink import INTAKE_BUDGET_S, INTAKE_PERIOD_S, TuiSink
 from .status import status_text
+from .txlist import TransactionList, TransactionsPane
 from .units import UnitsTable
 
 HELP = """\
 [b]rs485-sniffer TUI[/b] — keys
 
-  [b]1 2 3[/b]        frames / units / registers
+  [b]1 2 3 4[/b]      frames / units / registers / transactions (below);  [b]6[/b] bytes: the reads as the
+               port delivered them (time, gap in ms and characters, │ where a frame begins; ← → frame,
+               Enter goes to it)
   [b]↑ ↓ PgUp PgDn[/b] move; [b]Home[/b] first; [b]End[/b] / [b]G[/b] follow the tail
   [b]Enter[/b]        focus the detail tree (select a node: its bytes light up in the hex dump)
   [b]p[/b]            jump to the paired request / response
   [b]n[/b] / [b]N[/b]        next / previous problem (error, exception, timeout, drive fault, noise)
   [b]e[/b]            errors only (toggle)
   [b]u[/b] / [b]f[/b]        only this frame's unit / function (toggle)
-  [b]/[/b]            filter bar: words search the line; u:1,2  fc:3,16  role:req  err
+  [b]/[/b]            filter bar; Enter applies (a bad filter says where, and the old one stays):
+               words find names, texts, registers (holding[300] 2520H 12-00), codes, hex;
+               u:1,2 fc:3 role:rsp reg:2520H..2525H model:a510 t:10s..20s "Output frequency">50
+               lat>20ms  err crc exc timeout fault noise warn  not and or ( )  (README: Filter language)
   [b]c[/b]            clear all filters
   [b]space[/b]        pause the view (capture goes on); again to resume
+  [b]t[/b]            times since the start → wall clock → from the time reference (the header says which)
+  [b]T[/b]            this frame is the time reference (*REF*); T on it again clears it
+  [b]g[/b]            go to frame 1234 (or #1234), or to the first frame at or after a time: 12.5s, 350ms
+               (from the reference when times are shown from it), 19:22:01.250 (wall clock)
   [b]m[/b]            bookmark; [b]][/b] / [b]\\[[/b] next / previous bookmark
+  [b]x[/b]            export the filtered view or the bookmarks (MCAP, pcap, CSV) to a file
+  [b]y[/b]            copy the selected frame's bytes as hex to the clipboard (OSC 52)
+  [b]4[/b]            transactions: a request and its answer a line, the latency histogram below (all
+               units while following the tail, else the selected transaction's unit); the frame
+               filter applies (a transaction shows if its request or its response passes)
+    in it:     [b]Enter[/b] / a click on the selected line: its request in Frames; [b]h[/b] histogram
+               of all units / this unit; [b]n[/b] / [b]N[/b] next / previous problem; [b]u[/b] / [b]f[/b] its unit / fc
+  [b]5[/b]            plot; in Registers [b]a[/b] adds / removes the register, [b]Enter[/b] opens its change log
+               (there [b]Enter[/b] goes to the change's frame, [b]Esc[/b] back)
+  Plot:        [b]+ -[/b] zoom  [b]← →[/b] pan  [b]0[/b] all, follow  [b], .[/b] cursor  [b]Enter[/b] / click: go to the
+               nearest sample's frame  [b]↑ ↓[/b] choose  [b]d[/b] remove  (mouse wheel: zoom)
   [b]?[/b]            this help;  [b]q[/b] quit: a live capture asks first (y stops it and closes
                its file); a replay or a viewer of `sniffer attach` just closes (the capture goes on)
 
@@ -52,17 +81,15 @@ The selected frame's pair has a grey background; ←/→ #n names it.
 """
 
 
-LIST_HEADER = (f"   {'time (s)':>12} {'dir':5} {'unit':4} {'model':<8} {'fc':4} {'frame→pair':<14} {'latency':>9} "
-               "summary  [problems]")
-
-
 class HelpScreen(ModalScreen):
     BINDINGS: ClassVar[list[Binding]] = [Binding("escape,q,question_mark", "dismiss", "Close")]
-    DEFAULT_CSS = "HelpScreen { align: center middle; } HelpScreen > Static { width: 100; height: auto; " \
-                  "border: thick $primary; background: $surface; padding: 1 2; }"
+    # at most the screen (80x24 too): what does not fit scrolls (arrows, PgUp / PgDn)
+    DEFAULT_CSS = "HelpScreen { align: center middle; } HelpScreen > VerticalScroll { width: 100; max-width: 100%; " \
+                  "height: auto; max-height: 100%; border: thick $primary; background: $surface; padding: 1 2; }"
 
     def compose(self) -> ComposeResult:
-        yield Static(HELP)
+        with VerticalScroll():
+            yield Static(HELP)
 
 
 class ConfirmQuit(ModalScreen[bool]):
@@ -94,7 +121,6 @@ class SnifferApp(App):
     #status { height: 1; background: $panel; padding: 0 1; }
     TabbedContent { height: 1fr; }
     #framespane { height: 1fr; }
-    #listhead { height: 1; color: $text-muted; text-style: bold; }
     FrameList { height: 3fr; }
     DetailPane { height: 2fr; }
     """
@@ -102,6 +128,8 @@ class SnifferApp(App):
         Binding("1", "tab('frames')", "Frames"),
         Binding("2", "tab('units')", "Units"),
         Binding("3", "tab('registers')", "Registers"),
+        Binding("4", "tab('transactions')", "Transactions", show=False),
+        Binding("5", "tab('plot')", "Plot", show=False),
         Binding("p", "pair", "Pair"),
         Binding("n", "problem(1)", "Next err"),
         Binding("N", "problem(0)", "Prev err", show=False),
@@ -119,6 +147,14 @@ class SnifferApp(App):
         Binding("enter", "focus_detail", "Detail", show=False),
         Binding("question_mark,f1", "help", "Help"),
         Binding("q", "quit", "Quit"),
+        # export / copy / raw bytes (issue 11)
+        Binding("x", "export", "Export"),
+        Binding("y", "copy_hex", "Copy hex", show=False),
+        Binding("6", "bytes_tab", "Bytes"),
+        # time: the base the list shows, a time reference, go to a frame or a time (priority: see slash)
+        Binding("t", "time_base", "Time"),
+        Binding("T", "time_reference", "Time ref", show=False),
+        Binding("g", "goto_bar", "Go to", priority=True),
     ]
 
     def __init__(self, sink: TuiSink, feed: Callable[[TuiSink, threading.Event], object] | None = None, *,
@@ -135,7 +171,7 @@ class SnifferApp(App):
         self.registry = registry  # read only, for the units table's given / guessed models
         self.poll_hz = poll_hz
         self.max_batch = max_batch
-        self.store = FrameStore()  # its register watch applies the frames' `writes`
+        self.store = FrameStore(ids=register_ids(registry))  # its register watch applies the frames' `writes`
         self.feed_error: BaseException | None = None
         self.feed_result = None
         self._thread: threading.Thread | None = None
@@ -149,20 +185,29 @@ class SnifferApp(App):
         self._status_text = None
         self._shown_rows = 0  # store rows when the list was last told
         self.notices: deque[str] = deque()  # lines a capture process said on stderr: shown as notifications
+        self.export_status: str | None = None  # an export running on its worker: how far it is
+        self.reads = ReadRing()  # the byte view's last reads (sniffer.reads)
 
     # ---------------------------------------------------------------- layout
     def compose(self) -> ComposeResult:
-        yield Input(placeholder="filter: words  u:1,2  fc:3  role:req|rsp|noise  err   (Enter applies, Esc closes)",
-                    id="filterbar")
+        yield Input(placeholder='filter: words  u:1,2  fc:3  reg:2520H  "Output frequency" > 50  lat>20ms  t:10s..20s  '
+                                'err  not/and/or (...)   (Enter applies, Esc closes)', id="filterbar")
+        yield GotoBar(id="gotobar")
         with TabbedContent(initial="frames"):
             with TabPane("Frames", id="frames"), Vertical(id="framespane"):
-                yield Static(LIST_HEADER, id="listhead", markup=False)
                 yield FrameList(self.store, id="list")
                 yield DetailPane(id="detail")
             with TabPane("Units", id="units"):
                 yield UnitsTable(self.store, self.registry, id="unitstable")
+            plots = PlotSet()  # the registers on the plot: added in the Registers tab, drawn in the Plot tab
             with TabPane("Registers", id="registers"):
-                yield RegisterWatch(self.store, id="regwatch")
+                yield RegisterWatch(self.store, plots, id="regwatch")
+            with TabPane("Transactions", id="transactions"):
+                yield TransactionsPane(self.store, id="txpane")
+            with TabPane("Plot", id="plot"):
+                yield PlotPane(self.store, plots, id="plotpane")
+            with TabPane("Bytes", id="bytes"):
+                yield BytesPane(self.reads, self.store, id="bytespane")
         yield Static("", id="status")
         yield Footer()
 
@@ -173,6 +218,8 @@ class SnifferApp(App):
         self.status = self.query_one("#status", Static)
         self.tabs = self.query_one(TabbedContent)
         self.filter_bar = self.query_one("#filterbar", Input)
+        self.tx_pane = self.query_one("#txpane", TransactionsPane)
+        self.byte_view = self.query_one("#byteview", ByteView)
         self.frame_list.focus()
         self.set_interval(1 / self.poll_hz, self._tick)
         self._more = self.set_interval(INTAKE_PERIOD_S, self._intake, pause=True)  # while frames wait
@@ -235,11 +282,18 @@ class SnifferApp(App):
                         timeout=8 if bad else 4)
         if self.sink.info is not None and not len(self.store):
             self.store.t0_ns = self.sink.info.t0_ns
+            self.store.time.wall_anchor_ns = self.sink.info.wall_anchor_ns
         self.sink.drain_into(self.store.add, limit=self.max_batch, budget_s=budget_s)
         before = self._shown_rows  # frames _intake added count too
         if len(self.store) != before and (budget_s is None or self.frame_list.tail_due(len(self.store) - before)):
             self._shown_rows = len(self.store)
             self.frame_list.refresh_rows(grown=True)
+            if self.tabs.active == "transactions":
+                self.tx_pane.refresh_view()
+        reads = self.sink.drain_reads()
+        if reads:
+            self.reads.add(reads)
+            self._bytes_shown()
         self._ticks += 1
         now = self.clock()
         when, n0, b0 = self._rate
@@ -264,6 +318,10 @@ class SnifferApp(App):
             self.tabs.query_one("#unitstable", UnitsTable).update_rows()
         elif active == "registers":
             self.tabs.query_one("#regwatch", RegisterWatch).update_rows()
+        elif active == "transactions":
+            self.tx_pane.refresh_view()
+        elif active == "plot":
+            self.tabs.query_one("#plotpane", PlotPane).update_plot()
 
     def capture_size(self) -> int | None:
         path = self.capture_path or self.sink.capture_path
@@ -278,13 +336,30 @@ class SnifferApp(App):
 
     # ---------------------------------------------------------------- selection
     def on_frame_list_selected(self, message: FrameList.Selected) -> None:
-        row = message.row
-        self.detail.show(None if row is None else self.store.frame(row), self.store.t0_ns, following=message.following)
+        self.show_detail(message.row, following=message.following)
+
+    def show_detail(self, row: int | None, *, following: bool = False) -> None:
+        """The detail of a row, its time in the list's base and its Δt to the previous shown frame
+        (`following`: the tail's newest frame, shown at a readable pace: DetailPane.show)."""
+        store = self.store
+        pos = None if row is None else store.pos_of_row(row)
+        prev = store.view[pos - 1] if pos else None
+        self.detail.show(None if row is None else store.frame(row), store.time,
+                         None if prev is None else (store.t_ns[prev], store.frame(prev).index), following=following)
 
     @property
     def selected_frame(self):
         row = self.frame_list.selected_row
+        if self.tabs.active == "transactions":  # u / f act on the selected transaction
+            row = self.tx_pane.selected_row
         return None if row is None else self.store.frame(row)
+
+    def on_transaction_list_chosen(self, message: TransactionList.Chosen) -> None:
+        """Open a transaction's request in the Frames tab (its response if the filter hides the request)."""
+        req, rsp = self.store.transactions.rows(message.tx)
+        row = req if req >= 0 and self.store.pos_of_row(req) is not None else rsp
+        self.action_tab("frames")
+        self._goto(row if row >= 0 else None, "frame of this transaction in view")
 
     def _goto(self, row: int | None, what: str) -> bool:
         if row is None or not self.frame_list.select_row(row):
@@ -297,12 +372,20 @@ class SnifferApp(App):
         self.refresh_tables()
         if tab == "frames":
             self.frame_list.focus()
+        elif tab == "transactions":
+            self.tx_pane.list.focus()
+        elif tab == "plot":  # the plot takes the keys (zoom, pan, cursor)
+            self.query_one("#plotview").focus()
         else:  # the tab's table takes the keys (arrows move in it at once)
             from textual.widgets import DataTable
 
             pane = self.query_one("#unitstable" if tab == "units" else "#regwatch")
             table = pane if isinstance(pane, DataTable) else pane.query_one(DataTable)
             table.focus()
+
+    def on_jump_to_frame(self, message: JumpToFrame) -> None:
+        """A change in the change log or a sample on the plot: its frame in the Frames tab."""
+        self.go_to_frame(message.index)
 
     def action_pair(self) -> None:
         row = self.frame_list.selected_row
@@ -341,6 +424,8 @@ class SnifferApp(App):
         fl.refresh_rows()
         if keep is not None and len(self.store.view) and not fl.follow:
             fl.cursor = self.store.nearest_pos(keep)
+        if self.tabs.active == "transactions":
+            self.tx_pane.refresh_view()
         self.status.update(status_text(self))
 
     def apply_filter(self, **kw) -> None:
@@ -371,8 +456,8 @@ class SnifferApp(App):
 
     def action_filter_bar(self) -> None:
         bar = self.filter_bar
-        if self.focused is bar:  # a '/' typed in the filter itself
-            bar.insert_text_at_cursor("/")
+        if isinstance(self.focused, Input):  # a '/' typed in the filter (or another bar) itself
+            self.focused.insert_text_at_cursor("/")
             return
         if self.screen is not self.screen_stack[0]:  # help or a question on top: not now
             return
@@ -405,3 +490,107 @@ class SnifferApp(App):
 
     def action_help(self) -> None:
         self.push_screen(HelpScreen())
+
+    # ---------------------------------------------------------------- export, copy (issue 11)
+    def action_export(self) -> None:
+        from .exportscreen import ExportScreen, start_export
+
+        if self.screen is not self.screen_stack[0]:  # help or a question on top: not now
+            return
+        if self.export_status is not None:
+            self.notify("an export is running (its progress is in the status bar)", timeout=3)
+            return
+        path = self.capture_path or self.sink.capture_path
+        screen = ExportScreen(path, len(self.store.view), len(self.store.bookmarks), inputs=[path])
+        self.push_screen(screen, lambda job: job and start_export(self, job))
+
+    def action_copy_hex(self) -> None:
+        f = self.selected_frame
+        if self.tabs.active == "bytes":  # the byte view's frame
+            row = None if self.byte_view.frame is None else self.store.row_of.get(self.byte_view.frame)
+            f = None if row is None else self.store.frame(row)
+        if f is None:
+            self.notify("no frame selected", timeout=2)
+            return
+        self.copy_to_clipboard(f.raw.hex())
+        self.notify(f"copied frame #{f.index}: {len(f.raw)} bytes, {f.raw[:24].hex(' ')}"
+                    + (" …" if len(f.raw) > 24 else ""), timeout=3, markup=False)
+
+    # ---------------------------------------------------------------- the byte view (issue 11)
+    def action_bytes_tab(self) -> None:
+        self.tabs.active = "bytes"
+        self.byte_view.focus()
+
+    @on(TabbedContent.TabActivated, pane="#bytes")
+    def _bytes_tab_activated(self) -> None:
+        self._bytes_follow_list()
+        self._bytes_shown()
+
+    def _bytes_follow_list(self) -> None:
+        """Opened, the byte view shows the frame selected in the list (the newest read while the list follows)."""
+        f = self.selected_frame
+        self.byte_view.follow = self.frame_list.follow or f is None
+        if not self.byte_view.follow:
+            self.byte_view.show_frame(f.index)
+
+    def _bytes_shown(self) -> None:
+        if self.tabs.active == "bytes":
+            self.byte_view.char_ns = char_ns(self.sink.info)
+            self.byte_view.refresh_reads()
+
+    def on_byte_view_chosen(self, message: ByteView.Chosen) -> None:
+        self.go_to_frame(message.index)
+
+    def go_to_frame(self, index: int) -> None:
+        """Frame #index selected in the Frames tab (the byte view's Enter, a change, a plotted sample)."""
+        row = self.store.row_of.get(index)
+        if row is None:
+            self.notify(f"frame #{index} is not in this view (older than what it was sent)", timeout=3)
+        elif self.store.pos_of_row(row) is None:
+            self.notify(f"frame #{index} is not in the list: filtered out (c clears the filters) or after the "
+                        "pause (space resumes)", timeout=3)
+        else:
+            self.tabs.active = "frames"
+            self.frame_list.select_row(row)
+            self.frame_list.focus()
+    # ---------------------------------------------------------------- time and go to
+    def _after_time_change(self) -> None:
+        self.frame_list.refresh_rows()  # the columns fit the new times, the header names the base
+        self.show_detail(self.frame_list.selected_row)
+        self.tx_pane.refresh_view()
+
+    def action_time_base(self) -> None:
+        if self.store.time.cycle() is None:
+            self.notify("Times are since the start only: this capture has no wall-clock start and no time "
+                        "reference is set (T sets one)", timeout=4)
+            return
+        self._after_time_change()
+
+    def action_time_reference(self) -> None:
+        row = self.frame_list.selected_row
+        if row is not None:
+            f = self.store.frame(row)
+            self.store.time.toggle_reference(row, f.t_ns, f.index)
+            self._after_time_change()
+
+    def action_goto_bar(self) -> None:
+        if isinstance(self.focused, Input):  # a 'g' typed in a bar is text
+            self.focused.insert_text_at_cursor("g")
+        elif self.screen is self.screen_stack[0]:  # not under the help or a question
+            self.query_one("#gotobar", GotoBar).open()
+
+    @on(Input.Submitted, "#gotobar")
+    def goto(self, event: Input.Submitted) -> None:
+        """Go where the bar says; bad input: one error line, the bar stays open to fix it."""
+        bar = self.query_one("#gotobar", GotoBar)
+        if event.value.strip():
+            try:
+                row, note = resolve(self.store, parse_goto(event.value, self.store.time, self.store.last_t_ns))
+            except ValueError as e:
+                self.notify(str(e), severity="error", timeout=5)
+                return
+            self.tabs.active = "frames"
+            self.frame_list.select_row(row)
+            if note:
+                self.notify(note, severity="warning", timeout=5)
+        bar.action_close()

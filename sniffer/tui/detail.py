@@ -2,12 +2,16 @@
 
 Selecting a tree node (a point, a field or an annotation) highlights its
 bytes in the hex dump: the spans the decoders recorded (a point's `span`, an
-annotation's start..end), never guessed here.
+annotation's start..end), never guessed here.  Entering the tree puts its
+cursor on the frame's first point (else its first annotation) and lights that
+up: the tree is rebuilt for every frame, and a cursor left on the line it had
+in the previous frame (often the last line: a PD-series answer has one point)
+highlighted nothing and could not move on to anything that would.
 """
 
 from __future__ import annotations
 
-import time
+from time import monotonic
 
 from rich.text import Text
 from textual.app import ComposeResult
@@ -16,6 +20,7 @@ from textual.css.query import NoMatches
 from textual.widgets import Static, Tree
 
 from ..frame import Frame
+from .timebase import TimeBase, delta_text
 
 HL = "black on yellow"
 FOLLOW_EVERY_S = 0.5  # while the list follows the tail, the detail is rebuilt at most this often
@@ -67,11 +72,13 @@ class DetailPane(Vertical):
     def __init__(self, **kw) -> None:
         super().__init__(**kw)
         self.frame: Frame | None = None
-        self.t0_ns = 0
+        self.time = TimeBase()
+        self.prev: tuple[int, int] | None = None
         self.span: tuple[int, int] | None = None
-        self.due: tuple[Frame | None, int] | None = None  # the tail's newest frame, shown at _shown_at + FOLLOW_EVERY_S
+        self.due: tuple | None = None  # show()'s arguments for the tail's newest frame, at _shown_at + FOLLOW_EVERY_S
         self._shown_at = float("-inf")  # when a tail frame was last shown
         self._due_timer = None
+        self._entry = None  # the node the cursor goes to when the tree is entered
 
     def compose(self) -> ComposeResult:
         tree: Tree = Tree("no frame selected", id="fields")
@@ -81,17 +88,20 @@ class DetailPane(Vertical):
 
     def on_mount(self) -> None:
         if self.frame is not None:  # selected before the tree was composed (a feed can be that quick)
-            self.show(self.frame, self.t0_ns)
+            self.show(self.frame, self.time, self.prev)
 
-    def show(self, f: Frame | None, t0_ns: int = 0, *, following: bool = False) -> None:
-        """Show frame f; `following`: f is the tail's newest frame (the list follows a capture), and the tail
-        frame shown less than FOLLOW_EVERY_S ago stays until then (nobody reads a detail that changes 15 times
-        a second; building it took a third of the TUI's time).  A frame the user selects shows at once."""
-        now = time.monotonic()
+    def show(self, f: Frame | None, time: TimeBase | None = None, prev: tuple[int, int] | None = None, *,
+             following: bool = False) -> None:
+        """Show a frame, its time in `time`'s base; `prev` is the previous shown frame's (t_ns, number) for Δt.
+
+        `following`: f is the tail's newest frame (the list follows a capture), and the tail frame shown less
+        than FOLLOW_EVERY_S ago stays until then (nobody reads a detail that changes 15 times a second;
+        building it took a third of the TUI's time).  A frame the user selects shows at once."""
+        now = monotonic()
         if following:
             wait = self._shown_at + FOLLOW_EVERY_S - now
             if wait > 0:
-                self.due = (f, t0_ns)
+                self.due = (f, time, prev)
                 if self._due_timer is None:
                     self._due_timer = self.set_timer(wait, self._show_due)
                 return
@@ -102,7 +112,8 @@ class DetailPane(Vertical):
         if self._due_timer is not None:
             self._due_timer.stop()
             self._due_timer = None
-        self.frame, self.t0_ns, self.span = f, t0_ns, None
+        self.frame, self.span, self._entry = f, None, None
+        self.time, self.prev = time or TimeBase(), prev
         try:
             tree = self.query_one("#fields", Tree)
         except NoMatches:
@@ -112,8 +123,7 @@ class DetailPane(Vertical):
             tree.root.set_label("no frame selected")
             self._hex()
             return
-        t = (f.t_ns - t0_ns) / 1e9
-        head = f"#{f.index} {f.role} t={t:.6f}s {len(f.raw)}B"
+        head = f"#{f.index} {f.role} t={self.time.full_text(f.t_ns)} {len(f.raw)}B"
         if f.unit is not None:
             head += f" unit {f.unit}"
         if f.function is not None:
@@ -131,6 +141,7 @@ class DetailPane(Vertical):
             wire.add_leaf(f"pair: #{f.pair}" + (f"  latency {f.latency_ms:.2f} ms" if f.latency_ms is not None else ""))
         if f.noise_reason:
             wire.add_leaf(f"noise: {f.noise_reason}")
+        self._add_time(tree.root, f)
         if f.summary:
             tree.root.add_leaf(f"summary: {f.summary}")
         if f.exception:
@@ -147,6 +158,7 @@ class DetailPane(Vertical):
                 label = Text(f"{addr if addr is not None else '-'}{pid} {p.get('name', '')} = ")
                 label.append(_fmt_value(p), "bold")
                 pn = node.add(label, data=span, expand=False) if p.get("text") else node.add_leaf(label, data=span)
+                self._entry = self._entry or pn
                 if p.get("text"):
                     for part in str(p["text"]).split(", "):
                         pn.add_leaf(part, data=span)
@@ -156,7 +168,8 @@ class DetailPane(Vertical):
             for a in f.annotations:
                 label = Text(f"{a.severity}: ", colour.get(a.severity))
                 label.append(f"{a.code} — {a.detail} [bytes {a.start}..{a.end - 1}]")
-                node.add_leaf(label, data=(a.start, a.end))
+                leaf = node.add_leaf(label, data=(a.start, a.end))
+                self._entry = self._entry or leaf
         tree.root.expand()
         self._hex()
 
@@ -164,6 +177,13 @@ class DetailPane(Vertical):
         self._due_timer = None
         if self.due is not None:
             self.show(*self.due, following=True)
+    def _add_time(self, parent, f: Frame) -> None:
+        """The frame's time in every base (collapsed: the root line has it in the one in use)."""
+        node = parent.add("time", expand=False)
+        for line in self.time.all_texts(f.t_ns):
+            node.add_leaf(line)
+        if self.prev is not None:
+            node.add_leaf(f"Δt: {delta_text(f.t_ns - self.prev[0])} after #{self.prev[1]} (the previous frame shown)")
 
     def _add_fields(self, parent, fields) -> None:
         for item in fields:
@@ -178,7 +198,18 @@ class DetailPane(Vertical):
         raw = self.frame.raw if self.frame is not None else b""
         self.query_one("#hex", Static).update(hex_dump(raw, self.span))
 
-    def on_tree_node_highlighted(self, event: Tree.NodeHighlighted) -> None:
-        data = event.node.data
+    def _light(self, node) -> None:
+        data = node.data
         self.span = data if isinstance(data, tuple) else None
         self._hex()
+
+    def on_tree_node_highlighted(self, event: Tree.NodeHighlighted) -> None:
+        self._light(event.node)
+
+    def on_descendant_focus(self, event) -> None:
+        tree = self.query_one("#fields", Tree)
+        if event.widget is not tree or self._entry is None:
+            return
+        tree.last_line  # noqa: B018 - lays the lines out, so that the nodes know their line numbers
+        tree.move_cursor(self._entry)
+        self._light(self._entry)

@@ -1,40 +1,37 @@
-"""The filter bar's little language: `u:1,2 fc:3,16 role:req err words...`."""
+"""The filter bar: its text <-> the store's Filter, in the filter language (sniffer.filterlang).
+
+The keys u, f and e toggle a unit, a function and errors-only beside what the bar
+says, so a bar filter is split: its plain top-level terms `u:1,2`, `fc:3`,
+`role:req` and `err` become those fields, everything else stays text in the
+language (`"Output frequency" > 50 lat>20ms ...`).  `filter_expr` joins them
+again, so the bar reopens on the filter in force.
+"""
 
 from __future__ import annotations
 
-_ROLE = {"req": "request", "request": "request", "rsp": "response", "resp": "response",
-         "response": "response", "noise": "noise", "unknown": "unknown", "?": "unknown"}
+from ..filterlang import Query, conjuncts, parse
+from ..filterlang.nodes import And, Field, Flag, Or, Roles
+from ..frameflags import F_PROBLEM
 
-
-def _ints(s: str, base: int) -> frozenset[int]:
-    try:
-        return frozenset(int(x.lstrip("0") or "0", base) if base == 0 and not x.lower().startswith("0x")
-                         else int(x, base) for x in s.split(",") if x)
-    except ValueError:
-        raise ValueError(f"not a number list: {s!r}") from None
+_FIELD = {"u": "units", "fc": "functions"}
 
 
 def parse_filter(expr: str) -> dict:
-    """Keyword arguments for FrameStore.update_filter; every field is set (the bar replaces the filter)."""
+    """Keyword arguments for FrameStore.update_filter; every field is set (the bar replaces the filter).
+    FilterError (a ValueError naming the column) if the text does not parse."""
     kw: dict = {"units": None, "functions": None, "roles": None, "errors_only": False, "text": ""}
-    words = []
-    for tok in expr.split():
-        key, sep, val = tok.partition(":")
-        k = key.lower()
-        if sep and k in ("u", "unit"):
-            kw["units"] = _ints(val, 10)
-        elif sep and k in ("fc", "function"):
-            kw["functions"] = _ints(val, 0)  # decimal, or 0x10
-        elif sep and k == "role":
-            try:
-                kw["roles"] = frozenset(_ROLE[r.lower()] for r in val.split(",") if r)
-            except KeyError as e:
-                raise ValueError(f"unknown role {e.args[0]!r} (req, rsp, noise, unknown)") from None
-        elif tok.lower() in ("err", "errors"):
+    rest = []
+    for term in conjuncts(parse(expr)):
+        name = _FIELD.get(term.key) if isinstance(term, Field) else None
+        if name and kw[name] is None and term.points is not None:
+            kw[name] = frozenset(int(v) for v in term.points)
+        elif isinstance(term, Roles) and kw["roles"] is None:
+            kw["roles"] = term.names
+        elif isinstance(term, Flag) and term.mask == F_PROBLEM:
             kw["errors_only"] = True
         else:
-            words.append(tok)
-    kw["text"] = " ".join(words)
+            rest.append(term)
+    kw["text"] = str(And(tuple(rest)) if len(rest) > 1 else rest[0]) if rest else ""
     return kw
 
 
@@ -50,5 +47,10 @@ def filter_expr(flt) -> str:
     if flt.errors_only:
         parts.append("err")
     if flt.text:
-        parts.append(flt.text)
+        parts.append(f"({flt.text})" if parts and isinstance(parse(flt.text), Or) else flt.text)
     return " ".join(parts)
+
+
+def filter_query(flt) -> Query:
+    """The Filter as one query: its fields and its text and-ed."""
+    return Query(filter_expr(flt))

@@ -1,4 +1,4 @@
-"""The frame list: a Line-API ScrollView over the store's view index (like toolong).
+"""The frame list: a virtual list (vlist.CursorList) over the store's view index (like toolong).
 
 Only the rows on screen are formatted, so a million frames cost nothing until
 they scroll into view.  The list follows the tail until the user moves up;
@@ -7,22 +7,18 @@ End (or G) follows again.
 
 from __future__ import annotations
 
-import time
+from dataclasses import dataclass
 from typing import ClassVar
 
 from rich.style import Style
 from rich.text import Text
-from textual.binding import Binding
-from textual.geometry import Size
 from textual.message import Message
-from textual.reactive import reactive
-from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
 from ..frame import Frame
-from .model import F_ERROR, F_EXC, F_FAULT, F_NOISE, F_TIMEOUT, F_WARN, FrameStore
-
-TAIL_EVERY_S = 0.2  # a tail moving more than a screen between two polls is drawn at most this often
+from .model import F_ERROR, F_EXC, F_FAULT, F_NOISE, F_TIMEOUT, F_WARN
+from .timebase import TimeBase, delta_text
+from .vlist import CursorList
 
 ROLE_TAG = {"request": "->REQ", "response": "<-RSP", "unknown": " ??? ", "noise": "NOISE"}
 S_ERROR = Style(color="bright_red", bold=True)
@@ -36,6 +32,7 @@ S_RSP = Style(color="green")
 S_CURSOR = Style(bgcolor="grey30", bold=True)
 S_PAIR = Style(bgcolor="grey19")
 S_MARK = Style(color="bright_blue", bold=True)
+S_REF = Style(color="bright_blue", bold=True, reverse=True)  # the time reference's *REF*
 
 
 def row_style(fl: int) -> Style | None:
@@ -52,58 +49,127 @@ def row_style(fl: int) -> Style | None:
     return None
 
 
-def format_row(f: Frame, fl: int, t0_ns: int, marked: bool) -> Text:
-    t = (f.t_ns - t0_ns) / 1e9
+MIN_SUMMARY = 20  # the summary keeps at least this many characters: narrower lists drop columns first
+
+
+@dataclass(frozen=True)
+class Column:
+    key: str
+    title: str
+    width: int
+    right: bool = False  # right-aligned
+    drop: int = 0  # 0: always shown; else dropped in this order (1 first) when the summary would be too narrow
+
+
+@dataclass(frozen=True)
+class Layout:
+    """The frame list's columns at one width: which are shown, how wide, and the header line."""
+
+    columns: tuple[Column, ...]
+    summary: int  # characters left for the summary
+    header: str
+
+    def has(self, key: str) -> bool:
+        return any(c.key == key for c in self.columns)
+
+
+def fit_columns(width: int, tb: TimeBase, first_ns: int, last_ns: int, last_index: int) -> Layout:
+    """The columns that fit `width` (each followed by a space), the summary getting what is left.
+
+    Widths follow the capture (the time column as wide as its times, the frame numbers as long as
+    the last one's); below MIN_SUMMARY characters for the summary the least useful columns go first:
+    the model (the detail and Units show it), the function code (the summary names it), Δt, latency.
+    """
+    digits = len(str(max(last_index, 0)))
+    cols = [Column("mark", "", 3), Column("time", tb.title(), tb.width(first_ns, last_ns), right=True),
+            Column("dt", "Δt", 8, right=True, drop=3), Column("dir", "dir", 5), Column("unit", "unit", 4),
+            Column("model", "model", 8, drop=1), Column("fc", "fc", 4, drop=2),
+            Column("link", "frame→pair", 2 * digits + 3), Column("lat", "latency", 8, right=True, drop=4)]
+    cols = [Column(c.key, c.title, max(c.width, len(c.title)), c.right, c.drop) for c in cols]
+    for drop in range(1, 5):
+        if width - sum(c.width + 1 for c in cols) >= MIN_SUMMARY:
+            break
+        cols = [c for c in cols if c.drop != drop]
+    summary = max(width - sum(c.width + 1 for c in cols), 0)
+    head = " ".join(c.title.rjust(c.width) if c.right else c.title.ljust(c.width) for c in cols)
+    head += f" summary [problems]   {tb.describe()}"
+    return Layout(tuple(cols), summary, head[:width])
+
+
+def row_mark(fl: int) -> str:
+    """The two-character problem mark a row starts with (its colour is row_style's)."""
     if fl & F_ERROR:
-        mark = "!!"
-    elif fl & F_EXC:
-        mark = "E "
-    elif fl & F_FAULT:
-        mark = "F "
-    elif fl & F_TIMEOUT:
-        mark = "T "
-    else:
-        mark = "! " if fl & (F_WARN | F_NOISE) else "  "
-    role = ROLE_TAG.get(f.role, " ??? ")
-    unit = "  -" if f.unit is None else f"{f.unit:3d}"
-    model = (f.model or "")[:8]
-    fc = "--" if f.function is None else f"{f.function:02X}"
-    link = f"#{f.index}" + (f"{'→' if f.role == 'request' else '←'}#{f.pair}" if f.pair is not None else "")
-    lat = f"{f.latency_ms:7.1f}ms" if f.latency_ms is not None and f.role == "response" else " " * 9
+        return "!!"
+    if fl & F_EXC:
+        return "E "
+    if fl & F_FAULT:
+        return "F "
+    if fl & F_TIMEOUT:
+        return "T "
+    return "! " if fl & (F_WARN | F_NOISE) else "  "
+
+
+def summary_text(f: Frame) -> str:
+    """The summary column's text: the decoder's summary, a bad CRC and the problems' codes; a noise frame's bytes."""
     if f.protocol == "noise":
-        summary = f"{len(f.raw)}B {f.raw[:16].hex(' ')}  [{f.noise_reason}]"
-    else:
-        summary = f.summary
-        if f.crc_ok is False:
-            summary = "CRC! " + summary
-        notes = [a.code for a in f.annotations if a.severity != "info"]
-        if notes:
-            summary += "  [" + ", ".join(notes) + "]"
+        return f"{len(f.raw)}B {f.raw[:16].hex(' ')}  [{f.noise_reason}]"
+    summary = f.summary
+    if f.crc_ok is False:
+        summary = "CRC! " + summary
+    notes = [a.code for a in f.annotations if a.severity != "info"]
+    if notes:
+        summary += "  [" + ", ".join(notes) + "]"
+    return summary
+
+
+def format_row(f: Frame, fl: int, lay: Layout, tb: TimeBase, marked: bool, is_ref: bool = False,
+               prev_t_ns: int | None = None) -> Text:
+    """One line of the list in `lay`'s columns; `prev_t_ns` is the previous shown frame's time (Δt)."""
+    cells = {
+        "mark": ("*" if marked else " ") + row_mark(fl),
+        "time": "*REF*" if is_ref else tb.text(f.t_ns),
+        "dt": "" if prev_t_ns is None else delta_text(f.t_ns - prev_t_ns),
+        "dir": ROLE_TAG.get(f.role, " ??? "),
+        "unit": "u  -" if f.unit is None else f"u{f.unit:3d}",
+        "model": (f.model or "")[:8],
+        "fc": "fc--" if f.function is None else f"fc{f.function:02X}",
+        "link": f"#{f.index}" + (f"{'→' if f.role == 'request' else '←'}#{f.pair}" if f.pair is not None else ""),
+        "lat": f"{f.latency_ms:6.1f}ms" if f.latency_ms is not None and f.role == "response" else "",
+    }
+    styles = {"dir": S_REQ if f.role == "request" else S_RSP if f.role == "response" else None,
+              "time": S_REF if is_ref else None}
     text = Text(no_wrap=True, overflow="ellipsis")
     text.append("*" if marked else " ", S_MARK)
-    text.append(f"{mark}{t:12.6f} ")
-    text.append(f"{role} ", S_REQ if f.role == "request" else S_RSP if f.role == "response" else None)
-    text.append(f"u{unit} {model:<8} fc{fc} {link:<14} {lat} {summary}")
+    plain = [cells["mark"][1:], " "]  # runs without a style of their own go in as one piece (fewer spans)
+    for c in lay.columns[1:]:
+        cell = cells[c.key].rjust(c.width) if c.right else cells[c.key].ljust(c.width)
+        style = styles.get(c.key)
+        if style is None:
+            plain += (cell, " ")
+        else:
+            text.append("".join(plain))
+            text.append(cell, style)
+            plain = [" "]
+    plain.append(summary_text(f))
+    text.append("".join(plain))
     st = row_style(fl)
     if st is not None:
         text.stylize(st, 1)
+    text.truncate(sum(c.width + 1 for c in lay.columns) + lay.summary, overflow="ellipsis")
     return text
 
 
-class FrameList(ScrollView, can_focus=True):
-    """Rows are positions in `store.view`; `cursor` is one of them."""
+class FrameList(CursorList):
+    """Rows are positions in `store.view`; `cursor` is one of them.  The first line is the header, drawn
+    with the rows (so it always names their columns and time base); rows start on the second."""
 
-    BINDINGS: ClassVar[list[Binding]] = [
-        Binding("up,k", "cursor(-1)", "Up", show=False),
-        Binding("down,j", "cursor(1)", "Down", show=False),
-        Binding("pageup", "page(-1)", "PgUp", show=False),
-        Binding("pagedown", "page(1)", "PgDn", show=False),
-        Binding("home", "first", "First", show=False),
-        Binding("end,G", "last", "Tail", show=False),
-    ]
-    DEFAULT_CSS = "FrameList { height: 1fr; }"
-
-    cursor = reactive(-1, always_update=True, repaint=False)
+    COMPONENT_CLASSES: ClassVar[set[str]] = {"framelist--header"}
+    # rows fit the width: nothing to scroll to sideways
+    DEFAULT_CSS = """
+    FrameList { height: 1fr; overflow-x: hidden; }
+    FrameList > .framelist--header { color: $text-muted; text-style: bold; }
+    """
+    header_lines = 1
 
     class Selected(Message):
         def __init__(self, row: int | None, following: bool = False) -> None:
@@ -111,57 +177,33 @@ class FrameList(ScrollView, can_focus=True):
             self.following = following  # moved by new frames at the tail, not by the user
             super().__init__()
 
-    def __init__(self, store: FrameStore, **kw) -> None:
-        super().__init__(**kw)
-        self.store = store
-        self.follow = True
-        self._seen_generation = -1
-        self._tailing = False  # the cursor moves because frames arrived (refresh_rows)
-        self._tail_drawn_at = float("-inf")
+    def __init__(self, store, **kw) -> None:
+        super().__init__(store, **kw)
+        self._extent = (0, 0, 0)  # (first t_ns, last t_ns, last frame number): what the column widths fit
+        self._layout: tuple[tuple, Layout] | None = None  # (what it was fitted to, the layout)
+
+    def positions(self):
+        return self.store.view
+
+    def cursor_moved(self) -> None:
+        self.post_message(self.Selected(self.selected_row, self.tailing))
+
+    def virtual_width(self) -> int:
+        return self.scrollable_content_region.width
 
     # ---- data
-    def _fit(self) -> int:
-        """The scrollable height made the view's length (frames taken in since the last poll count)."""
-        n = len(self.store.view)
-        if self.virtual_size.height != n:
-            self.virtual_size = Size(max(self.size.width, 200), n)
-        return n
-
-    def tail_due(self, new_rows: int) -> bool:
-        """Should `new_rows` frames that came since the last draw be drawn now?  Followed, a tail that moves
-        more than a screen between two polls is a blur whose every draw costs a screen of rows: it is drawn
-        at most every TAIL_EVERY_S.  Fewer rows, or a view that does not follow, now."""
-        return (not self.follow or new_rows < self.size.height
-                or time.monotonic() - self._tail_drawn_at >= TAIL_EVERY_S)
-
     def refresh_rows(self, grown: bool = False) -> None:
-        """Called by the App after the store changed; `grown`: only frames at the view's end came (new frames
-        below a window that does not follow the tail change nothing on screen but the scroll bar)."""
-        n = len(self.store.view)
-        size = Size(max(self.size.width, 200), n)
-        if (grown and not self.follow and round(self.scroll_offset.y) + self.size.height <= self.virtual_size.height
-                and hasattr(self, "_scroll_update")):  # Textual's own way to a new extent without a repaint
-            self.set_reactive(FrameList.virtual_size, size)  # the rows on screen stay as they are
-            self._scroll_update(size)
-            return
-        self.virtual_size = size
-        self._tail_drawn_at = time.monotonic()
-        if self.follow and n:
-            if self.cursor != n - 1:
-                self._tailing = True
-                try:
-                    self.cursor = n - 1
-                finally:
-                    self._tailing = False
-            self.scroll_end(animate=False, immediate=True)
-        elif self.cursor >= n:
-            self.cursor = n - 1
-        self.refresh()
+        """Called by the App after the store changed (`grown`: CursorList.refresh_rows)."""
+        store = self.store
+        if len(store):
+            columns = self.layout_columns() if grown else None
+            self._extent = (store.t_ns[0], store.last_t_ns, store.frame(len(store) - 1).index)
+            grown = grown and self.layout_columns() == columns  # columns refitted: every row on screen changes
+        super().refresh_rows(grown)
 
     @property
     def selected_row(self) -> int | None:
-        v = self.store.view
-        return v[self.cursor] if 0 <= self.cursor < len(v) else None
+        return self.selected
 
     def select_row(self, row: int) -> bool:
         pos = self.store.pos_of_row(row)
@@ -171,65 +213,30 @@ class FrameList(ScrollView, can_focus=True):
         self.cursor = pos
         return True
 
-    def watch_cursor(self, old: int, new: int) -> None:
-        if new >= 0:
-            self.scroll_to_region_visible(new)
-        self.refresh()
-        self.post_message(self.Selected(self.selected_row, self._tailing))
-
-    def scroll_to_region_visible(self, pos: int) -> None:
-        top = round(self.scroll_offset.y)
-        h = max(self.scrollable_content_region.height, 1)
-        if pos < top:
-            self.scroll_to(y=pos, animate=False, immediate=True)
-        elif pos >= top + h:
-            self.scroll_to(y=pos - h + 1, animate=False, immediate=True)
-
-    # ---- actions
-    def _move_to(self, pos: int) -> None:
-        n = self._fit()
-        if not n:
-            return
-        pos = max(0, min(n - 1, pos))
-        self.follow = pos == n - 1 and not self.store.paused
-        self.cursor = pos
-
-    def action_cursor(self, delta: int) -> None:
-        self._move_to(self.cursor + delta)
-
-    def action_page(self, direction: int) -> None:
-        self._move_to(self.cursor + direction * max(self.scrollable_content_region.height - 1, 1))
-
-    def action_first(self) -> None:
-        self._move_to(0)
-
-    def action_last(self) -> None:
-        self._move_to(len(self.store.view) - 1)
-        self.follow = True
-
-    def on_mouse_scroll_up(self, event) -> None:
-        self.follow = False  # reading back: stop following the tail
-
-    def on_click(self, event) -> None:
-        pos = round(self.scroll_offset.y) + event.y
-        if 0 <= pos < len(self.store.view):
-            self._move_to(pos)
+    # ---- columns
+    def layout_columns(self) -> Layout:
+        """The columns for the current width and time base (fitted again when either changed)."""
+        width = self.scrollable_content_region.width
+        key = (width, self.store.time.version, self._extent)
+        if self._layout is None or self._layout[0] != key:
+            self._layout = (key, fit_columns(width, self.store.time, *self._extent))
+        return self._layout[1]
 
     # ---- Line API
-    def render_line(self, y: int) -> Strip:
-        scroll_x, scroll_y = self.scroll_offset
-        pos = scroll_y + y
-        width = self.scrollable_content_region.width
+    def header_strip(self, y: int, width: int) -> Strip:
+        head = Text(self.layout_columns().header, no_wrap=True, end="")
+        return Strip(head.render(self.app.console), head.cell_len).crop_extend(
+            0, width, self.get_component_rich_style("framelist--header"))
+
+    def line_text(self, pos: int) -> Text:
         store = self.store
-        if pos >= len(store.view) or pos < 0:
-            return Strip.blank(width, self.rich_style)
         row = store.view[pos]
-        text = format_row(store.frame(row), store.flags[row], store.t0_ns, row in store.bookmarks)
+        tb = store.time
+        text = format_row(store.frame(row), store.flags[row], self.layout_columns(), tb, row in store.bookmarks,
+                          row == tb.ref_row, store.t_ns[store.view[pos - 1]] if pos else None)
         sel = self.selected_row
         if pos == self.cursor:
             text.stylize(S_CURSOR)
         elif sel is not None and store.pair_row(row) == sel:
             text.stylize(S_PAIR)  # the selected frame's request / response
-        segments = list(text.render(self.app.console))
-        segments = [s for s in segments if s.text != "\n"]
-        return Strip(segments).crop_extend(scroll_x, scroll_x + width, self.rich_style)
+        return text

@@ -7,10 +7,13 @@ capture thread, see `sink.py`) and unit-tested without a terminal.
 Rows are positions in arrival order; `Frame.index` / `Frame.pair` are the
 pipeline's numbers, mapped to rows with `row_of`.  What the list, filters and
 navigation need per row is in `array` columns (time, unit, function, role,
-flags, pair, and the index map: 30 bytes a row); the frames themselves are packed in compressed
+flags, pair, latency, registers touched, model, and the index map: 41 bytes a row);
+the frames themselves are packed in compressed
 blocks (framepack.py) and rebuilt for the rows on screen, so a million-frame
 replay costs tens of MB, not gigabytes.  The view is an `array` of rows that
-pass the filter, appended to as frames arrive.
+pass the filter, appended to as frames arrive.  The filter is a
+`sniffer.filterlang.Query`: the store is its `cols` (the columns, the search
+text, `peek` for the frames), so it is answered from the columns first.
 """
 
 from __future__ import annotations
@@ -22,49 +25,27 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from ..codes import Annotation
+from ..filterlang import Query, matches_text, register_cell, registers_of
 from ..frame import Frame
-from .framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, RowIndex, matches_text
+from ..frameflags import (  # the store's flag column (re-exported for the views)
+    F_CRC, F_ERROR, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN, frame_flags,
+)
+from ..protocols import of_frame
+from .filters import filter_query
+from .framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, RowIndex
+from .history import CAP
 from .shadow import RegisterBook, RegisterValue
+from .timebase import TimeBase
+from .transactions import Transactions
 
-# per-frame flag bits
-F_ERROR = 1  # an error annotation or bad CRC
-F_WARN = 2  # a warning annotation
-F_EXC = 4  # exception response
-F_TIMEOUT = 8  # request without (timely) response
-F_NOISE = 16
-F_FAULT = 32  # the drive reports a fault or alarm (model.fault / model.alarm): a problem of the machine
-F_PROBLEM = F_ERROR | F_WARN | F_EXC | F_TIMEOUT | F_NOISE | F_FAULT
-FAULT_CODES = frozenset({"model.fault", "model.alarm"})
-
-TIMEOUT_CODES = frozenset({"pair.timeout", "pair.no_response"})
 ROLES = ("request", "response", "unknown", "noise")
 ROLE_CODE = {r: i for i, r in enumerate(ROLES)}
 _NO_ROLE = 255  # a role outside ROLES (none today)
 _LAT_KEEP = 2048  # latencies kept per unit for the median
 _RATE_WINDOW_NS = 10_000_000_000  # poll rate over the last 10 s of capture time
 
-__all__ = ["F_ERROR", "F_EXC", "F_FAULT", "F_NOISE", "F_PROBLEM", "F_TIMEOUT", "F_WARN", "Filter", "FrameStore",
-           "RegisterValue", "RowIndex", "UnitStats", "frame_flags", "frame_from_record"]
-
-
-def frame_flags(f: Frame) -> int:
-    fl = 0
-    if f.protocol == "noise":
-        fl |= F_NOISE
-    if f.crc_ok is False:
-        fl |= F_ERROR
-    if f.exception:
-        fl |= F_EXC
-    for a in f.annotations:
-        if a.code in FAULT_CODES:  # the drive's own trip, not a fault of the line: its own colour
-            fl |= F_FAULT
-        elif a.severity == "error":
-            fl |= F_ERROR
-        elif a.severity == "warning":
-            fl |= F_WARN
-        if a.code in TIMEOUT_CODES:
-            fl |= F_TIMEOUT
-    return fl
+__all__ = ["F_CRC", "F_ERROR", "F_EXC", "F_FAULT", "F_NOISE", "F_PROBLEM", "F_TIMEOUT", "F_WARN", "Filter",
+           "FrameStore", "RegisterValue", "RowIndex", "UnitStats", "frame_flags", "frame_from_record"]
 
 
 def frame_from_record(rec: dict, t0_ns: int = 0) -> Frame:
@@ -76,6 +57,8 @@ def frame_from_record(rec: dict, t0_ns: int = 0) -> Frame:
               time_source=rec.get("time_source", "byte"), noise_reason=rec.get("noise_reason"),
               channel=rec.get("channel", ""))
     f.role = rec.get("role", f.role)
+    proto = of_frame(f.protocol)
+    f.adu = proto.adu_of(raw) if proto is not None else b""  # what the request's fields name (reg:)
     f.pair, f.latency_ms, f.model = rec.get("pair"), rec.get("latency_ms"), rec.get("model")
     f.points, f.exception, f.summary = rec.get("points") or [], rec.get("exception"), rec.get("summary", "")
     f.writes = rec.get("writes") or []  # records written before `writes` existed: the watch stays empty
@@ -90,7 +73,7 @@ class Filter:
     functions: frozenset[int] | None = None
     roles: frozenset[str] | None = None
     errors_only: bool = False
-    text: str = ""
+    text: str = ""  # the rest of the filter, in the filter language (sniffer.filterlang): words, reg:, values ...
 
     @property
     def active(self) -> bool:
@@ -146,8 +129,9 @@ class UnitStats:
 class FrameStore:
     """All frames of a capture plus what the views need to find them quickly."""
 
-    def __init__(self, t0_ns: int = 0, *, block: int = BLOCK, frame_cache: int = FRAME_CACHE) -> None:
-        self.t0_ns = t0_ns
+    def __init__(self, t0_ns: int = 0, *, block: int = BLOCK, frame_cache: int = FRAME_CACHE,
+                 ids: dict | None = None, history_cap: int = CAP) -> None:
+        self.time = TimeBase(t0_ns)  # how times are shown: since the start, wall clock, from a reference
         self.blocks = FrameBlocks(block, frame_cache)
         self.frames = FrameSeq(self.blocks)
         # columns, one entry per row
@@ -157,18 +141,36 @@ class FrameStore:
         self.role = array("B")  # ROLE_CODE
         self.flags = array("B")
         self.pair = array("q")  # the pair's Frame.index, -1: none
+        self.lat_us = array("i")  # a response's latency in microseconds, -1: none
+        self.reg = array("i")  # the registers a frame touches (filterlang.register_cell), with:
+        self.nreg = array("H")
+        self.model = array("B")  # index into model_names
+        self.model_names: list[str | None] = []
+        self._model_code: dict[str | None, int] = {}
+        self.role_code = ROLE_CODE
+        self.ids = ids or {}  # parameter id -> registers, for reg:12-00 (filterlang.register_ids of a registry)
+        self._query = Query(None)
         self.row_of = RowIndex()
         self.filter = Filter()
         self.view = array("q")  # rows passing the filter (up to the pause point)
         self.problems = array("q")  # rows with any problem flag (unfiltered)
         self.units: dict[int, UnitStats] = {}
-        self.book = RegisterBook()  # the frames' `writes` applied: the decoders' register shadow
+        self.book = RegisterBook(history_cap)  # the frames' `writes` applied: the decoders' register shadow
         self.registers = self.book.values  # (unit, table, address) -> RegisterValue
+        self.transactions = Transactions()  # request + response as one entry, per-unit latency
         self.bookmarks: set[int] = set()
         self.paused_at: int | None = None  # row count when the view was paused
         self.bytes_total = 0
         self.noise_bytes = 0
         self.generation = 0  # bumped on every change the views must redraw for
+
+    @property
+    def t0_ns(self) -> int:
+        return self.time.t0_ns
+
+    @t0_ns.setter
+    def t0_ns(self, t0_ns: int) -> None:
+        self.time.t0_ns = t0_ns
 
     # ------------------------------------------------------------- intake
     def __len__(self) -> int:
@@ -206,6 +208,17 @@ class FrameStore:
         self.function.append(-1 if f.function is None else f.function)
         self.role.append(ROLE_CODE.get(f.role, _NO_ROLE))
         self.pair.append(-1 if f.pair is None else f.pair)
+        lat = f.latency_ms
+        self.lat_us.append(-1 if lat is None else min(round(lat * 1000), 0x7FFFFFFF))
+        regs = registers_of(f)
+        reg, n = register_cell(regs)
+        self.reg.append(reg)
+        self.nreg.append(n)
+        code = self._model_code.get(f.model)
+        if code is None:
+            code = self._model_code[f.model] = min(len(self.model_names), 255)
+            self.model_names.append(f.model)
+        self.model.append(code)
         ix = self.row_of
         if ix.rows is None and not ix.extra and (not ix.keys or f.index > ix.keys[-1]):
             ix.keys.append(f.index)  # in order, as the pipeline numbers them: RowIndex.add's common case
@@ -216,7 +229,8 @@ class FrameStore:
             self.noise_bytes += len(f.raw)
         if fl & F_PROBLEM:
             self.problems.append(row)
-        if self.paused_at is None and self._passes(f, fl):
+        self.transactions.add(row, f, fl)
+        if self.paused_at is None and (not self._query or self._query.matches(f, self, fl, regs)):
             self.view.append(row)
         if f.unit is not None and f.protocol != "noise":
             self._unit_stats(f, fl)
@@ -254,23 +268,9 @@ class FrameStore:
             st.lat_max = lat if st.lat_max is None else max(st.lat_max, lat)
 
     # ------------------------------------------------------------- filters
-    def _passes(self, f: Frame, fl: int) -> bool:
-        """The filter on one arriving frame (the same test _rebuild makes from the columns)."""
-        flt = self.filter
-        if not flt.active:
-            return True
-        if flt.errors_only and not fl & F_PROBLEM:
-            return False
-        if flt.units is not None and f.unit not in flt.units:
-            return False
-        if flt.functions is not None and (f.function is None or (f.function & 0x7F) not in flt.functions):
-            return False
-        if flt.roles is not None and f.role not in flt.roles:
-            return False
-        return not flt.text or matches_text(f, flt.text)
-
     def set_filter(self, flt: Filter) -> None:
-        flt.text = flt.text.lower()
+        """Filter the view (FilterError, a ValueError, if its text does not parse: the filter stays)."""
+        self._query = filter_query(flt)
         self.filter = flt
         self._rebuild()
 
@@ -282,25 +282,19 @@ class FrameStore:
 
     def _rebuild(self) -> None:
         end = len(self) if self.paused_at is None else self.paused_at
-        flt = self.filter
-        if not flt.active:
-            self.view = array("q", range(end))
-            self.generation += 1
-            return
-        rows = self.problems[:bisect.bisect_left(self.problems, end)] if flt.errors_only else range(end)
-        if flt.units is not None:
-            col, want = self.unit, frozenset(u for u in flt.units if u is not None and u >= 0)
-            rows = [r for r in rows if col[r] in want]
-        if flt.functions is not None:
-            col, want = self.function, flt.functions
-            rows = [r for r in rows if col[r] >= 0 and col[r] & 0x7F in want]
-        if flt.roles is not None:
-            col, want = self.role, frozenset(ROLE_CODE[x] for x in flt.roles if x in ROLE_CODE)
-            rows = [r for r in rows if col[r] in want]
-        if flt.text:
-            rows = self._text_rows(rows, flt.text)
-        self.view = rows if isinstance(rows, array) else array("q", rows)
+        self.view = array("q", self._query.rows(self, end)) if self._query else array("q", range(end))
         self.generation += 1
+
+    def peek(self, row: int) -> Frame:
+        """A row's frame for a filter's look (not kept in the cache of rows on screen)."""
+        return self.blocks.peek(row)
+
+    def resolve_id(self, word: str) -> tuple:
+        return self.ids.get(word, ())
+
+    def text_rows(self, rows, needle: str) -> array:
+        """The rows among `rows` whose frame's search text holds `needle` (lower case), ascending."""
+        return self._text_rows(rows if isinstance(rows, range) else sorted(rows), needle)
 
     def _text_rows(self, rows, needle: str) -> array:
         """The rows among `rows` (ascending) whose frame matches the free text."""

@@ -25,13 +25,11 @@ whole read or write sets it again; without a row, the register shows raw.
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, field
 
 from ..frame import Frame
 from ..protocols import of_frame
-
-HISTORY = 120  # values kept per register for the plot
+from .history import CAP, Series, cap_for
 
 
 def table_of(f: Frame) -> str | None:
@@ -53,9 +51,20 @@ class RegisterValue:
     t_ns: int
     changed_ns: int
     changes: int = 0
-    history: deque = field(default_factory=lambda: deque(maxlen=HISTORY))
+    history: Series = field(default_factory=Series)  # every numeric value shown: (t, value, frame index)
     id: str = ""
     words: int = 1  # registers the value takes (address .. address + words - 1)
+
+    @property
+    def address_text(self) -> str:
+        """The address as the manuals write it: "2520H", or "2510H..2511H" for a value of several registers."""
+        a = self.address
+        return f"{a:04X}H" if self.words == 1 else f"{a:04X}H..{a + self.words - 1:04X}H"
+
+    @property
+    def title(self) -> str:
+        """The name, led by the parameter id where the map has one (and the name does not hold it)."""
+        return self.name if not self.id or self.id in self.name else f"{self.id} {self.name}"
 
 
 _NUMBER = (int, float)  # not bool: a bit is plotted from its raw value
@@ -64,7 +73,9 @@ _NUMBER = (int, float)  # not bool: a bit is plotted from its raw value
 class RegisterBook:
     """The latest value of every register per unit, changes, history: the frames' `writes` applied."""
 
-    def __init__(self) -> None:
+    def __init__(self, history_cap: int = CAP) -> None:
+        self.history_cap = history_cap  # samples kept per register at most (history.py thins beyond)
+        self._cap = history_cap  # what each keeps now: less as registers share the budget (history.cap_for)
         self.values: dict[tuple[int, str, int], RegisterValue] = {}
         # the latest point per register of a frame that wrote nothing itself (a write request, whose
         # response confirms it without points of its own)
@@ -119,10 +130,10 @@ class RegisterBook:
                         rv.name, rv.id = p.get("name") or rv.name, p.get("id") or ""
                         rv.value, rv.eng_unit, rv.text, rv.t_ns = v, p.get("unit"), p.get("text") or "", t_ns
                         if type(v) in _NUMBER:
-                            rv.history.append(v)
+                            rv.history.add(t_ns, v, f.index)
                         i += step
                         continue
-                self.set(key, raw, p, t_ns, step)
+                self.set(key, raw, p, t_ns, step, f.index)
                 i += step
         self.version += 1
 
@@ -150,14 +161,20 @@ class RegisterBook:
             if values.pop((unit, table, a), None) is not None:
                 self.dropped += 1
 
-    def set(self, key: tuple[int, str, int], raw, p: dict | None, t_ns: int, words: int = 1) -> None:
+    def set(self, key: tuple[int, str, int], raw, p: dict | None, t_ns: int, words: int = 1,
+            index: int = -1) -> None:
         """Register `key` now holds `raw` (with `words` > 1: the value of that many registers from it);
-        `p` is a point decoding that raw value, if there is one."""
+        `p` is a point decoding that raw value, if there is one; `index` the frame that brought it."""
         rv = self.values.get(key)
         if rv is None:
             unit, table, addr = key
+            cap = cap_for(len(self.values) + 1, self.history_cap)
+            if cap != self._cap:  # one more register sharing the history budget: each keeps less
+                self._cap = cap
+                for other in self.values.values():
+                    other.history.cap = cap
             rv = self.values[key] = RegisterValue(unit, table, addr, f"{table}[{addr}]", raw, raw, None, "",
-                                                  t_ns, t_ns)
+                                                  t_ns, t_ns, history=Series(cap))
         elif rv.raw != raw:
             rv.changed_ns = t_ns
             rv.changes += 1
@@ -169,7 +186,7 @@ class RegisterBook:
         elif rv.raw != raw:  # no decoded point for this new value: show the number the shadow holds
             rv.value, rv.eng_unit, rv.text = raw, None, ""
         if type(rv.value) in _NUMBER:
-            rv.history.append(rv.value)
+            rv.history.add(t_ns, rv.value, index)
         rv.raw, rv.t_ns = raw, t_ns
 
     def rows(self, unit: int | None = None) -> list[RegisterValue]:

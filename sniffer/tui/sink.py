@@ -17,15 +17,22 @@ each took 100-800 ms of the UI thread while a 200k-frame replay loaded).
 The register watch needs nothing else: each frame carries what it wrote into
 its unit's register shadow (`Frame.writes`), so the sink never looks at the
 decoders' state.
+
+The byte view gets the reads (sniffer.reads): the sink marks each Chunk with
+the frames its bytes went to (a ReadMarker on the capture thread) and keeps
+at most RING_READS of them for the UI to drain (`drain_reads`); a viewer
+attached to a capture gets them marked already (`reads`).
 """
 
 from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 
 from ..events import CaptureInfo, Chunk
 from ..frame import Frame
+from ..reads import RING_READS, Read, ReadMarker
 from ..sinks.base import Sink
 
 MAX_BACKLOG = 2_000  # frames waiting for the UI before a replay waits
@@ -44,6 +51,8 @@ class TuiSink(Sink):
         self._t_first: tuple[int, float] | None = None  # (capture t_ns, wall time) of the first frame
         self._pending: list[Frame] = []
         self._frame_cost_s: float | None = None  # what handing one frame to the UI took (drain_into)
+        self._marker = ReadMarker()  # capture thread
+        self._reads: deque[Read] = deque(maxlen=RING_READS)  # marked, waiting for the UI (the oldest go first)
         self.info: CaptureInfo | None = None
         self.started = threading.Event()
         self.closed = threading.Event()
@@ -65,8 +74,14 @@ class TuiSink(Sink):
     def raw(self, event) -> None:
         if type(event) is Chunk:
             self.bytes_in += len(event.data)  # single writer; readers tolerate a stale int
+            reads = self._marker.chunk(event)
+            if reads:
+                self.reads(reads)
 
     def frame(self, frame: Frame) -> None:
+        reads = self._marker.frame(frame.index, len(frame.raw))
+        if reads:
+            self.reads(reads)
         with self._lock:
             self._pending.append(frame)
             self.frames_in += 1
@@ -98,7 +113,15 @@ class TuiSink(Sink):
             self._pending.extend(frames)
             self.frames_in += len(frames)
 
+    def reads(self, reads) -> None:
+        """Reads marked with their frames (the marker here, or a capture publishing them)."""
+        with self._lock:
+            self._reads.extend(reads)
+
     def close(self) -> None:
+        reads = self._marker.flush()
+        if reads:
+            self.reads(reads)
         self.closed.set()
 
     # ---- UI thread
@@ -145,6 +168,12 @@ class TuiSink(Sink):
                 break
             size = max(1, int(left / cost)) if cost > 0 else INTAKE_CHUNK
         return done
+    def drain_reads(self) -> list[Read]:
+        """Take the reads marked since the last call."""
+        with self._lock:
+            out = list(self._reads)
+            self._reads.clear()
+        return out
 
     @property
     def backlog(self) -> int:

@@ -24,37 +24,52 @@ def _low_latency(ll: dict) -> str:
     return "low-latency " + (",".join(ok) if ok else "off")
 
 
-def status_text(app) -> Text:
+def status_text(app, width: int | None = None) -> Text:
+    """The status line, fitted to `width` (default: the status bar's): the view's state (paused, not
+    following the tail, ended, an error) and the filter always show; the least useful parts go first
+    (low latency, noise, elapsed time, rates, the source's line settings)."""
     sink, store = app.sink, app.store
     info = sink.info
-    parts = []
+    parts = []  # (keep: higher stays longer, text)
     if info is not None:
         src = app.source_label or info.port or info.source
         line = f"{info.baud or '?'} {info.databits}{info.parity or 'N'}{info.stopbits or 1}"
-        parts.append(f"{src} {line} {info.protocol}")
-        parts.append(_low_latency(info.low_latency))
+        parts.append((5, f"{src} {line} {info.protocol}"))
+        parts.append((1, _low_latency(info.low_latency)))
     else:
-        parts.append(app.source_label or "waiting for source")
+        parts.append((5, app.source_label or "waiting for source"))
     path = app.capture_path or sink.capture_path
     if path:
-        parts.append(f"{path} {_size(app.capture_size())}")
-    parts.append(f"{len(store)} fr {app.frames_per_s:.0f} fr/s {_size(int(app.bytes_per_s))}/s")
-    parts.append(f"noise {store.noise_bytes}B")
+        parts.append((6, f"{path} {_size(app.capture_size())}"))
+    parts.append((8, f"{len(store)} fr"))
+    parts.append((4, f"{app.frames_per_s:.0f} fr/s {_size(int(app.bytes_per_s))}/s"))
+    parts.append((2, f"noise {store.noise_bytes}B"))
     missing = [f"{n} {what}" for n, what in ((sink.earlier_frames, "earlier (in the MCAP)"),
                                               (sink.skipped_frames, "skipped")) if n]
     if missing:
-        parts.append("not here: " + ", ".join(missing))
-    parts.append(f"{app.clock() - app.t_start:.0f}s")
+        parts.append((7, "not here: " + ", ".join(missing)))
+    parts.append((3, f"{app.clock() - app.t_start:.0f}s"))
+    if getattr(app, "export_status", None):  # an export on its worker thread
+        parts.append((8, app.export_status))
     if store.filter.active:
-        parts.append(f"filter: {store.filter.describe()} ({len(store.view)})")
-    text = Text(" │ ".join(parts))
+        parts.append((9, f"filter: {store.filter.describe()} ({len(store.view)})"))
+    flags = Text()
     if store.paused:
-        text.append("  PAUSED", "bold black on yellow")
-    elif not getattr(app.frame_list, "follow", True) and not sink.closed.is_set():
-        # new frames arrive below the view (a filter or a move up stopped following the tail)
-        text.append("  [not following the tail: End]", "bold")
+        flags.append("  PAUSED", "bold black on yellow")
+    elif not getattr(app.frame_list, "follow", True) and not app.caught_up:
+        # new frames arrive below the view (a filter, a move up or a go-to stopped following the tail)
+        flags.append("  [not following the tail: End]", "bold")
     if sink.error:
-        text.append(f"  [error: {sink.error}]", "bold")
+        flags.append(f"  [error: {sink.error}]", "bold")
     elif sink.closed.is_set():  # the feed is done; the view may still be taking in what it read
-        text.append("  [ended]" if not sink.backlog else f"  [loading: {sink.backlog} frames to show]", "bold")
+        flags.append("  [ended]" if not sink.backlog else f"  [loading: {sink.backlog} frames to show]", "bold")
+    if width is None:
+        bar = getattr(app, "status", None)
+        width = bar.content_size.width if bar is not None and bar.content_size.width else None
+    sep = " │ "
+    while width is not None and len(parts) > 1 \
+            and sum(len(t) for _, t in parts) + len(sep) * (len(parts) - 1) + len(flags) > width:
+        parts.remove(min(parts, key=lambda p: p[0]))
+    text = Text(sep.join(t for _, t in parts))
+    text.append_text(flags)
     return text

@@ -33,7 +33,8 @@ class UnitsTable(DataTable):
     DEFAULT_CSS = "UnitsTable { height: 1fr; }"
 
     def __init__(self, store: FrameStore, registry=None, **kw) -> None:
-        super().__init__(cursor_type="row", zebra_stripes=True, **kw)
+        # the unit stays on screen when a narrow terminal (80 columns) scrolls to the latencies (←/→)
+        super().__init__(cursor_type="row", zebra_stripes=True, fixed_columns=1, **kw)
         self.store = store
         self.registry = registry  # read only: its guesses are a dict the capture thread writes
 

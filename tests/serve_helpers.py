@@ -1,0 +1,76 @@
+"""Running `sniffer serve` as a process, and finding the processes a run leaves behind.
+
+Used by tests/test_serve.py, tests/test_serve_chromium.py and benchmarks/bench_tui.py.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HANG_S = 60  # a bound on waiting for something that should happen, never an assertion on speed
+
+
+def wait(cond, what: str, timeout: float = HANG_S) -> None:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < deadline, f"gave up waiting for {what}"
+        time.sleep(0.02)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start_serve(cwd: Path, *args: str, log: Path) -> tuple[subprocess.Popen, int]:
+    """`sniffer serve ARGS` on a free port of 127.0.0.1, its stdout and stderr in `log`; returned once
+    its web server answers (the capture publishes by then)."""
+    port = free_port()
+    with open(log, "w") as out:
+        proc = subprocess.Popen([sys.executable, "-m", "sniffer", "serve", *args, "--http-port", str(port)],
+                                cwd=cwd, stdout=out, stderr=out, stdin=subprocess.DEVNULL)
+
+    def up():
+        assert proc.poll() is None, f"serve exited: {log.read_text()}"
+        with socket.socket() as s:
+            return s.connect_ex(("127.0.0.1", port)) == 0
+
+    try:
+        wait(up, "the web server")
+    except BaseException:
+        proc.kill()
+        proc.wait()
+        raise
+    return proc, port
+
+
+def _live_processes():
+    """(pid, command line, session id) of each live process (zombies left out)."""
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit():
+            continue
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                cmd = f.read().replace(b"\0", b" ").decode(errors="replace")
+            with open(f"/proc/{pid}/stat") as f:
+                state, _ppid, _pgrp, session = f.read().rpartition(")")[2].split()[:4]
+        except OSError:
+            continue
+        if state != "Z":
+            yield int(pid), cmd, int(session)
+
+
+def processes_with(needle: str) -> list[int]:
+    """Live processes whose command line holds `needle`."""
+    return [pid for pid, cmd, _ in _live_processes() if needle in cmd]
+
+
+def processes_in_session(sid: int) -> list[int]:
+    """Live processes of session `sid` (what a process started with start_new_session=True left)."""
+    return [pid for pid, _, session in _live_processes() if session == sid]

@@ -1,0 +1,152 @@
+"""`sniffer detect` as a user runs it, in a subprocess, on a pseudo-terminal line (simulator/uartpty.py) that
+delivers what a UART at the settings detect sets receives; the line counts what came back (nothing, ever).
+
+Asserts what was found, not how long it took (benchmarks/bench_detect.py measures that)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+from helpers import run_sniffer
+
+from sniffer.busfile import load_bus_file
+from sniffer.detect.candidates import setting
+from sniffer.simulator import get_scenario
+from sniffer.simulator.uartpty import PtyLine
+
+
+class Line:
+    """A simulated line on a pty, played in a thread."""
+
+    def __init__(self, tmp_path, scenario: str, line: str | None = None, resync: str = "edge"):
+        sc = get_scenario(scenario)
+        b, f = (line or f"{sc.line.baud} {sc.line.databits}{sc.line.parity}{sc.line.stopbits}").split()
+        self.pty = PtyLine(sc, setting(int(b), f), seed=5, resync=resync)
+        self.path = str(tmp_path / "line0")
+        self.pty.link(self.path)
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self.pty.play, args=(self.stop,), daemon=True)
+
+    def __enter__(self) -> "Line":
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop.set()
+        self.thread.join(5)
+        self.pty.close()
+
+
+def detect(tmp_path, path, *flags):
+    bus = tmp_path / "line.toml"
+    r = run_sniffer("detect", path, "--write-bus", str(bus), "--units-time", "0.5", *flags)
+    return r, bus
+
+
+@pytest.mark.parametrize("scenario, line, want, how", [
+    ("default", None, "19200 8E1 modbus-rtu", "certain:"),
+    ("default", "9600 8O1", "9600 8O1 modbus-rtu", "certain:"),
+    ("tds-v8", None, "9600 8N2 modbus-rtu", "certain:"),  # 8N2: the characters' spacing tells it from 8N1
+    ("default", "38400 8N1", "38400 8N1 modbus-rtu", "certain:"),  # 8N1: 8N2 would be too slow for it
+    ("fast", None, "115200 8N1 modbus-rtu", ""),  # frames too short to time: 1 or 2 stop bits left open
+    ("a510-ascii", None, "9600 7E1 modbus-ascii", "certain:"),
+    ("pd-series", None, "9600 8N1 pd-rtu", "certain:"),
+])
+def test_detect_finds_the_line_and_sends_nothing(tmp_path, scenario, line, want, how):
+    with Line(tmp_path, scenario, line) as sim:
+        r, bus = detect(tmp_path, sim.path)
+        back = sim.pty.bytes_received_from_sniffer
+    assert r.returncode == 0, r.stderr
+    assert back == 0  # not one byte reached the line
+    out = r.stdout
+    assert f"line: {want} ({how}" in out
+    if how:
+        table = out.split("\n\n")[0].splitlines()
+        assert table[1].split()[:3] == want.split()  # ranked first
+    else:
+        assert "stop bits not told apart" in out
+    assert "units seen:" in out
+    b = load_bus_file(str(bus))
+    baud, fmt, protocol = want.split()
+    assert (b.baud, b.parity, b.stopbits, b.databits or 8, b.protocol) == (int(baud), fmt[1], int(fmt[2]), int(fmt[0]),
+                                                                          protocol)
+    assert f"wrote {bus}" in r.stderr
+
+
+def test_silent_line_is_no_traffic_in_one_line(tmp_path):
+    master, slave = os.openpty()  # a pty nobody writes to
+    try:
+        r, bus = detect(tmp_path, os.ttyname(slave), "--quiet-time", "1", "-q")
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert r.returncode == 1 and r.stdout == ""
+    assert r.stderr.count("\n") == 1 and r.stderr.startswith("sniffer: error: no traffic on ")
+    assert not bus.exists()
+
+
+def test_no_candidate_fits_says_so_and_writes_nothing(tmp_path):
+    with Line(tmp_path, "default", "250000 8E1") as sim:  # a rate detect is not told to try
+        r, bus = detect(tmp_path, sim.path, "--max-time", "8", "-q")
+        back = sim.pty.bytes_received_from_sniffer
+    assert r.returncode == 1 and back == 0
+    errors = [ln for ln in r.stderr.splitlines() if ln.startswith("sniffer: error:")]
+    assert len(errors) == 1 and "no candidate fits" in errors[0]
+    assert not bus.exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["/nonexistent/ttyUSB9"], "no such port"),
+    (["PORT", "--bauds", "fast"], "--bauds: 'fast' is not a whole number"),
+    (["PORT", "--write-bus", "/nonexistent/x.toml"], "does not exist"),
+    (["PORT", "--max-time", "0"], "--max-time"),
+    ([], "the following arguments are required: port"),
+])
+def test_bad_flags_are_one_line(tmp_path, args, message):
+    master, slave = os.openpty()
+    try:
+        r = run_sniffer("detect", *[os.ttyname(slave) if a == "PORT" else a for a in args])
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert r.returncode == 2
+    assert r.stderr.strip().count("\n") == 0 and message in r.stderr and "Traceback" not in r.stderr
+
+
+def test_simulate_pty_serves_detect_and_live_until_stopped(tmp_path):
+    link = tmp_path / "line0"
+    sim = subprocess.Popen([sys.executable, "-m", "sniffer", "simulate", "--pty", str(link), "--scenario", "tds-v8"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 30
+        while not link.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        r, bus = detect(tmp_path, str(link), "-q")
+        assert r.returncode == 0, r.stderr
+        assert "line: 9600 8N2 modbus-rtu" in r.stdout
+        live = run_sniffer("live", str(link), "--bus", str(bus), "--no-out", "--headless", "--duration", "2")
+        assert live.returncode == 0, live.stderr
+        # decodes cleanly, but for the frames it caught in part when it started and when it stopped
+        frames = [f for f in live.stdout.splitlines() if 0.5 < float(f.split()[0]) < 1.5]
+        assert len(frames) >= 5 and sum("<-RSP" in f for f in frames) >= 2
+        assert not any("CRC!" in f or "NOISE" in f for f in frames)
+    finally:
+        sim.send_signal(signal.SIGTERM)
+        _, err = sim.communicate(timeout=30)
+    assert sim.returncode == 0, err
+    assert "0 bytes came from the other end" in err
+    assert not os.path.lexists(link)  # the link went with the line
+
+
+def test_help_says_what_it_tries_and_the_exit_status():
+    r = run_sniffer("detect", "--help")
+    assert r.returncode == 0
+    for words in ("read-only", "921600", "8N2", "7E1", "PD-series", "exit status", "--write-bus", "--bauds",
+                  "--units-time", "sniffer live /dev/ttyUSB0 --bus line.toml"):
+        assert words in r.stdout

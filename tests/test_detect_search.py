@@ -1,0 +1,134 @@
+"""`sniffer detect`'s search on a simulated port with a virtual clock: the real listen loop, windows, evidence
+and verdicts against lines whose settings we know, the same way every run (no pty, no waiting)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from sniffer.busfile import load_bus_file
+from sniffer.detect.candidates import COMMON_BAUDS, baud_order, parse_bauds, setting
+from sniffer.detect.listen import listen
+from sniffer.detect.report import bus_file, headline, table
+from sniffer.detect.search import Search
+from sniffer.line import SettingsError
+from sniffer.settings import CaptureSpec
+from sniffer.simulator import get_scenario
+from sniffer.simulator.simport import SimulatedPort
+
+
+def detect(scenario: str, line: str | None = None, resync: str = "edge", bauds=(), **kw):
+    sc = get_scenario(scenario)
+    if line is not None:
+        b, f = line.split()
+        sc_line = setting(int(b), f)
+    else:
+        sc_line = sc.line
+    port = SimulatedPort(sc, sc_line, resync=resync, start_s=0.137)
+    verdict = listen(port, Search(baud_order(tuple(bauds)), quiet_s=kw.pop("quiet_s", 5.0)), **kw)
+    return verdict, port
+
+
+def settled(v) -> tuple[str, str]:
+    return f"{v.best.rx.baud} {v.best.fmt}", v.best.best.protocol
+
+
+@pytest.mark.parametrize("scenario, line, protocol", [
+    ("default", "19200 8E1", "modbus-rtu"),  # even parity
+    ("default", "9600 8O1", "modbus-rtu"),  # odd
+    ("default", "38400 8N1", "modbus-rtu"),  # none
+    ("tds-v8", "9600 8N2", "modbus-rtu"),  # 2 stop bits: told from 8N1 by the characters' spacing
+    ("errors", "57600 8E1", "modbus-rtu"),  # CRC errors, timeouts, noise on the line
+    ("stress", "230400 8N1", "modbus-rtu"),  # never silent for t3.5; 255-byte frames to time
+    ("a510-ascii", "9600 7E1", "modbus-ascii"),
+    ("spl-ascii", "19200 7N2", "modbus-ascii"),
+    ("a510-ascii", "38400 8N1", "modbus-ascii"),  # ASCII on 8 bits
+    ("pd-series", "9600 8N1", "pd-rtu"),
+    ("pd-series-ascii", "4800 8O1", "pd-ascii"),
+    ("default", "1200 8E1", "modbus-rtu"),
+    ("default", "921600 8O1", "modbus-rtu"),
+])
+def test_each_line_is_found_certain(scenario, line, protocol):
+    v, port = detect(scenario, line)
+    assert v.status == "certain", headline(v, "sim")
+    assert settled(v) == (line, protocol)
+    assert v.best.errors == 0 and v.best.timing in ("exact", "?")
+    assert port.configured[-1] == v.best.rx  # it ended listening at the answer
+
+
+def test_a_uart_that_takes_a_low_stop_bit_for_a_start_bit_is_found_by_the_second_sweep():
+    # read at 8N1, an 8E1 line garbles after every framing error on such a UART: nothing frames
+    v, port = detect("default", "19200 8E1", resync="16550")
+    assert settled(v) == ("19200 8E1", "modbus-rtu") and v.status == "certain"
+    n8n1 = next(w for w in v.windows if (w.rx.baud, w.fmt) == (19200, "8N1"))
+    assert not n8n1.found
+
+
+def test_8n1_and_8n2_are_told_apart_by_timing_only():
+    v, _ = detect("tds-v8", "9600 8N2")
+    n1 = next(w for w in v.windows if w.fmt == "8N1" and w.rx.baud == 9600)
+    assert n1.errors == 0 and n1.fits  # a UART reads 8N2 at 8N1 without an error...
+    assert n1.timing == "slower" and n1.hint == "8N2"  # ...but the characters come 11 bits apart
+    v, _ = detect("default", "9600 8N1")
+    assert settled(v) == ("9600 8N1", "modbus-rtu")
+    assert all(w.timing == "impossible" for w in v.windows if w.fmt == "8N2" and w.rx.baud == 9600)
+
+
+@pytest.mark.parametrize("scenario, line", [("tds-v8", "460800 8N2"), ("fast", "115200 8N1")])
+def test_stop_bits_left_open_when_the_timing_cannot_be_measured(scenario, line):
+    # short frames at a high rate: a frame takes one or two 1 ms USB packets, no spacing to measure
+    v, _ = detect(scenario, line)
+    assert v.status == "stop bits" and v.settled
+    baud = line.split()[0]
+    assert settled(v) == (f"{baud} 8N1", "modbus-rtu")  # 1 stop bit: a UART set so reads both alike
+    assert [f"{r.rx.baud} {r.fmt}" for r in v.rivals] == [f"{baud} 8N2"]
+    assert "stop bits not told apart" in headline(v, "sim")
+
+
+def test_a_rate_not_tried_fits_nothing_until_asked_for():
+    v, _ = detect("default", "250000 8E1", max_s=30)
+    assert v.status == "none" and not v.settled
+    assert "no candidate fits" in headline(v, "sim")
+    v, _ = detect("default", "250000 8E1", bauds=parse_bauds(["250000"]))
+    assert settled(v) == ("250000 8E1", "modbus-rtu") and len(v.windows) <= 3  # asked-for rates go first
+
+
+def test_silent_line_is_no_traffic():
+    silent = dataclasses.replace(get_scenario("default"), name="silent", units=(), polls=())
+    port = SimulatedPort(silent, silent.line)
+    v = listen(port, Search(COMMON_BAUDS, quiet_s=3.0))
+    assert v.status == "no traffic" and v.best is None
+    assert len(v.windows) == 1 and v.windows[0].seconds == pytest.approx(3.0, abs=0.06)
+    assert "no traffic" in headline(v, "/dev/ttyUSB9")
+
+
+def test_units_and_poll_periods_from_a_longer_listen():
+    v, _ = detect("tds-v8", "9600 8N2", follow_s=2.0)
+    assert v.status == "certain" and v.best.seconds > 2.0 and v.decided_s < v.best.seconds + 2
+    assert [u.unit for u in v.best.units] == [1, 2]
+    assert all(0.19 < u.period_s < 0.21 for u in v.best.units)  # the scenario polls every 200 ms
+    assert {0x03, 0x06} <= set(v.best.units[0].functions)
+
+
+def test_report_table_best_first_and_bus_file_that_live_takes(tmp_path):
+    v, _ = detect("a510-ascii", "9600 7E1", follow_s=1.0)
+    rows = table(v)
+    assert rows[0].split()[:2] == ["setting", "protocol"]
+    assert rows[1].split()[:3] == ["9600", "7E1", "modbus-ascii"] and rows[1].endswith("certain")
+    path = tmp_path / "line.toml"
+    path.write_text(bus_file(v, "/dev/ttyUSB0"))
+    bus = load_bus_file(str(path))
+    assert (bus.baud, bus.parity, bus.stopbits, bus.databits, bus.protocol) == (9600, "E", 1, 7, "modbus-ascii")
+    assert bus.devices == {}  # units are comments: a device map would stop their models being guessed
+    assert "# 1 = \"generic\"" in path.read_text()
+    resolved = CaptureSpec.of(bus_file=str(path)).resolve(None)
+    assert resolved.line.label() == "9600 7E1" and resolved.protocol.name == "modbus-ascii"
+
+
+def test_bauds_flag():
+    assert parse_bauds(["250000,31250", "250000 76800"]) == (250000, 31250, 76800)
+    assert baud_order((31250,))[:2] == (31250, 9600)
+    for bad, why in (("x", "not a whole number"), ("10", "outside"), ("9999999", "outside")):
+        with pytest.raises(SettingsError, match=why):
+            parse_bauds([bad])
