@@ -137,7 +137,7 @@ class CaptureViewer:
         if app is not None and app.feed_error is not None and self.capture.rc() == 0:
             print(f"sniffer: error: {app.feed_error}", file=sys.stderr)
             return 1
-        return self.capture.rc() if self.capture.returncode is not None else 1
+        return self.capture.rc()  # 1 while it has not exited (CaptureProcess.rc)
 
     def close(self) -> None:
         if self.app is not None:
