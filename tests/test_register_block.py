@@ -89,6 +89,17 @@ def test_frame_points_become_dicts_when_read_and_survive_the_tui_store():
     assert unpack(pack(f2)).points == RegisterBlock("coil", 0, [1, 0, 1], 3).points()
 
 
+def test_the_tui_store_keeps_a_block_as_its_values():
+    """A sealed frame's block is marshalled as its values, never as 125 point dicts, and comes back a block."""
+    f = Frame(0, 0, 1, b"\x01\x03\x04\x00\x07\x00\x09", "modbus-rtu", 1, 3)
+    f.points = RegisterBlock("holding", 100, [7, 9], 3)
+    packed = pack(f)
+    assert type(f._points) is RegisterBlock  # packing built no dicts
+    assert ("holding", 100, [7, 9], 3) in packed and not any(type(x) is RegisterBlock for x in packed)
+    back = unpack(packed)
+    assert type(back._points) is RegisterBlock and back.points == f.points and frame_json(back, 0) == frame_json(f, 0)
+
+
 @pytest.mark.parametrize("capture", ["sim/default.mcap", "sim/errors.mcap", "sim/a510-ascii.mcap",
                                      "sim/tds-v8.mcap"])
 def test_frame_json_is_the_json_of_frame_record(capture):

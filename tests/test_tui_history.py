@@ -163,6 +163,35 @@ def test_series_thinning_on_synthetic_signals():
     assert h.nearest(10**18) == (99_999 * 10_000_000, h.v[-1], 99_999) == (*h.end[:1], h.v[-1], h.end[1])
 
 
+def test_a_block_reaching_its_cap_together_is_thinned_a_few_histories_per_frame():
+    """A poll of 125 registers brings every history to its cap with the same frame: thinning them all at
+    once held the UI for 90 ms.  They queue, the book thins THIN_PER_FRAME of them per frame, none grows
+    past twice its cap, and once the queue is empty each is back within its cap and true to its samples."""
+    from sniffer.frame import Frame
+    from sniffer.tui.shadow import THIN_PER_FRAME, RegisterBook
+
+    cap, n, polls = 64, 40, 400
+    book = RegisterBook(cap)
+    rng = random.Random(4)
+    truth: dict[int, list] = {}
+    for k in range(polls):
+        values = [rng.randint(0, 3) for _ in range(n)]
+        f = Frame(k, k * 10_000_000, k * 10_000_000 + 1, b"", "modbus-rtu", 1, 3)
+        f.crc_ok, f.role, f.writes = True, "response", [["holding", 0, values]]
+        before = sum(rv.history.thins for rv in book.values.values())
+        book.frame(f)
+        assert sum(rv.history.thins for rv in book.values.values()) - before <= THIN_PER_FRAME
+        assert all(len(rv.history) <= 2 * cap for rv in book.values.values())
+        for a, v in enumerate(values):
+            truth.setdefault(a, []).append((k, v))
+    assert not book.thin_queue and all(rv.history.thins for rv in book.values.values())
+    for a in range(n):
+        h = book.values[(1, "holding", a)].history
+        kept = dict(truth[a])
+        assert len(h) <= cap and h.seen == polls and all(kept[ix] == v for v, ix in zip(h.v, h.ix))
+        assert (min(h.v), max(h.v)) == (min(kept.values()), max(kept.values()))
+
+
 def test_many_registers_share_the_history_budget():
     assert [cap_for(n) for n in (1, 128, 644, 5000)] == [CAP, CAP, BUDGET // 644, 1024]
     info, frames, _ = replay_frames("errors.mcap")

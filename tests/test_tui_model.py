@@ -8,6 +8,7 @@ from tui_helpers import SIM_CAPTURES, registry_shadow, replay_frames, store_of
 
 from sniffer.filterlang import Context, Query
 from sniffer.tui.filters import filter_expr, parse_filter
+from sniffer.tui.framepack import pack, unpack
 from sniffer.tui.model import F_EXC, F_NOISE, F_PROBLEM, F_TIMEOUT, Filter, FrameStore, frame_flags
 from sniffer.tui.sink import TuiSink
 
@@ -451,3 +452,26 @@ def test_budgeted_drain_keeps_limit_and_without_a_budget_is_drain():
     assert sink.drain_into(got.extend, limit=50) == 50  # no budget: one list of up to `limit`
     assert sink.drain_into(got.extend) == 230 and sink.drain_into(got.extend) == 0
     assert [f.index for f in got] == list(range(300))
+
+
+def test_register_blocks_build_the_same_register_watch_as_their_point_dicts():
+    """The register book takes a generic decoder's block of values without building its points (the
+    fast path of a 125-register poll); the watch is the one the point dicts give, value for value."""
+    from decoders.generic.block import RegisterBlock
+
+    info, frames, _ = replay_frames("fast.mcap")
+    assert sum(type(f._points) is RegisterBlock for f in frames) > 100
+    fast, slow = FrameStore(info.t0_ns), FrameStore(info.t0_ns)
+    fast.add(frames)
+    for f in frames:
+        g = unpack(pack(f))
+        if type(f._points) is RegisterBlock:
+            g.points = f._points.points()  # the dicts (f itself is shared: reading f.points would change it)
+        slow.add([g])
+
+    def watch(store):
+        return {k: (rv.name, rv.id, rv.value, rv.raw, rv.eng_unit, rv.text, rv.t_ns, rv.changed_ns, rv.changes,
+                    rv.words, list(rv.history.t), list(rv.history.v), list(rv.history.ix))
+                for k, rv in store.registers.items()}
+
+    assert len(fast.registers) > 20 and watch(fast) == watch(slow)

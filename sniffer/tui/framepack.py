@@ -32,6 +32,8 @@ from collections.abc import Callable, Iterator
 
 import zstandard
 
+from decoders.generic.block import RegisterBlock
+
 from ..codes import Annotation
 from ..filterlang import search_text
 from ..frame import Frame
@@ -42,19 +44,25 @@ BLOCK_CACHE = 8  # unpacked blocks kept
 _LEVEL = 3  # zstd level: level 3 packs drive traffic about 12:1 in well under a microsecond a frame
 
 # peer is None once a frame is decoded; encoded (the JSON the sinks wrote) can be made again;
-# points through its property (a decoder's compact block becomes its list of dicts)
-SLOTS = tuple("points" if s == "_points" else s for s in Frame.__slots__ if s not in ("peer", "encoded"))
+# a decoder's compact block of points (decoders.generic.block) is kept as a tuple of its values
+SLOTS = tuple(s for s in Frame.__slots__ if s not in ("peer", "encoded"))
 _ANN = SLOTS.index("annotations")
+_PTS = SLOTS.index("_points")
 _get = operator.attrgetter(*SLOTS)
 _SEP = "\x1e"  # between frames in a block's search text (record separator)
 _PICKLED = 0x80  # a pickle (protocol >= 2) starts with 0x80; a marshal dump never does
 
 
 def pack(f: Frame) -> tuple:
-    """Every slot of a decoded frame but `peer`, as marshal can write it (annotations as plain tuples)."""
+    """Every slot of a decoded frame but `peer`, as marshal can write it (annotations as plain tuples,
+    a RegisterBlock as the tuple (space, address, values, offset): its point dicts are never built)."""
     t = _get(f)
     if t[_ANN]:
         t = (*t[:_ANN], [tuple(a) for a in t[_ANN]], *t[_ANN + 1:])
+    pts = t[_PTS]
+    if type(pts) is RegisterBlock:
+        sh = pts.shape
+        t = (*t[:_PTS], (sh.space, sh.addr, pts.values, sh.offset), *t[_PTS + 1:])
     return t
 
 
@@ -63,6 +71,9 @@ def unpack(t) -> Frame:
     for name, v in zip(SLOTS, t):
         setattr(f, name, v)
     f.annotations = [Annotation(*a) for a in t[_ANN]] if t[_ANN] else []
+    pts = t[_PTS]
+    if type(pts) is tuple:
+        f._points = RegisterBlock(*pts)
     f.peer = None
     f.encoded = None
     return f

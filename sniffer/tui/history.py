@@ -18,7 +18,10 @@ and ends at each bucket's true value; a register that changes rarely keeps every
 change at its own frame (up to three changes per bucket), and a constant one one
 sample a bucket.  The first thinning makes buckets of the span so far / (cap / 8);
 the next ones double the bucket width (merging pairs of buckets by the same rule),
-so the whole capture stays evenly covered in at most `cap` samples.  In the open
+so the whole capture stays evenly covered in at most `cap` samples.  With a `queue` (the register
+book's: a block of 125 registers polled together reaches its cap together, and thinning 125
+histories at once held the UI for 90 ms) a series over its cap queues itself and is thinned when
+the book gets to it (`thin_queued`, a few per frame); past twice its cap it thins at once.  In the open
 bucket (the latest) a sample is kept if its value changed, and the bucket is
 reduced by the same rule every 32 samples and when the next one opens.
 
@@ -40,6 +43,12 @@ CHANGE = 1
 GAP = 2
 
 
+def thin_queued(queue: list, n: int) -> None:
+    """Thin up to n of the queued series (oldest first)."""
+    for _ in range(min(n, len(queue))):
+        queue.pop(0).thin_if_over()
+
+
 def cap_for(registers: int, cap: int = CAP, budget: int = BUDGET) -> int:
     """The samples each of `registers` registers keeps: `cap`, less when the budget is shared by many."""
     return max(min(cap, budget // max(registers, 1)), min(MIN_CAP, cap))
@@ -49,9 +58,9 @@ class Series:
     """One register's samples (see the module doc)."""
 
     __slots__ = ("t", "v", "ix", "fl", "cap", "width", "origin", "bucket", "start", "seen", "changes", "last",
-                 "t_end", "ix_end", "thins")
+                 "t_end", "ix_end", "thins", "queue", "queued")
 
-    def __init__(self, cap: int = CAP) -> None:
+    def __init__(self, cap: int = CAP, queue: list | None = None) -> None:
         self.t = array("q")  # capture time, ns
         self.v = array("d")
         self.ix = array("q")  # Frame.index of the frame that brought the value
@@ -67,6 +76,8 @@ class Series:
         self.t_end = 0  # the latest sample not kept (see `end`)
         self.ix_end = -1
         self.thins = 0  # times the history was thinned (views rebuild what they derived)
+        self.queue = queue  # where a series over its cap waits to be thinned (None: thinned at once)
+        self.queued = False
 
     # ------------------------------------------------------------ intake
     def add(self, t_ns: int, value, index: int) -> None:
@@ -92,6 +103,20 @@ class Series:
         self.fl.append(flag)
         if w and len(self.v) - self.start > OPEN:
             self._reduce_open()
+        if len(self.v) > self.cap:
+            self._over()
+
+    def _over(self) -> None:
+        q = self.queue
+        if q is None or len(self.v) > 2 * self.cap:
+            self._thin()
+        elif not self.queued:
+            self.queued = True
+            q.append(self)
+
+    def thin_if_over(self) -> None:
+        """Thin if over the cap (a queued series, when its turn comes)."""
+        self.queued = False
         if len(self.v) > self.cap:
             self._thin()
 
