@@ -1,0 +1,76 @@
+"""`sniffer report CAPTURE... --out report.html [--compare GOLDEN]`: a bus-health report (sniffer.report).
+
+Each capture runs through its own capture session, in the order given, and the
+report's collector takes the frames as they pass (flat memory).  Every input is
+checked before the first one is decoded; the page is written as NAME.part and
+renamed when complete, so a failed or interrupted run leaves no report behind.
+A capture that is damaged but readable is reported on (the page says what was
+lost) and the command ends with its error line and exit code 2, as replay does.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..outputs import Output, readable, shown
+from ..session import Session
+from ..settings import CaptureSpec
+from ..sources import CaptureError
+from .common import EXIT_OK, report, say
+from .replay import file_source
+
+
+def _check_input(path: str, what: str) -> None:
+    """A missing or unreadable input fails now, before hours of decoding (the source names the problem)."""
+    real, _ = readable(path)
+    if not os.path.exists(real):
+        raise CaptureError(f"{shown(path)}: no such file" + (f" ({what})" if what else ""))
+    if not os.access(real, os.R_OK):
+        raise CaptureError(f"{shown(path)}: not readable" + (f" ({what})" if what else ""))
+
+
+def cmd_report(spec: CaptureSpec, args) -> int:
+    from ..report import Collector, render
+
+    captures = list(args.captures)
+    golden = args.compare
+    for path in captures:
+        _check_input(path, "")
+    if golden:
+        _check_input(golden, "--compare")
+    out = Output(args.out, inputs=[*captures, *([golden] if golden else []), *spec.model_files])
+    collector = Collector(compare=bool(golden))
+    rc = EXIT_OK
+    try:
+        for path in captures:
+            cspec = spec.with_(input=path)
+            session = Session(cspec, file_source(cspec), [])
+            session.open()
+            collector.begin(path, session)
+            for f in session:
+                collector.frame(f)
+            collector.end(session)
+            rc = max(rc, report(session, label=path))
+        data = collector.to_data()
+        if golden:
+            data["compare"] = _compare(collector, golden, captures, spec)
+        title = args.title or f"Bus report: {', '.join(os.path.basename(p) for p in captures)}"
+        page = render(data, title)
+        with open(out.part, "w", encoding="utf-8") as fh:
+            fh.write(page)
+    except BaseException:
+        out.discard()
+        raise
+    out.commit()
+    frames = data["totals"]["frames"]
+    say(f"wrote {out.path} ({len(page.encode()):,} bytes: {frames:,} frames from {len(captures)} capture(s))")
+    return rc
+
+
+def _compare(collector, golden: str, captures: list[str], spec: CaptureSpec) -> dict:
+    """The semantic diff of the golden capture (before) against the captures of this report (after)."""
+    from ..semdiff import compare, summarize_capture
+
+    before = summarize_capture(golden, spec.with_(input=None))
+    d = compare(before, collector.summary.to_dict(), golden, " + ".join(captures))
+    return {"golden": golden, "same": d.same, "text": d.to_text(), "diff": d.to_dict()}
