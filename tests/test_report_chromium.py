@@ -46,8 +46,9 @@ PLOT_CHECK = """(() => {
 
 X_RANGE = "(() => { const p = window.__report.plots.find((p) => p.id === %r); " \
           "return [p.u.scales.x.min, p.u.scales.x.max]; })()"
-OVER_BOX = "(() => { const p = window.__report.plots.find((p) => p.id === %r); p.u.over.scrollIntoView({block: \"center\"}); " \
-           "const r = p.u.over.getBoundingClientRect(); return [r.left, r.top, r.width, r.height]; })()"
+OVER_BOX = "(() => { const p = window.__report.plots.find((p) => p.id === %r); " \
+           "p.u.over.scrollIntoView({block: 'center'}); const r = p.u.over.getBoundingClientRect(); " \
+           "return [r.left, r.top, r.width, r.height]; })()"
 
 
 def write_report(tmp_path, *extra) -> Path:

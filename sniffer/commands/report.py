@@ -17,7 +17,7 @@ from ..session import Session
 from ..settings import CaptureSpec
 from ..sources import CaptureError
 from .common import EXIT_OK, report, say
-from .replay import file_source
+from .replay import _note_unfinished, file_source
 
 
 def _check_input(path: str, what: str) -> None:
@@ -46,6 +46,7 @@ def cmd_report(spec: CaptureSpec, args) -> int:
             cspec = spec.with_(input=path)
             session = Session(cspec, file_source(cspec), [])
             session.open()
+            _note_unfinished(session)
             collector.begin(path, session)
             for f in session:
                 collector.frame(f)

@@ -41,10 +41,10 @@ class TimeBuckets:
     def _merge(self) -> None:
         """Pairs of buckets become one of twice the width."""
         half = self.n // 2
-        for name, col in self.cols.items():
-            merged = array("d", (col[2 * i] + col[2 * i + 1] for i in range(half)))
-            merged.extend(bytes(8 * half))
-            self.cols[name] = merged
+        for col in self.cols.values():  # in place: a column read before index() is still the column
+            for i in range(half):
+                col[i] = col[2 * i] + col[2 * i + 1]
+            col[half:] = array("d", bytes(8 * half))
         self.width *= 2
         self.top //= 2
 

@@ -53,7 +53,8 @@ def _table(head: list[str], rows: list[list[str]], cls: str = "") -> str:
 
 def _plot(pid: str, title: str, note: str = "") -> str:
     n = f'<p class="note">{note}</p>' if note else ""
-    return f'<figure class="plot" id="{pid}" data-title="{escape(title)}"><figcaption>{escape(title)}</figcaption>{n}</figure>'
+    return (f'<figure class="plot" id="{pid}" data-title="{escape(title)}">'
+            f"<figcaption>{escape(title)}</figcaption>{n}</figure>")
 
 
 def _section(sid: str, title: str, body: str) -> str:
@@ -116,9 +117,9 @@ def _captures(d: dict) -> str:
     for i, c in enumerate(d["captures"], 1):
         problems = "; ".join([*(c.get("damage") or []), *([c["error"]] if c.get("error") else [])])
         ll = c.get("low_latency") or {}
+        note = f'<br><span class="warn">{_e(c["note"])}</span>' if c.get("note") else ""
         rows.append([
-            f"{i}", f'<span class="path" title="{_e(c["path"])}">{_e(c["label"])}</span>' + (f'<br><span class="warn">{_e(c["note"])}</span>'
-                                                                       if c.get("note") else ""),
+            f"{i}", f'<span class="path" title="{_e(c["path"])}">{_e(c["label"])}</span>{note}',
             _e(c.get("start_wall") or "unknown (no wall clock)"), _dur(c.get("duration_s") or 0),
             _e(c["line"]) + " " + _e(c["protocol"]), _e(", ".join(f"{u}={m}" for u, m in c["devices"].items())),
             _e(c["time_source"]), _e(", ".join(f"{k}={v}" for k, v in ll.items()) or None),

@@ -1,0 +1,325 @@
+"""`sniffer report`: the figures the collector gathers (synthetic frames, so each is known), the page the CLI
+writes from real captures (every script inline, the counts those of a replay of the same files), several
+captures on one axis, --compare, and bad input (one line, an exit code, no report left behind).
+
+What the page looks like in a browser: tests/test_report_chromium.py.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+from helpers import decoded
+
+from sniffer.cli import main
+from sniffer.codes import Annotation
+from sniffer.events import CaptureInfo
+from sniffer.frame import Frame
+from sniffer.report import Collector
+from sniffer.report.buckets import TimeBuckets
+from sniffer.report.polls import Polls
+from sniffer.report.timeline import Timeline
+from sniffer.settings import CaptureSpec
+
+SIM = Path(__file__).resolve().parent.parent / "captures" / "sim"
+MS = 1_000_000
+
+
+def page_data(path: Path) -> dict:
+    text = path.read_text(encoding="utf-8")
+    m = re.search(r'<script type="application/json" id="report-data">(.*?)</script>', text, re.S)
+    assert m, "no data block"
+    return json.loads(m.group(1).replace("<\\/", "</"))
+
+
+def cli(capsys, *args) -> tuple[int, list[str]]:
+    rc = main([str(a) for a in args])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    return rc, [line for line in err.splitlines() if line.strip()]
+
+
+def left_in(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir() if p.suffix in (".html", ".part") or p.name.endswith(".part"))
+
+
+# ------------------------------------------------------------------ the figures, on synthetic frames
+def frame(index, t_ms, unit=1, fc=3, role="request", raw=b"\x01\x03\x00\x00\x00\x01\x84\x0a", **kw) -> Frame:
+    t = int(t_ms * MS)
+    f = Frame(index, t, t + 5 * MS, raw, "modbus-rtu", unit, fc, crc_ok=kw.pop("crc_ok", True))
+    f.role = role
+    f.adu = raw[:-2]
+    for k, v in kw.items():
+        setattr(f, k, v)
+    return f
+
+
+def session_of(info: CaptureInfo, baud: int = 9600) -> SimpleNamespace:
+    resolved = CaptureSpec.of(baud=baud).resolve(info)
+    return SimpleNamespace(info=info, resolved=resolved, source=SimpleNamespace(path="synthetic.mcap"),
+                           frames_out=0, bytes_in=0, noise_bytes=0, damage=[], error=None, registry=None)
+
+
+def test_buckets_merge_keeps_every_count():
+    b = TimeBuckets(("n",), n=8, width_ns=10)
+    for t in range(0, 1000, 3):  # 334 events over 1000 ns: the width doubles until 8 buckets cover them
+        b.cols["n"][b.index(t)] += 1
+    assert b.total("n") == 334
+    assert b.width == 160 and b.top == 6  # 10 -> 160 ns: 7 buckets of 160 cover 0..999
+    d = b.to_dict(end_ns=1000)
+    assert d["x"][:3] == [0.0, 160e-9, 320e-9] and sum(d["n"]) == 334
+    assert d["span_s"][-1] == pytest.approx(40e-9)  # the last bucket lies partly after the end
+
+
+def test_poll_period_and_jitter_per_request_type():
+    p = Polls()
+    gaps = [100, 100, 100, 100, 100, 100, 100, 100, 100, 300]  # one cycle skipped
+    t = 0
+    for i, g in enumerate([0] + gaps):
+        t += g
+        p.request(1, frame(i, t))
+    p.request(2, frame(99, 50, unit=2, raw=b"\x02\x03\x00\x10\x00\x02\xc5\xfd"))
+    rows = {r["type"]: r for r in p.to_dict()["rows"]}
+    r = rows["u1 fc03 holding 0..0 (1)"]
+    assert r["count"] == 11 and r["period_ms"] == 100 and r["max_ms"] == 300 and r["min_ms"] == 100
+    assert r["jitter_ms"] == 200  # p95 - p5: the skipped cycle shows
+    assert rows["u2 fc03 holding 16..17 (2)"]["count"] == 1 and rows["u2 fc03 holding 16..17 (2)"]["period_ms"] is None
+    p.new_capture()  # the next capture's first request: no period across the captures
+    p.request(1, frame(200, 100_000))
+    assert {r["type"]: r for r in p.to_dict()["rows"]}["u1 fc03 holding 0..0 (1)"]["max_ms"] == 300
+
+
+def write_req(index, t_ms, value, pair=None, unit=1):
+    raw = bytes([unit, 6, 0, 1]) + value.to_bytes(2, "big") + b"\x00\x00"
+    return frame(index, t_ms, unit=unit, fc=6, raw=raw, pair=pair, summary=f"write Setpoint={value}",
+                 points=[{"name": "Setpoint", "address": 1, "raw": value, "value": value}])
+
+
+def test_writes_repeated_are_one_event_with_their_outcomes():
+    tl = Timeline()
+    assert tl.frame(write_req(0, 0, 500, pair=1))
+    tl.frame(frame(1, 10, fc=6, role="response", pair=0))
+    assert tl.frame(write_req(2, 100, 500, pair=3))  # the same bytes again: the same event
+    tl.frame(frame(3, 110, fc=0x86, role="response", pair=2, exception={"code": 4, "name": "SLAVE DEVICE FAILURE"}))
+    assert tl.frame(write_req(4, 200, 500))  # no answer
+    assert tl.frame(write_req(5, 300, 600, pair=6))  # another value: a new event
+    assert not tl.frame(frame(7, 400))  # a read is no write
+    ev = tl.events()
+    assert [(e["kind"], e["n"], e["text"]) for e in ev] == [("write", 3, "write Setpoint=500"),
+                                                          ("write", 1, "write Setpoint=600")]
+    assert ev[0]["outcomes"] == {"confirmed": 1, "exception 04H SLAVE DEVICE FAILURE": 1, "no answer": 1}
+    assert ev[0]["t"] == 0 and ev[0]["t_end"] == 200 * MS
+    assert tl.counts["write"] == 2
+
+
+def test_a_fault_is_one_episode_until_the_same_poll_answers_without_it():
+    tl = Timeline()
+    oh = Annotation("model.fault", "error", "fault: OH", 3, 5)
+
+    def poll(i, t, faulted):
+        tl.frame(frame(2 * i, t, pair=2 * i + 1))
+        tl.frame(frame(2 * i + 1, t + 5, role="response", pair=2 * i, annotations=[oh] if faulted else []))
+
+    for i, faulted in enumerate([False, True, True, True, False, False, True]):
+        poll(i, 100 * i, faulted)
+    ev = tl.events()
+    assert [(e["kind"], e["n"], e["t"] // MS, e["t_end"] // MS) for e in ev] == [
+        ("fault", 3, 105, 305), ("fault", 1, 605, 605)]
+
+
+def test_head_and_tail_of_many_events():
+    tl = Timeline(head=3, tail=2)
+    for i in range(10):
+        tl.frame(write_req(i, i * 10, i))
+    assert [e["text"] for e in tl.events()] == ["write Setpoint=0", "write Setpoint=1", "write Setpoint=2",
+                                               "write Setpoint=8", "write Setpoint=9"]
+    assert tl.dropped == 5 and tl.counts["write"] == 10
+
+
+def test_collector_latency_turnaround_and_counts():
+    info = CaptureInfo(source="synthetic", baud=9600, parity="N", stopbits=1, time_source="byte", t0_ns=5 * MS)
+    c = Collector()
+    c.begin("a.mcap", session_of(info))
+    char_ms = 10 / 9600 * 1000  # 8N1: 10 bits a character
+    lat = [1.0 * char_ms, 3.0 * char_ms, 5.0 * char_ms, 20 * char_ms]
+    for i, ms in enumerate(lat):
+        c.frame(frame(2 * i, 100 * i + 5, pair=2 * i + 1))
+        c.frame(frame(2 * i + 1, 100 * i + 20, role="response", pair=2 * i, latency_ms=ms))
+    c.frame(frame(8, 500, crc_ok=False, annotations=[Annotation("modbus.crc.mismatch", "error", "", 0, 8)]))
+    c.frame(frame(9, 600, annotations=[Annotation("pair.timeout", "warning", "", 0, 8),
+                                       Annotation("pair.retry", "warning", "", 0, 8)]))
+    c.end(session_of(info))
+    d = c.to_data()
+    (u,) = d["units"]
+    assert (u["requests"], u["responses"], u["crc"], u["timeouts"], u["retries"]) == (5, 4, 1, 1, 1)
+    assert u["lat_n"] == 4 and u["lat_min"] == pytest.approx(lat[0], abs=1e-3)
+    assert (u["below15"], u["below35"]) == (1, 2)  # 1 char is under t1.5, 1 and 3 under t3.5
+    t = d["turnaround"]
+    assert sum(t["bins"]["1"]) == 4 and t["bins"]["1"][-1] == 1  # 20 characters: the last bin (20 and more)
+    assert t["time_sources"] == {"byte": 4} and t["capture_time_sources"] == ["byte"]
+    b = d["buckets"]
+    assert sum(b["frames"]) == 10 and sum(b["crc"]) == 1 and sum(b["timeouts"]) == 1 and sum(b["retries"]) == 1
+    busy = 10 * 8 * 10 * 1e9 / 9600  # ten 8-byte frames of 10-bit characters, in ns
+    assert sum(b["busy_ns"]) == pytest.approx(busy, rel=1e-3)
+    assert d["axis"]["clock"] is False and d["captures"][0]["start_s"] == 0
+    assert d["axis"]["end_s"] == pytest.approx(0.6, abs=0.01)  # t0 (5 ms) is the axis' zero
+
+
+def test_captures_follow_each_other_or_the_clock():
+    c = Collector()
+    a = CaptureInfo(baud=9600, t0_ns=0, wall_anchor_ns=1_000_000 * 10**9)
+    c.begin("a", session_of(a))
+    c.frame(frame(0, 1000))
+    c.end(session_of(a))
+    b = CaptureInfo(baud=9600, t0_ns=7 * 10**9, wall_anchor_ns=1_000_000 * 10**9 + 60 * 10**9)  # a minute later
+    c.begin("b", session_of(b))
+    c.frame(frame(0, 7000 + 500))
+    c.end(session_of(b))
+    d = c.to_data()
+    assert d["axis"]["clock"] and [x["start_s"] for x in d["captures"]] == [0, 60]
+    assert d["axis"]["end_s"] == pytest.approx(60.505)
+    early = CaptureInfo(baud=9600, t0_ns=0, wall_anchor_ns=1_000_000 * 10**9 + 30 * 10**9)  # overlaps b
+    c.begin("c", session_of(early))
+    assert c.captures[-1]["start_s"] == pytest.approx(60.505) and "overlaps" in c.captures[-1]["note"]
+    c.begin("d", session_of(CaptureInfo(baud=9600)))  # no wall clock: the axis counts seconds
+    assert not c.to_data()["axis"]["clock"]
+
+
+# ------------------------------------------------------------------ the command on real captures
+def test_report_of_a_capture_counts_what_replay_decodes(tmp_path, capsys):
+    out = tmp_path / "r.html"
+    rc, lines = cli(capsys, "report", SIM / "errors.mcap", "--out", out)
+    assert rc == 0 and lines == [f"sniffer: wrote {out} ({out.stat().st_size:,} bytes: "
+                                 f"{page_data(out)['totals']['frames']:,} frames from 1 capture(s))"]
+    _, frames = decoded(SIM / "errors.mcap")
+    d = page_data(out)
+    assert d["totals"]["frames"] == len(frames)
+    units = {u["unit"]: u for u in d["units"]}
+    for unit in {f.unit for f in frames if f.unit is not None and not f.is_noise}:
+        mine = [f for f in frames if f.unit == unit and not f.is_noise]
+        assert units[unit]["crc"] == sum(f.crc_ok is False for f in mine)
+        good = [f for f in mine if f.crc_ok is not False]
+        assert units[unit]["requests"] == sum(f.role == "request" for f in good)
+        assert units[unit]["exceptions"] == sum(bool(f.exception) for f in good)
+    assert sum(d["buckets"]["crc"]) == sum(f.crc_ok is False for f in frames)
+    assert d["totals"]["codes"]["pair.retry"] == sum(a.code == "pair.retry" for f in frames for a in f.annotations)
+    html = out.read_text()
+    assert not re.search(r"<(script|link|img)[^>]+(src|href)=", html)  # nothing loaded from anywhere
+    assert "uPlot" in html and "report-data" in html and html.rstrip().endswith("</html>")
+    assert left_in(tmp_path) == ["r.html"]
+
+
+def test_registers_names_and_units_from_the_model(tmp_path, capsys):
+    out = tmp_path / "r.html"
+    assert cli(capsys, "report", SIM / "a510.mcap", "--out", out)[0] == 0
+    r = page_data(out)["registers"]
+    names = {(x["unit"], x["name"]): x for x in r["rows"]}
+    freq = [x for (u, n), x in names.items() if "Output frequency" in n]
+    assert freq and all(x["eng_unit"] == "Hz" and x["changes"] > 0 for x in freq)
+    assert any(p["eng_unit"] == "Hz" and p["series"] for p in r["plots"])
+    for p in r["plots"]:
+        for s in p["series"]:
+            assert len(s["t"]) == len(s["v"]) <= 1025 and s["t"] == sorted(s["t"])
+
+
+def test_several_captures_in_order_on_one_axis(tmp_path, capsys):
+    out = tmp_path / "r.html"
+    caps = [SIM / "errors.mcap", SIM / "default.mcap"]
+    assert cli(capsys, "report", *caps, "--out", out)[0] == 0
+    d = page_data(out)
+    a, b = d["captures"]
+    assert (a["label"], b["label"]) == tuple(str(p) for p in caps)
+    assert b["start_s"] >= a["end_s"] > 0 and d["axis"]["end_s"] == b["end_s"]
+    assert d["totals"]["frames"] == a["frames"] + b["frames"] == sum(len(decoded(p)[1]) for p in caps)
+    assert all(len(c["sha256"]) == 64 and c["size"] == os.path.getsize(c["path"]) for c in d["captures"])
+
+
+def test_compare_adds_the_semantic_diff(tmp_path, capsys):
+    before, after = tmp_path / "before.mcap", tmp_path / "after.mcap"
+    base = ["simulate", "--scenario", "default", "--seed", "4", "--duration", "5"]
+    assert main([*base, "--out", str(before)]) == 0
+    assert main([*base, "--param", "unit2.rated_current_a=11.0", "--out", str(after)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "r.html"
+    assert cli(capsys, "report", after, "--compare", before, "--out", out)[0] == 0
+    c = page_data(out)["compare"]
+    assert not c["same"] and c["golden"] == str(before)
+    changed = c["diff"]["registers"]["changed"]
+    assert "u2 8451 holding[8451]" in changed and all(k.startswith("u2 ") for k in changed)
+    assert "captures differ" in c["text"] and "Compared with" in out.read_text()
+    assert cli(capsys, "report", before, "--compare", before, "--out", out)[0] == 0
+    assert page_data(out)["compare"]["same"]
+
+
+# ------------------------------------------------------------------ bad input
+def test_missing_capture_is_one_line_and_nothing_written(tmp_path, capsys):
+    out = tmp_path / "r.html"
+    rc, lines = cli(capsys, "report", SIM / "errors.mcap", tmp_path / "nope.mcap", "--out", out)
+    assert rc == 2 and lines == [f"sniffer: error: {tmp_path / 'nope.mcap'}: no such file"]
+    rc, lines = cli(capsys, "report", SIM / "errors.mcap", "--compare", tmp_path / "gone.mcap", "--out", out)
+    assert rc == 2 and lines == [f"sniffer: error: {tmp_path / 'gone.mcap'}: no such file (--compare)"]
+    assert left_in(tmp_path) == []
+
+
+def test_corrupt_capture_is_one_line_and_no_half_report(tmp_path, capsys):
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(b"\x89MCAP0\r\n" + os.urandom(3000))
+    out = tmp_path / "r.html"
+    out.write_text("the old report")
+    rc, lines = cli(capsys, "report", SIM / "errors.mcap", bad, "--out", out)  # fails after the first capture
+    assert rc == 2 and len(lines) == 1 and lines[0].startswith("sniffer: error: ") and "bad.mcap" in lines[0]
+    assert out.read_text() == "the old report" and left_in(tmp_path) == ["r.html"]
+
+
+def test_unwritable_out_is_one_line(tmp_path, capsys):
+    rc, lines = cli(capsys, "report", SIM / "errors.mcap", "--out", tmp_path / "no" / "r.html")
+    assert rc == 2 and lines == [f"sniffer: error: {tmp_path / 'no' / 'r.html'}: folder {tmp_path / 'no'} "
+                                 f"does not exist"]
+    rc, lines = cli(capsys, "report", SIM / "errors.mcap", "--out", tmp_path)
+    assert rc == 2 and lines == [f"sniffer: error: {tmp_path}: is a folder, not a file name"]
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if not os.access(ro, os.W_OK):  # root may write anywhere: then this part says nothing
+            rc, lines = cli(capsys, "report", SIM / "errors.mcap", "--out", ro / "r.html")
+            assert rc == 2 and lines == [f"sniffer: error: {ro / 'r.html'}: folder {ro} is not writable"]
+    finally:
+        ro.chmod(0o700)
+    rc, lines = cli(capsys, "report", SIM / "errors.mcap", "--out", SIM / "errors.mcap")
+    assert rc == 2 and lines == [f"sniffer: error: {SIM / 'errors.mcap'}: is also an input of this command; "
+                                 f"write to another file"]
+
+
+def test_write_failure_leaves_nothing(tmp_path, capsys, monkeypatch):
+    import sniffer.report.page as page
+
+    def boom(data, title):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(page, "render", boom)
+    monkeypatch.setattr("sniffer.report.render", boom)
+    rc, lines = cli(capsys, "report", SIM / "errors.mcap", "--out", tmp_path / "r.html")
+    assert rc == 1 and lines == ["sniffer: error: No space left on device"]
+    assert left_in(tmp_path) == []
+
+
+def test_damaged_capture_is_reported_on_and_exits_2(tmp_path, capsys):
+    csv = tmp_path / "line.csv"
+    assert main(["simulate", "--scenario", "errors", "--duration", "3", "--out", str(csv)]) == 0
+    rows = csv.read_text().splitlines()
+    rows[len(rows) // 2] = "garbage,row,zz,"  # a row that is no time: skipped, the rest decoded
+    csv.write_text("\n".join(rows) + "\n")
+    capsys.readouterr()
+    out = tmp_path / "r.html"
+    rc, lines = cli(capsys, "report", csv, "--baud", "19200", "--parity", "E", "--out", out)
+    assert rc == 2 and len(lines) == 2 and "input damaged: " in lines[0] and lines[1].startswith("sniffer: wrote")
+    d = page_data(out)  # a complete page, saying what was lost
+    assert "bad row" in d["captures"][0]["damage"][0] and d["totals"]["frames"] > 100
+    assert d["totals"]["codes"]["source.gap"] >= 1
+    assert left_in(tmp_path) == ["r.html"]
