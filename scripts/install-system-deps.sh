@@ -2,7 +2,8 @@
 # System packages the test suite uses (Debian's apt):
 #   tshark             - checks that our pcap export decodes as Modbus/RTU in Wireshark;
 #   chromium           - headless, drives the browser view (`sniffer serve`) with keys
-#                        (tests/test_serve_chromium.py);
+#                        (tests/test_serve_chromium.py) and opens `sniffer report`'s page offline
+#                        (tests/test_report_chromium.py; the report itself needs no system package);
 #   fonts-dejavu-core  - a monospace font for the page's terminal.
 # Without them those tests skip with a reason, except the Chromium test on CI (CI set), which fails.
 # Idempotent and non-interactive: installs only what is missing; does nothing (and succeeds) without

@@ -164,6 +164,7 @@ def test_collector_latency_turnaround_and_counts():
     assert t["time_sources"] == {"byte": 4} and t["capture_time_sources"] == ["byte"]
     b = d["buckets"]
     assert sum(b["frames"]) == 10 and sum(b["crc"]) == 1 and sum(b["timeouts"]) == 1 and sum(b["retries"]) == 1
+    assert (sum(b["fast35"]), sum(b["fast15"])) == (2, 1)
     busy = 10 * 8 * 10 * 1e9 / 9600  # ten 8-byte frames of 10-bit characters, in ns
     assert sum(b["busy_ns"]) == pytest.approx(busy, rel=1e-3)
     assert d["axis"]["clock"] is False and d["captures"][0]["start_s"] == 0

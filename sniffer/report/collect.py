@@ -36,7 +36,7 @@ from .timeline import Timeline
 from .units import UnitAgg, latency_edges, series_points, turnaround_edges
 
 COLUMNS = ("frames", "busy_ns", "crc", "exceptions", "timeouts", "retries", "noise", "gaps", "t15", "t35", "writes",
-           "faults")
+           "faults", "fast35", "fast15")  # fast35/15: responses under 3.5 / 1.5 characters after their request
 CODE_COLUMN = {"pair.timeout": "timeouts", "pair.no_response": "timeouts", "pair.retry": "retries",
                "noise.bytes": "noise", "source.gap": "gaps", "modbus.timing.t15": "t15", "modbus.timing.t35": "t35",
                "model.fault": "faults", "model.alarm": "faults"}
@@ -167,10 +167,15 @@ class Collector:
             return
         if self.timeline.frame(f, self._capture):
             cols["writes"][b] += 1
-        self._unit(f, fault)
+        fast = self._unit(f, fault)
+        if fast:
+            cols["fast35"][b] += 1
+            if fast > 1:
+                cols["fast15"][b] += 1
         self.book.frame(f)
 
-    def _unit(self, f, fault: bool) -> None:
+    def _unit(self, f, fault: bool) -> int:
+        """The unit's figures; 1 for a response under t3.5, 2 under t1.5, else 0."""
         u = self.units.get(f.unit)
         if u is None:
             u = self.units[f.unit] = UnitAgg(f.unit)
@@ -181,7 +186,7 @@ class Collector:
             u.model = f.model
         if f.crc_ok is False:
             u.crc += 1
-            return  # its unit byte may be the damage: nothing more is said of that unit
+            return 0  # its unit byte may be the damage: nothing more is said of that unit
         u.good += 1
         if f.exception:
             u.exceptions += 1
@@ -203,10 +208,11 @@ class Collector:
         elif f.role == "response":
             u.responses += 1
             if f.latency_ms is not None:
-                u.latency(f.t_ns, f.latency_ms, self._char_ns, f.index)
                 self.time_sources[f.time_source] += 1
-            elif f.pair is not None:
+                return u.latency(f.t_ns, f.latency_ms, self._char_ns, f.index)
+            if f.pair is not None:
                 u.unmeasured += 1
+        return 0
 
     # ------------------------------------------------------------ the result
     def to_data(self) -> dict:

@@ -225,7 +225,7 @@ def _timeline(d: dict) -> str:
     head = ["kind", "unit", "first s", "last s", "times", "what", "outcome", "frame", "capture"]
     return _section("timeline", "Writes and faults", _plot("plot-timeline", "Timeline: writes (◆) and faults (bars)",
                                                            "hover for the event")
-                    + _table(head, rows) + more)
+                    + f'<div class="scroll">{_table(head, rows)}</div>' + more)
 
 
 def _compare(c: dict) -> str:

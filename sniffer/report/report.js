@@ -30,7 +30,7 @@
 
   // aligned data for uPlot from series of {t, v} with their own times
   function union(series) {
-    const all = [];
+    const all = [0, D.axis.end_s];  // every plot over time spans the report: the same view in all of them
     series.forEach((s) => { for (const t of s.t) all.push(t); });
     all.sort((a, b) => a - b);
     const xs = [];
@@ -150,7 +150,7 @@
   function buckets() {
     const B = D.buckets, n = B.x.length;
     if (!n) return;
-    const xs = B.x.map(X).concat([X(B.x[n - 1] + B.width_s)]);
+    const xs = B.x.map(X).concat([X(Math.max(B.x[n - 1], Math.min(B.x[n - 1] + B.width_s, D.axis.end_s)))]);
     const end = (arr) => arr.concat([arr.length ? arr[arr.length - 1] : 0]);
     const util = B.busy_ns.map((b, i) => (B.span_s[i] > 0 ? Math.min(100, b / 1e9 / B.span_s[i] * 100) : null));
     const fps = B.frames.map((f, i) => (B.span_s[i] > 0 ? f / B.span_s[i] : null));
@@ -165,9 +165,10 @@
     const shown = kinds.filter(([k], i) => i < 4 || B[k].some((v) => v));
     make("plot-errors", timeOpts(shown.map(([k, label], i) => ({label: label, stroke: color(i + 1), paths: stepped,
       width: 1.5})), "per bucket"), [xs].concat(shown.map(([k]) => end(B[k]))), "time");
-    make("plot-violations", timeOpts([["t15", "t1.5 (gap inside a frame)"], ["t35", "t3.5 (frame started early)"]]
-      .map(([k, label], i) => ({label: label, stroke: color(i + 4), paths: stepped, width: 1.5})), "per bucket",
-      {height: 200}), [xs, end(B.t15), end(B.t35)], "time");
+    const v = [["fast35", "responses under t3.5"], ["fast15", "responses under t1.5"],
+               ["t35", "frames flagged t3.5 (started early)"], ["t15", "frames flagged t1.5 (gap inside)"]];
+    make("plot-violations", timeOpts(v.map(([k, label], i) => ({label: label, stroke: color(i + 4), paths: stepped,
+      width: 1.5})), "per bucket", {height: 220}), [xs].concat(v.map(([k]) => end(B[k]))), "time");
   }
 
   // ---------------------------------------------------------------- turnaround
@@ -261,6 +262,7 @@
     const xs = [X(Math.min(0, tmin)), X(tmax)];
     rec = make("plot-timeline", timeOpts([{label: "events", show: false}], "unit", {
       height: Math.max(140, 60 + 34 * units.length),
+      legend: {show: false},
       scales: {x: {time: clock}, y: {range: [-0.6, units.length - 0.4]}},
       axes: [timeXAxis(), {label: "unit", size: 50, splits: () => units.map((u, i) => i),
         values: (u, splits) => splits.map((i) => "u" + units[i])}],

@@ -58,8 +58,9 @@ class UnitAgg:
         self.lat_series = Series(LATENCY_POINTS)
         self.turn_bins = [0] * (TURN_BINS + 1)
 
-    def latency(self, t_ns: int, ms: float, char_ns: int, index: int) -> None:
-        """A response `ms` after its request ended (turnaround in characters of `char_ns`)."""
+    def latency(self, t_ns: int, ms: float, char_ns: int, index: int) -> int:
+        """A response `ms` after its request ended (turnaround in characters of `char_ns`): 1 if that is under
+        t3.5, 2 under t1.5, else 0."""
         self.lat.add(ms)
         if self.lat_min is None or ms < self.lat_min:
             self.lat_min = ms
@@ -75,6 +76,9 @@ class UnitAgg:
                 self.below35 += 1
                 if chars < 1.5:
                     self.below15 += 1
+                    return 2
+                return 1
+        return 0
 
     def row(self, origin_ns: int = 0) -> dict:
         span = ((self.last_ns - self.first_ns) / 1e9) if self.first_ns is not None else 0.0
