@@ -61,7 +61,7 @@ def frame(index, t_ms, unit=1, fc=3, role="request", raw=b"\x01\x03\x00\x00\x00\
 
 def session_of(info: CaptureInfo, baud: int = 9600) -> SimpleNamespace:
     resolved = CaptureSpec.of(baud=baud).resolve(info)
-    return SimpleNamespace(info=info, resolved=resolved, source=SimpleNamespace(path="synthetic.mcap"),
+    return SimpleNamespace(info=info, resolved=resolved, source=SimpleNamespace(path="synthetic.mcap"), spec=None,
                            frames_out=0, bytes_in=0, noise_bytes=0, damage=[], error=None, registry=None)
 
 
@@ -189,6 +189,28 @@ def test_captures_follow_each_other_or_the_clock():
     assert c.captures[-1]["start_s"] == pytest.approx(60.505) and "overlaps" in c.captures[-1]["note"]
     c.begin("d", session_of(CaptureInfo(baud=9600)))  # no wall clock: the axis counts seconds
     assert not c.to_data()["axis"]["clock"]
+
+
+def test_a_register_holding_nan_is_a_gap_not_a_broken_page():
+    from sniffer.report import render
+
+    info = CaptureInfo(baud=9600, t0_ns=0)
+    c = Collector()
+    c.begin("f.mcap", session_of(info))
+    for i, v in enumerate([1.5, float("nan"), 2.5, float("inf")]):
+        raw = [i + 1, 0]
+        f = frame(i, 100 * i, role="response", pair=None, writes=[["holding", 0, raw]],
+                  points=[{"name": "Temperature", "address": 0, "raw": 65536 * (i + 1), "words": raw, "value": v,
+                           "unit": "°C"}])
+        c.frame(f)
+    c.end(session_of(info))
+    d = c.to_data()
+    (row,) = d["registers"]["rows"]
+    assert (row["name"], row["eng_unit"], row["min"], row["max"], row["last"]) == ("Temperature", "°C", 1.5, 2.5, "inf")
+    (series,) = d["registers"]["plots"][0]["series"]
+    assert series["v"][:4] == [1.5, None, 2.5, None]
+    page = render(d, "t")  # strict JSON: no NaN in it
+    assert "NaN" not in page.split('id="report-data">')[1].split("</script>")[0]
 
 
 # ------------------------------------------------------------------ the command on real captures

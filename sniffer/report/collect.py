@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
+import math
 import os
 from collections import Counter
 
@@ -40,6 +41,7 @@ COLUMNS = ("frames", "busy_ns", "crc", "exceptions", "timeouts", "retries", "noi
 CODE_COLUMN = {"pair.timeout": "timeouts", "pair.no_response": "timeouts", "pair.retry": "retries",
                "noise.bytes": "noise", "source.gap": "gaps", "modbus.timing.t15": "t15", "modbus.timing.t35": "t35",
                "model.fault": "faults", "model.alarm": "faults"}
+PLOTTED_UNITS = 16  # units in the latency and turnaround plots (the most answers); all are in the units table
 REGISTER_POINTS = 1024  # history kept per register (tui.history thins beyond)
 REGISTER_PLOTS = 40  # (unit, engineering unit) groups plotted; the rest are in the table
 SERIES_PER_PLOT = 8
@@ -110,6 +112,9 @@ class Collector:
             **file_facts(getattr(session.source, "path", label)),
             "source": info.source, "port": info.port, "line": resolved.line.label(),
             "protocol": resolved.protocol.name, "settings": resolved.describe(),
+            "timeout_ms": resolved.timeout_ms,
+            "unit_timeouts": {str(u): ms for u, ms in sorted(resolved.unit_timeouts.items())},
+            "model_files": list(resolved.model_files), "bus_file": session.spec.bus_file if session.spec else None,
             "devices": {str(u): m for u, m in sorted(resolved.devices.items())}, "time_source": info.time_source,
             "low_latency": info.low_latency, "recorded_by": info.sniffer_version,
             "start_wall": _iso(wall), "start_s": start / 1e9, "note": note,
@@ -218,6 +223,8 @@ class Collector:
     def to_data(self) -> dict:
         """Everything the page draws, JSON-ready; times in seconds from the report's start."""
         units = [self.units[u] for u in sorted(self.units)]
+        timed = sorted(sorted((u for u in units if u.lat.n), key=lambda u: -u.lat.n)[:PLOTTED_UNITS],
+                       key=lambda u: u.unit)
         return {
             "axis": {"clock": self.clock and self.origin_wall > 0, "origin_wall_s": self.origin_wall / 1e9,
                      "end_s": self.end_ns / 1e9},
@@ -226,9 +233,10 @@ class Collector:
                        "bytes": sum(c.get("bytes", 0) for c in self.captures), "codes": dict(self.codes.most_common())},
             "buckets": self.buckets.to_dict(self.end_ns),
             "units": [u.row() for u in units],
-            "latency": {"edges": latency_edges(), "bins": {str(u.unit): u.lat_bins for u in units if u.lat.n},
-                        "series": {str(u.unit): series_points(u.lat_series) for u in units if u.lat.n}},
-            "turnaround": {"edges": turnaround_edges(), "bins": {str(u.unit): u.turn_bins for u in units if u.lat.n},
+            "latency": {"edges": latency_edges(), "bins": {str(u.unit): u.lat_bins for u in timed},
+                        "series": {str(u.unit): series_points(u.lat_series) for u in timed},
+                        "units_timed": sum(1 for u in units if u.lat.n)},
+            "turnaround": {"edges": turnaround_edges(), "bins": {str(u.unit): u.turn_bins for u in timed},
                            "time_sources": dict(self.time_sources),
                            "capture_time_sources": sorted({c["time_source"] for c in self.captures}),
                            "t15": self.codes.get("modbus.timing.t15", 0), "t35": self.codes.get("modbus.timing.t35", 0),
@@ -246,12 +254,14 @@ class Collector:
         rows = []
         for rv in changed:
             h = rv.history
-            vals = list(h.v)
+            vals = [v for v in h.v if math.isfinite(v)]
+            last = rv.value
+            if not isinstance(last, (int, float)) or isinstance(last, float) and not math.isfinite(last):
+                last = str(last)[:80]
             rows.append({"unit": rv.unit, "table": rv.table, "address": rv.address_text, "name": rv.title,
                          "eng_unit": rv.eng_unit or "", "changes": h.changes, "samples": h.seen,
                          "min": min(vals) if vals else None, "max": max(vals) if vals else None,
-                         "last": rv.value if isinstance(rv.value, (int, float)) else str(rv.value)[:80],
-                         "text": rv.text[:120]})
+                         "last": last, "text": rv.text[:120]})
         groups: dict[tuple, list] = {}
         for rv in sorted(changed, key=lambda rv: -rv.history.changes):
             groups.setdefault((rv.unit, rv.eng_unit or ""), []).append(rv)

@@ -122,15 +122,26 @@ def _captures(d: dict) -> str:
             f"{i}", f'<span class="path" title="{_e(c["path"])}">{_e(c["label"])}</span>{note}',
             _e(c.get("start_wall") or "unknown (no wall clock)"), _dur(c.get("duration_s") or 0),
             _e(c["line"]) + " " + _e(c["protocol"]), _e(", ".join(f"{u}={m}" for u, m in c["devices"].items())),
+            _e(_settings(c)),
             _e(c["time_source"]), _e(", ".join(f"{k}={v}" for k, v in ll.items()) or None),
             _n(c.get("frames")), _n(c.get("bytes")), _n(c.get("noise_bytes")),
             _e(c.get("source")) + (f" {_e(c['port'])}" if c.get("port") else ""), _e(c.get("recorded_by")),
             _n(c.get("size")), f'<code>{_e((c.get("sha256") or "")[:16])}</code>',
             f'<span class="bad">{_e(problems)}</span>' if problems else "none",
         ])
-    head = ["#", "file", "start (UTC)", "duration", "line", "devices", "time source", "low latency", "frames",
-            "bytes", "noise bytes", "recorded from", "by sniffer", "file size", "SHA-256", "damage"]
+    head = ["#", "file", "start (UTC)", "duration", "line", "devices", "timeouts, maps", "time source", "low latency",
+            "frames", "bytes", "noise bytes", "recorded from", "by sniffer", "file size", "SHA-256", "damage"]
     return _section("captures", "Captures: settings and provenance", _table(head, rows, "wide"))
+
+
+def _settings(c: dict) -> str:
+    """The response timeouts and the files the decoding used."""
+    parts = [f"timeout {c['timeout_ms']:g} ms"]
+    parts += [f"u{u} {ms:g} ms" for u, ms in c["unit_timeouts"].items()]
+    if c.get("bus_file"):
+        parts.append(f"bus file {c['bus_file']}")
+    parts += [f"model file {m}" for m in c["model_files"]]
+    return "; ".join(parts)
 
 
 def _units(d: dict) -> str:
@@ -146,9 +157,13 @@ def _units(d: dict) -> str:
 
 
 def _latency(d: dict) -> str:
-    if not d["latency"]["bins"]:
+    lat = d["latency"]
+    if not lat["bins"]:
         return _section("latency", "Response latency", "<p>No response with a measured latency.</p>")
-    return _section("latency", "Response latency", _plot("plot-lat-hist", "Latency histogram per unit (ms, log scale)")
+    shown = len(lat["bins"])
+    note = f"the {shown} units with the most answers of {lat['units_timed']}" if lat["units_timed"] > shown else ""
+    return _section("latency", "Response latency", _plot("plot-lat-hist", "Latency histogram per unit (ms, log scale)",
+                                                         note)
                     + _plot("plot-lat-time", "Latency over time per unit (ms)",
                             "each unit's responses, thinned to the first, fastest, slowest and last of each stretch"))
 

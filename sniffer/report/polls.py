@@ -58,7 +58,7 @@ class PollType:
         return {"type": self.label, "unit": self.key[0], "count": self.count,
                 "period_ms": None if p50 is None else round(p50, 3), "p5_ms": p5, "p95_ms": p95,
                 "jitter_ms": None if p5 is None else round(p95 - p5, 3),
-                "std_ms": round(math.sqrt(self.m2 / (g.n - 1)), 3) if g.n > 1 else None,
+                "std_ms": round(math.sqrt(max(self.m2, 0.0) / (g.n - 1)), 3) if g.n > 1 else None,
                 "min_ms": None if self.lo is None else round(self.lo, 3),
                 "max_ms": None if self.hi is None else round(self.hi, 3)}
 

@@ -71,7 +71,7 @@ class UnitAgg:
         self.lat_series.add(t_ns, ms, index)
         if char_ns > 0:
             chars = ms * 1e6 / char_ns
-            self.turn_bins[min(int(chars / TURN_STEP), TURN_BINS)] += 1
+            self.turn_bins[max(0, min(int(chars / TURN_STEP), TURN_BINS))] += 1
             if chars < 3.5:
                 self.below35 += 1
                 if chars < 1.5:
@@ -102,7 +102,7 @@ def _r(v: float | None, nd: int = 3) -> float | None:
 def series_points(s: Series, hold: bool = False) -> dict:
     """A Series as {"t": seconds, "v": values}: its kept samples (`hold`: and its last value where it ends)."""
     t = [round(x / 1e9, 6) for x in s.t]
-    v = list(s.v)
+    v = [x if math.isfinite(x) else None for x in s.v]  # a float register may hold NaN or infinity: no point
     end_t, _ = s.end
     if hold and s.t and end_t > s.t[-1]:  # the value held on to the end
         t.append(end_t / 1e9)
