@@ -294,8 +294,14 @@ def test_corrupt_capture_is_one_line_and_no_half_report(tmp_path, capsys):
     bad.write_bytes(b"\x89MCAP0\r\n" + os.urandom(3000))
     out = tmp_path / "r.html"
     out.write_text("the old report")
-    rc, lines = cli(capsys, "report", SIM / "errors.mcap", bad, "--out", out)  # fails after the first capture
-    assert rc == 2 and len(lines) == 1 and lines[0].startswith("sniffer: error: ") and "bad.mcap" in lines[0]
+    rc, lines = cli(capsys, "report", SIM / "errors.mcap", bad, "--out", out)  # found before errors.mcap is decoded
+    assert rc == 2 and lines == [f"sniffer: error: {bad}: MCAP file cut off before its capture info (the last "
+                                 f"record is cut off at byte 8); nothing to replay"]
+    assert out.read_text() == "the old report" and left_in(tmp_path) == ["r.html"]
+    csv = tmp_path / "bytes.csv"
+    csv.write_text("t_s,channel,byte_hex,flags\n0.1,RX,01,\n")
+    rc, lines = cli(capsys, "report", SIM / "errors.mcap", csv, "--out", out)  # a byte CSV says no baud rate
+    assert rc == 2 and len(lines) == 1 and "give --baud" in lines[0]
     assert out.read_text() == "the old report" and left_in(tmp_path) == ["r.html"]
 
 

@@ -20,13 +20,19 @@ from .common import EXIT_OK, report, say
 from .replay import _note_unfinished, file_source
 
 
-def _check_input(path: str, what: str) -> None:
-    """A missing or unreadable input fails now, before hours of decoding (the source names the problem)."""
+def _check_input(spec: CaptureSpec, path: str, what: str = "") -> None:
+    """An input that is missing, unreadable, not a capture, or needs flags it was not given fails now, before
+    hours of decoding the ones before it (its header is read; the source names the problem)."""
+    from ..sources.replay import FileSource
+
     real, _ = readable(path)
     if not os.path.exists(real):
         raise CaptureError(f"{shown(path)}: no such file" + (f" ({what})" if what else ""))
-    if not os.access(real, os.R_OK):
-        raise CaptureError(f"{shown(path)}: not readable" + (f" ({what})" if what else ""))
+    source = FileSource(real, spec.input_format)
+    try:
+        spec.resolve(source.open())
+    finally:
+        source.close()
 
 
 def cmd_report(spec: CaptureSpec, args) -> int:
@@ -35,9 +41,9 @@ def cmd_report(spec: CaptureSpec, args) -> int:
     captures = list(args.captures)
     golden = args.compare
     for path in captures:
-        _check_input(path, "")
+        _check_input(spec, path)
     if golden:
-        _check_input(golden, "--compare")
+        _check_input(spec, golden, "--compare")
     out = Output(args.out, inputs=[*captures, *([golden] if golden else []), *spec.model_files])
     collector = Collector(compare=bool(golden))
     rc = EXIT_OK
