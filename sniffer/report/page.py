@@ -243,9 +243,54 @@ def _timeline(d: dict) -> str:
                     + f'<div class="scroll">{_table(head, rows)}</div>' + more)
 
 
+COMPARE_ROWS = 200  # rows per table of the comparison (the whole text is below them)
+
+
+def _vals(v: dict) -> str:
+    more = f" (+{v['n_values'] - len(v['values'])} more)" if v["n_values"] > len(v["values"]) else ""
+    rng = f" range {v['range'][0]}..{v['range'][1]}" if v.get("range") and v["n_values"] > 1 else ""
+    return escape(", ".join(str(x) for x in v["values"]) + more + rng)
+
+
+def _capped(head: list[str], rows: list[list[str]]) -> str:
+    more = f'<p class="note">and {len(rows) - COMPARE_ROWS:,} more (in the text below)</p>' \
+        if len(rows) > COMPARE_ROWS else ""
+    return _table(head, rows[:COMPARE_ROWS]) + more
+
+
 def _compare(c: dict) -> str:
-    text = escape(c["text"])
+    d = c["diff"]
     verdict = "same" if c["same"] else "differ"
-    return _section("compare", f"Compared with {c['golden']}",
-                    f'<p class="verdict {verdict}">{"no semantic difference" if c["same"] else "the captures differ"}'
-                    f"</p><pre>{text}</pre>")
+    out = [f'<p class="verdict {verdict}">{"no semantic difference" if c["same"] else "the captures differ"}</p>',
+           f'<p>before: <code>{_e(d["a"])}</code> ({_n(d["frames"]["a"])} frames) · after: <code>{_e(d["b"])}</code>'
+           f' ({_n(d["frames"]["b"])} frames)</p>']
+    la, lb = d["latency_ms"]["a"], d["latency_ms"]["b"]
+    out.append(_table(["latency", "before", "after"], [["median ms", _n(la["median"]), _n(lb["median"])],
+                                                       ["p95 ms", _n(la["p95"]), _n(lb["p95"])],
+                                                       ["responses", _n(la["n"]), _n(lb["n"])]]))
+    u = d["units"]
+    if u["added"] or u["removed"]:
+        out.append(f"<h3>Units</h3><p>{_e(' '.join(u['a']))} → {_e(' '.join(u['b']))}: added "
+                   f"{_e(', '.join(u['added']) or None)}, gone {_e(', '.join(u['removed']) or None)}</p>")
+    k = d["codes"]
+    rows = ([[f"<code>{_e(x)}</code>", "0", _n(n)] for x, n in k["new"].items()]
+            + [[f"<code>{_e(x)}</code>", _n(n), "0"] for x, n in k["vanished"].items()]
+            + [[f"<code>{_e(x)}</code>", _n(n[0]), _n(n[1])] for x, n in k["count_changed"].items()])
+    if rows:
+        out.append("<h3>Errors and annotations</h3>" + _capped(["code", "before", "after"], rows))
+    g = d["registers"]
+    rows = ([[_e(x), _vals(v["a"]), _vals(v["b"])] for x, v in g["changed"].items()]
+            + [[_e(x), "–", _vals(v)] for x, v in g["added"].items()]
+            + [[_e(x), _vals(v), "–"] for x, v in g["removed"].items()])
+    if rows:
+        out.append("<h3>Register values</h3>" + _capped(["register", "before", "after"], rows))
+    r = d["requests"]
+    rows = ([[_e(x), "–", f"×{v['count']}" + (f" every {v['period_ms']} ms" if v["period_ms"] else "")]
+             for x, v in r["added"].items()]
+            + [[_e(x), f"×{v['count']}", "–"] for x, v in r["removed"].items()]
+            + [[_e(x), f"every {_n(v[0])} ms", f"every {_n(v[1])} ms"] for x, v in r["period_changed"].items()])
+    if rows:
+        out.append("<h3>Requests</h3>" + _capped(["request", "before", "after"], rows))
+    out.append(f"<details><summary>as <code>sniffer diff</code> prints it</summary><pre>{escape(c['text'])}</pre>"
+               "</details>")
+    return _section("compare", f"Compared with {c['golden']}", "".join(out))
