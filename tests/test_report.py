@@ -250,6 +250,15 @@ def test_registers_names_and_units_from_the_model(tmp_path, capsys):
             assert len(s["t"]) == len(s["v"]) <= 1025 and s["t"] == sorted(s["t"])
 
 
+def test_poll_types_of_a_protocol_that_is_not_modbus(tmp_path, capsys):
+    out = tmp_path / "r.html"
+    assert cli(capsys, "report", SIM / "pd-series.mcap", "--out", out)[0] == 0
+    rows = {r["type"]: r for r in page_data(out)["polls"]["rows"]}
+    status = rows["u1 fc04 read status CFG 1 (Out F: output frequency)"]  # PD: function and status selector
+    assert status["count"] > 5 and 500 < status["period_ms"] < 2000
+    assert not any("coil" in t or "holding" in t for t in rows)  # no Modbus register reading of PD frames
+
+
 def test_several_captures_in_order_on_one_axis(tmp_path, capsys):
     out = tmp_path / "r.html"
     caps = [SIM / "errors.mcap", SIM / "default.mcap"]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+from ..protocols import of_frame
 from ..semdiff import Quantiles, key_text, request_key
 from ..tui.history import Series
 from .units import series_points
@@ -20,11 +21,24 @@ GAP_POINTS = 1024  # kept per type for the plot
 PLOTTED = 12  # the most frequent types get a line in the plot
 
 
-class PollType:
-    __slots__ = ("key", "count", "last_ns", "gaps", "mean", "m2", "lo", "hi", "series")
+def request_type(unit: int, f) -> tuple[tuple, str | None]:
+    """(key, label or None) of a request: a Modbus request by function, first register and count; another
+    protocol's (PD-series: ADDR FUNC LEN DATA) by function and its first data byte (the parameter or status
+    selector), labelled with the first such request's summary."""
+    proto = of_frame(f.protocol)
+    if proto is None or proto.family == "modbus":
+        return (unit, *request_key(f)), None
+    adu = f.adu
+    sel = adu[3] if len(adu) > 3 else None
+    return (unit, f.function, "sel", sel), f"u{unit} fc{f.function:02X} {f.summary.split(' = ')[0][:60]}"
 
-    def __init__(self, key: tuple, t_ns: int) -> None:
+
+class PollType:
+    __slots__ = ("key", "count", "last_ns", "gaps", "mean", "m2", "lo", "hi", "series", "name")
+
+    def __init__(self, key: tuple, t_ns: int, name: str | None = None) -> None:
         self.key = key
+        self.name = name
         self.count = 1
         self.last_ns = t_ns
         self.gaps = Quantiles()
@@ -49,6 +63,8 @@ class PollType:
 
     @property
     def label(self) -> str:
+        if self.name is not None:
+            return self.name
         unit, *k = self.key
         return f"u{unit} {key_text(tuple(k))}"
 
@@ -77,12 +93,12 @@ class Polls:
             p.last_ns = None
 
     def request(self, unit: int, f) -> None:
-        key = (unit, *request_key(f))
+        key, name = request_type(unit, f)
         p = self.types.get(key)
         if p is not None:
             p.add(f.t_ns, f.index)
         elif len(self.types) < self.max_types:
-            self.types[key] = PollType(key, f.t_ns)
+            self.types[key] = PollType(key, f.t_ns, name)
         else:
             self.untracked += 1
 
