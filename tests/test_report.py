@@ -146,7 +146,7 @@ def test_collector_latency_turnaround_and_counts():
     c = Collector()
     c.begin("a.mcap", session_of(info))
     char_ms = 10 / 9600 * 1000  # 8N1: 10 bits a character
-    lat = [1.0 * char_ms, 3.0 * char_ms, 5.0 * char_ms, 20 * char_ms]
+    lat = [1.0 * char_ms, 3.0 * char_ms, 5.0 * char_ms, 50 * char_ms]
     for i, ms in enumerate(lat):
         c.frame(frame(2 * i, 100 * i + 5, pair=2 * i + 1))
         c.frame(frame(2 * i + 1, 100 * i + 20, role="response", pair=2 * i, latency_ms=ms))
@@ -160,7 +160,9 @@ def test_collector_latency_turnaround_and_counts():
     assert u["lat_n"] == 4 and u["lat_min"] == pytest.approx(lat[0], abs=1e-3)
     assert (u["below15"], u["below35"]) == (1, 2)  # 1 char is under t1.5, 1 and 3 under t3.5
     t = d["turnaround"]
-    assert sum(t["bins"]["1"]) == 4 and t["bins"]["1"][-1] == 1  # 20 characters: the last bin (20 and more)
+    assert sum(t["bins"]["1"]) == 4 and t["bins"]["1"][-1] == 1  # 50 characters: the last bin (40 and more)
+    assert t["bins"]["1"][4] == 1 and t["bins"]["1"][20] == 1  # 1 and 5 characters, in bins of 0.25
+    assert t["limits"] == [[1.5, 3.5]]
     assert t["time_sources"] == {"byte": 4} and t["capture_time_sources"] == ["byte"]
     b = d["buckets"]
     assert sum(b["frames"]) == 10 and sum(b["crc"]) == 1 and sum(b["timeouts"]) == 1 and sum(b["retries"]) == 1
@@ -169,6 +171,22 @@ def test_collector_latency_turnaround_and_counts():
     assert sum(b["busy_ns"]) == pytest.approx(busy, rel=1e-3)
     assert d["axis"]["clock"] is False and d["captures"][0]["start_s"] == 0
     assert d["axis"]["end_s"] == pytest.approx(0.6, abs=0.01)  # t0 (5 ms) is the axis' zero
+
+
+def test_turnaround_limits_are_fixed_times_above_19200_baud(tmp_path, capsys):
+    csv = tmp_path / "fast.mcap"  # slaves answering in 2.5-3.5 characters at 115200, timed per byte
+    assert main(["simulate", "--scenario", "fast", "--adapter", "wire", "--duration", "1", "--out", str(csv)]) == 0
+    out = tmp_path / "r.html"
+    assert cli(capsys, "report", csv, "--out", out)[0] == 0
+    d = page_data(out)
+    t = d["turnaround"]
+    (t15, t35), = t["limits"]
+    char_s = 10 / 115200
+    assert (t15, t35) == (pytest.approx(750e-6 / char_s, abs=1e-3), pytest.approx(1.75e-3 / char_s, abs=1e-3))
+    responses = sum(u["lat_n"] for u in d["units"])
+    assert t["capture_time_sources"] == ["byte"] and t["time_sources"] == {"byte": responses}
+    assert t["below35"] == t["below15"] == responses > 100  # 2.5-3.5 characters: under 750 us at 115200
+    assert t["t35"] > 100  # the framer flags the same frames (modbus.timing.t35)
 
 
 def test_captures_follow_each_other_or_the_clock():

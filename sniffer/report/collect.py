@@ -84,6 +84,7 @@ class Collector:
         self.end_ns = 0  # the latest time on the axis
         self._shift = 0
         self._char_ns = 0
+        self._t15 = self._t35 = 0.0
         self._capture = -1
 
     # ------------------------------------------------------------ captures
@@ -105,7 +106,9 @@ class Collector:
         self._shift = start - info.t0_ns
         self.polls.new_capture()
         self.timeline.new_capture()
-        self._char_ns = resolved.line.char_ns
+        line = resolved.line
+        self._char_ns = line.char_ns
+        self._t15, self._t35 = line.t15_ns / line.char_ns, line.t35_ns / line.char_ns  # in characters
         self._capture = len(self.captures)
         self.captures.append({
             "label": label, "path": os.path.abspath(getattr(session.source, "path", label)),
@@ -116,6 +119,7 @@ class Collector:
             "unit_timeouts": {str(u): ms for u, ms in sorted(resolved.unit_timeouts.items())},
             "model_files": list(resolved.model_files), "bus_file": session.spec.bus_file if session.spec else None,
             "devices": {str(u): m for u, m in sorted(resolved.devices.items())}, "time_source": info.time_source,
+            "t15_chars": round(self._t15, 3), "t35_chars": round(self._t35, 3),
             "low_latency": info.low_latency, "recorded_by": info.sniffer_version,
             "start_wall": _iso(wall), "start_s": start / 1e9, "note": note,
             "extra": {k: v for k, v in info.extra.items() if isinstance(v, (str, int, float, bool))},
@@ -214,7 +218,7 @@ class Collector:
             u.responses += 1
             if f.latency_ms is not None:
                 self.time_sources[f.time_source] += 1
-                return u.latency(f.t_ns, f.latency_ms, self._char_ns, f.index)
+                return u.latency(f.t_ns, f.latency_ms, self._char_ns, f.index, self._t15, self._t35)
             if f.pair is not None:
                 u.unmeasured += 1
         return 0
@@ -239,6 +243,8 @@ class Collector:
             "turnaround": {"edges": turnaround_edges(), "bins": {str(u.unit): u.turn_bins for u in timed},
                            "time_sources": dict(self.time_sources),
                            "capture_time_sources": sorted({c["time_source"] for c in self.captures}),
+                           "limits": [list(x) for x in sorted({(c["t15_chars"], c["t35_chars"])
+                                                               for c in self.captures})],
                            "t15": self.codes.get("modbus.timing.t15", 0), "t35": self.codes.get("modbus.timing.t35", 0),
                            "below15": sum(u.below15 for u in units), "below35": sum(u.below35 for u in units)},
             "polls": self.polls.to_dict(),

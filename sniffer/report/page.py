@@ -198,10 +198,13 @@ def _timing(d: dict) -> str:
     t = d["turnaround"]
     how = "".join(f"<li><b>{_e(s)}</b>: {_e(TIME_SOURCES.get(s, s))}</li>" for s in t["capture_time_sources"])
     measured = ", ".join(f"{n:,} by {s}" for s, n in t["time_sources"].items()) or "none"
-    facts = (f"<ul class=\"facts\"><li>responses under 3.5 characters after their request (t3.5): "
-             f"<b>{t['below35']:,}</b>, of them under 1.5 (t1.5): <b>{t['below15']:,}</b></li>"
-             f"<li>frames flagged <code>modbus.timing.t35</code> (started under 3.5 characters after the frame "
-             f"before): <b>{t['t35']:,}</b>; <code>modbus.timing.t15</code> (a gap over 1.5 characters inside a "
+    limits = " and ".join(f"t1.5 = {a:g}, t3.5 = {b:g}" for a, b in t["limits"])
+    facts = (f"<ul class=\"facts\"><li>the line's limits in character times: {escape(limits)} (3.5 and 1.5 "
+             f"characters up to 19200 baud, 1.75 ms and 750 µs above: Modbus serial line 2.5.1.1)</li>"
+             f"<li>responses under t3.5 after their request: <b>{t['below35']:,}</b>, of them under t1.5: "
+             f"<b>{t['below15']:,}</b></li>"
+             f"<li>frames flagged <code>modbus.timing.t35</code> (started under t3.5 after the frame "
+             f"before): <b>{t['t35']:,}</b>; <code>modbus.timing.t15</code> (a gap over t1.5 inside a "
              f"frame): <b>{t['t15']:,}</b></li><li>turnarounds measured: {measured}</li></ul>")
     plot = _plot("plot-turn", "Turnaround in character times (request end to response start), per unit",
                  "dashed: t1.5 and t3.5") if t["bins"] else "<p>No response with a measured turnaround.</p>"

@@ -176,8 +176,12 @@
     const T = D.turnaround, units = Object.keys(T.bins);
     if (!units.length) return;
     const step = T.edges[1] - T.edges[0];
-    const xs = T.edges.concat([T.edges[T.edges.length - 1] + step]);
-    const data = [xs].concat(units.map((u) => T.bins[u].concat([0])));
+    let last = 0;  // the bins shown: up to the last one used, and past the line's t3.5
+    units.forEach((u) => T.bins[u].forEach((n, i) => { if (n) last = Math.max(last, i); }));
+    for (const [, b] of T.limits) last = Math.max(last, Math.ceil(b / step) + 4);
+    last = Math.min(last + 1, T.edges.length - 1);
+    const xs = T.edges.slice(0, last + 1).concat([T.edges[last] + step]);
+    const data = [xs].concat(units.map((u) => T.bins[u].slice(0, last + 1).concat([0])));
     const marks = (u) => {
       const ctx = u.ctx;
       ctx.save();
@@ -185,7 +189,13 @@
       ctx.strokeStyle = "#b3261e";
       ctx.fillStyle = "#b3261e";
       ctx.font = Math.round(11 * devicePixelRatio) + "px sans-serif";
-      for (const [v, label] of [[1.5, "t1.5"], [3.5, "t3.5"]]) {
+      const seen = new Set(), lines = [];
+      for (const [a, b] of T.limits) {
+        for (const [v, label] of [[a, "t1.5"], [b, "t3.5"]]) {
+          if (!seen.has(v)) { seen.add(v); lines.push([v, label]); }
+        }
+      }
+      for (const [v, label] of lines) {
         const x = u.valToPos(v, "x", true);
         if (x < u.bbox.left || x > u.bbox.left + u.bbox.width) continue;
         ctx.beginPath();
@@ -198,7 +208,7 @@
     };
     make("plot-turn", {
       scales: {x: {time: false}},
-      axes: [{label: "character times (the last bin: 20 and more)"}, {label: "responses", size: 60}],
+      axes: [{label: "character times (the bin at 40: 40 and more)"}, {label: "responses", size: 60}],
       series: [{label: "chars"}].concat(units.map((u, i) => ({label: "unit " + u, stroke: color(i),
         fill: alpha(color(i), 0.12), paths: stepped, width: 1.5, points: {show: false}}))),
       hooks: {draw: [marks]},

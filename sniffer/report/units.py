@@ -2,8 +2,10 @@
 
 Turnaround is the silence between a request's last byte and its response's first,
 in character times of the capture's line (a response's `latency_ms` over the
-character time): Modbus RTU wants at least 3.5 (t3.5) between frames, and under 1.5
-(t1.5) the two frames are one as far as a strict receiver is concerned.  How much to
+character time).  Modbus RTU wants at least t3.5 between frames, and under t1.5 the
+two frames are one as far as a strict receiver is concerned: 3.5 and 1.5 characters
+up to 19200 baud, 1.75 ms and 750 us above (the serial line spec 2.5.1.1; the line's
+`LineSettings.t35_ns` / `t15_ns`, as the framer's `modbus.timing.t35` uses).  How much to
 trust it depends on how the timestamps were taken (`Frame.time_source`): per byte
 (a logic analyzer, the simulator) it is measured; per USB read it is estimated
 from the read times and the baud rate.
@@ -25,7 +27,7 @@ LAT_BINS_PER_DECADE = 10
 LAT_LO_MS = 0.01  # first bin edge; faster answers count in the first bin
 LAT_BINS = 70  # 0.01 ms .. 100 s
 TURN_STEP = 0.25  # characters per turnaround bin
-TURN_BINS = 80  # 0 .. 20 characters; longer ones count in one bin past the last
+TURN_BINS = 160  # 0 .. 40 characters; longer ones count in one bin past the last
 LATENCY_POINTS = 2048  # kept per unit for the latency over time
 
 
@@ -58,9 +60,9 @@ class UnitAgg:
         self.lat_series = Series(LATENCY_POINTS)
         self.turn_bins = [0] * (TURN_BINS + 1)
 
-    def latency(self, t_ns: int, ms: float, char_ns: int, index: int) -> int:
+    def latency(self, t_ns: int, ms: float, char_ns: int, index: int, t15: float = 1.5, t35: float = 3.5) -> int:
         """A response `ms` after its request ended (turnaround in characters of `char_ns`): 1 if that is under
-        t3.5, 2 under t1.5, else 0."""
+        t3.5, 2 under t1.5 (both in characters), else 0."""
         self.lat.add(ms)
         if self.lat_min is None or ms < self.lat_min:
             self.lat_min = ms
@@ -72,9 +74,9 @@ class UnitAgg:
         if char_ns > 0:
             chars = ms * 1e6 / char_ns
             self.turn_bins[max(0, min(int(chars / TURN_STEP), TURN_BINS))] += 1
-            if chars < 3.5:
+            if chars < t35:
                 self.below35 += 1
-                if chars < 1.5:
+                if chars < t15:
                     self.below15 += 1
                     return 2
                 return 1
