@@ -257,6 +257,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--compare", metavar="GOLDEN",
                    help="a reference capture: the page adds what changed against it (as `sniffer diff GOLDEN ...`)")
     s.add_argument("--title", help="the page's title (default: Bus report: the captures' names)")
+    s.add_argument("--progress", action="store_true", help="a progress bar per capture on stderr")
     serial_flags(s)
     decode_flags(s)
 

@@ -280,7 +280,7 @@ def test_poll_types_of_a_protocol_that_is_not_modbus(tmp_path, capsys):
 def test_several_captures_in_order_on_one_axis(tmp_path, capsys):
     out = tmp_path / "r.html"
     caps = [SIM / "errors.mcap", SIM / "default.mcap"]
-    assert cli(capsys, "report", *caps, "--out", out)[0] == 0
+    assert cli(capsys, "report", *caps, "--out", out, "--progress")[0] == 0  # a bar per capture on stderr
     d = page_data(out)
     a, b = d["captures"]
     assert (a["label"], b["label"]) == tuple(str(p) for p in caps)

@@ -50,12 +50,23 @@ def cmd_report(spec: CaptureSpec, args) -> int:
     try:
         for path in captures:
             cspec = spec.with_(input=path)
-            session = Session(cspec, file_source(cspec), [])
-            session.open()
-            _note_unfinished(session)
-            collector.begin(path, session)
-            for f in session:
-                collector.frame(f)
+            source = file_source(cspec)
+            session = Session(cspec, source, [])
+            bar = None
+            if args.progress:
+                from ..progress import ReplayProgress
+
+                bar = ReplayProgress(path, source=source, frames=lambda s=session: s.frames_out)
+                session.on_event = bar.update
+            try:
+                session.open()
+                _note_unfinished(session)
+                collector.begin(path, session)
+                for f in session:
+                    collector.frame(f)
+            finally:
+                if bar is not None:
+                    bar.close()
             collector.end(session)
             rc = max(rc, report(session, label=path))
         data = collector.to_data()

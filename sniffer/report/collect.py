@@ -174,16 +174,17 @@ class Collector:
             self.summary.add(f)
         if f.unit is None or f.is_noise:
             return
-        if self.timeline.frame(f, self._capture):
+        write = self.timeline.frame(f, self._capture)
+        if write:
             cols["writes"][b] += 1
-        fast = self._unit(f, fault)
+        fast = self._unit(f, write)
         if fast:
             cols["fast35"][b] += 1
             if fast > 1:
                 cols["fast15"][b] += 1
         self.book.frame(f)
 
-    def _unit(self, f, fault: bool) -> int:
+    def _unit(self, f, write: bool) -> int:
         """The unit's figures; 1 for a response under t3.5, 2 under t1.5, else 0."""
         u = self.units.get(f.unit)
         if u is None:
@@ -212,8 +213,7 @@ class Collector:
         if f.role == "request":
             u.requests += 1
             self.polls.request(f.unit, f)
-            if f.points:
-                u.writes += 1
+            u.writes += write
         elif f.role == "response":
             u.responses += 1
             if f.latency_ms is not None:
