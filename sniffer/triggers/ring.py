@@ -16,7 +16,7 @@ from collections.abc import Iterator
 
 import zstandard
 
-RAW, RAW_CLEAN, FRAME = 0, 1, 2  # RAW_CLEAN: nothing was pending in the framer before this event
+RAW, RAW_CLEAN, FRAME = 0, 1, 2  # RAW_CLEAN: nothing was pending (framer, pairer) before it
 BLOCK_BYTES = 128 * 1024
 _REC = struct.Struct("<BqqI")  # kind, time, log time, length
 

@@ -77,7 +77,7 @@ class TriggerSink(Sink):
         if type(event) is Chunk:
             bt = event.byte_t_ns
             t = bt[0] if bt else event.t_ns - len(event.data) * self.char_ns  # the first byte (as linebuf.py)
-            kind = RAW_CLEAN if self.settled() >= 1 else RAW
+            kind = RAW_CLEAN if self.settled() == 2 else RAW  # nothing pending: no orphan answer at a start
         else:
             t, kind = event.t_ns, RAW
         self.advance(event.t_end_ns if type(event) is Gap else event.t_ns)
