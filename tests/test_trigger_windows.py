@@ -1,10 +1,10 @@
 """Trigger windows written as MCAP and read back: synthetic polls with exceptions at known times.
 
 A master polls unit 1 every 100 ms (request at k * 100 ms, answer 10 ms later, a silence tick at 50 ms
-as a live source gives); at chosen polls the unit answers with an exception instead.  The session runs with `--trigger exc --pre 5s --post 3s`,
-and each window file is read back: its frames are exactly the capture's frames from the last quiet
-point at or before `trigger - pre` to `last match + post`, its replay gives those frames again, and
-its metadata names the rule, the frame and the spans.
+as a live source gives); at chosen polls the unit answers with an exception instead.  The session runs
+with `--trigger exc --pre 5s --post 3s`, and each window file is read back: its frames are exactly
+the capture's frames from the last quiet point at or before `trigger - pre` to `last match + post`,
+its replay gives those frames again, and its metadata names the rule, the frame and the spans.
 """
 
 import pytest
