@@ -132,3 +132,32 @@ def test_the_ring_drops_old_blocks_and_keeps_under_its_byte_bound():
     for i in range(2000):
         small.add(RAW, i * MS, i * MS, os.urandom(2048))
     assert small.nbytes <= 1 << 20 and small.cut_ns is not None and small.first_ns > 0
+
+
+def test_the_sink_reports_its_triggers_for_a_status_file(tmp_path):
+    spec = CaptureSpec(trigger=TriggerSpec(("exc",), pre_s=5.0, post_s=3.0, windows=str(tmp_path)))
+    info = CaptureInfo(source="synthetic", baud=LINE.baud, parity=LINE.parity, stopbits=LINE.stopbits,
+                       time_source="byte", t0_ns=0, wall_anchor_ns=WALL)
+    session = Session(spec, EventSource(info, polls(400, {100, 300})), [])
+    session.open()
+    sink = session.sinks[-1]
+    sink.report = lambda text: None
+    session.run()
+    st = sink.status()["triggers"]
+    assert (st["fired"], st["windows"], st["open"], st["failed_windows"]) == (2, 2, 0, 0)
+    assert st["last"]["rule"] == "exc" and st["last"]["t"] == pytest.approx(30.01)
+    assert st["last"]["window"].endswith("sniffer.trigger-0002.mcap")
+
+
+def test_the_trigger_flags_travel_to_a_capture_process_unchanged():
+    """live with the TUI and serve start the capture as `sniffer live ...` built by CaptureSpec.to_argv."""
+    from sniffer.cli import build_parser
+
+    argv = ["live", "/dev/ttyUSB0", "--trigger", "fault", "--trigger", 'u:1 "Output frequency" > 55',
+            "--pre", "90s", "--post", "2min", "--ring", "--ring-max", "8MiB", "--max-window", "30m",
+            "--windows", "/tmp", "--on-trigger", "echo $SNIFFER_TRIGGER_FILE", "--on-trigger-timeout", "5"]
+    spec = CaptureSpec.from_args(build_parser().parse_args(argv))
+    assert spec.trigger == TriggerSpec(("fault", 'u:1 "Output frequency" > 55'), 90.0, 120.0, True, 8 << 20,
+                                       1800.0, "/tmp", "echo $SNIFFER_TRIGGER_FILE", 5.0)
+    again = CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live")))
+    assert again.trigger == spec.trigger
