@@ -161,3 +161,30 @@ def test_the_trigger_flags_travel_to_a_capture_process_unchanged():
                                        1800.0, "/tmp", "echo $SNIFFER_TRIGGER_FILE", 5.0)
     again = CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live")))
     assert again.trigger == spec.trigger
+
+
+def test_a_window_that_cannot_be_written_is_one_line_and_the_capture_goes_on(tmp_path):
+    folder = tmp_path / "windows"
+    folder.mkdir()
+
+    def events():
+        for i, ev in enumerate(polls(600, {300, 500})):
+            if i == 100:
+                folder.rmdir()  # the folder went away (an unmounted stick): the next window has nowhere to go
+            if i == 1400:
+                folder.mkdir()  # it is back before the second event
+            yield ev
+
+    spec = CaptureSpec(trigger=TriggerSpec(("exc",), pre_s=5.0, post_s=3.0, windows=str(folder)))
+    info = CaptureInfo(source="synthetic", baud=LINE.baud, parity=LINE.parity, stopbits=LINE.stopbits,
+                       time_source="byte", t0_ns=0)
+    everything, lines = ListSink(), []
+    session = Session(spec, EventSource(info, events()), [everything])
+    session.open()
+    session.sinks[-1].report = lines.append
+    session.run()
+    assert session.error is None and len(everything.records) == 1200
+    errors = [x for x in lines if x.startswith("error:")]
+    assert len(errors) == 1 and "sniffer.trigger-0001.mcap not written" in errors[0]
+    assert [f.name for f in folder.glob("*.mcap")] == ["sniffer.trigger-0002.mcap"]
+    assert session.sinks[-1].status()["triggers"]["failed_windows"] == 1

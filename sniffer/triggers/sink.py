@@ -85,7 +85,10 @@ class TriggerSink(Sink):
         for w in self.plan.active:
             f = self.files.get(w.n)
             if f is not None and t <= w.end_ns:
-                f.raw(t, event.t_ns, data)
+                try:
+                    f.raw(t, event.t_ns, data)
+                except Exception as e:  # noqa: BLE001 - a full disk loses the window, never the capture
+                    self._drop(w, f, e)
 
     def frame(self, frame) -> None:
         data = frame_json(frame, self.t0)
@@ -94,7 +97,10 @@ class TriggerSink(Sink):
         for w in self.plan.active:
             f = self.files.get(w.n)
             if f is not None and f.first_ns is not None and f.first_ns <= t <= w.end_ns:
-                f.frame(t, data)
+                try:
+                    f.frame(t, data)
+                except Exception as e:  # noqa: BLE001
+                    self._drop(w, f, e)
         flags = None
         for i, q in enumerate(self.queries):
             if flags is None:
@@ -162,8 +168,11 @@ class TriggerSink(Sink):
         try:
             self._dump(w, f)
         except Exception as e:  # noqa: BLE001
-            f.discard()
-            self._lost(w, e)
+            self._drop(w, f, e)
+
+    def _drop(self, w: Window, f: WindowFile, e: Exception) -> None:
+        f.discard()
+        self._lost(w, e)
 
     def _dump(self, w: Window, f: WindowFile) -> None:
         """The ring's records from the window's start (see the module doc) up to now into its file."""
