@@ -12,8 +12,8 @@
      busy       the same plus --trigger 'rate(exc) >= 3/min' (true most of the time: windows capped
                 at --max-window, the ring and a window written at once all day)
      peer       --quiet, no triggers (what the triggers add)
-3. Prints per run: frames, wall s, frames/s, peak RSS (VmHWM), the RSS at hours 1, 2, 4, 8, 12, 16,
-   20, 24, windows written and their bytes.  Nothing is asserted.
+3. Prints per run: frames, wall s, frames/s, peak RSS (VmHWM), the RSS at capture hours 1, 2, 4, 8,
+   12, 16, 20, 23 and at the end, windows written and their bytes.  Nothing is asserted.
 """
 
 from __future__ import annotations
@@ -91,6 +91,7 @@ def child(path: str, folder: str, flags: list[str]) -> None:
             s.report = lambda text: None
     session.run()
     wall = time.monotonic() - t
+    probe.curve.append((-1, _status("VmRSS:") / 1024, wall))  # the end of the capture
     files = sorted(Path(folder).glob("*.trigger-*.mcap"))
     print(json.dumps({"frames": probe.frames, "wall": wall, "peak_mb": _status("VmHWM:") / 1024,
                       "curve": probe.curve, "windows": len(files),
@@ -121,9 +122,9 @@ def main() -> None:
         print(f"simulated {a.hours:g} h in {time.monotonic() - t:.0f} s: {path} ({path.stat().st_size / 1e6:.0f} MB)")
     print(bp.machine())
     print(bp.revision())
-    hours = [h for h in (1, 2, 4, 8, 12, 16, 20, 24) if h <= a.hours]
+    hours = [h for h in (1, 2, 4, 8, 12, 16, 20, 23) if h < a.hours] + [-1]
     print(f"{'run':9} {'frames':>8} {'wall s':>7} {'frames/s':>9} {'peak MB':>8} {'windows':>8} {'win MB':>7}  "
-          + " ".join(f"{'h' + str(h):>6}" for h in hours) + "   (RSS MB at capture hour)")
+          + " ".join(f"{'h' + str(h) if h >= 0 else 'end':>6}" for h in hours) + "   (RSS MB at capture hour)")
     for name, flags in RUNS.items():
         out = folder / f"windows-{name}"
         out.mkdir(exist_ok=True)
