@@ -53,7 +53,12 @@ OVER_BOX = "(() => { const p = window.__report.plots.find((p) => p.id === %r); "
 
 def write_report(tmp_path, *extra) -> Path:
     out = tmp_path / "report.html"
-    rc = main(["report", str(SIM / "errors.mcap"), str(SIM / "tds-v8.mcap"), "--out", str(out), *extra])
+    here = os.getcwd()
+    os.chdir(SIM)  # the captures named as a user in that folder names them (the page shows what was typed)
+    try:
+        rc = main(["report", "errors.mcap", "tds-v8.mcap", "--out", str(out), *extra])
+    finally:
+        os.chdir(here)
     assert rc == 0 and out.is_file()
     return out
 
