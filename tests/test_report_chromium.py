@@ -115,6 +115,23 @@ async def drag(browser: Chromium, x0: float, y: float, x1: float, modifiers: int
                        modifiers=modifiers)
 
 
+def test_a_report_without_frames_opens_without_errors(tmp_path):
+    empty = tmp_path / "empty.mcap"
+    assert main(["simulate", "--duration", "0.001", "--out", str(empty)]) == 0
+    out = tmp_path / "empty.html"
+    assert main(["report", str(empty), "--out", str(out)]) == 0
+
+    async def go():
+        browser = await launch(str(tmp_path / "profile"))
+        async with browser:
+            errors, _ = await load_offline(browser, out.as_uri())
+            assert errors == [] and await browser.evaluate("window.__report.errors") == []
+            assert await browser.evaluate("document.querySelectorAll('figure.plot').length") == 0
+            assert "No frames." in await browser.evaluate("document.body.innerText")
+
+    asyncio.run(go())
+
+
 def test_report_in_chromium(tmp_path):
     out = write_report(tmp_path)
 

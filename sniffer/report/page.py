@@ -181,6 +181,8 @@ def _polls(d: dict) -> str:
 
 
 def _line(d: dict) -> str:
+    if not d["buckets"]["x"]:
+        return _section("line", "Line utilisation", "<p>No frames.</p>")
     return _section("line", "Line utilisation", _plot(
         "plot-util", "Line busy (% of the time a character is on the wire) and frames per second",
         f"per bucket of {d['buckets']['width_s']:g} s; a frame's wire time is its characters at the line's baud"))
@@ -189,8 +191,9 @@ def _line(d: dict) -> str:
 def _errors(d: dict) -> str:
     codes = d["totals"]["codes"]
     rows = [[f"<code>{_e(k)}</code>", _n(v)] for k, v in codes.items()]
-    return _section("errors", "CRC errors, exceptions, timeouts and retries over time", _plot(
-        "plot-errors", "Problems per bucket", f"per bucket of {d['buckets']['width_s']:g} s")
+    plot = _plot("plot-errors", "Problems per bucket", f"per bucket of {d['buckets']['width_s']:g} s") \
+        if d["buckets"]["x"] else ""
+    return _section("errors", "CRC errors, exceptions, timeouts and retries over time", plot
         + "<h3>Annotations in the capture(s)</h3>" + (_table(["code", "frames"], rows) if rows else "<p>None.</p>"))
 
 
@@ -208,8 +211,9 @@ def _timing(d: dict) -> str:
              f"frame): <b>{t['t15']:,}</b></li><li>turnarounds measured: {measured}</li></ul>")
     plot = _plot("plot-turn", "Turnaround in character times (request end to response start), per unit",
                  "dashed: t1.5 and t3.5") if t["bins"] else "<p>No response with a measured turnaround.</p>"
+    over_time = _plot("plot-violations", "t1.5 / t3.5 violations per bucket") if d["buckets"]["x"] else ""
     return _section("timing", "Turnaround and t1.5 / t3.5", f"<p>How the timestamps were taken:</p><ul>{how}</ul>"
-                    + facts + plot + _plot("plot-violations", "t1.5 / t3.5 violations per bucket"))
+                    + facts + plot + over_time)
 
 
 def _registers(d: dict) -> str:
