@@ -124,8 +124,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"sniffer {__version__}")
     sub = p.add_subparsers(dest="cmd", metavar="COMMAND", parser_class=_Parser)
 
-    s = sub.add_parser("live", help="capture a serial port (read-only) and decode live")
-    s.add_argument("port", help="serial device, e.g. /dev/ttyUSB0")
+    s = sub.add_parser("live", help="capture a serial port (read-only) and decode live; several ports: "
+                                    "several links on one timeline")
+    s.add_argument("ports", nargs="*", metavar="PORT",
+                   help="serial device, e.g. /dev/ttyUSB0; several: one link each, captured together "
+                        "(one clock, one MCAP, a link column)")
+    s.add_argument("--tap", nargs=2, action="append", metavar=("PORT_A", "PORT_B"),
+                   help="one 4-wire link tapped by two receive-only adapters: the master's pair (requests) "
+                        "on PORT_A, the slaves' pair (responses) on PORT_B, merged by time (repeatable)")
     serial_flags(s)
     decode_flags(s)
     stream_flags(s, quiet=True)

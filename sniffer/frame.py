@@ -38,6 +38,7 @@ class Frame:
         "can", "role", "crc_ok", "crc_expected", "time_source", "idle_before_ns",
         "annotations", "pair", "latency_ms", "model", "_points", "exception",
         "fields", "summary", "noise_reason", "channel", "peer", "adu", "encoded", "writes",
+        "link",
     )
 
     def __init__(
@@ -88,6 +89,7 @@ class Frame:
         # what decoding this frame put into its unit's register shadow: [[table, start, [raw, ...]], ...]
         # (decoders.base.UnitState.commit writes both)
         self.writes: list[list] = []
+        self.link = ""  # the link's name in a capture of several links (sniffer.links), else ""
 
     @property
     def points(self) -> list[dict]:

@@ -19,7 +19,10 @@ ended a capture (`keep_partial`, live/demo/simulate), discarded when a derived
 output (an export) could not be written.
 
 Every command goes through here: live, demo, replay, decode, simulate, export,
-check, diff, serve's capture process and the TUI's feeds.
+check, diff, serve's capture process and the TUI's feeds.  A capture of
+several links (its CaptureInfo lists `links`) runs one pipeline per link over
+the same sinks (sniffer.links.LinkPipelines); `resolved` and `registry` are
+then its first link's, `pipeline.resolved` / `.registries` every link's.
 """
 
 from __future__ import annotations
@@ -29,11 +32,15 @@ import signal
 import threading
 import time
 from collections.abc import Iterable, Iterator
+from typing import TYPE_CHECKING
 
 from . import __version__
 from .events import CaptureInfo
 from .frame import Frame
 from .pipeline import Pipeline
+
+if TYPE_CHECKING:
+    from .links import LinkPipelines
 from .settings import (  # noqa: F401 - re-exported: the session's settings
     DEFAULTS, MAX_DURATION_S, MAX_TIMEOUT_MS, CaptureSpec, LineChoice, Resolved, finite, layered,
 )
@@ -63,7 +70,7 @@ class Session:
         self.info: CaptureInfo | None = None
         self.resolved: Resolved | None = None
         self.registry = None
-        self.pipeline: Pipeline | None = None
+        self.pipeline: Pipeline | LinkPipelines | None = None
         self.sinks: list = []
         self.error: str | None = None
         self.storage_error = False
@@ -100,13 +107,24 @@ class Session:
             return self.info
         info = self.source.open()
         try:
-            self.resolved = self.spec.resolve(info, need_baud=self.need_baud)
-            self.resolved.record_in(info)
             info.sniffer_version = info.sniffer_version or __version__
-            self.registry = self.resolved.registry()
+            if info.links:  # several links: one pipeline each (sniffer.links)
+                for link in info.links:  # settings checked before any output exists
+                    self.spec.resolve_link(str(link.get("name", "")), info, need_baud=self.need_baud)
+            else:
+                self.resolved = self.spec.resolve(info, need_baud=self.need_baud)
+                self.resolved.record_in(info)
+                self.registry = self.resolved.registry()
             for s in self.planned:
                 self.sinks.append(s.open() if isinstance(s, FileSink) else s)
-            self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
+            if info.links:
+                from .links import LinkPipelines
+
+                self.pipeline = LinkPipelines(info, self.spec, self.sinks, need_baud=self.need_baud)
+                self.resolved = next(iter(self.pipeline.resolved.values()))
+                self.registry = next(iter(self.pipeline.registries.values()))
+            else:
+                self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
         except BaseException as e:
             self._abandon()
             if isinstance(e, (CaptureStorageError, OSError)):  # e.g. the disk is full already
