@@ -52,7 +52,8 @@ class LinksSource:
         first = self.readers[0].info  # opened first: every event is at or after its t0
         links = []
         for plan, line in self.plans:
-            entry = plan.entry()
+            entry = plan.entry()  # and the settings its ports were opened at
+            entry.update(baud=line.baud, parity=line.parity, stopbits=line.stopbits, databits=line.databits)
             entry["low_latency"] = {r.port: r.info.low_latency for r in self.readers if r.link == plan.name}
             ignored = {r.port: r.ignored for r in self.readers if r.link == plan.name and r.ignored}
             if ignored:

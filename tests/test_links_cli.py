@@ -1,0 +1,169 @@
+"""`sniffer live P1 P2 P3` and `live --bus` with [[links]], as a user runs them, on three simulated lines
+(`sniffer simulate --pty`); then replay, check, export and diff of the multi-link MCAP.
+
+What arrived, not when: every link has its frames, decoded at its own settings, and the file replays
+to what the live run printed."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from helpers import run_sniffer
+
+SECONDS = "3"
+
+
+class Lines:
+    """`sniffer simulate --pty` lines, one process each, until closed."""
+
+    def __init__(self, tmp_path, *lines: tuple[str, ...]) -> None:
+        self.paths = [str(tmp_path / f"line{i + 1}") for i in range(len(lines))]
+        self.procs = [subprocess.Popen([sys.executable, "-m", "sniffer", "simulate", "--pty", p, *args],
+                                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                      for p, args in zip(self.paths, lines)]
+        deadline = time.monotonic() + 30
+        while not all(os.path.exists(p) for p in self.paths) and time.monotonic() < deadline:
+            time.sleep(0.05)
+
+    def close(self) -> list[str]:
+        errs = []
+        for p in self.procs:
+            p.send_signal(signal.SIGTERM)
+            errs.append(p.communicate(timeout=30)[1])
+            assert p.returncode == 0, errs[-1]
+        return errs
+
+
+def _middle(recs):
+    """Records away from the capture's ends (a line caught mid-frame when the capture starts or stops)."""
+    return [r for r in recs if 0.5 < r["t"] < float(SECONDS) - 0.5]
+
+
+@pytest.fixture(scope="module")
+def three(tmp_path_factory):
+    """`sniffer live P1 P2 P3` over three lines of the default scenario (seeds 1..3): (records, mcap, tmp)."""
+    tmp = tmp_path_factory.mktemp("three")
+    lines = Lines(tmp, *[("--scenario", "default", "--seed", str(i)) for i in (1, 2, 3)])
+    out = str(tmp / "three.mcap")
+    try:
+        r = run_sniffer("live", *lines.paths, "--baud", "19200", "--parity", "E", "--duration", SECONDS,
+                        "--headless", "--format", "jsonl", "--out", out)
+    finally:
+        errs = lines.close()
+    assert r.returncode == 0, r.stderr
+    assert all("0 bytes came from the other end" in e for e in errs)  # read-only on every port
+    return [json.loads(x) for x in r.stdout.splitlines()], out, tmp
+
+
+def test_live_three_ports_every_link_decodes(three):
+    recs, out, _ = three
+    assert {r["link"] for r in recs} == {"line1", "line2", "line3"}
+    for name in ("line1", "line2", "line3"):
+        mid = _middle([r for r in recs if r["link"] == name])
+        assert len(mid) >= 20 and sum(r["role"] == "response" for r in mid) >= 5
+        assert all(r["crc_ok"] and r["protocol"] == "modbus-rtu" for r in mid)  # no cross-link glue
+    by_index = {r["index"]: r for r in recs}
+    assert all(by_index[r["pair"]]["link"] == r["link"] for r in recs if r["pair"] is not None)
+
+
+def test_replay_of_the_multi_link_mcap_is_the_live_run(three):
+    recs, out, _ = three
+    r = run_sniffer("replay", out, "--format", "jsonl")
+    assert r.returncode == 0, r.stderr
+    assert [json.loads(x) for x in r.stdout.splitlines()] == recs
+    text = run_sniffer("replay", out)
+    assert text.returncode == 0
+    cols = [line.split()[1] for line in text.stdout.splitlines()]
+    assert set(cols) == {"line1", "line2", "line3"}  # the link column, after the time
+
+
+def test_check_export_diff_of_a_multi_link_capture(three):
+    recs, out, tmp = three
+    golden = str(tmp / "three.txt")
+    assert run_sniffer("check", out, "--golden", golden, "--update-golden").returncode == 0
+    lines = open(golden).read().splitlines()[1:]
+    assert len(lines) == len(recs) and all(" | link=line" in x for x in lines)
+    assert run_sniffer("check", out, "--golden", golden).returncode == 0
+    # a frame moved to another link is a difference
+    moved = [x.replace("link=line1", "link=line2", 1) if i == 5 else x for i, x in enumerate(lines)]
+    if moved != lines:
+        open(golden, "w").write("\n".join([open(golden).readline().rstrip("\n"), *moved]) + "\n")
+        assert run_sniffer("check", out, "--golden", golden).returncode == 1
+    csv_out = str(tmp / "three.csv")
+    assert run_sniffer("export", out, "--to", "csv", "--out", csv_out).returncode == 0
+    rows = list(csv.DictReader(open(csv_out)))
+    assert [r["link"] for r in rows] == [r["link"] for r in recs]
+    pts = list(csv.DictReader(open(str(tmp / "three.points.csv"))))
+    assert pts and {p["link"] for p in pts} <= {"line1", "line2", "line3"} and all(p["link"] for p in pts)
+    d = run_sniffer("diff", out, out, "--format", "json")
+    units = json.loads(d.stdout)["units"]["a"]
+    assert d.returncode == 0 and units and all(u.split(":")[0] in ("line1", "line2", "line3") for u in units)
+    # unit 1 of each link is a unit of its own
+    assert {u for u in units if u.endswith(":1")} == {"line1:1", "line2:1", "line3:1"}
+
+
+def test_bus_file_links_each_at_its_own_settings_and_protocol(tmp_path):
+    bus = tmp_path / "plant.toml"
+    lines = Lines(tmp_path, ("--scenario", "default"), ("--scenario", "tds-v8"), ("--scenario", "pd-series"))
+    bus.write_text(f"""
+[[links]]
+name = "drives"
+port = "{lines.paths[0]}"
+baud = 19200
+parity = "E"
+
+[[links]]
+name = "tds"
+port = "{lines.paths[1]}"
+baud = 9600
+stopbits = 2
+units = {{ 1 = "tds-v8" }}
+
+[[links]]
+name = "pd"
+port = "{lines.paths[2]}"
+baud = 9600
+protocol = "pd-rtu"
+""")
+    try:
+        r = run_sniffer("live", "--bus", str(bus), "--duration", SECONDS, "--headless", "--format", "jsonl",
+                        "--no-out")
+    finally:
+        lines.close()
+    assert r.returncode == 0, r.stderr
+    assert "drives at 19200 8E1 modbus-rtu; tds at 9600 8N2 modbus-rtu (1=tds-v8); pd at 9600 8N1 pd-rtu" in r.stderr
+    recs = _middle([json.loads(x) for x in r.stdout.splitlines()])
+    by = {n: [x for x in recs if x["link"] == n] for n in ("drives", "tds", "pd")}
+    assert all(len(v) >= 5 for v in by.values())
+    assert all(x["crc_ok"] for v in by.values() for x in v)
+    assert {x["protocol"] for x in by["pd"]} == {"pd-rtu"}
+    assert {x["model"] for x in by["tds"] if x["unit"] == 1} == {"tds-v8"}
+    assert "tds-v8" not in {x["model"] for x in by["drives"]}  # a unit map is its link's
+
+
+@pytest.mark.parametrize("args, message", [
+    (("live",), "give a PORT"),
+    (("live", "{tmp}/line1", "{tmp}/ttyUSB9"), "ttyUSB9: no such port"),
+    (("live", "--tap", "{tmp}/line1", "{tmp}/ttyUSB9"), "ttyUSB9: no such port"),
+    (("live", "{tmp}/line1", "{tmp}/line1"), "given twice"),
+    (("live", "--tap", "{tmp}/line1"), "expected 2 arguments"),
+])
+def test_errors_are_one_line_and_write_nothing(tmp_path, args, message):
+    lines = Lines(tmp_path, ("--scenario", "default"))
+    out = tmp_path / "x.mcap"
+    try:
+        r = run_sniffer(*[a.format(tmp=tmp_path) for a in args], "--out", str(out), "--headless",
+                        "--duration", "1")
+    finally:
+        lines.close()
+    assert r.returncode == 2
+    assert len(r.stderr.strip().splitlines()) == 1 and message in r.stderr, r.stderr
+    assert not out.exists() and not (tmp_path / "x.mcap.part").exists()
+    assert r.stdout == ""
