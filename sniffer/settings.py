@@ -270,11 +270,13 @@ class CaptureSpec:
 
     def resolve_link(self, name: str, info: CaptureInfo | None = None, *, need_baud: bool = True) -> Resolved:
         """One link of several: flags > its [[links]] table > the bus file > what `info` recorded for it
-        > defaults."""
+        > the capture's line settings > defaults."""
         plan = next((p for p in self.links if p.name == name), None)
         recorded = next((x for x in (info.links if info is not None else ()) if x.get("name") == name), None)
+        # the capture's own line fields come last (its first link's): its line settings, not its units
+        line_only = replace(LineChoice.from_info(info), devices={}) if info is not None else LineChoice()
         c = layered(self.flags, plan.choice if plan else LineChoice(), self.bus, LineChoice.from_link(recorded),
-                    DEFAULTS)
+                    line_only, DEFAULTS)
         return self._checked(c, f"link {name}", need_baud)
 
     def _checked(self, c: LineChoice, where: str, need_baud: bool) -> Resolved:
