@@ -30,7 +30,8 @@ discrete[0] for one table, a model's parameter id (12-00, Cn-02), ranges 2520H..
 the capture started, a range only (t:10s..20s, t:..5s, t:30s..; units ns us ms s min h, bare numbers
 in s); `lat:` the response's latency, a range (bare numbers in ms); `model:` the decoder (a510,
 tds-v8, generic); `link:` the link, in a capture of several links (`sniffer live P1 P2`, --tap,
-a bus file's [[links]]): link:drives,pumps (a unit is its link's: `link:drives u:1`).  Fields compare too: lat>20ms, t>=5s, u!=9, fc=16.
+a bus file's [[links]]): link:drives,pumps (a unit is its link's: `link:drives u:1`).
+Fields compare too: lat>20ms, t>=5s, u!=9, fc=16.
 
 Flags: `err` any problem (as the `e` key), `crc` a bad CRC / LRC, `exc` an exception response,
 `timeout` a request without a (timely) response, `fault` a drive fault or alarm, `noise`, `warn`.

@@ -179,7 +179,8 @@ class _Parser:
         if sep and k in KEYS:
             return self.keyed(t, KEYS[k], key, rest)
         if sep and k.isalpha():
-            self.fail(f"unknown key {key + ':'!r} (u: fc: role: reg: t: lat: model: link:); quote text to search it", t.pos)
+            self.fail(f"unknown key {key + ':'!r} (u: fc: role: reg: t: lat: model: link:); quote text to search it",
+                      t.pos)
         if self.peek is not None and self.peek.kind == "OP":
             return self.compare(t, self.next())
         if t.kind == "STR":
