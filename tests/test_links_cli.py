@@ -167,3 +167,38 @@ def test_errors_are_one_line_and_write_nothing(tmp_path, args, message):
     assert len(r.stderr.strip().splitlines()) == 1 and message in r.stderr, r.stderr
     assert not out.exists() and not (tmp_path / "x.mcap.part").exists()
     assert r.stdout == ""
+
+
+def test_serve_captures_several_links_for_its_viewers(tmp_path):
+    """`sniffer serve P1 P2`: its capture process takes both links; a viewer attached to it gets both."""
+    pytest.importorskip("textual_serve")
+    import threading
+
+    from serve_helpers import start_serve
+    from test_serve import read_stream
+
+    from sniffer.attach import Attachment
+    from sniffer.sources.mcapsrc import read_frames
+
+    lines = Lines(tmp_path, ("--scenario", "default", "--seed", "1"), ("--scenario", "default", "--seed", "2"))
+    sock, out = tmp_path / "serve.sock", tmp_path / "served.mcap"
+    try:
+        proc, _ = start_serve(tmp_path, *lines.paths, "--baud", "19200", "--parity", "E", "--socket", str(sock),
+                              "--out", str(out), log=tmp_path / "serve.log")
+        try:
+            viewer = Attachment(str(sock))
+            got: list[dict] = []
+            reader = threading.Thread(target=lambda: got.extend(read_stream(viewer)), daemon=True)
+            reader.start()
+            time.sleep(2)  # some traffic on both lines
+        finally:
+            proc.send_signal(signal.SIGINT)
+            rc = proc.wait(60)
+        reader.join(60)
+    finally:
+        lines.close()
+    log = (tmp_path / "serve.log").read_text()
+    assert rc == 0 and "Traceback" not in log, log
+    assert viewer.label == "line1 line2"
+    assert {r["link"] for r in got} == {"line1", "line2"}
+    assert read_frames(str(out)) == got  # the viewer saw what the capture wrote
