@@ -36,6 +36,26 @@ from sniffer.sources.mcapsrc import open_mcap, read_frames  # noqa: E402
 SETTLE_S = 2.0  # after the last frame: the capture sees the lines go quiet before --duration ends it
 
 
+def _peak_rss_watch(pid: int, stop: threading.Event) -> list[int]:
+    """[kB]: the capture's peak RSS (VmHWM), read every 0.2 s until it exits.  Not wait4's ru_maxrss:
+    that counts the forked copy of this process before it became the capture."""
+    hwm = [0]
+
+    def watch():
+        while True:
+            try:
+                with open(f"/proc/{pid}/status") as f:
+                    for line in f:
+                        if line.startswith("VmHWM:"):
+                            hwm[0] = max(hwm[0], int(line.split()[1]))
+            except OSError:
+                return
+            time.sleep(0.2)
+
+    threading.Thread(target=watch, daemon=True).start()
+    return hwm
+
+
 def run(n_links: int, seconds: float, folder: str) -> dict:
     sc = get_scenario("stress")
     sent = [list(simulate(sc, sc.line, seconds, seed=i + 1)) for i in range(n_links)]
@@ -52,6 +72,7 @@ def run(n_links: int, seconds: float, folder: str) -> dict:
         players = [threading.Thread(target=b.play, args=(s, 1.0, stop), daemon=True) for b, s in zip(buses, sent)]
         for p in players:
             p.start()
+        hwm = _peak_rss_watch(proc.pid, stop)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.monotonic() - t0
         proc.returncode = os.waitstatus_to_exitcode(status)
@@ -79,7 +100,7 @@ def run(n_links: int, seconds: float, folder: str) -> dict:
                          "sent_frames": len(s), "crc_bad": sum(f["crc_ok"] is False for f in mine),
                          "noise": sum(f["protocol"] == "noise" for f in mine)}
     return {"links": per, "cpu_s": usage.ru_utime + usage.ru_stime, "wall_s": wall,
-            "rss_mb": usage.ru_maxrss / 1024, "written_back": back, "mcap_mb": os.path.getsize(out) / 1e6}
+            "rss_mb": hwm[0] / 1024, "written_back": back, "mcap_mb": os.path.getsize(out) / 1e6}
 
 
 def report(title: str, r: dict) -> None:
