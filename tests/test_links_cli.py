@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -105,6 +106,13 @@ def test_check_export_diff_of_a_multi_link_capture(three):
     assert [r["link"] for r in rows] == [r["link"] for r in recs]
     pts = list(csv.DictReader(open(str(tmp / "three.points.csv"))))
     assert pts and {p["link"] for p in pts} <= {"line1", "line2", "line3"} and all(p["link"] for p in pts)
+    ng = str(tmp / "three.pcapng")  # one interface per link
+    assert run_sniffer("export", out, "--to", "pcapng", "--out", ng).returncode == 0
+    if shutil.which("tshark"):
+        t = subprocess.run(["tshark", "-r", ng, "-T", "fields", "-e", "frame.interface_name"], capture_output=True,
+                           text=True, timeout=120)
+        names = [x.split(" (")[0] for x in t.stdout.splitlines()]
+        assert names == [r["link"] for r in recs], t.stderr
     d = run_sniffer("diff", out, out, "--format", "json")
     units = json.loads(d.stdout)["units"]["a"]
     assert d.returncode == 0 and units and all(u.split(":")[0] in ("line1", "line2", "line3") for u in units)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import asyncio
 import functools
 
-from tui_helpers import registry_shadow, screen_text
+from tui_helpers import frames_from_reads, registry_shadow, screen_text
 
 from sniffer.events import CaptureInfo, Chunk
 from sniffer.frame import LinkUnit
@@ -37,11 +37,11 @@ def _two_links():
     sink = TuiSink()
     session = Session(CaptureSpec(), EventSource(info, events), [sink])
     session.run()
-    return session.info, sink.drain(), session.pipeline.registries
+    return session.info, sink.drain(), session.pipeline.registries, sink.drain_reads()
 
 
 def _app() -> SnifferApp:
-    info, frames, registries = _two_links()
+    info, frames, registries, _ = _two_links()
     sink = TuiSink()
     sink.start(info)
     sink.frames(frames)
@@ -55,8 +55,24 @@ async def _loaded(app, pilot):
     assert app.caught_up
 
 
+def test_reads_are_marked_with_the_frames_of_their_own_link():
+    """The byte view's reads: every link is a stream of its own; reads keep the order they came in."""
+    from sniffer.records import frame_json, loads
+    from sniffer.stream_format import parse_reads, read_item, reads_line
+
+    info, frames, _, reads = _two_links()
+    assert {r.link for r in reads} == set(LINKS)
+    assert [r.offset for r in reads] == sorted(r.offset for r in reads)  # in the order read, every link's bytes
+    assert frames_from_reads(reads) == {f.index: f.raw for f in frames}
+    assert all({next(f.link for f in frames if f.index == i) for i in r.frames} == {r.link} for r in reads)
+    # a viewer gets them over the socket as they are
+    line = loads(reads_line([read_item(r, info.t0_ns) for r in reads]).decode())
+    assert parse_reads(line, info.t0_ns) == reads
+    assert loads(frame_json(frames[0], info.t0_ns))["link"] == frames[0].link
+
+
 def test_store_keeps_units_and_registers_per_link():
-    info, frames, registries = _two_links()
+    info, frames, registries, _ = _two_links()
     store = FrameStore(info.t0_ns)
     store.add(frames)
     units = {f.unit for f in frames if f.unit is not None}

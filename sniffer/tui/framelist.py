@@ -201,8 +201,7 @@ class FrameList(CursorList):
         store = self.store
         if len(store):
             columns = self.layout_columns() if grown else None
-            links = max(map(len, store.link_names)) if store.several_links else 0
-            self._extent = (store.t_ns[0], store.last_t_ns, store.frame(len(store) - 1).index, links)
+            self._extent = (store.t_ns[0], store.last_t_ns, store.frame(len(store) - 1).index, store.link_width)
             grown = grown and self.layout_columns() == columns  # columns refitted: every row on screen changes
         super().refresh_rows(grown)
 

@@ -178,6 +178,11 @@ class FrameStore:
         return len(self.link_names) > 1
 
     @property
+    def link_width(self) -> int:
+        """How wide the lists' link column is: the longest link name, 0 (no column) for one line."""
+        return max(map(len, self.link_names)) if self.several_links else 0
+
+    @property
     def t0_ns(self) -> int:
         return self.time.t0_ns
 

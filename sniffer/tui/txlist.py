@@ -172,8 +172,7 @@ class TransactionList(CursorList):
     def columns(self) -> Columns:
         store, tb = self.store, self.store.time
         time = max(tb.width(store.t_ns[0], store.last_t_ns) if len(store) else 8, len(tb.title()))
-        links = max(map(len, store.link_names)) if store.several_links else 0
-        return fit_columns(self.scrollable_content_region.width, time, links)
+        return fit_columns(self.scrollable_content_region.width, time, store.link_width)
 
     def line_text(self, pos: int) -> Text:
         text = format_tx(self.store, self.store.transactions.view[pos], self.columns())
