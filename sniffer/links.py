@@ -26,7 +26,7 @@ import itertools
 from .events import CaptureInfo, Chunk
 from .frame import CAN_REQ, CAN_RSP, Frame
 from .pipeline import Pipeline
-from .settings import MASTER, SLAVES, CaptureSpec
+from .settings import MASTER, SLAVES, Resolved
 from .sources import CaptureError
 
 TAP_ROLES = {MASTER: CAN_REQ, SLAVES: CAN_RSP}  # the master's pair carries requests, the slaves' pair responses
@@ -44,17 +44,15 @@ class LinkPipelines:
     `registries` their decoder registries (each link decodes its own units).
     """
 
-    def __init__(self, info: CaptureInfo, spec: CaptureSpec, sinks, *, need_baud: bool = True) -> None:
+    def __init__(self, info: CaptureInfo, resolved: dict[str, Resolved], sinks) -> None:
+        """`resolved`: every link's settings (CaptureSpec.resolve_link), by name, as `info.links` lists them."""
         self.info = info
         self.sinks = list(sinks)
-        self.resolved = {}
+        self.resolved = resolved
         self.registries = {}
         self.pipelines: dict[str, Pipeline] = {}
         for entry in info.links:
-            name = str(entry.get("name", ""))
-            res = spec.resolve_link(name, info, need_baud=need_baud)
-            res.record_link(entry)
-            self.resolved[name] = res
+            resolved[str(entry.get("name", ""))].record_link(entry)
         first = self.resolved[link_names(info)[0]]
         first.record_in(info)  # the capture's own line fields: its first link's (tools that read one line)
         numbering = itertools.count()
@@ -95,6 +93,11 @@ class LinkPipelines:
         for p in self.pipelines.values():
             out += p.feed(ev, record=False)
         return out
+
+    def settled(self, link: str | None = None) -> int:
+        """Pipeline.settled of `link`, or of the least settled link (2: nothing pending on any link)."""
+        p = self.pipelines.get(link) if link is not None else None
+        return p.settled() if p is not None else min(p.settled() for p in self.pipelines.values())
 
     def flush(self) -> list[Frame]:
         out: list[Frame] = []

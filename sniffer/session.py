@@ -35,15 +35,15 @@ from collections.abc import Iterable, Iterator
 from typing import TYPE_CHECKING
 
 from . import __version__
-from .events import CaptureInfo
+from .events import CaptureInfo, Gap
 from .frame import Frame
 from .pipeline import Pipeline
-
-if TYPE_CHECKING:
-    from .links import LinkPipelines
 from .settings import (  # noqa: F401 - re-exported: the session's settings
     DEFAULTS, MAX_DURATION_S, MAX_TIMEOUT_MS, CaptureSpec, LineChoice, Resolved, finite, layered,
 )
+
+if TYPE_CHECKING:
+    from .links import LinkPipelines
 from .sinks import FileSink
 from .sinks.mcap import CaptureStorageError
 from .sources import CaptureError
@@ -78,6 +78,10 @@ class Session:
         self.ended = False
         self._started = False
         self._frames: Iterator[Frame] | None = None
+        if spec.trigger is not None:
+            from .triggers import windows_place
+
+            windows_place(spec)  # a folder that cannot take the windows: one line, before anything opens
 
     # ------------------------------------------------------------ results
     @property
@@ -108,23 +112,36 @@ class Session:
         info = self.source.open()
         try:
             info.sniffer_version = info.sniffer_version or __version__
-            if info.links:  # several links: one pipeline each (sniffer.links)
-                for link in info.links:  # settings checked before any output exists
-                    self.spec.resolve_link(str(link.get("name", "")), info, need_baud=self.need_baud)
+            links = None
+            if info.links:  # several links: one pipeline each (sniffer.links), each link's settings checked now
+                links = {str(x.get("name", "")): self.spec.resolve_link(str(x.get("name", "")), info,
+                                                                        need_baud=self.need_baud)
+                         for x in info.links}
+                self.resolved = next(iter(links.values()))
             else:
                 self.resolved = self.spec.resolve(info, need_baud=self.need_baud)
                 self.resolved.record_in(info)
-                self.registry = self.resolved.registry()
+            self.registry = self.resolved.registry()
             for s in self.planned:
                 self.sinks.append(s.open() if isinstance(s, FileSink) else s)
-            if info.links:
+            triggers = None
+            if self.spec.trigger is not None:
+                from .triggers import trigger_sink
+
+                # several links: the link that waits longest for an answer decides how long a window waits
+                slowest = max(links.values(), key=lambda r: max([r.timeout_ms, *r.unit_timeouts.values()])) \
+                    if links else self.resolved
+                triggers = trigger_sink(self.spec, slowest, self.registry)
+                self.sinks.append(triggers)
+            if links:
                 from .links import LinkPipelines
 
-                self.pipeline = LinkPipelines(info, self.spec, self.sinks, need_baud=self.need_baud)
-                self.resolved = next(iter(self.pipeline.resolved.values()))
+                self.pipeline = LinkPipelines(info, links, self.sinks)
                 self.registry = next(iter(self.pipeline.registries.values()))
             else:
                 self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
+            if triggers is not None:
+                triggers.settled = self.pipeline.settled
         except BaseException as e:
             self._abandon()
             if isinstance(e, (CaptureStorageError, OSError)):  # e.g. the disk is full already
@@ -158,6 +175,7 @@ class Session:
         self.open()
         p = self.pipeline
         flushers = [s.maybe_flush for s in self.sinks if hasattr(s, "maybe_flush")]
+        clocks = [s.advance for s in self.sinks if hasattr(s, "advance")]  # capture time, every event
         watcher = self._watch()
         stop, on_event, feed = self.stop, self.on_event, p.feed
         completed = False
@@ -167,6 +185,8 @@ class Session:
                     out = feed(ev)
                     for flush in flushers:
                         flush()
+                    for clock in clocks:
+                        clock(ev.t_end_ns if type(ev) is Gap else ev.t_ns)
                     if on_event is not None:
                         on_event(ev)
                     if out:

@@ -213,3 +213,27 @@ def test_serve_captures_several_links_for_its_viewers(tmp_path):
     assert viewer.label == "line1 line2"
     assert {r["link"] for r in got} == {"line1", "line2"}
     assert read_frames(str(out)) == got  # the viewer saw what the capture wrote
+
+
+def test_trigger_windows_of_a_multi_link_capture_keep_their_links(three):
+    """`--trigger link:NAME ...` (the filter language's link:) on the multi-link MCAP: each window is a
+    capture of the same links, every link starting at a quiet point of its own (the links are seldom
+    quiet at once), so it replays to the capture's frames: none cut at its start."""
+    recs, out, tmp = three
+    folder = tmp / "windows"
+    folder.mkdir(exist_ok=True)
+    r = run_sniffer("replay", out, "--trigger", "link:line2 role:req t:1s..", "--pre", "0.3s", "--post", "0.3s",
+                    "--windows", str(folder), "--quiet")
+    assert r.returncode == 0, r.stderr
+    windows = sorted(folder.glob("*.mcap"))
+    assert windows
+    w = run_sniffer("replay", str(windows[0]), "--format", "jsonl")
+    assert w.returncode == 0, w.stderr
+    got = [json.loads(x) for x in w.stdout.splitlines()]
+    assert {x["link"] for x in got} == {"line1", "line2", "line3"}
+    assert any(x["link"] == "line2" and x["role"] == "request" for x in got)
+    whole = {(x["link"], x["raw"]) for x in recs}
+    for name in ("line1", "line2", "line3"):
+        mine = [x for x in got if x["link"] == name]
+        head = [x for x in mine if x["t"] < mine[0]["t"] + 0.2]  # (the end may cut a frame: --post ends it)
+        assert head and all(x["crc_ok"] and (name, x["raw"]) in whole for x in head), head

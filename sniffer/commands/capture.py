@@ -76,7 +76,7 @@ def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None) -> int
     session = capture_session(spec, source, label, inputs=inputs)
     on_signals(session.stop)
     session.open()  # a missing port, a bad setting: one line, and nothing created
-    where = f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)" if spec.out else ""
+    where = f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)" if session.outputs else ""
     links = getattr(session.pipeline, "resolved", None)
     at = ("; ".join(f"{name} at {r.describe()}" for name, r in links.items()) if links
           else f"at {session.resolved.describe()}")
