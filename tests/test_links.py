@@ -14,6 +14,7 @@ from sniffer.mcap_format import decode_event, encode_event
 from sniffer.session import CaptureSpec, EventSource, Session
 from sniffer.settings import MASTER, SLAVES, LinkPlan
 from sniffer.sinks.text import TextSink
+from sniffer.sources.replay import FileSource
 
 LINE = LineSettings(19200, "E", 1)
 READ_A = fr("010300000002")
@@ -171,3 +172,38 @@ def test_bus_file_link_errors_are_one_line(tmp_path, text, message):
     with pytest.raises(BusFileError) as e:
         load_bus_file(str(bus))
     assert message in str(e.value) and "\n" not in str(e.value)
+
+
+def test_trigger_windows_start_every_link_at_its_own_quiet_point(tmp_path):
+    """Two links never quiet at once (a request is always waiting on one of them): a window starts each
+    link where that link was quiet, so it replays without answers cut off from their requests."""
+    from sniffer.sources.mcapsrc import read_frames
+    from sniffer.triggers import TriggerSpec
+
+    ms = 1_000_000
+    req, rsp, exc = (bytes.fromhex(fr(h)) for h in ("010300000001", "0103020007", "018302"))
+
+    def burst(t, data, link):
+        return Chunk(t, data, tuple(t + i * LINE.char_ns for i in range(len(data))), (), "", link)
+
+    events = []
+    for k in range(40):
+        t = k * 100 * ms
+        for link, off in (("a", 0), ("b", 50 * ms)):  # each answers 60 ms after its request
+            events += [burst(t + off, req, link), Tick(t + off + 20 * ms, link),
+                       burst(t + off + 60 * ms, exc if (link, k) == ("b", 25) else rsp, link),
+                       Tick(t + off + 80 * ms, link)]
+    events.sort(key=lambda e: e.t_ns)
+    spec = CaptureSpec(trigger=TriggerSpec(("link:b exc",), windows=str(tmp_path), pre_s=0.52, post_s=0.3))
+    info = _info("a", "b")
+    info.time_source, info.wall_anchor_ns = "byte", 1_764_000_000 * 10**9
+    session, recs = _run(info, events, spec)
+    assert session.error is None
+    (window,) = sorted(tmp_path.glob("*.mcap"))
+    replay = ListSink()
+    Session(CaptureSpec(), FileSource(str(window)), [replay]).run()
+    got = replay.records
+    assert {r["link"] for r in got} == {"a", "b"}
+    assert not any(a["code"] == "pair.orphan_response" for r in got for a in r["annotations"])
+    assert {(r["link"], r["t"], r["raw"]) for r in read_frames(str(window))} <= {(r["link"], r["t"], r["raw"]) for r in recs}
+    assert [r["role"] for r in got if r["link"] == "a"][:1] == ["request"]
