@@ -82,15 +82,15 @@ def test_poll_period_and_jitter_per_request_type():
     t = 0
     for i, g in enumerate([0] + gaps):
         t += g
-        p.request(1, frame(i, t))
-    p.request(2, frame(99, 50, unit=2, raw=b"\x02\x03\x00\x10\x00\x02\xc5\xfd"))
+        p.request(frame(i, t))
+    p.request(frame(99, 50, unit=2, raw=b"\x02\x03\x00\x10\x00\x02\xc5\xfd"))
     rows = {r["type"]: r for r in p.to_dict()["rows"]}
     r = rows["u1 fc03 holding 0..0 (1)"]
     assert r["count"] == 11 and r["period_ms"] == 100 and r["max_ms"] == 300 and r["min_ms"] == 100
     assert r["jitter_ms"] == 200  # p95 - p5: the skipped cycle shows
     assert rows["u2 fc03 holding 16..17 (2)"]["count"] == 1 and rows["u2 fc03 holding 16..17 (2)"]["period_ms"] is None
     p.new_capture()  # the next capture's first request: no period across the captures
-    p.request(1, frame(200, 100_000))
+    p.request(frame(200, 100_000))
     assert {r["type"]: r for r in p.to_dict()["rows"]}["u1 fc03 holding 0..0 (1)"]["max_ms"] == 300
 
 
@@ -243,10 +243,10 @@ def test_report_of_a_capture_counts_what_replay_decodes(tmp_path, capsys):
     units = {u["unit"]: u for u in d["units"]}
     for unit in {f.unit for f in frames if f.unit is not None and not f.is_noise}:
         mine = [f for f in frames if f.unit == unit and not f.is_noise]
-        assert units[unit]["crc"] == sum(f.crc_ok is False for f in mine)
+        assert units[str(unit)]["crc"] == sum(f.crc_ok is False for f in mine)
         good = [f for f in mine if f.crc_ok is not False]
-        assert units[unit]["requests"] == sum(f.role == "request" for f in good)
-        assert units[unit]["exceptions"] == sum(bool(f.exception) for f in good)
+        assert units[str(unit)]["requests"] == sum(f.role == "request" for f in good)
+        assert units[str(unit)]["exceptions"] == sum(bool(f.exception) for f in good)
     assert sum(d["buckets"]["crc"]) == sum(f.crc_ok is False for f in frames)
     assert d["totals"]["codes"]["pair.retry"] == sum(a.code == "pair.retry" for f in frames for a in f.annotations)
     html = out.read_text()
@@ -275,6 +275,38 @@ def test_poll_types_of_a_protocol_that_is_not_modbus(tmp_path, capsys):
     status = rows["u1 fc04 read status CFG 1 (Out F: output frequency)"]  # PD: function and status selector
     assert status["count"] > 5 and 500 < status["period_ms"] < 2000
     assert not any("coil" in t or "holding" in t for t in rows)  # no Modbus register reading of PD frames
+
+
+def test_units_of_several_links_are_their_links(tmp_path, capsys):
+    from helpers import bursts, fr
+
+    from sniffer.events import Chunk
+    from sniffer.line import LineSettings
+    from sniffer.session import EventSource, Session
+    from sniffer.sinks import FileSink
+
+    read, rsp = fr("010300000002"), fr("01030400010002")
+
+    def on(link: str, line: LineSettings, t0: int) -> list[Chunk]:
+        return [Chunk(c.t_ns, c.data, c.byte_t_ns, c.flags, "", link) for c in bursts([read, rsp] * 5, line, t0=t0)]
+
+    fast, slow = LineSettings(19200, "E", 1), LineSettings(9600, "N", 1)
+    info = CaptureInfo(baud=19200, parity="E", links=[
+        {"name": "A", "ports": ["/dev/a"], "tap": False, "baud": 19200, "parity": "E"},
+        {"name": "B", "ports": ["/dev/b"], "tap": False, "baud": 9600, "parity": "N"}])
+    path = tmp_path / "two.mcap"
+    events = sorted(on("A", fast, 0) + on("B", slow, 10**6), key=lambda c: c.t_ns)
+    Session(CaptureSpec(), EventSource(info, events), [FileSink("mcap", str(path))]).run()
+    out = tmp_path / "r.html"
+    assert cli(capsys, "report", path, "--out", out)[0] == 0
+    d = page_data(out)
+    assert [(u["unit"], u["requests"], u["responses"], u["lat_n"]) for u in d["units"]] == [("A:1", 5, 5, 5),
+                                                                                           ("B:1", 5, 5, 5)]
+    assert {r["type"] for r in d["polls"]["rows"]} == {"A:u1 fc03 holding 0..1 (2)", "B:u1 fc03 holding 0..1 (2)"}
+    assert [(x["name"], x["line"]) for x in d["captures"][0]["links"]] == [("A", "19200 8E1"), ("B", "9600 8N1")]
+    busy = 5 * (8 + 9) * (11e9 / 19200 + 10e9 / 9600)  # each link's bytes at its own character time
+    assert sum(d["buckets"]["busy_ns"]) == pytest.approx(busy, rel=0.01)
+    assert "A: 19200 8E1 modbus-rtu<br>B: 9600 8N1 modbus-rtu" in out.read_text()
 
 
 def test_several_captures_in_order_on_one_axis(tmp_path, capsys):

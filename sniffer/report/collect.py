@@ -29,6 +29,7 @@ import math
 import os
 from collections import Counter
 
+from ..frame import LinkUnit, unit_key
 from ..semdiff import Summary
 from ..tui.shadow import RegisterBook
 from .buckets import TimeBuckets
@@ -51,6 +52,16 @@ def _iso(wall_ns: int) -> str | None:
     if wall_ns <= 0:
         return None
     return _dt.datetime.fromtimestamp(wall_ns / 1e9, _dt.timezone.utc).isoformat(timespec="milliseconds")
+
+
+def _timing(line) -> tuple[int, float, float]:
+    """(character time in ns, t1.5 and t3.5 in characters) of a line."""
+    return line.char_ns, line.t15_ns / line.char_ns, line.t35_ns / line.char_ns
+
+
+def _split(unit) -> tuple[str, int]:
+    """(link, unit) of a register book's unit (`frame.unit_key`: a number, or a LinkUnit with several links)."""
+    return (unit.link, unit.unit) if isinstance(unit, LinkUnit) else ("", unit)
 
 
 def file_facts(path: str) -> dict:
@@ -85,6 +96,7 @@ class Collector:
         self._shift = 0
         self._char_ns = 0
         self._t15 = self._t35 = 0.0
+        self._lines: dict[str, tuple[int, float, float]] = {}  # link -> _timing of its line
         self._capture = -1
 
     # ------------------------------------------------------------ captures
@@ -106,10 +118,14 @@ class Collector:
         self._shift = start - info.t0_ns
         self.polls.new_capture()
         self.timeline.new_capture()
-        line = resolved.line
-        self._char_ns = line.char_ns
-        self._t15, self._t35 = line.t15_ns / line.char_ns, line.t35_ns / line.char_ns  # in characters
+        # several links: each its own line settings (sniffer.links.LinkPipelines.resolved)
+        by_link = getattr(getattr(session, "pipeline", None), "resolved", None) or {"": resolved}
+        self._lines = {name: _timing(r.line) for name, r in by_link.items()}
+        self._char_ns, self._t15, self._t35 = self._lines.get("") or next(iter(self._lines.values()))
         self._capture = len(self.captures)
+        links = [{"name": name, "line": r.line.label(), "protocol": r.protocol.name,
+                  "devices": {str(u): m for u, m in sorted(r.devices.items())}}
+                 for name, r in by_link.items() if name]
         self.captures.append({
             "label": label, "path": os.path.abspath(getattr(session.source, "path", label)),
             **file_facts(getattr(session.source, "path", label)),
@@ -119,10 +135,11 @@ class Collector:
             "unit_timeouts": {str(u): ms for u, ms in sorted(resolved.unit_timeouts.items())},
             "model_files": list(resolved.model_files), "bus_file": session.spec.bus_file if session.spec else None,
             "devices": {str(u): m for u, m in sorted(resolved.devices.items())}, "time_source": info.time_source,
-            "t15_chars": round(self._t15, 3), "t35_chars": round(self._t35, 3),
+            "limits": [list(x) for x in sorted({(round(a, 3), round(b, 3)) for _, a, b in self._lines.values()})],
             "low_latency": info.low_latency, "recorded_by": info.sniffer_version,
             "start_wall": _iso(wall), "start_s": start / 1e9, "note": note,
             "extra": {k: v for k, v in info.extra.items() if isinstance(v, (str, int, float, bool))},
+            "links": links,
         })
 
     def end(self, session) -> None:
@@ -131,16 +148,18 @@ class Collector:
         c.update(frames=session.frames_out, bytes=session.bytes_in, noise_bytes=session.noise_bytes,
                  damage=session.damage, error=session.error, end_s=self.end_ns / 1e9,
                  duration_s=round(self.end_ns / 1e9 - c["start_s"], 6))
-        reg = session.registry
-        if reg is not None:
+        regs = getattr(getattr(session, "pipeline", None), "registries", None) or {"": session.registry}
+        for link, reg in regs.items():
+            if reg is None:
+                continue
             given = dict(reg.devices)
             for unit, g in dict(reg.guesses).items():
-                u = self.units.get(unit)
+                u = self.units.get((link, unit))
                 if u is not None and unit not in given:
                     u.model = f"{g[0]} (guess {g[1]:.0%})"
             for unit, model in given.items():
-                if unit in self.units:
-                    self.units[unit].model = f"{model} (given)"
+                if (link, unit) in self.units:
+                    self.units[(link, unit)].model = f"{model} (given)"
 
     # ------------------------------------------------------------ frames
     def frame(self, f) -> None:
@@ -153,7 +172,7 @@ class Collector:
         b = self.buckets.index(x)
         cols = self.buckets.cols
         cols["frames"][b] += 1
-        cols["busy_ns"][b] += len(f.raw) * self._char_ns
+        cols["busy_ns"][b] += len(f.raw) * (self._lines[f.link][0] if f.link else self._char_ns)
         if f.crc_ok is False:
             cols["crc"][b] += 1
         if f.exception:
@@ -185,10 +204,12 @@ class Collector:
         self.book.frame(f)
 
     def _unit(self, f, write: bool) -> int:
-        """The unit's figures; 1 for a response under t3.5, 2 under t1.5, else 0."""
-        u = self.units.get(f.unit)
+        """The unit's figures (a unit of its link, with several); 1 for a response under t3.5, 2 under t1.5,
+        else 0."""
+        key = (f.link, f.unit)
+        u = self.units.get(key)
         if u is None:
-            u = self.units[f.unit] = UnitAgg(f.unit)
+            u = self.units[key] = UnitAgg(str(unit_key(f)))
         if u.first_ns is None:
             u.first_ns = f.t_ns
         u.last_ns = f.t_ns
@@ -212,13 +233,14 @@ class Collector:
                 u.alarms += 1
         if f.role == "request":
             u.requests += 1
-            self.polls.request(f.unit, f)
+            self.polls.request(f)
             u.writes += write
         elif f.role == "response":
             u.responses += 1
             if f.latency_ms is not None:
                 self.time_sources[f.time_source] += 1
-                return u.latency(f.t_ns, f.latency_ms, self._char_ns, f.index, self._t15, self._t35)
+                char_ns, t15, t35 = self._lines[f.link] if f.link else (self._char_ns, self._t15, self._t35)
+                return u.latency(f.t_ns, f.latency_ms, char_ns, f.index, t15, t35)
             if f.pair is not None:
                 u.unmeasured += 1
         return 0
@@ -226,9 +248,9 @@ class Collector:
     # ------------------------------------------------------------ the result
     def to_data(self) -> dict:
         """Everything the page draws, JSON-ready; times in seconds from the report's start."""
-        units = [self.units[u] for u in sorted(self.units)]
-        timed = sorted(sorted((u for u in units if u.lat.n), key=lambda u: -u.lat.n)[:PLOTTED_UNITS],
-                       key=lambda u: u.unit)
+        units = [self.units[k] for k in sorted(self.units)]
+        top = set(sorted((u for u in units if u.lat.n), key=lambda u: -u.lat.n)[:PLOTTED_UNITS])
+        timed = [u for u in units if u in top]
         return {
             "axis": {"clock": self.clock and self.origin_wall > 0, "origin_wall_s": self.origin_wall / 1e9,
                      "end_s": self.end_ns / 1e9},
@@ -243,20 +265,21 @@ class Collector:
             "turnaround": {"edges": turnaround_edges(), "bins": {str(u.unit): u.turn_bins for u in timed},
                            "time_sources": dict(self.time_sources),
                            "capture_time_sources": sorted({c["time_source"] for c in self.captures}),
-                           "limits": [list(x) for x in sorted({(c["t15_chars"], c["t35_chars"])
-                                                               for c in self.captures})],
+                           "limits": [list(x) for x in sorted({tuple(x) for c in self.captures for x in c["limits"]})],
                            "t15": self.codes.get("modbus.timing.t15", 0), "t35": self.codes.get("modbus.timing.t35", 0),
                            "below15": sum(u.below15 for u in units), "below35": sum(u.below35 for u in units)},
             "polls": self.polls.to_dict(),
             "registers": self._registers(),
             "timeline": {"events": [{**e, "t": e["t"] / 1e9, "t_end": e["t_end"] / 1e9}
                                     for e in self.timeline.events()],
+                         "units": [u.unit for u in units],  # the order of the timeline's rows
                          "counts": dict(self.timeline.counts), "dropped": self.timeline.dropped},
         }
 
     def _registers(self) -> dict:
         """The registers whose decoded value changed: a table, and plots grouped by unit and engineering unit."""
-        changed = [rv for rv in self.book.rows() if rv.history.changes > 0]
+        changed = sorted((rv for rv in self.book.values.values() if rv.history.changes > 0),
+                         key=lambda rv: (*_split(rv.unit), rv.table, rv.address))
         rows = []
         for rv in changed:
             h = rv.history
@@ -264,18 +287,18 @@ class Collector:
             last = rv.value
             if not isinstance(last, (int, float)) or isinstance(last, float) and not math.isfinite(last):
                 last = str(last)[:80]
-            rows.append({"unit": rv.unit, "table": rv.table, "address": rv.address_text, "name": rv.title,
+            rows.append({"unit": str(rv.unit), "table": rv.table, "address": rv.address_text, "name": rv.title,
                          "eng_unit": rv.eng_unit or "", "changes": h.changes, "samples": h.seen,
                          "min": min(vals) if vals else None, "max": max(vals) if vals else None,
                          "last": last, "text": rv.text[:120]})
         groups: dict[tuple, list] = {}
         for rv in sorted(changed, key=lambda rv: -rv.history.changes):
-            groups.setdefault((rv.unit, rv.eng_unit or ""), []).append(rv)
+            groups.setdefault((*_split(rv.unit), rv.eng_unit or ""), []).append(rv)
         plots = []
-        for (unit, eng), rvs in sorted(groups.items(), key=lambda kv: (kv[0][0], kv[0][1])):
+        for (_link, _unit, eng), rvs in sorted(groups.items()):
             if len(plots) >= REGISTER_PLOTS:
                 break
-            plots.append({"unit": unit, "eng_unit": eng, "more": max(0, len(rvs) - SERIES_PER_PLOT),
+            plots.append({"unit": str(rvs[0].unit), "eng_unit": eng, "more": max(0, len(rvs) - SERIES_PER_PLOT),
                           "series": [{"label": rv.title, "address": rv.address_text,
                                       **series_points(rv.history, hold=True)} for rv in rvs[:SERIES_PER_PLOT]]})
         return {"rows": rows, "plots": plots, "groups": len(groups), "registers": len(self.book.values)}

@@ -121,7 +121,7 @@ def _captures(d: dict) -> str:
         rows.append([
             f"{i}", f'<span class="path" title="{_e(c["path"])}">{_e(c["label"])}</span>{note}',
             _e(c.get("start_wall") or "unknown (no wall clock)"), _dur(c.get("duration_s") or 0),
-            _e(c["line"]) + " " + _e(c["protocol"]), _e(", ".join(f"{u}={m}" for u, m in c["devices"].items())),
+            _line_cell(c), _devices_cell(c),
             _e(_settings(c)),
             _e(c["time_source"]), _e(", ".join(f"{k}={v}" for k, v in ll.items()) or None),
             _n(c.get("frames")), _n(c.get("bytes")), _n(c.get("noise_bytes")),
@@ -132,6 +132,21 @@ def _captures(d: dict) -> str:
     head = ["#", "file", "start (UTC)", "duration", "line", "devices", "timeouts, maps", "time source", "low latency",
             "frames", "bytes", "noise bytes", "recorded from", "by sniffer", "file size", "SHA-256", "damage"]
     return _section("captures", "Captures: settings and provenance", _table(head, rows, "wide"))
+
+
+def _line_cell(c: dict) -> str:
+    if c.get("links"):  # several links: each its own line
+        return "<br>".join(f"{_e(x['name'])}: {_e(x['line'])} {_e(x['protocol'])}" for x in c["links"])
+    return _e(c["line"]) + " " + _e(c["protocol"])
+
+
+def _devices_cell(c: dict) -> str:
+    def text(devices: dict) -> str:
+        return ", ".join(f"{u}={m}" for u, m in devices.items())
+
+    if c.get("links"):
+        return "<br>".join(f"{_e(x['name'])}: {_e(text(x['devices']))}" for x in c["links"])
+    return _e(text(c["devices"]))
 
 
 def _settings(c: dict) -> str:

@@ -21,24 +21,32 @@ GAP_POINTS = 1024  # kept per type for the plot
 PLOTTED = 12  # the most frequent types get a line in the plot
 
 
-def request_type(unit: int, f) -> tuple[tuple, str | None]:
-    """(key, label or None) of a request: a Modbus request by function, first register and count; another
-    protocol's (PD-series: ADDR FUNC LEN DATA) by function and its first data byte (the parameter or status
-    selector), labelled with the first such request's summary."""
+def request_type(f) -> tuple:
+    """A request's type: a Modbus request by function, first register and count; another protocol's
+    (PD-series: ADDR FUNC LEN DATA) by function and its first data byte (the parameter or status selector).
+    With several links a unit is its link's: (link, unit, ...)."""
     proto = of_frame(f.protocol)
     if proto is None or proto.family == "modbus":
-        return (unit, *request_key(f)), None
+        return (f.link, f.unit, *request_key(f))
     adu = f.adu
-    sel = adu[3] if len(adu) > 3 else None
-    return (unit, f.function, "sel", sel), f"u{unit} fc{f.function:02X} {f.summary.split(' = ')[0][:60]}"
+    return f.link, f.unit, f.function, "sel", adu[3] if len(adu) > 3 else None
+
+
+def type_label(f, key: tuple) -> str:
+    """'u3 fc03 holding 0..9 (10)' ("LINK:u3 ..." with several links); another protocol's type is named by the
+    summary of its first request."""
+    who = f"{f.link}:u{f.unit}" if f.link else f"u{f.unit}"
+    if key[3] == "sel":
+        return f"{who} fc{f.function:02X} {f.summary.split(' = ')[0][:60]}"
+    return f"{who} {key_text(key[2:])}"
 
 
 class PollType:
-    __slots__ = ("key", "count", "last_ns", "gaps", "mean", "m2", "lo", "hi", "series", "name")
+    __slots__ = ("key", "count", "last_ns", "gaps", "mean", "m2", "lo", "hi", "series", "label")
 
-    def __init__(self, key: tuple, t_ns: int, name: str | None = None) -> None:
+    def __init__(self, key: tuple, t_ns: int, label: str) -> None:
         self.key = key
-        self.name = name
+        self.label = label
         self.count = 1
         self.last_ns = t_ns
         self.gaps = Quantiles()
@@ -61,17 +69,11 @@ class PollType:
         self.hi = ms if self.hi is None or ms > self.hi else self.hi
         self.series.add(t_ns, ms, index)
 
-    @property
-    def label(self) -> str:
-        if self.name is not None:
-            return self.name
-        unit, *k = self.key
-        return f"u{unit} {key_text(tuple(k))}"
-
     def row(self) -> dict:
         g = self.gaps
         p5, p50, p95 = g.pct(0.05), g.median(), g.pct(0.95)
-        return {"type": self.label, "unit": self.key[0], "count": self.count,
+        link, unit = self.key[:2]
+        return {"type": self.label, "unit": f"{link}:{unit}" if link else str(unit), "count": self.count,
                 "period_ms": None if p50 is None else round(p50, 3), "p5_ms": p5, "p95_ms": p95,
                 "jitter_ms": None if p5 is None else round(p95 - p5, 3),
                 "std_ms": round(math.sqrt(max(self.m2, 0.0) / (g.n - 1)), 3) if g.n > 1 else None,
@@ -92,19 +94,19 @@ class Polls:
         for p in self.types.values():
             p.last_ns = None
 
-    def request(self, unit: int, f) -> None:
-        key, name = request_type(unit, f)
+    def request(self, f) -> None:
+        key = request_type(f)
         p = self.types.get(key)
         if p is not None:
             p.add(f.t_ns, f.index)
         elif len(self.types) < self.max_types:
-            self.types[key] = PollType(key, f.t_ns, name)
+            self.types[key] = PollType(key, f.t_ns, type_label(f, key))
         else:
             self.untracked += 1
 
     def to_dict(self) -> dict:
         ordered = sorted(self.types.values(), key=lambda p: (-p.count, p.label))
         plotted = [p for p in ordered if p.gaps.n > 1][:PLOTTED]
-        return {"rows": [p.row() for p in sorted(ordered, key=lambda p: (p.key[0], p.label))],
+        return {"rows": [p.row() for p in sorted(ordered, key=lambda p: (p.key[0], p.key[1], p.label))],
                 "series": [{"label": p.label, **series_points(p.series)} for p in plotted],
                 "types": len(self.types), "untracked": self.untracked}

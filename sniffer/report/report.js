@@ -230,7 +230,8 @@
   function timeline() {
     const E = D.timeline.events;
     if (!E.length) return;
-    const units = Array.from(new Set(E.map((e) => e.unit))).sort((a, b) => a - b);
+    const present = new Set(E.map((e) => e.unit));
+    const units = D.timeline.units.filter((u) => present.has(u));  // in the units table's order
     const row = new Map(units.map((u, i) => [u, i]));
     const OUTCOME = (e) => {
       const o = Object.keys(e.outcomes || {});
@@ -275,7 +276,7 @@
       legend: {show: false},
       scales: {x: {time: clock}, y: {range: [-0.6, units.length - 0.4]}},
       axes: [timeXAxis(), {label: "unit", size: 50, splits: () => units.map((u, i) => i),
-        values: (u, splits) => splits.map((i) => "u" + units[i])}],
+        values: (u, splits) => splits.map((i) => (/^\d+$/.test(units[i]) ? "u" : "") + units[i])}],
       hooks: {draw: [draw], setCursor: [(u) => {
         const cx = u.cursor.left, cy = u.cursor.top;
         if (cx === null || cx < 0) { hover.textContent = ""; return; }
@@ -285,7 +286,7 @@
           const dx = cx < x0 ? x0 - cx : cx > x1 ? cx - x1 : 0, d = Math.hypot(dx, cy - y);
           if (d < bd) { bd = d; best = e; }
         }
-        hover.textContent = best ? best.kind + " u" + best.unit + " at " + best.t.toFixed(3) + " s (×" + best.n + "): "
+        hover.textContent = best ? best.kind + " unit " + best.unit + " at " + best.t.toFixed(3) + " s (×" + best.n + "): "
           + best.text + (best.outcomes ? " → " + Object.entries(best.outcomes).map(([k, v]) => k + " ×" + v).join(", ") : "")
           : "";
       }]},

@@ -12,13 +12,15 @@ A fault (or alarm) is what the drive's model reports in an answer (`model.fault`
 one fault is one episode: from the first answer that reports it to the last, ended by an
 answer to the same poll (the same request type) that no longer does.
 
-Bounded: the first HEAD events and the last TAIL are kept, the ones between counted.
+Bounded: the first HEAD events and the last TAIL are kept, the ones between counted.  In a capture
+of several links a unit is its link's (`frame.unit_key`, shown "LINK:UNIT").
 """
 
 from __future__ import annotations
 
 from collections import Counter, deque
 
+from ..frame import unit_key
 from ..frameflags import FAULT_CODES
 from ..protocols import of_frame
 from ..semdiff import request_key
@@ -39,8 +41,8 @@ class Timeline:
         self.dropped = 0
         self.counts: Counter = Counter()  # events by kind
         self._requests: dict[int, tuple] = {}  # response index -> (request key, write event or None)
-        self._last_write: dict[int, dict] = {}  # unit -> its latest write event
-        self._open: dict[tuple, dict] = {}  # (unit, code, detail) -> the fault episode going on
+        self._last_write: dict[tuple, dict] = {}  # (link, unit) -> its latest write event
+        self._open: dict[tuple, dict] = {}  # (link, unit, code, detail) -> the fault episode going on
 
     def _emit(self, ev: dict) -> None:
         self.counts[ev["kind"]] += 1
@@ -79,21 +81,22 @@ class Timeline:
                 ev["outcomes"][outcome] = ev["outcomes"].get(outcome, 0) + 1
         if f.pair is not None:
             req = self._requests
-            req[f.pair] = (request_key(f), ev)
+            req[f.pair] = ((f.link, *request_key(f)), ev)
             if len(req) > RECENT:
                 del req[next(iter(req))]
         return ev is not None
 
     def _write(self, f, capture: int) -> dict:
         raw = f.adu or f.raw
-        last = self._last_write.get(f.unit)
+        uk = (f.link, f.unit)
+        last = self._last_write.get(uk)
         if last is not None and last["_raw"] == raw:
             last["n"] += 1
             last["t_end"] = f.t_ns
             return last
-        ev = {"kind": "write", "unit": f.unit, "t": f.t_ns, "t_end": f.t_ns, "n": 1, "text": f.summary[:TEXT],
+        ev = {"kind": "write", "unit": str(unit_key(f)), "t": f.t_ns, "t_end": f.t_ns, "n": 1, "text": f.summary[:TEXT],
               "frame": f.index, "capture": capture, "outcomes": {}, "_raw": raw}
-        self._last_write[f.unit] = ev
+        self._last_write[uk] = ev
         self._emit(ev)
         return ev
 
@@ -107,19 +110,21 @@ class Timeline:
         reported = set()
         for a in f.annotations:
             if a.code in FAULT_CODES:
-                k = (f.unit, a.code, a.detail)
+                k = (f.link, f.unit, a.code, a.detail)
                 reported.add(k)
                 ev = self._open.get(k)
                 if ev is None:
-                    ev = self._open[k] = {"kind": "fault" if a.code == "model.fault" else "alarm", "unit": f.unit,
-                                          "t": f.t_ns, "t_end": f.t_ns, "n": 1, "text": a.detail[:TEXT],
-                                          "frame": f.index, "capture": capture, "_key": key}
+                    kind = "fault" if a.code == "model.fault" else "alarm"
+                    ev = self._open[k] = {"kind": kind, "unit": str(unit_key(f)), "t": f.t_ns, "t_end": f.t_ns,
+                                          "n": 1, "text": a.detail[:TEXT], "frame": f.index, "capture": capture,
+                                          "_key": key}
                     self._emit(ev)
                 else:
                     ev["n"] += 1
                     ev["t_end"] = f.t_ns
         if key is not None and self._open:  # the same poll answered without a fault it reported: it ended
-            for k in [k for k, ev in self._open.items() if k[0] == f.unit and ev["_key"] == key and k not in reported]:
+            uk = (f.link, f.unit)
+            for k in [k for k, ev in self._open.items() if k[:2] == uk and ev["_key"] == key and k not in reported]:
                 del self._open[k]
 
     def events(self) -> list[dict]:

@@ -46,8 +46,8 @@ class UnitAgg:
                  "alarms", "good", "first_ns", "last_ns", "lat", "lat_min", "lat_max", "lat_bins", "lat_series",
                  "unmeasured", "turn_bins", "below15", "below35", "writes")
 
-    def __init__(self, unit: int) -> None:
-        self.unit = unit
+    def __init__(self, unit: str) -> None:
+        self.unit = unit  # "3", or "LINK:3" with several links
         self.model: str | None = None
         self.requests = self.responses = self.crc = self.exceptions = self.timeouts = self.retries = 0
         self.faults = self.alarms = self.good = self.unmeasured = self.below15 = self.below35 = self.writes = 0
