@@ -133,7 +133,8 @@ class CaptureSpec:
     map_base: str | None = None  # --map-base 0|1|modicon for CSV model files (None: what the file says, else 0)
     # where the capture comes from
     port: str | None = None
-    input: str | None = None
+    input: str | None = None  # the capture file (the first, when several)
+    inputs: tuple[str, ...] = ()  # several files (export --to dataset)
     input_format: str = "auto"
     scenario: str | None = None
     seed: int = 1
@@ -168,10 +169,13 @@ class CaptureSpec:
                            None if timeout is None else finite(timeout, "--timeout-ms", upper=MAX_TIMEOUT_MS))
         duration = opt("duration", 0.0) or 0.0
         fmt = opt("format", "text")
+        files = opt("file")
+        files = list(files) if isinstance(files, (list, tuple)) else [files] if files else []
         return cls(
             flags=flags, bus_file=opt("bus"), bus=_load_bus(opt("bus")), model_files=tuple(opt("model_file") or ()),
             map_base=opt("map_base"),
-            port=opt("port"), input=opt("file"), input_format=opt("input_format", "auto") or "auto",
+            port=opt("port"), input=files[0] if files else None, inputs=tuple(files),
+            input_format=opt("input_format", "auto") or "auto",
             scenario=opt("scenario"), seed=opt("seed", 1) or 1,
             duration_s=finite(duration, "--duration", upper=MAX_DURATION_S),
             out=None if opt("no_out") else opt("out"),

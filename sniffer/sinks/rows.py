@@ -15,6 +15,9 @@ A value of several registers (decoders/regtypes.py) is one point row: `raw` its
 registers joined (a float's bit pattern; null where it does not fit int64, a u64
 from 2**63 on, or is text), `value` the number as float64 (a 64-bit integer
 beyond 2**53 is rounded there), `value_text` the exact number or the string.
+
+An annotation row (the fleet dataset's third table) is one annotation of a frame: its code,
+severity, detail and byte span, with the frame's number, time, unit, function, role and model.
 """
 
 from __future__ import annotations
@@ -34,6 +37,10 @@ FRAME_COLUMNS = (
 POINT_COLUMNS = (
     "frame", "t", "unit", "function", "role", "crc_ok", "model", "address", "name", "id", "raw", "value",
     "value_text", "eng_unit",
+)
+ANNOTATION_COLUMNS = (
+    "frame", "t", "unit", "function", "role", "crc_ok", "model", "code", "severity", "detail", "span_start",
+    "span_end",
 )
 
 
@@ -93,3 +100,11 @@ def point_rows(f: Frame, t0_ns: int) -> list[tuple]:
             p.get("unit"),
         ))
     return rows
+
+
+def annotation_rows(f: Frame, t0_ns: int) -> list[tuple]:
+    anns = f.annotations
+    if not anns:
+        return []
+    head = (f.index, (f.t_ns - t0_ns) / 1e9, f.unit, f.function, f.role, f.crc_ok, f.model)
+    return [head + a for a in anns]  # an Annotation is a tuple: code, severity, detail, start, end
