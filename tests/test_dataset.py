@@ -158,7 +158,7 @@ def test_dates_split_at_midnight_utc_and_link_from_port(tmp_path):
     n = _clocked_capture(cap, anchor, "/dev/ttyUSB3")
     ds = tmp_path / "fleet"
     assert main(["export", str(cap), "--to", "dataset", str(ds)]) == 0
-    got = dict(((d.isoformat(), link), k) for d, link, k in sql(ds, "SELECT date, link, count(*) FROM frames GROUP BY ALL"))
+    got = {(d.isoformat(), link): k for d, link, k in sql(ds, "SELECT date, link, count(*) FROM frames GROUP BY ALL")}
     assert set(got) == {("2026-11-24", "ttyUSB3"), ("2026-11-25", "ttyUSB3")} and sum(got.values()) == n
     # each row sits in the partition of its own time, and time is the anchor plus t
     assert sql(ds, "SELECT count(*) FROM frames WHERE CAST(time AS DATE) <> date") == [(0,)]

@@ -11,7 +11,7 @@ import pytest
 
 from sniffer.cli import main
 
-pytest.importorskip("dask.dataframe", reason="dask[dataframe,distributed] is in the test extra: pip install -e '.[test]'")
+pytest.importorskip("dask.dataframe", reason="dask[dataframe,distributed] is in the test extra: pip install -e .[test]")
 pytest.importorskip("distributed", reason="dask[distributed] is in the test extra")
 
 CAPTURES = Path(__file__).resolve().parent.parent / "captures"
