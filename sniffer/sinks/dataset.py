@@ -70,7 +70,8 @@ class DatasetSink(TableSink):
         self.link = link_name(info, self.given_link)
         self._clock = info.wall_anchor_ns > 0
         self._meta = {b"sniffer.schema_version": str(SCHEMA_VERSION).encode(),
-                      b"sniffer.capture": self.capture.encode(), b"sniffer.source": self.source.encode(), b"sniffer.time_source": info.time_source.encode()}
+                      b"sniffer.capture": self.capture.encode(), b"sniffer.source": self.source.encode(),
+                      b"sniffer.time_source": info.time_source.encode()}
 
     def frame(self, f: Frame) -> None:
         link = getattr(f, "link", "") or self.link
