@@ -185,10 +185,13 @@ def main(argv=None) -> int:
         fps = frames / res["wall"]
         again = bc.run_measured(argv_ingest, 0)
         rows = [
-            ["ingest (decode + write), frames/s", f"{fps / 1e3:,.1f}k", f"{res['wall']:.1f} s wall, {res['cpu']:.1f} s CPU"],
+            ["ingest (decode + write), frames/s", f"{fps / 1e3:,.1f}k",
+             f"{res['wall']:.1f} s wall, {res['cpu']:.1f} s CPU"],
             ["peak RSS of the ingest", f"{res['rss_mb']:.0f} MB", "flat: one segment's partitions open at a time"],
-            ["dataset size", f"{size / 1e6:,.1f} MB", f"{size / frames:.1f} B/frame (MCAP {meta['mcap_bytes'] / frames:.1f})"],
-            ["ingest again (all known)", f"{again['wall']:.2f} s", f"rc {again.get('rc')}: size+mtime check, nothing read"],
+            ["dataset size", f"{size / 1e6:,.1f} MB",
+             f"{size / frames:.1f} B/frame (MCAP {meta['mcap_bytes'] / frames:.1f})"],
+            ["ingest again (all known)", f"{again['wall']:.2f} s",
+             f"rc {again.get('rc')}: size+mtime check, nothing read"],
         ]
         for name, engine, t, what in queries(ds):
             rows.append([f"{name}: {engine}", f"{t * 1e3:,.0f} ms", what])

@@ -19,7 +19,7 @@ from ..events import CaptureInfo
 from ..frame import Frame
 from .parquet import BATCH, RowGroupFile
 from .rows import annotation_rows, frame_row, point_rows
-from .schemas import DATASET_TABLES, SCHEMA_VERSION, annotation_schema, dataset_schemas, export_schemas
+from .schemas import DATASET_TABLES, SCHEMA_VERSION, dataset_bases, dataset_schemas
 from .tables import CONVERT, TableSink, to_batch
 
 NS = 1_000_000_000
@@ -50,7 +50,7 @@ class DatasetSink(TableSink):
         self.given_link = link
         self.source = source
         self.tables = dataset_schemas()
-        self._base = (*export_schemas(), annotation_schema())
+        self._base = dataset_bases()  # to_batch takes a row's first columns: a trailing `link` is left out
         self._parts: dict[tuple[str, str], _Partition] = {}
         self._cur: _Partition | None = None
         self._link = ""

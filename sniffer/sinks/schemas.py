@@ -58,14 +58,25 @@ def annotation_schema():
     return schema
 
 
+def dataset_bases() -> tuple:
+    """The rows' schemas of the dataset's three tables: the export's frames and points and the annotations,
+    without the partition columns (a row's link is its folder; a partition column comes last in a row)."""
+    import pyarrow as pa
+
+    out = []
+    for schema in (*export_schemas(), annotation_schema()):
+        kept = [f for f in schema if f.name not in PARTITIONS]
+        assert schema.names[: len(kept)] == [f.name for f in kept], "a partition column must come last"
+        out.append(pa.schema(kept))
+    return tuple(out)
+
+
 def dataset_schemas() -> dict:
     """The dataset's tables: name -> schema (the rows' columns, then `time` and `capture`)."""
     import pyarrow as pa
 
-    frames, points = export_schemas()
     extra = [pa.field("time", pa.timestamp("ns", tz="UTC")), pa.field("capture", pa.string())]
-    return {name: pa.schema(list(base) + extra)
-            for name, base in zip(DATASET_TABLES, (frames, points, annotation_schema()))}
+    return {name: pa.schema(list(base) + extra) for name, base in zip(DATASET_TABLES, dataset_bases())}
 
 
 def described(schema) -> list[list[str]]:
