@@ -120,6 +120,24 @@ def publish_flags(p: argparse.ArgumentParser) -> None:
                    metavar="N", help="frames a viewer that joins late gets first (default 100000)")
 
 
+def trigger_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("triggers (sniffer/triggers: a window file around each event)")
+    g.add_argument("--trigger", action="append", metavar="EXPR",
+                   help="keep a window when a frame passes this filter (the TUI's language; repeatable): "
+                        "fault, 'exception u:2', crc, timeout, 'write u:1 2000H', "
+                        "'u:1 \"Output frequency\" > 55', 'rate(crc) > 5/min'")
+    g.add_argument("--pre", metavar="TIME", help="keep this much before the trigger (default 5m)")
+    g.add_argument("--post", metavar="TIME", help="and this much after its last match (default 1m)")
+    g.add_argument("--ring", action="store_true", help="keep only the windows, not the whole capture")
+    g.add_argument("--ring-max", metavar="SIZE", help="memory for the last --pre of the capture (default 64MiB)")
+    g.add_argument("--max-window", metavar="TIME", help="a window ends at most this long after its trigger "
+                   "(default 10 x --post)")
+    g.add_argument("--windows", metavar="DIR", help="folder of the window files (default: that of --out, or here)")
+    g.add_argument("--on-trigger", metavar="CMD", help="run CMD (sh -c) for each complete window file, with "
+                   "SNIFFER_TRIGGER_FILE, _RULE, _TIME, _SUMMARY ... in its environment")
+    g.add_argument("--on-trigger-timeout", metavar="TIME", help="kill --on-trigger's command after this (default 60s)")
+
+
 def dataset_flags(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("fleet dataset")
     g.add_argument("--link", metavar="NAME",
@@ -156,6 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
     capture_out_flags(s, None, 0)
     s.add_argument("--headless", action="store_true", help="text stream instead of the TUI (default off a tty)")
     publish_flags(s)
+    trigger_flags(s)
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap)")
     input_flags(s)
@@ -163,7 +182,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--tui", action="store_true", help="browse the capture in the terminal UI")
     serial_flags(s)
     decode_flags(s)
-    stream_flags(s)
+    stream_flags(s, quiet=True)
+    trigger_flags(s)
 
     s = sub.add_parser("decode", help="decode frames given as hex, one argument per frame (no timing: "
                                       "no latency or silence verdicts)")
@@ -203,6 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
     decode_flags(s, bus=False)
     stream_flags(s, quiet=True)
     publish_flags(s)
+    trigger_flags(s)
 
     s = sub.add_parser("attach", help="view a capture that another process publishes (--publish, sniffer serve)")
     s.add_argument("socket", help="the capture's socket (or tcp:[HOST:]PORT)")
@@ -228,6 +249,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="where the capture publishes (default: a fresh one in $XDG_RUNTIME_DIR or /tmp)")
     g.add_argument("--publish-backlog", type=_number(int, "--publish-backlog", 0, 10_000_000), default=100_000,
                    metavar="N", help="frames a viewer that joins late gets first (default 100000)")
+    trigger_flags(s)
 
     s = sub.add_parser(
         "detect", formatter_class=argparse.RawDescriptionHelpFormatter,

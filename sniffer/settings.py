@@ -22,6 +22,7 @@ from .events import CaptureInfo
 from .line import LineSettings, SettingsError
 from .pairer import DEFAULT_TIMEOUT_MS
 from .pipeline import Pipeline
+from .triggers.options import TriggerSpec
 
 MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo, not a response timeout
 MAX_DURATION_S = 366 * 86_400.0
@@ -145,6 +146,7 @@ class CaptureSpec:
     headless: bool = False
     publish: str | None = None
     publish_backlog: int = 100_000
+    trigger: TriggerSpec | None = None  # --trigger and its flags: windows around events (sniffer.triggers)
 
     @classmethod
     def of(cls, *, baud=None, parity=None, stopbits=None, protocol=None, devices=None, timeout_ms=None,
@@ -181,7 +183,7 @@ class CaptureSpec:
             out=None if opt("no_out") else opt("out"),
             stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
             headless=bool(opt("headless")), publish=opt("publish"),
-            publish_backlog=opt("publish_backlog", 100_000),
+            publish_backlog=opt("publish_backlog", 100_000), trigger=TriggerSpec.from_args(args),
         )
 
     def with_(self, **changes) -> CaptureSpec:
@@ -233,6 +235,8 @@ class CaptureSpec:
         argv += ["--duration", repr(self.duration_s)]
         if self.publish:
             argv += ["--publish", self.publish, "--publish-backlog", str(self.publish_backlog)]
+        if self.trigger is not None:
+            argv += self.trigger.to_argv()
         if self.headless:
             argv.append("--headless")
         if self.stream is None:

@@ -60,7 +60,7 @@ def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None) -> int
     session = capture_session(spec, source, label, inputs=inputs)
     on_signals(session.stop)
     session.open()  # a missing port, a bad setting: one line, and nothing created
-    where = f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)" if spec.out else ""
+    where = f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)" if session.outputs else ""
     say(f"{what() if what else 'capturing ' + label} at {session.resolved.describe()} (read-only){where}")
     session.run()
     print(summary_line(session), file=sys.stderr)

@@ -49,7 +49,7 @@ def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=()) -> l
         s = stream_sink(spec, line_buffered=True)
         if s is not None:
             sinks.append(s)
-    if spec.out:
+    if spec.out and not (spec.trigger is not None and spec.trigger.ring):  # --ring: only the windows
         sinks.append(FileSink("mcap", spec.out, inputs=inputs))
     if spec.publish:
         sinks.append(PublishSink(spec.publish, label=label, capture_path=spec.out, backlog=spec.publish_backlog))

@@ -36,7 +36,7 @@ def cmd_replay(spec: CaptureSpec, args) -> int:
         rc = run_session_tui(session, sink, source_label=spec.input)
         return rc or report(session, label=spec.input)
     bar = None
-    session = Session(spec, source, [stream_sink(spec, line_buffered=False)])
+    session = Session(spec, source, [s for s in (stream_sink(spec, line_buffered=False),) if s is not None])
     if args.progress:
         from ..progress import ReplayProgress
 
