@@ -276,3 +276,20 @@ def test_a_folder_with_other_files_is_not_made_a_dataset(tmp_path, capsys):
     assert main(["export", str(A510), "--to", "dataset", str(tmp_path)]) == 2
     assert "holds other files" in capsys.readouterr().err
     assert os.listdir(tmp_path) == ["notes.txt"]
+
+
+def test_disk_full_leaves_the_dataset_as_it_was(tmp_path):
+    import subprocess
+    import sys
+
+    ds = tmp_path / "fleet"
+    assert main(["export", str(A510), "--to", "dataset", str(ds)]) == 0
+    before = files(ds)
+    code = ("import resource,sys; resource.setrlimit(resource.RLIMIT_FSIZE,(20000,20000));"
+            "import signal; signal.signal(signal.SIGXFSZ, signal.SIG_IGN);"
+            "from sniffer.cli import main; sys.exit(main(sys.argv[1:]))")
+    r = subprocess.run([sys.executable, "-c", code, "export", str(ERRORS), "--to", "dataset", str(ds)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1, r.stderr
+    assert "cannot write the dataset" in r.stderr and "Traceback" not in r.stderr
+    assert files(ds) == before  # no half file, no staging folder, no manifest entry

@@ -111,6 +111,8 @@ def _why_not(session: Session, path: str) -> str | None:
         where = "" if first.startswith(path) else f"{shown(path)}: "
         return (f"{where}input damaged: {first}{more}; not taken in (`sniffer repair` writes a clean copy "
                 f"to take in)")
+    if session.storage_error:  # a full disk, an I/O error: the dataset's side
+        return f"{shown(path)}: cannot write the dataset: {session.error}"
     if session.error:
         return f"{shown(path)}: {session.error}" if not session.error.startswith(path) else session.error
     return None
