@@ -133,6 +133,8 @@ def test_ingest_is_incremental(tmp_path, truth, capsys):
     assert counts == {"default": truth["a510.mcap"][0], "line3": truth["errors.mcap"][0]}
     entries = sql(ds, "SELECT capture, frames FROM captures ORDER BY capture")
     assert [n for _, n in entries] == [truth["a510.mcap"][0], truth["errors.mcap"][0]]
+    (ds / "_manifest" / "zz-by-hand.json").write_text("{broken")  # a damaged entry: left out, queries still run
+    assert sql(ds, "SELECT count(*) FROM captures") == [(2,)]
 
 
 def _clocked_capture(path: Path, anchor_ns: int, port: str) -> int:

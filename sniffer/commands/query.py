@@ -26,14 +26,14 @@ def cmd_query(spec: CaptureSpec, args) -> int:
     ds = open_dataset(args.dataset)
     import duckdb
 
-    con = connect(ds)
+    con = None
     try:
-        try:
-            cursor = con.execute(sql)
-            write(cursor, args.format, sys.stdout, max_rows=args.max_rows)
-        except duckdb.Error as e:
-            first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-            raise UsageError(f"query: {first}") from None
+        con = connect(ds)
+        write(con.execute(sql), args.format, sys.stdout, max_rows=args.max_rows)
+    except duckdb.Error as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise UsageError(f"query: {first}") from None
     finally:
-        con.close()
+        if con is not None:
+            con.close()
     return EXIT_OK

@@ -19,7 +19,7 @@ import os
 from dataclasses import dataclass
 
 from ..sinks.schemas import DATASET_TABLES, PARTITIONS, dataset_schemas
-from .layout import MANIFEST, Dataset
+from .layout import Dataset
 
 
 @dataclass(frozen=True)
@@ -77,6 +77,36 @@ def _partitioned(schema):
     return schema.append(pa.field(PARTITIONS[0], pa.string())).append(pa.field(PARTITIONS[1], pa.date32()))
 
 
+def _captures(ds: Dataset):
+    """The manifest as a table (entries that cannot be read are left out, as when ingesting)."""
+    import pyarrow as pa
+
+    i, s = pa.int64(), pa.string()
+    schema = pa.schema([("capture", s), ("source", s), ("size", i), ("sha256", s), ("frames", i), ("points", i),
+                        ("annotations", i), ("links", pa.list_(s)), ("partitions", pa.list_(s)), ("settings", s),
+                        ("first", pa.timestamp("ns", tz="UTC")), ("last", pa.timestamp("ns", tz="UTC")),
+                        ("ingested_at", s), ("sniffer_version", s)])
+    rows = []
+    for e in ds.manifest():
+        row = {name: e.get(name) for name in schema.names}
+        row["first"], row["last"] = e.get("first_ns"), e.get("last_ns")
+        rows.append(row)
+    try:
+        return pa.Table.from_pylist(rows, schema=schema)
+    except (pa.ArrowInvalid, pa.ArrowTypeError, TypeError):  # an entry edited by hand: keep the ones that fit
+        return pa.Table.from_pylist([r for r in rows if _fits(r, schema)], schema=schema)
+
+
+def _fits(row: dict, schema) -> bool:
+    import pyarrow as pa
+
+    try:
+        pa.Table.from_pylist([row], schema=schema)
+    except (pa.ArrowInvalid, pa.ArrowTypeError, TypeError):
+        return False
+    return True
+
+
 def connect(ds: Dataset, *, threads: int | None = None):
     """An in-memory DuckDB connection with the dataset's views (frames, points, annotations, captures)."""
     import duckdb
@@ -91,16 +121,8 @@ def connect(ds: Dataset, *, threads: int | None = None):
             continue
         con.execute(f"CREATE VIEW {name} AS SELECT * FROM read_parquet({_literal(pattern)}, hive_partitioning = true, "
                     f"hive_types = {hive_types}, union_by_name = true)")
-    manifest = os.path.join(glob.escape(ds.root), MANIFEST, "*.json")
-    if next(glob.iglob(manifest), None) is not None:
-        con.execute(f"CREATE VIEW captures AS SELECT capture, source, size, sha256, frames, points, annotations, "
-                    f"links, partitions, settings, ingested_at FROM read_json_auto({_literal(manifest)}, "
-                    f"union_by_name = true)")
-    else:
-        con.execute("CREATE VIEW captures AS SELECT NULL::VARCHAR AS capture, NULL::VARCHAR AS source, "
-                    "NULL::BIGINT AS size, NULL::VARCHAR AS sha256, NULL::BIGINT AS frames, NULL::BIGINT AS points, "
-                    "NULL::BIGINT AS annotations, NULL::VARCHAR[] AS links, NULL::VARCHAR[] AS partitions, "
-                    "NULL::VARCHAR AS settings, NULL::VARCHAR AS ingested_at WHERE false")
+    con.register("_captures", _captures(ds))
+    con.execute("CREATE VIEW captures AS SELECT * FROM _captures")
     return con
 
 
