@@ -287,7 +287,7 @@ def test_disk_full_leaves_the_dataset_as_it_was(tmp_path):
     ds = tmp_path / "fleet"
     assert main(["export", str(A510), "--to", "dataset", str(ds)]) == 0
     before = files(ds)
-    code = ("import resource,sys; resource.setrlimit(resource.RLIMIT_FSIZE,(20000,20000));"
+    code = ("import resource,sys; resource.setrlimit(resource.RLIMIT_FSIZE,(10000,10000));"
             "import signal; signal.signal(signal.SIGXFSZ, signal.SIG_IGN);"
             "from sniffer.cli import main; sys.exit(main(sys.argv[1:]))")
     r = subprocess.run([sys.executable, "-c", code, "export", str(ERRORS), "--to", "dataset", str(ds)],

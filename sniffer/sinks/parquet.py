@@ -19,23 +19,24 @@ _SETTINGS = {"compression": "snappy", "version": "2.6", "use_dictionary": True, 
              "store_schema": True}
 
 
-def _writer(path: str, schema, pool):
+def _writer(path: str, schema, pool, options: dict | None = None):
     """A Parquet file writer with pyarrow.parquet's default settings.
 
     Importing pyarrow.parquet imports pyarrow.fs and with it the S3, GCS, Azure and HDFS modules
     and ssl: 9.8 MB of RSS (measured), a tenth of a million-frame export's peak, for a local file.
     Its engine, pyarrow._parquet.ParquetWriter, is called directly with the settings the public
     class would pass; should a pyarrow release change that private signature, the public class
-    is used (test_export reads every file back with pyarrow.parquet).
+    is used (test_export reads every file back with pyarrow.parquet).  `options` replace settings
+    (compression, use_dictionary, column_encoding: the fleet dataset's, sinks/dataset.py).
     """
     try:
         from pyarrow import _parquet
 
-        return _parquet.ParquetWriter(path, schema, memory_pool=pool, **_SETTINGS)
+        return _parquet.ParquetWriter(path, schema, memory_pool=pool, **{**_SETTINGS, **(options or {})})
     except (ImportError, AttributeError, TypeError):
         import pyarrow.parquet as pq
 
-        return pq.ParquetWriter(path, schema, memory_pool=pool)
+        return pq.ParquetWriter(path, schema, memory_pool=pool, **(options or {}))
 
 
 class RowGroupFile:
@@ -43,11 +44,11 @@ class RowGroupFile:
 
     The schema's metadata (if any) goes into the file's key-value metadata."""
 
-    def __init__(self, path: str, schema, pool, batch: int = BATCH) -> None:
+    def __init__(self, path: str, schema, pool, batch: int = BATCH, options: dict | None = None) -> None:
         self.schema = schema
         self.batch = batch
         self.rows = 0
-        self._writer = _writer(path, schema, pool)
+        self._writer = _writer(path, schema, pool, options)
         self._staged: list = []
         self._staged_rows = 0
 
