@@ -11,7 +11,9 @@
 2. Pin the whole run to one CPU (`--cpu`, default the last), then run `sniffer ingest
    SEGMENTS --to DATASET` in a fresh process (bench_commands' `--run` child: wall, CPU,
    peak RSS): frames/s, dataset bytes per frame (beside the MCAP's), peak RSS; then the same
-   command again (everything already there: the incremental check's cost).
+   command again (everything already there: the incremental check's cost); one segment alone
+   (peak RSS: flat in the number of segments) and the same segment by `export --to parquet`
+   (the Parquet export the dataset builds on, as a peer).
 3. Queries on the dataset, best of 3, in this process with DuckDB at one thread: the
    `faults` preset (problems by link, unit and code), `latency` and a plain count of bad-CRC
    frames; the peers on the same files: pyarrow.dataset (a filter and a group-by in Arrow's
@@ -184,10 +186,21 @@ def main(argv=None) -> int:
         size = du(ds)
         fps = frames / res["wall"]
         again = bc.run_measured(argv_ingest, 0)
+        first = sorted((work / "captures" / "segments").iterdir())[0]
+        one_ds = work / "one-segment"
+        shutil.rmtree(one_ds, ignore_errors=True)
+        one = bc.run_measured(["export", str(first), "--to", "dataset", str(one_ds)], 0)
+        shutil.rmtree(one_ds, ignore_errors=True)
+        peer = bc.run_measured(["export", str(first), "--to", "parquet", "--out", str(work / "peer.parquet")], 0)
+        for p in work.glob("peer*.parquet"):
+            p.unlink()
         rows = [
             ["ingest (decode + write), frames/s", f"{fps / 1e3:,.1f}k",
              f"{res['wall']:.1f} s wall, {res['cpu']:.1f} s CPU"],
-            ["peak RSS of the ingest", f"{res['rss_mb']:.0f} MB", "flat: one segment's partitions open at a time"],
+            ["peak RSS of the ingest", f"{res['rss_mb']:.0f} MB",
+             f"one segment alone: {one['rss_mb']:.0f} MB (export --to dataset); the same segment by "
+             f"export --to parquet: {peer['rss_mb']:.0f} MB, {meta['frames_per_segment'] / peer['wall'] / 1e3:.1f}k "
+             f"frames/s"],
             ["dataset size", f"{size / 1e6:,.1f} MB",
              f"{size / frames:.1f} B/frame (MCAP {meta['mcap_bytes'] / frames:.1f})"],
             ["ingest again (all known)", f"{again['wall']:.2f} s",
