@@ -27,7 +27,8 @@ def _types():
 
 
 def export_schemas():
-    """The export's frames and points tables (plain types: int64, float64, bool, string)."""
+    """The export's frames and points tables (plain types: int64, float64, bool, string); `link` last
+    (null for one line): in the dataset it is the partition folder instead (`dataset_bases`)."""
     import pyarrow as pa
 
     i, f, s, b = _types()
@@ -35,11 +36,12 @@ def export_schemas():
         ("index", i), ("t", f), ("t_end", f), ("t_wall_ns", i), ("protocol", s), ("role", s), ("unit", i),
         ("function", i), ("crc_ok", b), ("exception_code", i), ("model", s), ("pair", i), ("latency_ms", f),
         ("n_points", i), ("annotations", s), ("summary", s), ("raw", s), ("channel", s), ("time_source", s),
-        ("noise_reason", s),
+        ("noise_reason", s), ("link", s),
     ])
     points = pa.schema([
         ("frame", i), ("t", f), ("unit", i), ("function", i), ("role", s), ("crc_ok", b), ("model", s),
         ("address", i), ("name", s), ("id", s), ("raw", i), ("value", f), ("value_text", s), ("eng_unit", s),
+        ("link", s),
     ])
     assert frames.names == list(FRAME_COLUMNS) and points.names == list(POINT_COLUMNS)
     return frames, points
