@@ -147,11 +147,15 @@ def trigger_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--on-trigger-timeout", metavar="TIME", help="kill --on-trigger's command after this (default 60s)")
 
 
-def dataset_flags(p: argparse.ArgumentParser) -> None:
+def dataset_flags(p: argparse.ArgumentParser, progress: str) -> None:
+    """export's and ingest's: --progress, --link, and the line and decoding flags a capture is read with."""
+    p.add_argument("--progress", action="store_true", help=progress)
     g = p.add_argument_group("fleet dataset")
     g.add_argument("--link", metavar="NAME",
                    help="the link a one-line capture is filed under (default: its port's name, e.g. ttyUSB0, "
                         "or \"default\"); a capture of several links files each under its own name")
+    serial_flags(p)
+    decode_flags(p)
 
 
 class _ExportTo(argparse.Action):
@@ -315,19 +319,13 @@ def build_parser() -> argparse.ArgumentParser:
                         "dataset in folder DIR (made if new, else appended to; docs/fleet.md)")
     s.add_argument("--out", metavar="PATH", help="output file (csv/parquet: also PATH stem.points.*); with --to "
                                                  "dataset: the dataset folder")
-    s.add_argument("--progress", action="store_true", help="show a progress bar on stderr")
-    dataset_flags(s)
-    serial_flags(s)
-    decode_flags(s)
+    dataset_flags(s, "show a progress bar on stderr")
 
     s = sub.add_parser("ingest", help="take a folder of MCAP captures into a fleet dataset; already taken ones "
                                       "are skipped (docs/fleet.md)")
     s.add_argument("folder", help="the folder of captures (*.mcap, in subfolders too; *.part files are left out)")
     s.add_argument("--to", required=True, metavar="DIR", dest="dataset", help="the dataset folder (made if new)")
-    s.add_argument("--progress", action="store_true", help="show a progress bar per capture on stderr")
-    dataset_flags(s)
-    serial_flags(s)
-    decode_flags(s)
+    dataset_flags(s, "show a progress bar per capture on stderr")
 
     s = sub.add_parser("query", help="SQL over a fleet dataset with DuckDB: views frames, points, annotations, "
                                      "captures (docs/fleet.md)")
