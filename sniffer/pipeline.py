@@ -68,6 +68,14 @@ class Pipeline:
             return out
         raise TypeError(f"unknown event {ev!r}")
 
+    def settled(self) -> int:
+        """Between events: 2 nothing is pending, 1 a request waits for its answer, 0 bytes wait in the framer.
+
+        A capture cut at 2 (a rotated segment) replays alone to the frames it had in the whole."""
+        if self.framer.pending_bytes():
+            return 0
+        return 1 if self.pairer.pending is not None or self.pairer.held else 2
+
     def flush(self) -> list[Frame]:
         """End of input: every pending byte becomes a frame, every held request is settled."""
         out = self._settle(self.framer.flush())

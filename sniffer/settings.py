@@ -22,6 +22,7 @@ from .events import CaptureInfo
 from .line import LineSettings, SettingsError
 from .pairer import DEFAULT_TIMEOUT_MS
 from .pipeline import Pipeline
+from .segments import Keep, Rotate
 
 MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo, not a response timeout
 MAX_DURATION_S = 366 * 86_400.0
@@ -133,7 +134,8 @@ class CaptureSpec:
     map_base: str | None = None  # --map-base 0|1|modicon for CSV model files (None: what the file says, else 0)
     # where the capture comes from
     port: str | None = None
-    input: str | None = None
+    input: str | None = None  # the capture file (the first, when several)
+    inputs: tuple[str, ...] = ()  # several files, a rotated capture's folder or its index (replay, export, check)
     input_format: str = "auto"
     scenario: str | None = None
     seed: int = 1
@@ -144,6 +146,11 @@ class CaptureSpec:
     headless: bool = False
     publish: str | None = None
     publish_backlog: int = 100_000
+    # unattended (sniffer.segments, sniffer.status)
+    rotate: Rotate | None = None  # --rotate: the MCAP as segments in the folder --out names
+    keep: Keep | None = None  # --keep: retention of closed segments
+    status: str | None = None  # --status FILE (default with --rotate: status.json in the capture's folder)
+    wait_port: bool = False  # --wait-port: a port that is not there yet is waited for
 
     @classmethod
     def of(cls, *, baud=None, parity=None, stopbits=None, protocol=None, devices=None, timeout_ms=None,
@@ -168,16 +175,23 @@ class CaptureSpec:
                            None if timeout is None else finite(timeout, "--timeout-ms", upper=MAX_TIMEOUT_MS))
         duration = opt("duration", 0.0) or 0.0
         fmt = opt("format", "text")
+        files = opt("file")
+        files = list(files) if isinstance(files, (list, tuple)) else [files] if files else []
+        rotate, keep = Rotate.parse(opt("rotate")), Keep.parse(opt("keep"))
+        if keep is not None and rotate is None:
+            raise SettingsError("--keep needs --rotate (it deletes a rotated capture's oldest segments)")
         return cls(
             flags=flags, bus_file=opt("bus"), bus=_load_bus(opt("bus")), model_files=tuple(opt("model_file") or ()),
             map_base=opt("map_base"),
-            port=opt("port"), input=opt("file"), input_format=opt("input_format", "auto") or "auto",
+            port=opt("port"), input=files[0] if files else None, inputs=tuple(files),
+            input_format=opt("input_format", "auto") or "auto",
             scenario=opt("scenario"), seed=opt("seed", 1) or 1,
             duration_s=finite(duration, "--duration", upper=MAX_DURATION_S),
             out=None if opt("no_out") else opt("out"),
             stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
             headless=bool(opt("headless")), publish=opt("publish"),
             publish_backlog=opt("publish_backlog", 100_000),
+            rotate=rotate, keep=keep, status=opt("status"), wait_port=bool(opt("wait_port")),
         )
 
     def with_(self, **changes) -> CaptureSpec:
@@ -229,6 +243,14 @@ class CaptureSpec:
         argv += ["--duration", repr(self.duration_s)]
         if self.publish:
             argv += ["--publish", self.publish, "--publish-backlog", str(self.publish_backlog)]
+        if self.rotate is not None:
+            argv += ["--rotate", self.rotate.to_flag()]
+        if self.keep is not None:
+            argv += ["--keep", self.keep.to_flag()]
+        if self.status:
+            argv += ["--status", self.status]
+        if self.wait_port and command == "live":
+            argv.append("--wait-port")
         if self.headless:
             argv.append("--headless")
         if self.stream is None:

@@ -16,7 +16,7 @@ from .replay import file_source
 
 
 def cmd_export(spec: CaptureSpec, args) -> int:
-    sink = FileSink(args.to, args.out, inputs=[spec.input])  # checked before the input is read
+    sink = FileSink(args.to, args.out, inputs=spec.inputs or [spec.input])  # checked before the input is read
     source = file_source(spec)
     session = Session(spec, source, [sink])
     bar = None
