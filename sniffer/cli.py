@@ -193,6 +193,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--receiver-baud", type=_number(int, "--receiver-baud", 50, MAX_BAUD), metavar="BAUD")
     g.add_argument("--receiver-parity", choices=["N", "E", "O"], type=str.upper)
     g.add_argument("--receiver-stopbits", type=int, choices=[1, 2])
+    unattended_flags(s)
 
     s = sub.add_parser("demo", help="live capture of a simulated bus over a pseudo-terminal")
     s.add_argument("--scenario", default="default", help=_SCENARIO_HELP)

@@ -230,7 +230,7 @@ def write_index(folder: str, segments: list[Segment]) -> None:
 def read_index(folder: str) -> list[Segment]:
     """The index's segments, reconciled with the folder: files gone are left out, segment files the
     index does not list are added (times from the name and mtime), a dead capture's open segment
-    (only its part file is there) is `killed`.  Sorted by sequence number and time."""
+    (only its part file is there) is `killed`.  Sorted by sequence number."""
     d = read_json(os.path.join(folder, INDEX_NAME)) or {}
     listed: dict[str, Segment] = {}
     for item in d.get("segments") or ():
@@ -269,7 +269,7 @@ def read_index(folder: str) -> list[Segment]:
         elif seg.state != "closed":
             seg.state = "closed"  # renamed into place by a capture that died before it wrote the index
         out.append(seg)
-    out.sort(key=lambda s: (s.start_ns, s.seq))
+    out.sort(key=lambda s: s.seq)  # numbered on across restarts: time order, with a wall clock or without
     return out
 
 

@@ -117,11 +117,12 @@ class SegmentSink(Sink):
         self._t_last = info.t0_ns
         self._first_seq = max((s.seq for s in self.segments), default=0) + 1
         self._open_segment(info.t0_ns)
-        self._apply_keep()
 
     def raw(self, event) -> None:
-        self._cur.raw(event)
         t = event.t_end_ns if type(event) is Gap else event.t_ns
+        if self._cur is None:  # the next segment opens with the first event after a rotation, where the last ended
+            self._open_segment(self._t_last)
+        self._cur.raw(event)
         if t > self._t_last:
             self._t_last = t
         if not self.rotate_due and (
@@ -130,11 +131,14 @@ class SegmentSink(Sink):
             self.rotate_due, self._due_t = True, t
 
     def frame(self, frame: Frame) -> None:
+        if self._cur is None:
+            self._open_segment(self._t_last)
         self._cur.frame(frame)
         self._seg.frames += 1
 
     def maybe_flush(self) -> None:
-        self._cur.maybe_flush()
+        if self._cur is not None:
+            self._cur.maybe_flush()
 
     def rotate_if(self, settled: int) -> None:
         """Between events, once due: close the segment if the pipeline is settled enough (see FORCE_AFTER_NS).
@@ -143,8 +147,6 @@ class SegmentSink(Sink):
         overdue = self._t_last - self._due_t
         if settled == 2 or (settled == 1 and overdue >= FORCE_AFTER_NS[0]) or overdue >= FORCE_AFTER_NS[1]:
             self._close_segment()
-            self._open_segment(self._t_last)
-            self._apply_keep()
 
     def close(self) -> None:
         if self._closed:
@@ -153,6 +155,9 @@ class SegmentSink(Sink):
         try:
             if self._cur is not None:
                 self._close_segment()
+            else:
+                self._apply_keep()
+                self._write_index()
         finally:
             if self.lock_fd is not None:
                 os.close(self.lock_fd)
@@ -193,11 +198,13 @@ class SegmentSink(Sink):
                             (t_ns - info.t0_ns) / 1e9, (t_ns - info.t0_ns) / 1e9, state="open")
         self.segments.append(self._seg)
         self.rotate_due = False
+        self._apply_keep()
         self._write_index()
 
     def _close_segment(self) -> None:
         cur, seg, out = self._cur, self._seg, self._out
         self._cur = None
+        self.rotate_due = False
         try:
             cur.close()
         finally:
@@ -214,8 +221,7 @@ class SegmentSink(Sink):
                 seg.bytes = os.path.getsize(out.path) if seg.state == "closed" else 0
             except OSError:
                 seg.bytes = 0
-            if self._closed:  # the end of the capture: no segment opens after this one
-                self._apply_keep()
+            self._apply_keep()
             self._write_index()
 
     def _apply_keep(self) -> None:
@@ -235,8 +241,6 @@ class SegmentSink(Sink):
                 continue
             self.segments.remove(s)
             self.deleted += 1
-        if gone:
-            self._write_index()
 
     def _write_index(self) -> None:
         try:

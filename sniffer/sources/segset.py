@@ -92,8 +92,7 @@ class SetSource:
             if _line(info) != _line(first):
                 raise CaptureError(f"{path}: recorded at {_describe(info)}, but {first_path} at {_describe(first)}: "
                                    f"replay them separately")
-        infos.sort(key=lambda pi: self._start_wall(pi[1], first))
-        self.files = infos
+        infos = self.files = self._order(infos)
         base = CaptureInfo.from_dict(infos[0][1].to_dict())
         for key in ("segment", "segment_t_ns", "mcap_unfinished"):
             base.extra.pop(key, None)
@@ -104,12 +103,18 @@ class SetSource:
         return base
 
     @staticmethod
-    def _start_wall(info: CaptureInfo, first: CaptureInfo) -> int:
-        """Where a file starts on the first file's clock (stable: files without a wall clock keep their order)."""
-        start = info.extra.get("segment_t_ns", info.t0_ns)
-        if not (info.wall_anchor_ns and first.wall_anchor_ns):
-            return start - info.t0_ns + first.t0_ns if info.t0_ns == first.t0_ns else 0
-        return info.wall_anchor_ns + (start - info.t0_ns)
+    def _order(infos: list[tuple[str, CaptureInfo]]) -> list[tuple[str, CaptureInfo]]:
+        """Time order: by wall clock when every file has one; else captures in the order given, each
+        capture's segments by their start."""
+        def start(info):
+            return info.extra.get("segment_t_ns", info.t0_ns)
+
+        if all(info.wall_anchor_ns for _, info in infos):
+            return sorted(infos, key=lambda pi: pi[1].wall_anchor_ns + start(pi[1]) - pi[1].t0_ns)
+        rank: dict = {}
+        for path, info in infos:
+            rank.setdefault(info.extra.get("capture_id") or path, len(rank))
+        return sorted(infos, key=lambda pi: (rank[pi[1].extra.get("capture_id") or pi[0]], start(pi[1])))
 
     def events(self) -> Iterator[Chunk | Tick | Gap]:
         self.open()
@@ -119,11 +124,13 @@ class SetSource:
         base = self._info
         last_t: int | None = None
         prev: CaptureInfo | None = None
+        off = 0
         for i, (path, info) in enumerate(self.files):
             if self._stop.is_set():
                 return
-            off = self._offset(info, base, last_t)
             hole = self._hole(prev, info, path)
+            if prev is None or not _same_capture(prev, info):
+                off = self._offset(info, base, last_t)
             src = self._current = FileSource(path, self.format)
             try:
                 src.open()
@@ -149,13 +156,11 @@ class SetSource:
 
     @staticmethod
     def _offset(info: CaptureInfo, base: CaptureInfo, last_t: int | None) -> int:
-        """What to add to a file's times to put them on the set's clock."""
-        if info.t0_ns == base.t0_ns and info.wall_anchor_ns == base.wall_anchor_ns:
-            return 0
+        """What to add to a file's times to put them on the set's clock (the first file's)."""
         if info.wall_anchor_ns and base.wall_anchor_ns:
             off = (info.wall_anchor_ns - info.t0_ns) - (base.wall_anchor_ns - base.t0_ns)
         else:
-            off = 0
+            off = 0 if info.t0_ns == base.t0_ns else base.t0_ns - info.t0_ns
         start = info.extra.get("segment_t_ns", info.t0_ns) + off
         if last_t is not None and start <= last_t:  # no wall clock, or clocks that overlap: one after another
             off += last_t + 1 - start
@@ -166,13 +171,13 @@ class SetSource:
         """Why there is a hole before this file ('' for the next segment of the same capture)."""
         if prev is None:
             return ""
-        cid, pid = info.extra.get("capture_id"), prev.extra.get("capture_id")
         name = os.path.basename(path)
-        if cid is None or cid != pid or info.t0_ns != prev.t0_ns:
+        if not _same_capture(prev, info):
             return f"another capture starts ({name})"
         a, b = prev.extra.get("segment"), info.extra.get("segment")
         if isinstance(a, int) and isinstance(b, int) and b != a + 1:
-            return f"segments {a + 1}..{b - 1} of the capture are missing (before {name})"
+            which = f"segment {a + 1} is" if b == a + 2 else f"segments {a + 1}..{b - 1} are"
+            return f"{which} missing (before {name})"
         return ""
 
     def stop(self) -> None:
@@ -189,6 +194,12 @@ class SetSource:
         total = sum(self._sizes)
         cur = self._current.position() if self._current is not None else None
         return self._done_bytes + (cur[0] if cur else 0), total
+
+
+def _same_capture(a: CaptureInfo, b: CaptureInfo) -> bool:
+    """Two segments of one capture (files without a capture id are captures of their own)."""
+    cid = a.extra.get("capture_id")
+    return cid is not None and cid == b.extra.get("capture_id") and a.t0_ns == b.t0_ns
 
 
 def _size(path: str) -> int:
