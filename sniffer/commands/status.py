@@ -51,7 +51,11 @@ def _alive(pid) -> bool:
         return False
     except PermissionError:
         return True  # another user's process (the service's)
-    return True
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            return fh.read().rsplit(b")", 1)[-1].split()[0] != b"Z"  # a zombie: killed, not yet reaped
+    except (OSError, IndexError):
+        return True
 
 
 def _state(d: dict) -> tuple[bool, str]:
