@@ -334,3 +334,16 @@ def test_decode_capture_reads_a_folder(capsys, capture, tmp_path):
     n = sum(1 for _ in session)
     assert n == len(_jsonl(capsys, capture)) and session.info.extra["set_files"] == 2
     shutil.rmtree(folder)
+
+
+def test_the_capture_process_gets_the_unattended_flags():
+    """The TUI and serve run the capture as a process of its own from CaptureSpec.to_argv."""
+    from sniffer.cli import build_parser
+
+    spec = CaptureSpec.from_args(build_parser().parse_args(
+        ["live", "/dev/ttyUSB0", "--rotate", "1h", "--rotate", "200MB", "--keep", "14d,20GB", "--keep", "30",
+         "--status", "/tmp/s.json", "--wait-port", "--out", "cab3"]))
+    again = CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live")))
+    assert (again.rotate, again.keep, again.status, again.wait_port, again.out) == \
+           (spec.rotate, spec.keep, "/tmp/s.json", True, "cab3")
+    assert spec.rotate == Rotate(3600 * 10**9, 200 * 10**6) and spec.keep == Keep(14 * 86400 * 10**9, 20 * 10**9, 30)
