@@ -75,11 +75,18 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path) -> dict:
     port, baud, parity, stop = feeder.stdout.readline().split()
     head = [sys.executable, "-c", OLD_SWITCH] if kind == "headless-5ms" else [sys.executable, "-m", "sniffer"]
     argv = [*head, "live", port, "--baud", baud, "--parity", parity, "--stopbits", stop, "--out", str(out)]
-    term = Terminal(argv if kind == "tui" else argv + ["--headless", "--quiet"])
+    sock = str(work / f"{kind}.sock")
+    extra = {"tui": [], "publish": ["--headless", "--quiet", "--publish", sock],
+             "attached": ["--headless", "--quiet", "--publish", sock]}.get(kind, ["--headless", "--quiet"])
+    term = Terminal(argv + extra)
+    viewer = None
     cpu0 = os.times()
     try:
         if not term.wait_for(port):
             raise SystemExit(f"{kind}: the capture did not start: {term.screen[-500:]!r}")
+        if kind == "attached":  # a viewer without a UI: the frames as text, to /dev/null
+            viewer = subprocess.Popen([sys.executable, "-m", "sniffer", "attach", sock],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         time.sleep(1.0)
         feeder.stdin.write("go\n")
         feeder.stdin.flush()
@@ -97,6 +104,8 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path) -> dict:
             os.kill(term.proc.pid, signal.SIGINT)
     finally:
         rc = term.finish()
+        if viewer is not None:
+            viewer.wait(10)
         feeder.stdin.write("q\n")
         feeder.stdin.close()
         feeder.wait()
@@ -135,12 +144,16 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--kinds", default="headless,tui,headless-5ms")
+    ap.add_argument("--keep", metavar="DIR", help="write the captures (KIND.mcap) here and keep them")
     a = ap.parse_args()
     print(f"{a.scenario}, {a.seconds:.0f} s per run, {os.cpu_count()} CPUs; load average at start "
           f"{os.getloadavg()[0]:.2f}")
     print(f"{'run':<14} {'responses':>9} {'no latency':>14} {'before req':>10} "
           f"{'read late ms p50':>16} {'p90':>6} {'p99':>7} {'max':>7} {'load':>5}")
-    with tempfile.TemporaryDirectory() as d:
+    if a.keep:
+        Path(a.keep).mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        d = a.keep or tmp
         for _ in range(a.repeat):
             for kind in a.kinds.split(","):
                 r = run_one(kind, a.scenario, a.seconds, Path(d))

@@ -72,6 +72,7 @@ def _run_live(tmp_path, name: str, frames, line, *, tui: bool):
             while player.is_alive():
                 term.read()
             time.sleep(0.5)  # the last answer reaches the capture
+            policies = {p: _policies(p) for p in [term.proc.pid, *children(term.proc.pid)]}
             if tui:
                 term.type("q")
                 assert term.wait_for("Stop the live capture"), "quitting a live capture did not ask"
@@ -83,7 +84,24 @@ def _run_live(tmp_path, name: str, frames, line, *, tui: bool):
         bus.drain()
         assert rc == 0, term.screen[-3000:]
         assert stats["s"].frames == len(frames)
-        return out, bus.bytes_received_from_sniffer, term, holders
+        return out, bus.bytes_received_from_sniffer, term, holders, policies
+
+
+SCHED_OTHER, SCHED_IDLE = 0, 5
+
+
+def _policies(pid: int) -> dict[str, int]:
+    """Thread name -> scheduling policy of a process's threads (from /proc/PID/task/TID/sched)."""
+    out = {}
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            name = open(f"/proc/{pid}/task/{tid}/comm").read().strip()
+            for line in open(f"/proc/{pid}/task/{tid}/sched"):
+                if line.startswith("policy"):
+                    out[f"{name}/{tid}"] = int(line.split()[-1])
+        except OSError:  # a thread that ended meanwhile
+            pass
+    return out
 
 
 def test_tui_capture_runs_in_its_own_process_and_records_as_headless(tmp_path):
@@ -93,11 +111,17 @@ def test_tui_capture_runs_in_its_own_process_and_records_as_headless(tmp_path):
     sc, frames = _feed("a510", 20.0)
     figures = {}
     for name, tui in (("tui", True), ("headless", False)):
-        out, written_back, term, holders = _run_live(tmp_path, name, frames, sc.line, tui=tui)
+        out, written_back, term, holders, policies = _run_live(tmp_path, name, frames, sc.line, tui=tui)
         assert written_back == 0  # passive: nothing reached the bus, TUI or not
         assert [r["raw"] for r in read_frames(str(out))] == [f.raw.hex() for f in frames]
         if tui:
             assert holders and term.proc.pid not in holders, "the TUI's own process opened the port"
+            # the viewer runs only when the capture does not want the CPU (SCHED_IDLE, threads after the first
+            # ones included), the capture at the normal policy
+            viewer = policies[term.proc.pid]
+            assert viewer[f"python/{term.proc.pid}"] == SCHED_IDLE, viewer
+            assert sum(p == SCHED_IDLE for p in viewer.values()) >= 2, viewer
+            assert all(p == SCHED_OTHER for h in holders for p in policies[h].values()), policies
             assert b"frames" in term.screen and f"{len(frames)} frames".encode() in term.screen  # the summary
         else:
             assert holders == [term.proc.pid]

@@ -314,7 +314,7 @@ def test_the_detail_follows_the_tail_at_a_readable_pace_and_shows_a_selected_fra
 
 def test_new_frames_below_a_still_window_and_a_fast_tail(monkeypatch):
     """Issue 11 (CPU): frames arriving below a window that does not follow repaint nothing but the scroll
-    extent; a followed tail that moves more than a screen between polls is drawn at most every
+    extent; a followed tail that moves more than TAIL_ROWS rows between draws is drawn at most every
     TAIL_EVERY_S by the timer (a direct poll draws at once)."""
     import sniffer.tui.vlist as vlist_module
 
@@ -331,12 +331,16 @@ def test_new_frames_below_a_still_window_and_a_fast_tail(monkeypatch):
             await pilot.press("end")
             assert fl.cursor == 199 and fl.follow and app.detail.frame is app.store.frames[199]
             monkeypatch.setattr(vlist_module, "TAIL_EVERY_S", 3600.0)
-            sink.frames(frames[200:210])  # fewer than a screen: drawn at once
+            sink.frames(frames[200:200 + vlist_module.TAIL_ROWS])  # a slow tail: drawn at once
             app.poll(0.01)
-            assert fl.cursor == 209
-            sink.frames(frames[210:300])  # more than a screen, just after a draw: at the next due poll
+            last = 199 + vlist_module.TAIL_ROWS
+            assert fl.cursor == last
+            sink.frames(frames[last + 1:last + 11])  # a fast one, just after a draw: at the next due poll
             app.poll(0.01)
-            assert fl.cursor == 209 and len(app.store) == 300
+            assert fl.cursor == last and len(app.store) == last + 11
+            sink.frames(frames[last + 11:300])
+            app.poll(0.01)
+            assert fl.cursor == last and len(app.store) == 300
             app.poll()
             assert fl.cursor == 299
     run(go())

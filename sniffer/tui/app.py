@@ -310,7 +310,7 @@ class SnifferApp(App):
         text = status_text(self)
         if text != self._status_text:
             self._status_text = text
-            self.status.update(text)
+            self.status.update(text, layout=False)  # one line, always: its text changing moves nothing else
 
     def refresh_tables(self) -> None:
         active = self.tabs.active

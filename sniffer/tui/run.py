@@ -95,6 +95,23 @@ def run_session_tui(session, sink: TuiSink, *, source_label: str, capture_path: 
     return _run(session_app(session, sink, source_label=source_label, capture_path=capture_path))
 
 
+def yield_to_capture() -> None:
+    """This process (the viewer of a capture it started) runs only when the capture does not want the CPU.
+
+    On a busy machine a read that waits for a CPU holds the request and its answer together (the answer
+    loses its latency); the view can wait.  SCHED_IDLE: any normal task preempts it at once (a nice level
+    only shares the CPU in proportion: at nice 5 a viewer still glued 7-11 % of the stress line's answers,
+    against 1 % headless, benchmarks/bench_capture_timing.py).  Set before threads start (Linux applies it
+    to the calling thread; new threads inherit it); where the policy is not available, a nice level."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+    except (AttributeError, OSError):
+        try:
+            os.nice(VIEWER_NICE)
+        except OSError:
+            pass
+
+
 class CaptureViewer:
     """A capture started as a process of its own and this process's App attached to it (`with` ends both:
     the capture stopped as Ctrl-C would, its stderr printed, its private socket removed).
@@ -118,16 +135,13 @@ class CaptureViewer:
         if not self.capture.wait_publishing():
             self.capture.stderr.release(wait_eof=True)  # its one line
             return False
+        yield_to_capture()  # before the attachment's and the App's threads: they inherit it
         try:
             att = Attachment(self.sock)
         except CaptureError as e:
             print(f"sniffer: error: {e}", file=sys.stderr)
             return False
         self.attachment = att
-        try:  # on a busy machine the capture gets the CPU first: the view can wait, a read cannot
-            os.nice(VIEWER_NICE)
-        except OSError:
-            pass
         self.app = make_app(attach_feed(att), source_label=self.label, capture_path=att.capture_path, live=True)
         self.capture.stderr.hold(self.app.notices.append)  # the terminal is the App's: notifications meanwhile
         return True

@@ -18,7 +18,8 @@ from textual.reactive import reactive
 from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
-TAIL_EVERY_S = 0.2  # a tail moving more than a screen between two polls is drawn at most this often
+TAIL_EVERY_S = 0.2  # a fast tail (more than TAIL_ROWS new rows since the last draw) is drawn at most this often
+TAIL_ROWS = 4
 
 # moving in a long list (the frame list, the transactions, the byte view): each has the actions cursor, page,
 # first and last
@@ -89,10 +90,11 @@ class CursorList(ScrollView, can_focus=True):
         return n
 
     def tail_due(self, new_rows: int) -> bool:
-        """Should `new_rows` rows that came since the last draw be drawn now?  Followed, a tail that moves
-        more than a screen between two polls is a blur whose every draw costs a screen of rows: it is drawn
-        at most every TAIL_EVERY_S.  Fewer rows, or a list that does not follow, now."""
-        return (not self.follow or new_rows < self.size.height
+        """Should `new_rows` rows that came since the last draw be drawn now?  Followed, a fast tail (more
+        than TAIL_ROWS rows since the last draw) scrolls the whole window at every draw, a blur that costs a
+        screen of rows each time (and the viewer's CPU is taken from the capture on a small machine): it is
+        drawn at most every TAIL_EVERY_S.  A slow tail, or a list that does not follow, now."""
+        return (not self.follow or new_rows <= TAIL_ROWS
                 or time.monotonic() - self._tail_drawn_at >= TAIL_EVERY_S)
 
     def refresh_rows(self, grown: bool = False) -> None:
