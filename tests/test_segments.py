@@ -121,6 +121,8 @@ def test_segments_replay_alone_and_as_one_capture(capsys, capture, tmp_path):
     # the folder, its index and the files (in any order) replay as the one capture, numbered on
     assert _jsonl(capsys, folder) == whole
     assert _jsonl(capsys, folder / INDEX_NAME) == whole
+    rc, out, err = _cli(capsys, "replay", folder, "--quiet", "--progress")
+    assert rc == 0 and out == "" and "Traceback" not in err
     assert _jsonl(capsys, *[folder / n for n in reversed(names)]) == whole
 
 

@@ -191,6 +191,9 @@ class SetSource:
             self._current.close()
 
     def position(self) -> tuple[int, int] | None:
+        """(bytes read so far, the files' sizes) for a progress bar, or None before open()."""
+        if self._info is None:
+            return None
         total = sum(self._sizes)
         cur = self._current.position() if self._current is not None else None
         return self._done_bytes + (cur[0] if cur else 0), total
