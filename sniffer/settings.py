@@ -180,6 +180,8 @@ class CaptureSpec:
         rotate, keep = Rotate.parse(opt("rotate")), Keep.parse(opt("keep"))
         if keep is not None and rotate is None:
             raise SettingsError("--keep needs --rotate (it deletes a rotated capture's oldest segments)")
+        if rotate is not None and opt("no_out"):
+            raise SettingsError("--rotate writes the capture's MCAP as segments: not with --no-out")
         return cls(
             flags=flags, bus_file=opt("bus"), bus=_load_bus(opt("bus")), model_files=tuple(opt("model_file") or ()),
             map_base=opt("map_base"),

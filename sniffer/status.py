@@ -106,7 +106,7 @@ class StatusSink:
         if self._watchdog is not None:
             self._watchdog.join(2)
         s = self.session
-        why = s.error or ("interrupted" if s.interrupted else "the source ended or was stopped")
+        why = s.error or ("interrupted" if s.interrupted else "stopped, or the input ended")
         self.refresh(state="ended", ended=why)
 
     # ------------------------------------------------------------ the file

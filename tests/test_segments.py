@@ -88,6 +88,12 @@ def test_bad_rotation_flags_are_one_line(capsys, capture, args, says):
     assert rc == 2 and err.strip() == f"sniffer: error: {says}"
 
 
+def test_rotate_without_an_output_is_refused(capsys):
+    rc, _out, err = _cli(capsys, "demo", "--headless", "--rotate", "1h", "--no-out")
+    assert rc == 2
+    assert err.strip() == "sniffer: error: --rotate writes the capture's MCAP as segments: not with --no-out"
+
+
 # ---------------------------------------------------------------- segments
 def test_segments_replay_alone_and_as_one_capture(capsys, capture, tmp_path):
     whole = _jsonl(capsys, capture)
@@ -270,9 +276,10 @@ def test_status_counts_what_the_frames_say(capsys, capture, tmp_path):
     rc, out, _err = _cli(capsys, "status", folder)
     assert rc == 1  # ended
     lines = dict(line.split(None, 1) for line in out.splitlines())
-    assert lines["capture"].endswith("ended (the source ended or was stopped)")
+    assert lines["capture"].endswith("ended (stopped, or the input ended)")
     assert f"crc {status['errors']['crc']}" in lines["errors"]
-    assert lines["segments"].startswith(f"3 in {folder}")
+    assert lines["segments"].startswith(f"3 in {folder}") and "free on its disk" in lines["segments"]
+    assert isinstance(status["segments"]["disk_free"], int) and status["segments"]["disk_free"] > 0
 
 
 class _Triggers:

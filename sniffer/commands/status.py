@@ -122,7 +122,8 @@ def lines(d: dict, state: str) -> list[tuple[str, str]]:
                             + (f" ({port['reason']})" if port.get("reason") else "")))
     seg = d.get("segments")
     if isinstance(seg, dict):
-        text = (f"{seg.get('count', 0)} in {seg.get('folder', '?')} ({size_text(int(seg.get('bytes') or 0))}), "
+        free = f"; {size_text(seg['disk_free'])} free on its disk" if isinstance(seg.get("disk_free"), int) else ""
+        text = (f"{seg.get('count', 0)} in {seg.get('folder', '?')} ({size_text(int(seg.get('bytes') or 0))}{free}), "
                 f"open: {seg.get('open') or '-'}; rotate {seg.get('rotate') or '-'}, keep {seg.get('keep') or 'all'}")
         if seg.get("deleted"):
             text += f"; {seg['deleted']} deleted"

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 import uuid
 
 from ..events import CaptureInfo, Gap
@@ -49,6 +50,14 @@ def _take_lock(folder: str) -> int:
     os.ftruncate(fd, 0)
     os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
     return fd
+
+
+def _free(folder: str) -> int | None:
+    """Bytes free on the folder's file system (None if it cannot be told)."""
+    try:
+        return shutil.disk_usage(folder).free
+    except OSError:
+        return None
 
 
 class SegmentPlan:
@@ -172,7 +181,8 @@ class SegmentSink(Sink):
             "folder": os.path.abspath(self.folder), "count": len(self.segments),
             "closed": sum(s.state == "closed" for s in closed), "killed": sum(s.state == "killed" for s in closed),
             "open": self._seg.file if writing else None,
-            "bytes": sum(s.bytes for s in closed) + open_bytes, "deleted": self.deleted,
+            "bytes": sum(s.bytes for s in closed) + open_bytes, "disk_free": _free(self.folder),
+            "deleted": self.deleted,
             "rotate": self.rotate.describe(), "keep": self.keep.describe() if self.keep else None,
             **({"delete_errors": self.delete_errors[-3:]} if self.delete_errors else {}),
         }}
