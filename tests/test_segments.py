@@ -254,7 +254,9 @@ def test_a_killed_segment_is_read_and_listed(capsys, capture, tmp_path):
     assert rc == 0 and "was not closed cleanly" in err and ".part" in err
     assert len(out.splitlines()) > sum(s["frames"] for s in index[:-1])
     # a capture started into the folder lists it as killed, and counts it (its retention may delete it)
+    (folder / f"{INDEX_NAME}.tmp4242").write_text("{")  # killed while it rewrote the index
     _rotate(capsys, capture, folder, "--rotate", "30s")
+    assert not list(folder.glob("*.tmp*"))
     assert [s["state"] for s in _index(folder)][:3] == ["closed", "closed", "killed"]
 
 

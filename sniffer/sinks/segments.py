@@ -25,7 +25,9 @@ import uuid
 from ..events import CaptureInfo, Gap
 from ..frame import Frame
 from ..outputs import Output, OutputError, shown
-from ..segments import LOCK_NAME, Keep, Rotate, Segment, folder_for, read_index, segment_name, write_index
+from ..segments import (
+    INDEX_NAME, LOCK_NAME, STATUS_NAME, Keep, Rotate, Segment, folder_for, read_index, segment_name, write_index,
+)
 from .base import Sink
 from .mcap import CaptureStorageError, McapSink
 
@@ -120,6 +122,12 @@ class SegmentSink(Sink):
         self._info = info
         info.extra.setdefault("capture_id", uuid.uuid4().hex[:12])
         self.segments = read_index(self.folder)
+        for name in os.listdir(self.folder):  # a capture killed while it rewrote the index or the status
+            if name.startswith((INDEX_NAME + ".tmp", STATUS_NAME + ".tmp")):
+                try:
+                    os.remove(os.path.join(self.folder, name))
+                except OSError:
+                    pass
         for s in self.segments:
             if s.state == "open":
                 s.state = "killed"  # the lock is ours: whoever wrote it is gone
