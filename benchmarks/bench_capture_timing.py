@@ -12,6 +12,12 @@ the machine's load falls on all alike):
 * headless, 5 ms GIL  the peer: the capture as before issue 11, its reader waiting up to CPython's default
                       switch interval for the interpreter (READER_SWITCH_S patched back to 5 ms)
 
+and, with --kinds, where a TUI's harm comes from:
+
+* publish             headless, publishing on a socket nobody attaches to
+* attached            headless, publishing, a text viewer (`sniffer attach SOCK`) taking every frame
+* attached-idle       the same viewer under SCHED_IDLE (`chrt -i 0`), the TUI viewer's policy
+
 For each: responses, responses with no latency (their request came in the same read: glued), responses
 timed before their request ended, and the read lateness (time of the read holding a frame's last byte minus
 the time the feeder wrote it; both the host's monotonic clock) p50 / p90 / p99 / max.  Also the load
@@ -77,15 +83,17 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path) -> dict:
     argv = [*head, "live", port, "--baud", baud, "--parity", parity, "--stopbits", stop, "--out", str(out)]
     sock = str(work / f"{kind}.sock")
     extra = {"tui": [], "publish": ["--headless", "--quiet", "--publish", sock],
-             "attached": ["--headless", "--quiet", "--publish", sock]}.get(kind, ["--headless", "--quiet"])
+             "attached": ["--headless", "--quiet", "--publish", sock],
+             "attached-idle": ["--headless", "--quiet", "--publish", sock]}.get(kind, ["--headless", "--quiet"])
     term = Terminal(argv + extra)
     viewer = None
     cpu0 = os.times()
     try:
         if not term.wait_for(port):
             raise SystemExit(f"{kind}: the capture did not start: {term.screen[-500:]!r}")
-        if kind == "attached":  # a viewer without a UI: the frames as text, to /dev/null
-            viewer = subprocess.Popen([sys.executable, "-m", "sniffer", "attach", sock],
+        if kind.startswith("attached"):  # a viewer without a UI: the frames as text, to /dev/null
+            idle = ["chrt", "-i", "0"] if kind == "attached-idle" else []  # at the TUI's scheduling policy
+            viewer = subprocess.Popen([*idle, sys.executable, "-m", "sniffer", "attach", sock],
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         time.sleep(1.0)
         feeder.stdin.write("go\n")

@@ -139,6 +139,24 @@ def publish_flags(p: argparse.ArgumentParser) -> None:
                    metavar="N", help="frames a viewer that joins late gets first (default 100000)")
 
 
+def trigger_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("triggers (sniffer/triggers: a window file around each event)")
+    g.add_argument("--trigger", action="append", metavar="EXPR",
+                   help="keep a window when a frame passes this filter (the TUI's language; repeatable): "
+                        "fault, 'exception u:2', crc, timeout, 'write u:1 2000H', "
+                        "'u:1 \"Output frequency\" > 55', 'rate(crc) > 5/min'")
+    g.add_argument("--pre", metavar="TIME", help="keep this much before the trigger (default 5m)")
+    g.add_argument("--post", metavar="TIME", help="and this much after its last match (default 1m)")
+    g.add_argument("--ring", action="store_true", help="keep only the windows, not the whole capture")
+    g.add_argument("--ring-max", metavar="SIZE", help="memory for the last --pre of the capture (default 64MiB)")
+    g.add_argument("--max-window", metavar="TIME", help="a window ends at most this long after its trigger "
+                   "(default 10 x --post)")
+    g.add_argument("--windows", metavar="DIR", help="folder of the window files (default: that of --out, or here)")
+    g.add_argument("--on-trigger", metavar="CMD", help="run CMD (sh -c) for each complete window file, with "
+                   "SNIFFER_TRIGGER_FILE, _RULE, _TIME, _SUMMARY ... in its environment")
+    g.add_argument("--on-trigger-timeout", metavar="TIME", help="kill --on-trigger's command after this (default 60s)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="sniffer", description="Passive RS-485 sniffer for PLC <-> drive links (Modbus RTU).")
     p.add_argument("--version", action="version", version=f"sniffer {__version__}")
@@ -153,6 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--headless", action="store_true", help="text stream instead of the TUI (default off a tty)")
     publish_flags(s)
     unattended_flags(s, port=True)
+    trigger_flags(s)
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap)")
     input_flags(s)
@@ -163,6 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
     stream_flags(s, quiet=True)
     s.add_argument("--out", metavar="FOLDER", help="with --rotate: write the capture again as segments in FOLDER")
     unattended_flags(s)
+    trigger_flags(s)
 
     s = sub.add_parser("decode", help="decode frames given as hex, one argument per frame (no timing: "
                                       "no latency or silence verdicts)")
@@ -204,6 +224,7 @@ def build_parser() -> argparse.ArgumentParser:
     stream_flags(s, quiet=True)
     publish_flags(s)
     unattended_flags(s)
+    trigger_flags(s)
 
     s = sub.add_parser("attach", help="view a capture that another process publishes (--publish, sniffer serve)")
     s.add_argument("socket", help="the capture's socket (or tcp:[HOST:]PORT)")
@@ -230,6 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--publish-backlog", type=_number(int, "--publish-backlog", 0, 10_000_000), default=100_000,
                    metavar="N", help="frames a viewer that joins late gets first (default 100000)")
     unattended_flags(s, port=True)
+    trigger_flags(s)
 
     s = sub.add_parser(
         "detect", formatter_class=argparse.RawDescriptionHelpFormatter,

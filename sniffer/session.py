@@ -38,7 +38,7 @@ import time
 from collections.abc import Iterable, Iterator
 
 from . import __version__
-from .events import CaptureInfo
+from .events import CaptureInfo, Gap
 from .frame import Frame
 from .pipeline import Pipeline
 from .settings import (  # noqa: F401 - re-exported: the session's settings
@@ -81,6 +81,10 @@ class Session:
         self.ended = False
         self._started = False
         self._frames: Iterator[Frame] | None = None
+        if spec.trigger is not None:
+            from .triggers import windows_place
+
+            windows_place(spec)  # a folder that cannot take the windows: one line, before anything opens
 
     # ------------------------------------------------------------ results
     @property
@@ -116,12 +120,20 @@ class Session:
             self.registry = self.resolved.registry()
             for s in self.planned:
                 self.sinks.append(s.open() if isinstance(s, (FileSink, SegmentPlan)) else s)
+            triggers = None
+            if self.spec.trigger is not None:
+                from .triggers import trigger_sink
+
+                triggers = trigger_sink(self.spec, self.resolved, self.registry)
+                self.sinks.append(triggers)
             status = self.status_path()
             if status:
                 from .status import StatusSink
 
                 self.sinks.append(StatusSink(status, self, self.label))
             self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
+            if triggers is not None:
+                triggers.settled = self.pipeline.settled
         except BaseException as e:
             self._abandon()
             if isinstance(e, (CaptureStorageError, OSError)):  # e.g. the disk is full already
@@ -165,6 +177,7 @@ class Session:
         p = self.pipeline
         flushers = [s.maybe_flush for s in self.sinks if hasattr(s, "maybe_flush")]
         rotators = [s for s in self.sinks if hasattr(s, "rotate_if")]  # segments close between events
+        clocks = [s.advance for s in self.sinks if hasattr(s, "advance")]  # capture time, every event
         watcher = self._watch()
         stop, on_event, feed = self.stop, self.on_event, p.feed
         completed = False
@@ -177,6 +190,8 @@ class Session:
                     for r in rotators:
                         if r.rotate_due:
                             r.rotate_if(p.settled())
+                    for clock in clocks:
+                        clock(ev.t_end_ns if type(ev) is Gap else ev.t_ns)
                     if on_event is not None:
                         on_event(ev)
                     if out:

@@ -23,6 +23,7 @@ from .line import LineSettings, SettingsError
 from .pairer import DEFAULT_TIMEOUT_MS
 from .pipeline import Pipeline
 from .segments import Keep, Rotate
+from .triggers.options import TriggerSpec
 
 MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo, not a response timeout
 MAX_DURATION_S = 366 * 86_400.0
@@ -151,6 +152,7 @@ class CaptureSpec:
     keep: Keep | None = None  # --keep: retention of closed segments
     status: str | None = None  # --status FILE (default with --rotate: status.json in the capture's folder)
     wait_port: bool = False  # --wait-port: a port that is not there yet is waited for
+    trigger: TriggerSpec | None = None  # --trigger and its flags: windows around events (sniffer.triggers)
 
     @classmethod
     def of(cls, *, baud=None, parity=None, stopbits=None, protocol=None, devices=None, timeout_ms=None,
@@ -182,6 +184,10 @@ class CaptureSpec:
             raise SettingsError("--keep needs --rotate (it deletes a rotated capture's oldest segments)")
         if rotate is not None and opt("no_out"):
             raise SettingsError("--rotate writes the capture's MCAP as segments: not with --no-out")
+        trigger = TriggerSpec.from_args(args)
+        if rotate is not None and trigger is not None and trigger.ring:
+            raise SettingsError("--ring keeps only the trigger windows, --rotate the whole capture as segments: "
+                                "give one of them")
         return cls(
             flags=flags, bus_file=opt("bus"), bus=_load_bus(opt("bus")), model_files=tuple(opt("model_file") or ()),
             map_base=opt("map_base"),
@@ -192,7 +198,7 @@ class CaptureSpec:
             out=None if opt("no_out") else opt("out"),
             stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
             headless=bool(opt("headless")), publish=opt("publish"),
-            publish_backlog=opt("publish_backlog", 100_000),
+            publish_backlog=opt("publish_backlog", 100_000), trigger=trigger,
             rotate=rotate, keep=keep, status=opt("status"), wait_port=bool(opt("wait_port")),
         )
 
@@ -253,6 +259,8 @@ class CaptureSpec:
             argv += ["--status", self.status]
         if self.wait_port and command == "live":
             argv.append("--wait-port")
+        if self.trigger is not None:
+            argv += self.trigger.to_argv()
         if self.headless:
             argv.append("--headless")
         if self.stream is None:

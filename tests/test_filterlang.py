@@ -98,6 +98,18 @@ def test_keys_values_and_words_are_case_insensitive():
     ("u:1 !", 6, "'!' needs a term after it"),
     ('""', 1, "empty quotes"),
     ("u:1>3", 4, "'>' needs a point name or a field"),
+    ("rate(crc) > 5", 13, "count per time"),
+    ("rate(crc) > 5/", 15, "more than 0"),
+    ("rate(crc) > 5/0s", 15, "more than 0"),
+    ("rate(crc) > 5/25h", 15, "at most 24h"),
+    ("rate(crc) > 5/fortnight", 15, "unknown time unit"),
+    ("rate(crc) > x/min", 13, "count per time"),
+    ("rate(crc)", 10, "compares with a count"),
+    ("rate(crc) ~ 5/min", 11, "compares with a count"),
+    ("rate() > 1/s", 5, "needs a filter inside"),
+    ("rate(crc > 1/s", 15, "is not closed"),
+    ("rate(rate(crc) > 1/s) > 1/s", 6, "a rate inside a rate"),
+    ("rate(crc) >", 12, "needs a count per time"),
 ])
 def test_errors_say_what_and_where(text, column, says):
     with pytest.raises(FilterError) as e:

@@ -49,11 +49,12 @@ def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=(), line
         s = stream_sink(spec, line_buffered=line_buffered)
         if s is not None:
             sinks.append(s)
-    if spec.out and spec.rotate is not None:
+    ring = spec.trigger is not None and spec.trigger.ring  # --ring: only the windows
+    if spec.out and spec.rotate is not None and not ring:
         from ..sinks.segments import SegmentPlan
 
         sinks.append(SegmentPlan(spec.out, spec.rotate, spec.keep, inputs=inputs))
-    elif spec.out:
+    elif spec.out and not ring:
         sinks.append(FileSink("mcap", spec.out, inputs=inputs))
     if spec.publish:
         sinks.append(PublishSink(spec.publish, label=label, capture_path=spec.out, backlog=spec.publish_backlog))
@@ -85,6 +86,8 @@ def destination(spec: CaptureSpec, session: Session) -> str:
         keep = f", keeping {spec.keep.describe()}" if spec.keep else ""
         return (f" -> segments in {folder_for(spec.out)}/ (a new one every {spec.rotate.describe()}{keep}; "
                 f"status: sniffer status {folder_for(spec.out)})")
+    if not session.outputs:
+        return ""  # --ring: only the trigger windows are written
     return f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)"
 
 

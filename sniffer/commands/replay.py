@@ -44,8 +44,7 @@ def cmd_replay(spec: CaptureSpec, args) -> int:
         rc = run_session_tui(session, sink, source_label=spec.input)
         return rc or report(session, label=spec.input)
     bar = None
-    stream = stream_sink(spec, line_buffered=False)  # None with --quiet (a --progress bar, a --status file)
-    session = Session(spec, source, [stream] if stream is not None else [])
+    session = Session(spec, source, [s for s in (stream_sink(spec, line_buffered=False),) if s is not None])
     if args.progress:
         from ..progress import ReplayProgress
 

@@ -15,6 +15,7 @@ Grammar (words and keys are case-insensitive; a filter of nothing passes every f
     term     := key ":" items                                u:1,2  reg:2520H..2525H  t:10s..20s
               | operand op value                             "Output frequency" > 50   lat>20ms
               | flag                                         err crc exc timeout fault noise warn
+              | "rate" "(" or ")" op count "/" time          rate(crc) > 5/min   (no rate inside)
               | word | "quoted text"                         free text
     items    := item ("," item)*       item := value | [value] ".." [value]   (ranges include both ends)
     op       := ">" | ">=" | "<" | "<=" | "=" | "==" | "!=" | "~"    (~: the text contains)
@@ -30,6 +31,10 @@ discrete[0] for one table, a model's parameter id (12-00, Cn-02), ranges 2520H..
 the capture started, a range only (t:10s..20s, t:..5s, t:30s..; units ns us ms s min h, bare numbers
 in s); `lat:` the response's latency, a range (bare numbers in ms); `model:` the decoder (a510,
 tds-v8, generic).  Fields compare too: lat>20ms, t>=5s, u!=9, fc=16.
+
+Rates: `rate(EXPR) > 5/min` is the count of frames matching EXPR in the last minute of capture time
+(rate(timeout u:3) >= 3/10s, rate(exc) < 1/h); see sniffer/filterlang/rate.py.  A query with a rate
+keeps the recent matching times: give it every frame in order (a trigger), or a store's rows.
 
 Flags: `err` any problem (as the `e` key), `crc` a bad CRC / LRC, `exc` an exception response,
 `timeout` a request without a (timely) response, `fault` a drive fault or alarm, `noise`, `warn`.
@@ -56,13 +61,19 @@ from __future__ import annotations
 from .facts import Context, Facts, matches_text, register_cell, register_ids, registers_of, search_text
 from .nodes import Node
 from .parser import FLAGS, KEYS, ROLES, FilterError, conjuncts, parse
+from .rate import SlidingCount, rate_terms
 
 
 class Query:
-    """A parsed filter, evaluated on a frame or on a store's columns (nodes.py says what `cols` holds)."""
+    """A parsed filter, evaluated on a frame or on a store's columns (nodes.py says what `cols` holds).
+
+    A filter with `rate(...)` terms keeps each one's recent matching times, so `matches` is called on
+    every frame in order (one Query per stream)."""
 
     def __init__(self, source: str | Node | None) -> None:
         self.node = parse(source) if isinstance(source, str) else source
+        self.rates = rate_terms(self.node)
+        self._counts = {r: SlidingCount(r.window_ns) for r in self.rates}
 
     def __str__(self) -> str:
         return "" if self.node is None else str(self.node)
@@ -75,7 +86,21 @@ class Query:
         when the caller has them already."""
         if self.node is None:
             return True
-        return self.node.test(Facts(frame, ctx or Context(), flags, regs))
+        fx = Facts(frame, ctx or Context(), flags, regs)
+        if self.rates:
+            fx.rates = self._observe(fx)
+        return self.node.test(fx)
+
+    def _observe(self, fx: Facts) -> dict:
+        """Count this frame into every rate it matches; what each rate says at its time."""
+        out = {}
+        t = fx.frame.t_ns
+        for r in self.rates:
+            w = self._counts[r]
+            if r.item.test(fx):
+                w.add(t)
+            out[r] = r.passes(w.count(t))
+        return out
 
     def rows(self, cols, end: int) -> list[int]:
         """The rows 0..end-1 of a store that pass, ascending: answered from its columns and search
@@ -83,9 +108,17 @@ class Query:
         if self.node is None:
             return list(range(end))
         sure, maybe = self.node.rows(cols, range(end))
+        passing = {r: r.rows(cols, range(end))[0] for r in self.rates} if maybe and self.rates else {}
         if maybe:
             node, flags = self.node, cols.flags
-            sure.update(r for r in sorted(maybe) if node.test(Facts(cols.peek(r), cols, flags[r])))
+            for row in sorted(maybe):
+                fx = Facts(cols.peek(row), cols, flags[row])
+                if passing:
+                    fx.rates = {r: row in rows for r, rows in passing.items()}
+                if node.test(fx):
+                    sure.add(row)
+        for r in self.rates:  # frames that come after these rows are counted on from them
+            self._counts[r].seed(r.match_times(cols, end))
         return sorted(sure)
 
 

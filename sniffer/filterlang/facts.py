@@ -152,11 +152,12 @@ class Context:
 class Facts:
     """One frame as the terms read it; flags, registers and search text are worked out once, on demand."""
 
-    __slots__ = ("frame", "ctx", "_flags", "_regs", "_text")
+    __slots__ = ("frame", "ctx", "_flags", "_regs", "_text", "rates")
 
     def __init__(self, frame: Frame, ctx, flags: int | None = None, regs: list | None = None) -> None:
         self.frame = frame
         self.ctx = ctx
+        self.rates: dict | None = None  # Rate -> passes, for this frame (filterlang.rate)
         self._flags = flags
         self._regs = regs
         self._text: str | None = None

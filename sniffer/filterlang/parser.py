@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from ..frameflags import F_CRC, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN
 from .nodes import And, Compare, Field, Flag, Models, Node, Not, Or, Regs, Roles, Text
+from .rate import make_rate
 from .values import (
     BadValue, Interval, RegRange, comparison_intervals, looks_like_register, parse_duration, parse_int,
     parse_number, parse_register, split_range,
@@ -106,6 +107,7 @@ class _Parser:
         self.text = text
         self.toks = tokenize(text)
         self.i = 0
+        self.in_rate = False
 
     @property
     def peek(self) -> Tok | None:
@@ -173,6 +175,8 @@ class _Parser:
             self.fail(f"{t.text!r} needs a point name or a field (u, fc, t, lat) before it", t.pos)
         if t.kind in ("AND", "OR") or t.text.lower() in ("and", "or"):
             self.fail(f"{t.text!r} needs a term before it", t.pos)
+        if t.kind == "WORD" and t.text.lower() == "rate" and self.peek is not None and self.peek.kind == "LP":
+            return self.rate(t)
         key, sep, rest = t.text.partition(":") if t.kind == "WORD" else ("", "", "")
         k = key.lower()
         if sep and k in KEYS:
@@ -283,6 +287,33 @@ class _Parser:
             return parse_register(p)
         except BadValue as e:
             self.fail(str(e), pos + e.offset)
+
+    # ------------------------------------------------------------ rate(EXPR) > 5/min
+    def rate(self, t: Tok) -> Node:
+        """rate "(" or ")" op N/TIME (filterlang.rate)."""
+        if self.in_rate:
+            self.fail("a rate inside a rate", t.pos)
+        lp = self.next()
+        if self.peek is not None and self.peek.kind == "RP":
+            self.fail("rate() needs a filter inside: rate(crc)", lp.pos)
+        self.in_rate = True
+        item = self.or_()
+        self.in_rate = False
+        close = self.next()
+        if close is None or close.kind != "RP":
+            self.fail(f"the '(' at column {lp.pos + 1} is not closed", len(self.text) if close is None else close.pos)
+        op = self.next()
+        if op is None or op.kind != "OP" or op.text == "~":
+            self.fail("rate(...) compares with a count per time: rate(crc) > 5/min",
+                      len(self.text) if op is None else op.pos)
+        value = self.peek
+        if value is None or value.kind != "WORD":
+            self.fail(f"{op.text!r} needs a count per time after it: 5/min", op.end if value is None else value.pos)
+        self.next()
+        try:
+            return make_rate(self.text[t.pos:value.end], item, op.text, value.text)
+        except BadValue as e:
+            self.fail(str(e), value.pos + e.offset)
 
     # ------------------------------------------------------------ comparisons
     def compare(self, lhs: Tok, op: Tok) -> Node:

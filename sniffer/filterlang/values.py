@@ -57,8 +57,10 @@ _TIME_UNITS = {"ns": 1, "us": 1_000, "µs": 1_000, "ms": 1_000_000, "s": 1_000_0
 
 
 def parse_duration(s: str, default: str) -> float:
-    """Nanoseconds of 20ms, 1.5s, 300us, 2min; a bare number is in `default` units ("s" or "ms")."""
-    got = parse_number(s)
+    """Nanoseconds of 20ms, 1.5s, 300us, 2min, 1h; a bare number is in `default` units ("s" or "ms").
+    Decimal only: 2h is two hours, not the manuals' hex 2H."""
+    m = _NUM.match(s)
+    got = None if m is None or not math.isfinite(float(m.group(1))) else (float(m.group(1)), m.group(2))
     if got is None or (got[1] and got[1].lower() not in _TIME_UNITS):
         if got is None:
             raise BadValue(f"not a time: {s!r} (e.g. 20ms, 1.5s, 300us)")

@@ -195,6 +195,19 @@ class McapSink(Sink):
         if self._usable():
             self._write(self._ch_frames, frame.t_ns, frame_json(frame, self._t0))
 
+    def encoded(self, kind: str, t_ns: int, data: bytes) -> None:
+        """A /raw event or /frames record already encoded (`kind` "raw" or "frame"): a trigger's ring."""
+        if self._usable():
+            self._write(self._ch_raw if kind == "raw" else self._ch_frames, t_ns, data)
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        """A metadata record besides `sniffer.capture` (a trigger window's `sniffer.trigger`)."""
+        if self._usable():
+            try:
+                self._writer.add_metadata(name, data)
+            except OSError as e:
+                raise self._fail(e) from None
+
     def maybe_flush(self) -> None:
         """Flush if flush_interval_s has passed: call it from the live loop when idle."""
         if self._usable() and self._clock() - self._last_flush >= self._interval_ns:

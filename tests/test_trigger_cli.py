@@ -1,0 +1,157 @@
+"""`--trigger` on the command line: a simulated capture replayed with triggers, `--on-trigger` with real
+commands (one that works, one that fails, one that hangs), and flags that cannot work."""
+
+import json
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from sniffer.sources.mcapsrc import read_frames
+from sniffer.triggers import read_trigger
+
+SNIFFER = [sys.executable, "-m", "sniffer"]
+
+
+def run(*args, timeout=300, **kw):
+    return subprocess.run(SNIFFER + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, **kw)
+
+
+@pytest.fixture(scope="module")
+def tds(tmp_path_factory):
+    """Two simulated TDS-V8 drives for 120 s: they trip now and then (model.fault), the PLC resets them."""
+    path = tmp_path_factory.mktemp("tds") / "tds.mcap"
+    r = run("simulate", "--scenario", "tds-v8", "--duration", "120", "--seed", "3", "--out", path)
+    assert r.returncode == 0, r.stderr
+    full = run("replay", path, "--format", "jsonl")
+    return path, [json.loads(x) for x in full.stdout.splitlines()]
+
+
+def _check_windows(folder, records, pre, post):
+    """Every window holds its trigger frames and every frame of the capture from its start (at or up to a
+    second before trigger - pre) to its end (last match + post); returns the metadata."""
+    metas = []
+    for path in sorted(folder.glob("*.trigger-*.mcap")):
+        m = read_trigger(str(path))
+        held = read_frames(str(path))
+        keys = [(r["t"], r["raw"]) for r in held]
+        for firing in m["firings"]:
+            assert (firing["record"]["t"], firing["record"]["raw"]) in keys
+            assert firing["record"]["annotations"]  # a fault: the frame says so
+        assert m["end_t"] >= m["trigger_t"] + post - 1e-6
+        if m["pre_complete"]:
+            assert m["asked_start_t"] - 1.0 <= m["start_t"] <= m["asked_start_t"] == pytest.approx(m["trigger_t"] - pre)
+        want = [(r["t"], r["raw"]) for r in records if m["start_t"] - 1e-9 <= r["t"] <= m["end_t"] + 1e-9]
+        assert keys == want
+        metas.append(m)
+    return metas
+
+
+def test_replay_with_trigger_fault_writes_one_window_per_event(tds, tmp_path):
+    path, records = tds
+    r = run("replay", path, "--trigger", "fault", "--pre", "10s", "--post", "4s", "--windows", tmp_path, "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout == ""
+    metas = _check_windows(tmp_path, records, 10, 4)
+    assert len(metas) >= 3 and all(m["rules"] == ["fault"] for m in metas)
+    faults = [x for x in records if any(a["code"] == "model.fault" for a in x["annotations"])]
+    # every fault frame is in a window, and each window's first firing is a fault that fired
+    covered = [f for f in faults if any(m["start_t"] <= f["t"] <= m["end_t"] for m in metas)]
+    assert covered == faults
+    assert sum(m["matches"]["fault"] for m in metas) <= len(faults)
+    assert f"triggers: {sum(m['firings_total'] for m in metas)} fired, {len(metas)} window files" in r.stderr
+
+
+def test_without_ring_the_stream_goes_on_and_with_ring_a_capture_writes_only_windows(tds, tmp_path):
+    path, records = tds
+    r = run("replay", path, "--trigger", "fault", "--pre", "2s", "--post", "1s", "--windows", tmp_path)
+    assert r.returncode == 0 and len(r.stdout.splitlines()) == len(records)
+    out = tmp_path / "demo.mcap"
+    r = run("demo", "--headless", "--quiet", "--scenario", "errors", "--duration", "4", "--out", out,
+            "--trigger", "crc", "--pre", "1s", "--post", "0.5s", "--ring", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert not out.exists() and not list(tmp_path.glob("demo.mcap*"))
+    windows = sorted(tmp_path.glob("demo.trigger-*.mcap"))
+    assert windows and all(read_trigger(str(w))["rules"] == ["crc"] for w in windows)
+
+
+SCRIPT = """#!/bin/sh
+printf '%s|%s|%s|%s|%s\\n' "$SNIFFER_TRIGGER_FILE" "$SNIFFER_TRIGGER_RULE" "$SNIFFER_TRIGGER_TIME" \
+    "$SNIFFER_TRIGGER_FRAME" "$SNIFFER_TRIGGER_SUMMARY" >> "$LOG"
+"""
+
+
+def test_on_trigger_runs_a_script_with_the_window_in_its_environment(tds, tmp_path):
+    """Unit 2's faults: 7 windows, fewer than the runner's queue holds (a replay makes them faster than the
+    commands run: past QUEUE waiting, one is dropped and reported, tested below)."""
+    path, records = tds
+    script = tmp_path / "got.sh"
+    script.write_text(SCRIPT)
+    script.chmod(0o755)
+    log = tmp_path / "log.txt"
+    r = run("replay", path, "--trigger", "fault u:2", "--pre", "5s", "--post", "2s", "--windows", tmp_path, "--quiet",
+            "--on-trigger", str(script), env={**os.environ, "LOG": str(log)})
+    assert r.returncode == 0, r.stderr
+    windows = sorted(tmp_path.glob("tds.trigger-*.mcap"))
+    lines = log.read_text().splitlines()
+    assert len(lines) == len(windows) >= 3
+    for line, w in zip(sorted(lines), windows, strict=True):
+        file, rule, when, frame, summary = line.split("|", 4)
+        m = read_trigger(str(w))
+        first = m["firings"][0]
+        assert file == str(w.resolve()) and rule == "fault u:2" and int(frame) == first["frame"]
+        assert when == f"{first['t']:.6f}s" and summary == first["summary"] and "model.fault" in summary
+    assert "on-trigger" not in r.stderr
+
+
+def test_on_trigger_failures_are_one_line_each_and_the_capture_goes_on(tds, tmp_path):
+    path, _ = tds
+    r = run("replay", path, "--trigger", "fault u:2", "--pre", "5s", "--post", "2s", "--windows", tmp_path, "--quiet",
+            "--on-trigger", "echo cannot reach the server; exit 3")
+    assert r.returncode == 0, r.stderr
+    windows = sorted(tmp_path.glob("tds.trigger-*.mcap"))
+    failed = [x for x in r.stderr.splitlines() if "on-trigger:" in x]
+    assert len(failed) == len(windows) >= 3
+    assert all("exited with status 3" in x and x.endswith("cannot reach the server") for x in failed)
+    assert "Traceback" not in r.stderr
+
+
+def test_a_command_that_hangs_is_killed_with_its_children_after_the_timeout(tds, tmp_path):
+    path, _ = tds
+    marker = tmp_path / "marker"
+    r = run("replay", path, "--trigger", "fault", "--pre", "5s", "--post", "2s", "--windows", tmp_path, "--quiet",
+            "--max-window", "20s", "--on-trigger", f"(sleep 2; touch {marker}) & sleep 60",
+            "--on-trigger-timeout", "0.5s")
+    assert r.returncode == 0, r.stderr
+    windows = sorted(tmp_path.glob("tds.trigger-*.mcap"))
+    killed = [x for x in r.stderr.splitlines() if "killed after 0.5 s" in x]
+    dropped = [x for x in r.stderr.splitlines() if "16 commands waiting; not run for" in x]
+    assert len(killed) + len(dropped) == len(windows) > 17 and killed  # more windows than the queue holds
+    assert len(killed) >= 17  # the running one and the 16 waiting: a replay outruns the commands
+    time.sleep(2.5)
+    assert not marker.exists()  # the whole process group went, the background child too
+
+
+@pytest.mark.parametrize("flags,says", [
+    (["--trigger", "u:1 >"], "--trigger 'u:1 >': filter error at column 5"),
+    (["--trigger", "rate(crc) > 5"], "filter error at column 13: a rate is a count per time"),
+    (["--trigger", "zzz:1"], "unknown key"),
+    (["--trigger", ""], "empty rule"),
+    (["--ring"], "--ring needs --trigger"),
+    (["--on-trigger", "true"], "--on-trigger needs --trigger"),
+    (["--trigger", "crc", "--pre", "5 parsecs"], "--pre '5 parsecs'"),
+    (["--trigger", "crc", "--post", "2d"], "--post '2d'"),
+    (["--trigger", "crc", "--post", "1m", "--max-window", "30s"], "shorter than --post"),
+    (["--trigger", "crc", "--ring-max", "lots"], "not a size"),
+    (["--trigger", "crc", "--windows", "/nonexistent/folder"], "not a folder"),
+])
+def test_bad_trigger_flags_are_one_error_line_and_exit_2(tds, tmp_path, flags, says):
+    path, _ = tds
+    for argv in (["replay", path], ["live", tmp_path / "no-such-port"]):
+        r = run(*argv, *flags, "--quiet")
+        lines = [x for x in r.stderr.splitlines() if x.strip()]
+        assert r.returncode == 2 and len(lines) == 1 and lines[0].startswith("sniffer: error:"), r.stderr
+        assert says in lines[0] and "Traceback" not in r.stderr
+    assert not list(tmp_path.glob("*.mcap*"))
