@@ -22,6 +22,7 @@ from .common import EXIT_FAILED, EXIT_OK, UsageError
 _KNOWN = {"format", "state", "pid", "command", "source", "line", "started", "updated", "updated_ns", "every_s",
           "uptime_s", "frames", "bytes", "errors", "last_frame", "port", "segments", "ended"}
 STALE_AFTER = 3  # status intervals without a write: the capture is not running
+GENERIC_WIDTH = 300
 
 
 def cmd_status(spec: CaptureSpec, args) -> int:
@@ -145,14 +146,23 @@ def _age_of(iso_text: str) -> float | None:
         return None
 
 
-def _generic(value, prefix: str = "") -> str:
-    """A section this command does not know, on one line: `a 1, b.c 2, d [x, y]`."""
+def _generic(value, prefix: str = "", depth: int = 0) -> str:
+    """A section this command does not know, on one line: `a 1, b.c 2, d [x, y]` (two levels deep, at
+    most GENERIC_WIDTH characters: `--json` has it all)."""
     if not isinstance(value, dict):
-        return json.dumps(value) if not isinstance(value, str) else value
+        return _cut(value if isinstance(value, str) else json.dumps(value))
     parts = []
     for k, v in value.items():
         if isinstance(v, dict):
-            parts.append(_generic(v, f"{prefix}{k}."))
+            parts.append(_generic(v, f"{prefix}{k}.", depth + 1) if depth < 1 else f"{prefix}{k} {{...}}")
+        elif isinstance(v, (list, tuple)) and len(json.dumps(v)) > 60:
+            parts.append(f"{prefix}{k} [{len(v)}]")
         else:
-            parts.append(f"{prefix}{k} {v if isinstance(v, (str, int, float)) else json.dumps(v)}")
-    return ", ".join(p for p in parts if p)
+            parts.append(f"{prefix}{k} {_cut(v if isinstance(v, (str, int, float)) else json.dumps(v), 80)}")
+    text = ", ".join(p for p in parts if p)
+    return text if depth else _cut(text, GENERIC_WIDTH)
+
+
+def _cut(text, width: int = GENERIC_WIDTH) -> str:
+    text = " ".join(str(text).split())
+    return text if len(text) <= width else text[: width - 3] + "..."
