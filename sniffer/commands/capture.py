@@ -12,15 +12,33 @@ import sys
 
 from ..session import Session, on_signals
 from ..settings import CaptureSpec
-from .common import capture_sinks, default_capture_name, destination, report, say, summary_line, tui_wanted
+from .common import (
+    UsageError, capture_sinks, default_capture_name, destination, report, say, summary_line, tui_wanted,
+)
 
 
 def cmd_live(spec: CaptureSpec, args) -> int:
     from ..sources.serial_live import SerialSource
 
+    if not spec.port:
+        raise UsageError("live: give a PORT (several for several links), --tap PORT_A PORT_B, "
+                         "or a --bus file with [[links]]")
     if not args.no_out and not spec.out:
         name = default_capture_name()
         spec = spec.with_(out=name[:-5] if spec.rotate is not None else name)
+    if spec.links:  # several links, or a tapped one: each resolved now, before a port opens
+        from ..sources.serial_links import LinksSource
+
+        plans = [(plan, spec.resolve_link(plan.name, need_baud=False).line) for plan in spec.links]
+        label = " ".join(plan.name for plan in spec.links)
+        ports = [p for plan in spec.links for p in plan.ports]
+        if tui_wanted(spec):
+            from ..tui.run import run_capture_tui
+
+            return run_capture_tui(spec, "live", label)
+        return _capture(spec, LinksSource(plans), label, inputs=ports,
+                        what=lambda: f"capturing {len(plans)} links: " + "; ".join(
+                            f"{p.name} ({' + '.join(p.ports)}{', tapped' if p.tap else ''})" for p, _ in plans))
     line = spec.resolve(None, need_baud=False).line  # flags > bus file > defaults: the port's settings
     if tui_wanted(spec):
         from ..tui.run import run_capture_tui
@@ -67,8 +85,10 @@ def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None, status
         if not wait_for_port(spec.port, session.stop, session.status_path(), status_label or label):
             return report(session)  # stopped while waiting: nothing captured, nothing to say
     session.open()  # a missing port, a bad setting: one line, and nothing created
-    say(f"{what() if what else 'capturing ' + label} at {session.resolved.describe()} (read-only)"
-        f"{destination(spec, session)}")
+    links = getattr(session.pipeline, "resolved", None)
+    at = ("; ".join(f"{name} at {r.describe()}" for name, r in links.items()) if links
+          else f"at {session.resolved.describe()}")
+    say(f"{what() if what else 'capturing ' + label} {at} (read-only){destination(spec, session)}")
     session.run()
     print(summary_line(session), file=sys.stderr)
     return report(session)
