@@ -358,3 +358,47 @@ def test_the_capture_process_gets_the_unattended_flags():
     assert (again.rotate, again.keep, again.status, again.wait_port, again.out) == \
            (spec.rotate, spec.keep, "/tmp/s.json", True, "cab3")
     assert spec.rotate == Rotate(3600 * 10**9, 200 * 10**6) and spec.keep == Keep(14 * 86400 * 10**9, 20 * 10**9, 30)
+
+
+def test_a_multi_link_capture_rotates_and_replays_with_its_links(tmp_path):
+    """Two links on one timeline (sniffer.links), cut into segments: every frame keeps its link, a
+    segment is cut only when both links are settled, and the folder replays as the whole did."""
+    from helpers import ListSink, bursts, fr
+
+    from sniffer.events import CaptureInfo, Chunk
+    from sniffer.line import LineSettings
+    from sniffer.session import EventSource, Session
+    from sniffer.sinks.segments import SegmentPlan
+
+    line = LineSettings(19200, "E", 1)
+    info = CaptureInfo(baud=19200, parity="E", links=[
+        {"name": n, "ports": [f"/dev/{n}"], "tap": False, "baud": 19200, "parity": "E"} for n in ("A", "B")])
+    events = []
+    for i in range(300):  # 30 s: a transaction on each link every 100 ms, B 40 ms after A
+        for link, off, pair in (("A", 0, ("010300000002", "01030400010002")),
+                                ("B", 40, ("020400100001", "0204020007"))):
+            for c in bursts([fr(h) for h in pair], line, t0=(i * 100 + off) * 10**6):
+                events.append(Chunk(c.t_ns, c.data, c.byte_t_ns, c.flags, "", link))
+    events.sort(key=lambda c: c.t_ns)
+
+    def run(sinks, spec=None):
+        source = EventSource(CaptureInfo.from_dict(info.to_dict()), iter(events))
+        session = Session(spec or CaptureSpec(), source, sinks)
+        session.run()
+        assert session.error is None
+        return session
+
+    whole = ListSink()
+    run([whole])
+    folder = tmp_path / "links"
+    rotate = Rotate(5 * 10**9)
+    run([SegmentPlan(str(folder), rotate)], CaptureSpec(out=str(folder), rotate=rotate))
+    index = _index(folder)
+    # 1,200 frames; without ticks a link's last frame closes only with its next bytes: the cuts wait
+    assert len(index) == 6 and sum(s["frames"] for s in index) == len(whole.records) == 1200
+    assert all(0 <= s["t_end"] - 5 * (i + 1) < 5 for i, s in enumerate(index[:-1]))
+    spec = CaptureSpec(input=str(folder), inputs=(str(folder),))
+    again = [(f.link, f.raw.hex(), f.role, f.pair) for f in decode_capture(str(folder), spec)]
+    assert again == [(r["link"], r["raw"], r["role"], r["pair"]) for r in whole.records]
+    first = [f for f in decode_capture(str(folder / index[1]["file"]))]
+    assert {f.link for f in first} == {"A", "B"} and all(f.crc_ok for f in first)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Iterator
+from dataclasses import replace
 
 from ..events import CaptureInfo, Chunk, Gap, Tick
 from ..segments import INDEX_NAME, set_files
@@ -44,12 +45,13 @@ def _line(info: CaptureInfo) -> tuple:
 
 
 def _shift(ev, off: int):
+    """The event `off` ns later (its link and channel kept)."""
     if type(ev) is Chunk:
         times = None if ev.byte_t_ns is None else tuple(t + off for t in ev.byte_t_ns)
-        return Chunk(ev.t_ns + off, ev.data, times, ev.flags, ev.channel)
+        return replace(ev, t_ns=ev.t_ns + off, byte_t_ns=times)
     if type(ev) is Tick:
-        return Tick(ev.t_ns + off)
-    return Gap(ev.t_ns + off, ev.t_end_ns + off, ev.reason)
+        return replace(ev, t_ns=ev.t_ns + off)
+    return replace(ev, t_ns=ev.t_ns + off, t_end_ns=ev.t_end_ns + off)
 
 
 class SetSource:
