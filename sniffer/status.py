@@ -68,7 +68,6 @@ class StatusSink:
         self._lock = threading.Lock()
         self._done = threading.Event()
         self._watchdog: threading.Thread | None = None
-        self._port_lost = False
         self.write_error: str | None = None
 
     # ------------------------------------------------------------ the sink
@@ -146,13 +145,24 @@ class StatusSink:
             self._snapshot = snap
             self._write(snap)
 
-    def _port(self) -> dict:
-        lost = getattr(self.session.source, "lost_since_ns", None)
-        if lost is None:
-            return {"state": "ok"}
+    def _lost(self) -> dict[str, dict]:
+        """The source's ports that are away now (several links: each reader's), {port: {since, reason}}."""
+        src = self.session.source
+        lost = {}
         mono_to_wall = time.time_ns() - time.monotonic_ns()
-        return {"state": "lost", "since": iso(lost + mono_to_wall),
-                "reason": getattr(self.session.source, "lost_reason", "") or ""}
+        for reader in getattr(src, "readers", None) or [src]:
+            since = getattr(reader, "lost_since_ns", None)
+            if since is not None:
+                lost[str(getattr(reader, "port", "?"))] = {"since": iso(since + mono_to_wall),
+                                                           "reason": getattr(reader, "lost_reason", "") or ""}
+        return lost
+
+    def _port(self, lost: dict | None = None) -> dict:
+        lost = self._lost() if lost is None else lost
+        if not lost:
+            return {"state": "ok"}
+        first = min(lost.values(), key=lambda x: x["since"] or "")
+        return {"state": "lost", **first, "ports": sorted(lost)}
 
     def _write(self, snap: dict) -> None:
         self._written = time.monotonic_ns()
@@ -165,22 +175,22 @@ class StatusSink:
             self.write_error = str(e)
 
     def _watch(self) -> None:
-        """While the loop waits (no events: a lost adapter), keep the file fresh and say when the port goes."""
+        """While the loop waits (no events: a lost adapter), keep the file fresh and say when a port goes."""
+        away: set[str] = set()
         while not self._done.wait(min(1.0, self.every_ns / _NS)):
-            port = self._port()
-            lost = port["state"] == "lost"
-            if lost != self._port_lost:
-                self._port_lost = lost
-                port_name = getattr(self.session.source, "port", "the port")
-                self.announce(f"{port_name}: port lost ({port.get('reason') or '?'}); waiting for it to come back"
-                              if lost else f"{port_name}: port back; capturing again")
+            lost = self._lost()
+            for port in sorted(set(lost) - away):
+                self.announce(f"{port}: port lost ({lost[port]['reason'] or '?'}); waiting for it to come back")
+            for port in sorted(away - set(lost)):
+                self.announce(f"{port}: port back; capturing again")
+            away = set(lost)
             if time.monotonic_ns() - self._written < 2 * self.every_ns and not lost:
                 continue
             with self._lock:
                 if self._done.is_set():
                     return
                 snap = dict(self._snapshot)
-                snap.update(port=port, updated=iso(time.time_ns()), updated_ns=time.time_ns(),
+                snap.update(port=self._port(lost), updated=iso(time.time_ns()), updated_ns=time.time_ns(),
                             uptime_s=round((time.monotonic_ns() - self.started_mono) / _NS, 1))
                 self._write(snap)
 

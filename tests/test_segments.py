@@ -402,3 +402,25 @@ def test_a_multi_link_capture_rotates_and_replays_with_its_links(tmp_path):
     assert again == [(r["link"], r["raw"], r["role"], r["pair"]) for r in whole.records]
     first = [f for f in decode_capture(str(folder / index[1]["file"]))]
     assert {f.link for f in first} == {"A", "B"} and all(f.crc_ok for f in first)
+
+
+def test_status_names_each_lost_port_of_several_links(tmp_path):
+    """Several links: the status says which adapters are away (here two of three), and since when."""
+    import time
+    from types import SimpleNamespace
+
+    from sniffer.commands.status import lines
+    from sniffer.status import StatusSink
+
+    now = time.monotonic_ns()
+    readers = [SimpleNamespace(port="/dev/ttyUSB0", lost_since_ns=None),
+               SimpleNamespace(port="/dev/ttyUSB1", lost_since_ns=now - 5 * 10**9, lost_reason="hang-up"),
+               SimpleNamespace(port="/dev/ttyUSB2", lost_since_ns=now - 9 * 10**9, lost_reason="port path vanished")]
+    said = []
+    session = SimpleNamespace(source=SimpleNamespace(readers=readers), sinks=[], resolved=None, bytes_in=0)
+    sink = StatusSink(str(tmp_path / "s.json"), session, "live A B C", announce=said.append)
+    port = sink._port()
+    assert port["state"] == "lost" and port["ports"] == ["/dev/ttyUSB1", "/dev/ttyUSB2"]
+    assert port["reason"] == "port path vanished"  # the first to go
+    text = dict(lines({"port": port}, "running"))["port"]
+    assert text.startswith("/dev/ttyUSB1, /dev/ttyUSB2: lost since ") and text.endswith("(port path vanished)")

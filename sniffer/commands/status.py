@@ -119,8 +119,10 @@ def lines(d: dict, state: str) -> list[tuple[str, str]]:
                                         for k, v in errors.items())))
     port = d.get("port")
     if isinstance(port, dict) and port.get("state") not in (None, "ok"):
-        out.append(("port", f"{port.get('state')} since {port.get('since', '?')}"
-                            + (f" ({port['reason']})" if port.get("reason") else "")))
+        ports = port.get("ports") or ()
+        out.append(("port", (f"{', '.join(ports)}: " if len(ports) > 1 else "")
+                    + f"{port.get('state')} since {port.get('since', '?')}"
+                    + (f" ({port['reason']})" if port.get("reason") else "")))
     seg = d.get("segments")
     if isinstance(seg, dict):
         free = f"; {size_text(seg['disk_free'])} free on its disk" if isinstance(seg.get("disk_free"), int) else ""
