@@ -26,7 +26,7 @@ def test_the_units_command_line_parses():
     argv = _exec_start()
     assert argv[0].endswith("/sniffer") and argv[1] == "live"
     args = build_parser().parse_args(argv[1:])
-    assert args.port.startswith("/dev/serial/by-id/") and args.wait_port and args.headless and args.quiet
+    assert args.ports[0].startswith("/dev/serial/by-id/") and args.wait_port and args.headless and args.quiet
     args.bus = None  # /etc/sniffer/line.toml is the field engineer's (sniffer detect --write-bus writes one)
     spec = CaptureSpec.from_args(args)
     assert spec.rotate.span_ns == 3600 * 10**9 and spec.rotate.max_bytes == 200 * 10**6
