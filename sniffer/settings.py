@@ -205,7 +205,8 @@ class CaptureSpec:
     port: str | None = None
     links: tuple[LinkPlan, ...] = ()  # several links (or a --tap) instead of one port
     input: str | None = None  # the capture file (the first, when several)
-    inputs: tuple[str, ...] = ()  # several files, a rotated capture's folder or its index (replay, export, check)
+    inputs: tuple[str, ...] = ()  # several files, a rotated capture's folder or its index (replay, check,
+    # export; export --to dataset: each file a segment of the dataset)
     input_format: str = "auto"
     scenario: str | None = None
     seed: int = 1
