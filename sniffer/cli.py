@@ -342,7 +342,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("report", help="a bus-health report of captures: one HTML file that opens offline")
     s.add_argument("captures", nargs="+", metavar="CAPTURE",
-                   help="capture files (MCAP, byte CSV, Saleae CSV, pcap/pcapng), reported as one, in this order")
+                   help="capture files (MCAP, byte CSV, Saleae CSV, pcap/pcapng) or rotated captures' folders, "
+                        "reported as one, in this order")
     s.add_argument("--input-format", choices=INPUT_FORMATS, default="auto")
     s.add_argument("--out", required=True, metavar="FILE.html", help="the report to write")
     s.add_argument("--compare", metavar="GOLDEN",

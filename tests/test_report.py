@@ -321,6 +321,19 @@ def test_several_captures_in_order_on_one_axis(tmp_path, capsys):
     assert all(len(c["sha256"]) == 64 and c["size"] == os.path.getsize(c["path"]) for c in d["captures"])
 
 
+def test_a_rotated_capture_is_one_capture(tmp_path, capsys):
+    folder = tmp_path / "rot"
+    assert main(["replay", str(SIM / "errors.mcap"), "--rotate", "2s", "--out", str(folder)]) == 0
+    capsys.readouterr()
+    whole, rotated = tmp_path / "whole.html", tmp_path / "rotated.html"
+    assert cli(capsys, "report", SIM / "errors.mcap", "--out", whole)[0] == 0
+    assert cli(capsys, "report", folder, "--out", rotated)[0] == 0
+    a, b = page_data(whole), page_data(rotated)
+    assert b["totals"] == a["totals"] and b["units"] == a["units"]
+    (c,) = b["captures"]
+    assert c["files"] == len(list(folder.iterdir())) > 3 and c["size"] > 0
+
+
 def test_compare_adds_the_semantic_diff(tmp_path, capsys):
     before, after = tmp_path / "before.mcap", tmp_path / "after.mcap"
     base = ["simulate", "--scenario", "default", "--seed", "4", "--duration", "5"]

@@ -23,12 +23,12 @@ from .replay import _note_unfinished, file_source
 def _check_input(spec: CaptureSpec, path: str, what: str = "") -> None:
     """An input that is missing, unreadable, not a capture, or needs flags it was not given fails now, before
     hours of decoding the ones before it (its header is read; the source names the problem)."""
-    from ..sources.replay import FileSource
+    from ..sources.segset import capture_source
 
     real, _ = readable(path)
     if not os.path.exists(real):
         raise CaptureError(f"{shown(path)}: no such file" + (f" ({what})" if what else ""))
-    source = FileSource(real, spec.input_format)
+    source = capture_source(real, spec.input_format)  # a file, or a rotated capture's folder or index
     try:
         spec.resolve(source.open())
     finally:
@@ -49,7 +49,7 @@ def cmd_report(spec: CaptureSpec, args) -> int:
     rc = EXIT_OK
     try:
         for path in captures:
-            cspec = spec.with_(input=path)
+            cspec = spec.with_(input=path, inputs=(path,))  # one capture: a file or a rotated capture's segments
             source = file_source(cspec)
             session = Session(cspec, source, [])
             bar = None

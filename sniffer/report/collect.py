@@ -65,7 +65,11 @@ def _split(unit) -> tuple[str, int]:
 
 
 def file_facts(path: str) -> dict:
-    """Size, modification time and SHA-256 of a capture file (read in blocks)."""
+    """Size, modification time and SHA-256 of a capture file (read in blocks); of a rotated capture's
+    folder the files in it and their total size."""
+    if os.path.isdir(path):
+        sizes = [e.stat().st_size for e in os.scandir(path) if e.is_file()]
+        return {"size": sum(sizes), "files": len(sizes)}
     h = hashlib.sha256()
     try:
         st = os.stat(path)
