@@ -137,6 +137,21 @@ def trigger_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--on-trigger-timeout", metavar="TIME", help="kill --on-trigger's command after this (default 60s)")
 
 
+def _device_name(text: str) -> str:
+    name = text.strip()
+    if not name or len(name) > 200 or not name.isprintable():
+        raise argparse.ArgumentTypeError(f"--foxglove-device {text[:40]!r}: a name of 1-200 printable characters")
+    return name
+
+
+def foxglove_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("Foxglove (docs/foxglove.md)")
+    g.add_argument("--foxglove-device", type=_device_name, metavar="NAME",
+                   help="the device the MCAP names for Foxglove (its `foxglove` metadata: deviceName, which "
+                        "Foxglove's agent and Edge Sites file the recording under); default: what the capture "
+                        "recorded, else this host's name")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="sniffer", description="Passive RS-485 sniffer for PLC <-> drive links (Modbus RTU).")
     p.add_argument("--version", action="version", version=f"sniffer {__version__}")
@@ -151,6 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--headless", action="store_true", help="text stream instead of the TUI (default off a tty)")
     publish_flags(s)
     trigger_flags(s)
+    foxglove_flags(s)
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap)")
     input_flags(s)
@@ -160,6 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
     decode_flags(s)
     stream_flags(s, quiet=True)
     trigger_flags(s)
+    foxglove_flags(s)
 
     s = sub.add_parser("decode", help="decode frames given as hex, one argument per frame (no timing: "
                                       "no latency or silence verdicts)")
@@ -190,6 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--receiver-baud", type=_number(int, "--receiver-baud", 50, MAX_BAUD), metavar="BAUD")
     g.add_argument("--receiver-parity", choices=["N", "E", "O"], type=str.upper)
     g.add_argument("--receiver-stopbits", type=int, choices=[1, 2])
+    foxglove_flags(s)
 
     s = sub.add_parser("demo", help="live capture of a simulated bus over a pseudo-terminal")
     s.add_argument("--scenario", default="default", help=_SCENARIO_HELP)
@@ -200,6 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
     stream_flags(s, quiet=True)
     publish_flags(s)
     trigger_flags(s)
+    foxglove_flags(s)
 
     s = sub.add_parser("attach", help="view a capture that another process publishes (--publish, sniffer serve)")
     s.add_argument("socket", help="the capture's socket (or tcp:[HOST:]PORT)")
@@ -226,6 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--publish-backlog", type=_number(int, "--publish-backlog", 0, 10_000_000), default=100_000,
                    metavar="N", help="frames a viewer that joins late gets first (default 100000)")
     trigger_flags(s)
+    foxglove_flags(s)
 
     s = sub.add_parser(
         "detect", formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -278,6 +298,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--progress", action="store_true", help="show a progress bar on stderr")
     serial_flags(s)
     decode_flags(s)
+    foxglove_flags(s)
     return p
 
 

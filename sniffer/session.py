@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -107,6 +108,9 @@ class Session:
             self.resolved = self.spec.resolve(info, need_baud=self.need_baud)
             self.resolved.record_in(info)
             info.sniffer_version = info.sniffer_version or __version__
+            # the station that captured it (Foxglove's deviceName: sniffer.foxglove): kept by a replay or export
+            info.extra["device_name"] = (self.spec.foxglove_device or info.extra.get("device_name")
+                                         or socket.gethostname())
             self.registry = self.resolved.registry()
             for s in self.planned:
                 self.sinks.append(s.open() if isinstance(s, FileSink) else s)

@@ -14,6 +14,7 @@ registry.  sniffer.session runs a capture with it.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
@@ -107,11 +108,18 @@ class Resolved:
                         timeout_ms=self.timeout_ms, unit_timeouts=self.unit_timeouts or None)
 
     def record_in(self, info: CaptureInfo) -> None:
-        """The settings used travel with the capture (an MCAP written from it replays without flags)."""
+        """The settings used travel with the capture (an MCAP written from it replays without flags;
+        its register maps are attached from the model files named here: decoders.mapfile)."""
         info.baud, info.parity, info.stopbits = self.line.baud, self.line.parity, self.line.stopbits
         info.databits = self.line.databits
         info.protocol = self.protocol.name
         info.devices = dict(self.devices)
+        for key in ("model_files", "map_base"):
+            info.extra.pop(key, None)  # a replay says what it decoded with, not what the capture was
+        if self.model_files:
+            info.extra["model_files"] = [os.path.abspath(p) for p in self.model_files]
+            if self.map_base is not None:
+                info.extra["map_base"] = self.map_base
 
     def describe(self) -> str:
         models = ", ".join(f"{u}={m}" for u, m in sorted(self.devices.items()))
@@ -146,6 +154,7 @@ class CaptureSpec:
     publish: str | None = None
     publish_backlog: int = 100_000
     trigger: TriggerSpec | None = None  # --trigger and its flags: windows around events (sniffer.triggers)
+    foxglove_device: str | None = None  # --foxglove-device: the device an MCAP names for Foxglove (sniffer.foxglove)
 
     @classmethod
     def of(cls, *, baud=None, parity=None, stopbits=None, protocol=None, devices=None, timeout_ms=None,
@@ -180,6 +189,7 @@ class CaptureSpec:
             stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
             headless=bool(opt("headless")), publish=opt("publish"),
             publish_backlog=opt("publish_backlog", 100_000), trigger=TriggerSpec.from_args(args),
+            foxglove_device=opt("foxglove_device"),
         )
 
     def with_(self, **changes) -> CaptureSpec:
@@ -233,6 +243,8 @@ class CaptureSpec:
             argv += ["--publish", self.publish, "--publish-backlog", str(self.publish_backlog)]
         if self.trigger is not None:
             argv += self.trigger.to_argv()
+        if self.foxglove_device:
+            argv += ["--foxglove-device", self.foxglove_device]
         if self.headless:
             argv.append("--headless")
         if self.stream is None:
