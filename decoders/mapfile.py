@@ -46,7 +46,8 @@ def model_decoder(model: str, model_files=(), map_base: str | None = None):
     return builtin_decoders().get(model)
 
 
-def map_file(model: str, model_files=(), map_base: str | None = None, *, version: str = "") -> tuple[str, str, bytes] | None:
+def map_file(model: str, model_files=(), map_base: str | None = None, *,
+             version: str = "") -> tuple[str, str, bytes] | None:
     """(file name, media type, bytes) of `model`'s tables, or None (generic, unknown)."""
     d = model_decoder(model, model_files, map_base)
     if d is None:
@@ -63,7 +64,7 @@ def map_file(model: str, model_files=(), map_base: str | None = None, *, version
         if path.lower().endswith(".toml") and os.path.isfile(path):
             with open(path, "rb") as fh:
                 body = fh.read()
-            head.append(f"The map file: {os.path.basename(path)}.")
+            head.append(f"The map file: {_shown(path)}.")
             return (f"{model}.registers.toml", TOML, "".join(f"# {line}\n" for line in head).encode() + body)
         from .mapformats import to_toml
 
@@ -74,6 +75,14 @@ def map_file(model: str, model_files=(), map_base: str | None = None, *, version
         doc = {"model": model, "written_by": _by(version), "note": note, **tables()}
         return f"{model}.tables.json", JSON, msgspec.json.format(msgspec.json.encode(doc))
     return None
+
+
+def _shown(path: str) -> str:
+    """A built-in map as the project names it (decoders/teco_a510/registers.toml), a user's by its name."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    full = os.path.abspath(path)
+    inside = full.startswith(os.path.join(root, "decoders", ""))
+    return os.path.relpath(full, root) if inside else os.path.basename(path)
 
 
 def _by(version: str) -> str:

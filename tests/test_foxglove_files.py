@@ -1,0 +1,174 @@
+"""Foxglove-native MCAP on simulated captures, through the CLI, read back with the mcap library.
+
+Every channel's messages are validated against its own schema record (jsonschema); /values is held
+against /frames (a register's value at each confirmed frame is the frame's, and no value comes from
+anywhere else); and the files the other commands write from such a capture (export, a trigger
+window, repair) are Foxglove-native too and still replay.
+"""
+
+import json
+
+import jsonschema
+import pytest
+from mcap.reader import make_reader
+
+from sniffer.cli import main
+
+DEVICE = "bench-7"
+
+
+@pytest.fixture(scope="module")
+def captures(tmp_path_factory):
+    d = tmp_path_factory.mktemp("foxglove")
+    out = {}
+    for scenario, seconds in (("a510", 20), ("errors", 20), ("pd-series", 10)):
+        p = d / f"{scenario}.mcap"
+        assert main(["simulate", "--scenario", scenario, "--duration", str(seconds), "--seed", "3", "--out", str(p),
+                     "--foxglove-device", DEVICE]) == 0
+        out[scenario] = p
+    return out
+
+
+def read(path):
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+        attachments = {a.name: a for a in reader.iter_attachments()}
+        msgs = [(ch, m.log_time, json.loads(m.data)) for _s, ch, m in reader.iter_messages()]
+    return summary, meta, attachments, msgs
+
+
+def topic_messages(msgs, prefix):
+    out: dict[str, list] = {}
+    for ch, t, d in msgs:
+        if ch.topic.startswith(prefix):
+            out.setdefault(ch.topic, []).append((t, d))
+    return out
+
+
+@pytest.mark.parametrize("scenario", ["a510", "errors", "pd-series"])
+def test_every_message_fits_its_channels_schema(captures, scenario):
+    summary, meta, _att, msgs = read(captures[scenario])
+    validators = {}
+    for cid, ch in summary.channels.items():
+        schema = summary.schemas[ch.schema_id]
+        assert (schema.encoding, ch.message_encoding) == ("jsonschema", "json"), ch.topic
+        doc = json.loads(schema.data)
+        cls = jsonschema.validators.validator_for(doc, default=jsonschema.Draft202012Validator)
+        cls.check_schema(doc)
+        validators[cid] = cls(doc)
+    counts: dict[str, int] = {}
+    for ch, _t, d in msgs:
+        validators[ch.id].validate(d)
+        kind = ch.topic if not ch.topic.startswith("/values/") else "/values"
+        counts[kind] = counts.get(kind, 0) + 1
+    assert counts["/values"] > 10 and counts["/frames"] > 50
+    assert meta["foxglove"]["deviceName"] == DEVICE
+    if scenario != "pd-series":
+        assert counts["/annotations"] > 0
+
+
+def _confirmed(frames):
+    """(log time, frame record, its values): a CRC-good response that wrote its unit's register shadow
+    (`writes`), with the points of the registers it wrote (a write's from its request)."""
+    by_index = {}
+    for t, r in frames:
+        by_index[r["index"]] = r
+        if r["role"] != "response" or not r["writes"] or not r["crc_ok"] or r["exception"] or not r["unit"]:
+            continue
+        written = {a for _table, start, raws in r["writes"] for a in range(start, start + len(raws))}
+        req = by_index.get(r["pair"])
+        points = {(p["name"], p["address"]): p for p in (req["points"] if req else []) + r["points"]}
+        yield t, r, [p for p in points.values() if p["address"] in written and "part" not in p]
+
+
+@pytest.mark.parametrize("scenario", ["a510", "errors", "pd-series"])
+def test_values_draw_what_the_frames_say(captures, scenario):
+    summary, _meta, _att, msgs = read(captures[scenario])
+    frames = [(t, d) for ch, t, d in msgs if ch.topic == "/frames"]
+    values = topic_messages(msgs, "/values/")
+    topic_of = {}
+    for ch in summary.channels.values():
+        if ch.topic.startswith("/values/"):
+            m = ch.metadata
+            topic_of[(int(m["unit"]), m["name"], int(m["address"]))] = ch.topic
+    seen = set()
+    checked = 0
+    for t, r, points in _confirmed(frames):
+        for p in points:
+            topic = topic_of[(r["unit"], p["name"], p["address"])]
+            last = [d for tv, d in values[topic] if tv <= t][-1]  # the plot's value at this frame
+            assert (last["raw"], last["unit"]) == (p["raw"], p["unit"]), (topic, r["index"])
+            if isinstance(p["value"], (int, float)):
+                assert last["value"] == p["value"]
+            seen.add(r["index"])
+            checked += 1
+    assert checked > 50
+    assert all(d["frame"] in seen for v in values.values() for _t, d in v)  # nothing from other frames
+    bad = {r["index"] for _t, r in frames if r["crc_ok"] is False or r["exception"]}
+    if scenario == "errors":
+        assert bad and not bad & {d["frame"] for v in values.values() for _t, d in v}
+
+
+def test_export_and_replay_of_a_foxglove_capture(captures, tmp_path, capsys):
+    src = captures["a510"]
+    out = tmp_path / "again.mcap"
+    assert main(["export", str(src), "--to", "mcap", "--out", str(out)]) == 0
+    s1, m1, a1, msgs1 = read(src)
+    s2, m2, a2, msgs2 = read(out)
+    assert m2["foxglove"]["deviceName"] == DEVICE  # the station that captured it, not this one
+    assert {k: (a.media_type, a.data) for k, a in a1.items()} == {k: (a.media_type, a.data) for k, a in a2.items()}
+    assert list(a1) == ["a510.registers.toml"]
+
+    def fox(msgs):
+        return [(ch.topic, t, d) for ch, t, d in msgs if ch.topic.startswith(("/values/", "/annotations"))]
+
+    assert sorted(fox(msgs1), key=str) == sorted(fox(msgs2), key=str)
+    capsys.readouterr()
+    assert main(["replay", str(src), "--format", "jsonl"]) == 0
+    first = capsys.readouterr().out
+    assert main(["replay", str(out), "--format", "jsonl"]) == 0
+    assert capsys.readouterr().out == first and first.count("\n") > 100
+    named = tmp_path / "named.mcap"
+    assert main(["export", str(src), "--to", "mcap", "--out", str(named), "--foxglove-device", "lab bench"]) == 0
+    assert read(named)[1]["foxglove"]["deviceName"] == "lab bench"
+
+
+def test_trigger_windows_are_foxglove_native(captures, tmp_path):
+    src = captures["a510"]
+    windows = tmp_path / "w"
+    windows.mkdir()
+    assert main(["replay", str(src), "--quiet", "--trigger", "fault", "--pre", "1s", "--post", "1s",
+                 "--windows", str(windows)]) == 0
+    files = sorted(windows.glob("*.mcap"))
+    assert files
+    for f in files:
+        _s, meta, att, msgs = read(f)
+        assert meta["foxglove"]["deviceName"] == DEVICE and list(att) == ["a510.registers.toml"]
+        indexes = {d["index"] for ch, _t, d in msgs if ch.topic == "/frames"}
+        values = topic_messages(msgs, "/values/")
+        assert values and all(d["frame"] in indexes for v in values.values() for _t, d in v)
+        logs = [d for ch, _t, d in msgs if ch.topic == "/annotations"]
+        assert any(d["file"] == "model.fault" and d["level"] == 4 for d in logs)
+        assert main(["replay", str(f), "--quiet"]) == 0
+
+
+def test_a_repaired_capture_keeps_its_foxglove_parts(captures, tmp_path):
+    data = captures["errors"].read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    fixed = tmp_path / "fixed.mcap"
+    assert main(["repair", str(cut), "-o", str(fixed)]) == 0
+    _s, meta, _att, msgs = read(fixed)
+    assert meta["foxglove"]["deviceName"] == DEVICE
+    assert topic_messages(msgs, "/values/") and topic_messages(msgs, "/annotations")
+    assert main(["replay", str(fixed), "--quiet"]) == 0
+
+
+def test_pd_series_tables_are_attached(captures):
+    _s, _meta, att, msgs = read(captures["pd-series"])
+    assert list(att) == ["pd-series.tables.json"] and att["pd-series.tables.json"].media_type == "application/json"
+    doc = json.loads(att["pd-series.tables.json"].data)
+    assert doc["model"] == "pd-series" and any(p["id"] == "PD003" for p in doc["parameters"])
+    assert any(t.startswith("/values/u1/") for t in topic_messages(msgs, "/values/"))
