@@ -108,7 +108,7 @@ def device_name(info: CaptureInfo) -> str:
 
 def link_lines(info: CaptureInfo) -> list[tuple[str, str]]:
     """(link name, its line settings) of each link: one for a one-line capture (named for its port)."""
-    links = getattr(info, "links", None) or [{
+    links = info.links or [{
         "name": os.path.basename(info.port.rstrip("/")) or info.port or info.source, "baud": info.baud,
         "parity": info.parity, "stopbits": info.stopbits, "databits": info.databits, "protocol": info.protocol}]
     out = []
@@ -159,7 +159,6 @@ class Foxglove:
     def __init__(self, info: CaptureInfo) -> None:
         self.t0 = info.t0_ns
         self.anchor = info.wall_anchor_ns
-        self.several = bool(getattr(info, "links", None))
         self.topics: dict[tuple, str] = {}  # (link, unit, name, address) -> topic
         self.channel_meta: dict[str, dict[str, str]] = {}  # topic -> its channel metadata
         self.taken: set[str] = set()
@@ -177,7 +176,7 @@ class Foxglove:
     def frame(self, f, t_ns: int) -> list[tuple[str, int, bytes]]:
         """The (topic, time, JSON) messages of one frame, in the order to write them."""
         out: list[tuple[str, int, bytes]] = []
-        link = getattr(f, "link", "")
+        link = f.link
         model = f.model
         if model and model not in self.models:
             self.models.add(model)
