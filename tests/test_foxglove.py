@@ -270,3 +270,31 @@ def test_the_device_name_reaches_the_capture_process():
 
     spec = CaptureSpec.of(baud=19200, port="/dev/ttyUSB0", out="x.mcap", foxglove_device="cab 3")
     assert CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live"))) == spec
+
+
+def test_several_links_each_get_their_own_values_and_the_metadata_names_them(tmp_path):
+    """A unit 1 on each of two links: two topics, named for the link; the log names the link."""
+    from helpers import bursts
+
+    def on(link, chunks):
+        return [Chunk(c.t_ns, c.data, c.byte_t_ns, c.flags, "", link) for c in chunks]
+
+    a = on("ttyUSB0", bursts([fr("010325240001"), fr("0103021386"), fr("010325240001"), _bad_crc("01030204D2").hex()],
+                             LINE))
+    b = on("ttyUSB1+ttyUSB2", bursts([fr("010325240001"), fr("01030203E8")], LINE, t0=10**6))
+    info = CaptureInfo(source="synthetic", baud=LINE.baud, parity="E", stopbits=1, t0_ns=0, wall_anchor_ns=WALL,
+                       links=[{"name": "ttyUSB0", "ports": ["/dev/ttyUSB0"], "tap": False},
+                              {"name": "ttyUSB1+ttyUSB2", "ports": ["/dev/ttyUSB1", "/dev/ttyUSB2"], "tap": True}])
+    path = tmp_path / "links.mcap"
+    spec = CaptureSpec.of(devices={1: "a510"}, foxglove_device="plant")
+    evs = sorted(a + b, key=lambda c: c.t_ns) + [Tick(2 * S)]
+    Session(spec, EventSource(info, evs), [McapSink(path)]).run()
+    summary, meta, _att, topics = read(path)
+    assert meta["foxglove"]["links"] == "ttyUSB0, ttyUSB1+ttyUSB2"
+    assert meta["foxglove"]["line"] == "ttyUSB0: 19200 8E1 modbus-rtu; ttyUSB1+ttyUSB2: 19200 8E1 modbus-rtu"
+    assert [m["value"] for _t, m in topics["/values/ttyUSB0/u1/Output_frequency"]] == [49.98]
+    assert [m["value"] for _t, m in topics["/values/ttyUSB1_ttyUSB2/u1/Output_frequency"]] == [10.0]
+    ch = next(c for c in summary.channels.values() if c.topic == "/values/ttyUSB1_ttyUSB2/u1/Output_frequency")
+    assert (ch.metadata["link"], ch.metadata["unit"], ch.metadata["model"]) == ("ttyUSB1+ttyUSB2", "1", "a510")
+    crc = next(m for _t, m in topics["/annotations"] if m["file"] == CRC_MISMATCH.code)
+    assert crc["name"] == "ttyUSB0/u1"

@@ -172,3 +172,18 @@ def test_pd_series_tables_are_attached(captures):
     doc = json.loads(att["pd-series.tables.json"].data)
     assert doc["model"] == "pd-series" and any(p["id"] == "PD003" for p in doc["parameters"])
     assert any(t.startswith("/values/u1/") for t in topic_messages(msgs, "/values/"))
+
+
+def test_the_docs_take_the_register_map_out_and_replay_decodes_with_it(captures, tmp_path, monkeypatch, capsys):
+    """docs/foxglove.md's snippet, run as written on a capture: the map it writes is a --model-file."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "foxglove.md").read_text()
+    snippet = doc.split("```python\n", 1)[1].split("```", 1)[0]
+    assert "cab3.mcap" in snippet
+    monkeypatch.chdir(tmp_path)
+    exec(compile(snippet.replace("cab3.mcap", str(captures["a510"])), "foxglove.md", "exec"), {})
+    assert "a510.registers.toml application/toml" in capsys.readouterr().out
+    assert main(["replay", str(captures["a510"]), "--format", "jsonl", "--model-file", "a510.registers.toml"]) == 0
+    recs = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert any(p["name"] == "Output frequency" and p["unit"] == "Hz" for r in recs for p in r["points"])
