@@ -8,7 +8,7 @@ import json
 import tomllib
 
 import pytest
-from helpers import fr
+from helpers import fr, read_mcap
 from mcap.reader import make_reader
 
 from decoders.mapfile import map_file
@@ -76,15 +76,11 @@ def capture(tmp_path, spec=None, name="line.mcap"):
 
 def read(path):
     """(summary, metadata {name: map}, attachments, {topic: [(log_time, decoded message)]})."""
-    with open(path, "rb") as fh:
-        reader = make_reader(fh)
-        summary = reader.get_summary()
-        meta = {m.name: m.metadata for m in reader.iter_metadata()}
-        attachments = list(reader.iter_attachments())
-        topics: dict[str, list] = {}
-        for _schema, channel, msg in reader.iter_messages():
-            topics.setdefault(channel.topic, []).append((msg.log_time, json.loads(msg.data)))
-    return summary, meta, attachments, topics
+    summary, meta, attachments, msgs = read_mcap(path)
+    topics: dict[str, list] = {}
+    for ch, t, d in msgs:
+        topics.setdefault(ch.topic, []).append((t, d))
+    return summary, meta, list(attachments.values()), topics
 
 
 def frame_at(topics, what: str) -> dict:

@@ -10,7 +10,7 @@ import json
 
 import jsonschema
 import pytest
-from mcap.reader import make_reader
+from helpers import read_mcap as read
 
 from sniffer.cli import main
 
@@ -27,16 +27,6 @@ def captures(tmp_path_factory):
                      "--foxglove-device", DEVICE]) == 0
         out[scenario] = p
     return out
-
-
-def read(path):
-    with open(path, "rb") as fh:
-        reader = make_reader(fh)
-        summary = reader.get_summary()
-        meta = {m.name: m.metadata for m in reader.iter_metadata()}
-        attachments = {a.name: a for a in reader.iter_attachments()}
-        msgs = [(ch, m.log_time, json.loads(m.data)) for _s, ch, m in reader.iter_messages()]
-    return summary, meta, attachments, msgs
 
 
 def topic_messages(msgs, prefix):
