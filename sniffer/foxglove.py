@@ -192,8 +192,12 @@ class Foxglove:
         elif role == "response":
             req = self.pending.pop(f.pair, None) if f.pair is not None else None
             if f.writes and f.crc_ok and not f.exception and f.unit:  # what the decoder took as confirmed
-                points = f.points
-                if points:
+                block = getattr(f, "_points", None)
+                if type(block) is not list and hasattr(block, "samples"):
+                    self._block(f, link, t_ns, block, out)
+                    points = []  # a read's values: no write of the request to add
+                else:
+                    points = f.points
                     self._values(f, link, t_ns, points, out)
                 if req is not None and req[:2] == (link, f.unit):
                     echoed = {(p.get("name"), p.get("address")) for p in points}
@@ -211,9 +215,6 @@ class Foxglove:
 
     # ------------------------------------------------------------ values
     def _values(self, f, link: str, t_ns: int, points: list[dict], out: list) -> None:
-        """Each register's sample, thinned without changing its plot: a change, the sample before it,
-        and one every KEEP_NS while nothing changes (a polyline loses only points between equal ones)."""
-        last = self.last
         for p in points:
             address = p.get("address")
             if address is None or "part" in p:
@@ -223,21 +224,30 @@ class Foxglove:
                 value, text = None, value if text is None else text
             elif type(value) not in (int, float) or (type(value) is float and not math.isfinite(value)):
                 value = None
-            key = (value, p.get("raw"), p.get("unit"), text, p.get("pending") is True)
-            topic = self.topics.get((link, f.unit, p.get("name") or "", address)) or self._topic(f, link, p)
-            st = last.get(topic)
-            if st is not None:
-                if st[0] == key and t_ns - st[1] < KEEP_NS:
-                    st[2] = (t_ns, f.index)  # held: written if the next sample differs
-                    continue
-                held = st[2]
-                if held is not None and st[0] != key:
-                    out.append((topic, held[0], _value_json(st[0], held[1])))
-            out.append((topic, t_ns, _value_json(key, f.index)))
-            last[topic] = [key, t_ns, None]
+            self._sample(f, link, t_ns, p.get("name") or "", address,
+                         (value, p.get("raw"), p.get("unit"), text, p.get("pending") is True), p.get("id"), out)
 
-    def _topic(self, f, link: str, p: dict) -> str:
-        name, address = p.get("name") or "", p["address"]
+    def _block(self, f, link: str, t_ns: int, block, out: list) -> None:
+        """A block of unnamed registers (frame.PointBlock): raw numbers, read without building dicts."""
+        for name, address, v in block.samples():
+            self._sample(f, link, t_ns, name, address, (v, v, None, None, False), None, out)
+
+    def _sample(self, f, link: str, t_ns: int, name: str, address: int, key: tuple, pid, out: list) -> None:
+        """One register's sample, thinned without changing its plot: a change, the sample before it, and
+        one every KEEP_NS while nothing changes (a polyline loses only points between equal ones)."""
+        topic = self.topics.get((link, f.unit, name, address)) or self._topic(f, link, name, address, pid)
+        st = self.last.get(topic)
+        if st is not None:
+            if st[0] == key and t_ns - st[1] < KEEP_NS:
+                st[2] = (t_ns, f.index)  # held: written if the next sample differs
+                return
+            held = st[2]
+            if held is not None and st[0] != key:
+                out.append((topic, held[0], _value_json(st[0], held[1])))
+        out.append((topic, t_ns, _value_json(key, f.index)))
+        self.last[topic] = [key, t_ns, None]
+
+    def _topic(self, f, link: str, name: str, address: int, pid) -> str:
         key = (link, f.unit, name, address)
         base = VALUES_PREFIX + (f"{topic_part(link)}/" if link else "") + f"u{f.unit}/"
         short = topic_part(name.split(" (")[0]) or topic_part(name) or "register"
@@ -249,7 +259,7 @@ class Foxglove:
                 topic, n = f"{base}{short}_{address:04X}H_{n}", n + 1
         self.taken.add(topic)
         self.topics[key] = topic
-        self.channel_meta[topic] = {"name": name, "id": str(p.get("id") or ""), "address": str(address),
+        self.channel_meta[topic] = {"name": name, "id": str(pid or ""), "address": str(address),
                                     "unit": str(f.unit), "link": link, "model": f.model or ""}
         self.new_topics.append(topic)
         return topic

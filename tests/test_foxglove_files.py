@@ -177,3 +177,21 @@ def test_the_docs_take_the_register_map_out_and_replay_decodes_with_it(captures,
     assert main(["replay", str(captures["a510"]), "--format", "jsonl", "--model-file", "a510.registers.toml"]) == 0
     recs = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert any(p["name"] == "Output frequency" and p["unit"] == "Hz" for r in recs for p in r["points"])
+
+
+def test_frames_and_their_records_give_the_same_foxglove_messages(captures):
+    """The capture's frames (generic register blocks read without building points) and their /frames
+    records (a trigger window's path) give the same /values and /annotations."""
+    from sniffer.events import CaptureInfo
+    from sniffer.foxglove import Foxglove
+
+    _s, _meta, _att, msgs = read(captures["errors"])
+    fox = Foxglove(CaptureInfo())  # a simulated capture: t0 and the wall clock's anchor are 0
+    out = []
+    for ch, t, d in msgs:
+        if ch.topic == "/frames":
+            out += fox.record(json.dumps(d).encode(), t)
+    out += fox.finish()
+    again = [(topic, t, json.loads(data)) for topic, t, data in out]
+    written = [(ch.topic, t, d) for ch, t, d in msgs if ch.topic.startswith(("/values/", "/annotations"))]
+    assert len(again) > 1000 and sorted(again, key=str) == sorted(written, key=str)
