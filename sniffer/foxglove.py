@@ -77,6 +77,8 @@ LOG_SCHEMA = {
     "required": ["timestamp", "level", "message", "name", "file", "line"],
 }
 
+# Foxglove's JSON Schema reader takes one type per field (no null, no list of types, no untyped
+# field, no array of arrays): a field without a value is left out of the message instead.
 VALUE_SCHEMA = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
     "title": VALUE_SCHEMA_NAME,
@@ -84,14 +86,14 @@ VALUE_SCHEMA = {
                    "acknowledged); the channel's metadata names the register",
     "type": "object",
     "properties": {
-        "value": {"type": ["number", "null"], "description": "scaled as the model says (null: not a number)"},
-        "raw": {"type": ["integer", "string", "null"], "description": "as on the wire (a string's bytes in hex)"},
-        "unit": {"type": ["string", "null"]},
+        "value": {"type": "number", "description": "scaled as the model says (absent: not a number; see text)"},
+        "raw": {"type": "integer", "description": "as on the wire (absent for a string's registers)"},
+        "unit": {"type": "string"},
         "text": {"type": "string", "description": "the value in words: an enum, bits, a string"},
         "pending": {"type": "boolean", "description": "scaled by a register not seen yet: value in %"},
-        "frame": {"type": "integer", "description": "the frame that carried (or acknowledged) it"},
+        "frame": {"type": "integer", "minimum": 0, "description": "the frame that carried (or acknowledged) it"},
     },
-    "required": ["value", "raw", "unit", "frame"],
+    "required": ["frame"],
 }
 
 _NOT_NAME = re.compile(r"[^0-9A-Za-z]+")
@@ -127,12 +129,18 @@ def metadata(info: CaptureInfo) -> dict[str, str]:
 
 
 def _value_json(key: tuple, frame: int) -> bytes:
+    """A sample's message: the fields it has (VALUE_SCHEMA)."""
     value, raw, unit, text, pending = key
-    d = {"value": value, "raw": raw, "unit": unit, "frame": frame}
+    d = {} if value is None else {"value": value}
+    if type(raw) is int:
+        d["raw"] = raw
+    if unit is not None:
+        d["unit"] = unit
     if text is not None:
         d["text"] = text
     if pending:
         d["pending"] = True
+    d["frame"] = frame
     return msgspec.json.encode(d)
 
 
