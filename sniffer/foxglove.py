@@ -17,17 +17,21 @@ Beside /capture, /raw and /frames (sniffer.mcap_format), McapSink writes (docs/f
   acknowledged it; never a broadcast write, which nobody answers.  NAME is the register's name up
   to its first " (", letters and digits with "_" between; a name two registers of one unit share
   gets the address (``_2524H``).  The channel's metadata holds the full name, id, address, unit,
-  link and model;
+  link and model.  A register's samples are thinned without changing its plot (`_sample`): a
+  change, the sample before it, one every KEEP_NS while nothing changes, the last at the end
+  (`finish`); every poll's value stays in /frames.  A message leaves out what it has no value for
+  (Foxglove's JSON Schema reader takes one type per field, no null);
 * one attachment per model seen: its register map (decoders.mapfile).
 
 Why a topic per register and not one `/values` topic: a drive model has hundreds of registers,
 but a line polls tens, and only registers seen get a channel (a few hundred bytes each); the Plot
 panel, the topic list and the Raw Messages panel then take a register by its topic alone, where
 one topic would need a filter in every path (``/values.points[:]{name=="Output frequency"}``) that
-Foxglove evaluates on every message of every register.
+Foxglove evaluates on every message of every register.  A message per sample costs its record and
+index entry (about 30 bytes on disk): the thinning keeps that to the samples a plot needs.
 
 Sans-I/O: `Foxglove` turns frames (Frame objects, or the /frames records a trigger window's ring
-holds) into (topic, bytes) messages and says which topics and models are new.
+holds) into (topic, time, JSON) messages and says which topics and models are new.
 """
 
 from __future__ import annotations

@@ -149,13 +149,14 @@ def test_trigger_windows_are_foxglove_native(captures, tmp_path):
 
 
 def test_a_repaired_capture_keeps_its_foxglove_parts(captures, tmp_path):
-    data = captures["errors"].read_bytes()
+    data = captures["a510"].read_bytes()
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(data[: len(data) * 2 // 3])
     fixed = tmp_path / "fixed.mcap"
     assert main(["repair", str(cut), "-o", str(fixed)]) == 0
-    _s, meta, _att, msgs = read(fixed)
+    _s, meta, att, msgs = read(fixed)
     assert meta["foxglove"]["deviceName"] == DEVICE
+    assert att["a510.registers.toml"].data == read(captures["a510"])[2]["a510.registers.toml"].data
     assert topic_messages(msgs, "/values/") and topic_messages(msgs, "/annotations")
     assert main(["replay", str(fixed), "--quiet"]) == 0
 
