@@ -29,6 +29,7 @@ from .events import CaptureInfo
 from .line import LineSettings, SettingsError
 from .pairer import DEFAULT_TIMEOUT_MS
 from .pipeline import Pipeline
+from .segments import Keep, Rotate
 from .triggers.options import TriggerSpec
 
 MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo, not a response timeout
@@ -212,7 +213,8 @@ class CaptureSpec:
     port: str | None = None
     links: tuple[LinkPlan, ...] = ()  # several links (or a --tap) instead of one port
     input: str | None = None  # the capture file (the first, when several)
-    inputs: tuple[str, ...] = ()  # several files (export --to dataset)
+    inputs: tuple[str, ...] = ()  # several files, a rotated capture's folder or its index (replay, check,
+    # export; export --to dataset: each file a segment of the dataset)
     input_format: str = "auto"
     scenario: str | None = None
     seed: int = 1
@@ -223,6 +225,11 @@ class CaptureSpec:
     headless: bool = False
     publish: str | None = None
     publish_backlog: int = 100_000
+    # unattended (sniffer.segments, sniffer.status)
+    rotate: Rotate | None = None  # --rotate: the MCAP as segments in the folder --out names
+    keep: Keep | None = None  # --keep: retention of closed segments
+    status: str | None = None  # --status FILE (default with --rotate: status.json in the capture's folder)
+    wait_port: bool = False  # --wait-port: a port that is not there yet is waited for
     trigger: TriggerSpec | None = None  # --trigger and its flags: windows around events (sniffer.triggers)
     foxglove_device: str | None = None  # --foxglove-device: the device an MCAP names for Foxglove (sniffer.foxglove)
 
@@ -254,6 +261,15 @@ class CaptureSpec:
         fmt = opt("format", "text")
         files = opt("file")
         files = list(files) if isinstance(files, (list, tuple)) else [files] if files else []
+        rotate, keep = Rotate.parse(opt("rotate")), Keep.parse(opt("keep"))
+        if keep is not None and rotate is None:
+            raise SettingsError("--keep needs --rotate (it deletes a rotated capture's oldest segments)")
+        if rotate is not None and opt("no_out"):
+            raise SettingsError("--rotate writes the capture's MCAP as segments: not with --no-out")
+        trigger = TriggerSpec.from_args(args)
+        if rotate is not None and trigger is not None and trigger.ring:
+            raise SettingsError("--ring keeps only the trigger windows, --rotate the whole capture as segments: "
+                                "give one of them")
         bus_file = _bus_file(opt("bus"))
         ports = list(opt("ports") or ())
         links = link_plans(ports, opt("tap") or (), bus_file)
@@ -271,7 +287,8 @@ class CaptureSpec:
             out=None if opt("no_out") else opt("out"),
             stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
             headless=bool(opt("headless")), publish=opt("publish"),
-            publish_backlog=opt("publish_backlog", 100_000), trigger=TriggerSpec.from_args(args),
+            publish_backlog=opt("publish_backlog", 100_000), trigger=trigger,
+            rotate=rotate, keep=keep, status=opt("status"), wait_port=bool(opt("wait_port")),
             foxglove_device=opt("foxglove_device"),
         )
 
@@ -341,6 +358,14 @@ class CaptureSpec:
         argv += ["--duration", repr(self.duration_s)]
         if self.publish:
             argv += ["--publish", self.publish, "--publish-backlog", str(self.publish_backlog)]
+        if self.rotate is not None:
+            argv += ["--rotate", self.rotate.to_flag()]
+        if self.keep is not None:
+            argv += ["--keep", self.keep.to_flag()]
+        if self.status:
+            argv += ["--status", self.status]
+        if self.wait_port and command == "live":
+            argv.append("--wait-port")
         if self.trigger is not None:
             argv += self.trigger.to_argv()
         if self.foxglove_device:
