@@ -244,3 +244,17 @@ def test_foxglove_reads_the_schemas_of_its_panels_topics(captures):
     assert foxglove_reads({"type": "object", "properties": {"a": {"type": ["number", "null"]}, "b": {},
                                                             "c": {"type": "array", "items": {"type": "array"}}}}) \
         == ["a: type ['number', 'null']", "b: type None", "c: array of 'array'"]
+
+
+def test_rotated_segments_are_foxglove_native(captures, tmp_path):
+    """Each segment of `--rotate` is an MCAP of its own: its metadata, its register map, its values."""
+    folder = tmp_path / "cab3"
+    assert main(["replay", str(captures["a510"]), "--quiet", "--rotate", "5s", "--out", str(folder)]) == 0
+    segments = sorted(folder.glob("*.mcap"))
+    assert len(segments) >= 3
+    for seg in segments:
+        _s, meta, att, msgs = read(seg)
+        assert meta["foxglove"]["deviceName"] == DEVICE and list(att) == ["a510.registers.toml"]
+        indexes = {d["index"] for ch, _t, d in msgs if ch.topic == "/frames"}
+        values = topic_messages(msgs, "/values/")
+        assert values and all(d["frame"] in indexes for v in values.values() for _t, d in v)
