@@ -129,6 +129,17 @@ def test_export_and_replay_of_a_foxglove_capture(captures, tmp_path, capsys):
     assert read(named)[1]["foxglove"]["deviceName"] == "lab bench"
 
 
+def foxglove_native_alone(path):
+    """A part of the a510 capture written as a file of its own (a window, a segment): the device, the map,
+    values that all come from its own frames.  Its messages."""
+    _s, meta, att, msgs = read(path)
+    assert meta["foxglove"]["deviceName"] == DEVICE and list(att) == ["a510.registers.toml"]
+    indexes = {d["index"] for ch, _t, d in msgs if ch.topic == "/frames"}
+    values = topic_messages(msgs, "/values/")
+    assert values and all(d["frame"] in indexes for v in values.values() for _t, d in v)
+    return msgs
+
+
 def test_trigger_windows_are_foxglove_native(captures, tmp_path):
     src = captures["a510"]
     windows = tmp_path / "w"
@@ -138,11 +149,7 @@ def test_trigger_windows_are_foxglove_native(captures, tmp_path):
     files = sorted(windows.glob("*.mcap"))
     assert files
     for f in files:
-        _s, meta, att, msgs = read(f)
-        assert meta["foxglove"]["deviceName"] == DEVICE and list(att) == ["a510.registers.toml"]
-        indexes = {d["index"] for ch, _t, d in msgs if ch.topic == "/frames"}
-        values = topic_messages(msgs, "/values/")
-        assert values and all(d["frame"] in indexes for v in values.values() for _t, d in v)
+        msgs = foxglove_native_alone(f)
         logs = [d for ch, _t, d in msgs if ch.topic == "/annotations"]
         assert any(d["file"] == "model.fault" and d["level"] == 4 for d in logs)
         assert main(["replay", str(f), "--quiet"]) == 0
@@ -253,8 +260,4 @@ def test_rotated_segments_are_foxglove_native(captures, tmp_path):
     segments = sorted(folder.glob("*.mcap"))
     assert len(segments) >= 3
     for seg in segments:
-        _s, meta, att, msgs = read(seg)
-        assert meta["foxglove"]["deviceName"] == DEVICE and list(att) == ["a510.registers.toml"]
-        indexes = {d["index"] for ch, _t, d in msgs if ch.topic == "/frames"}
-        values = topic_messages(msgs, "/values/")
-        assert values and all(d["frame"] in indexes for v in values.values() for _t, d in v)
+        foxglove_native_alone(seg)
