@@ -65,6 +65,7 @@ class McapWriter:
         self._channel_ids: list[int] = []
         self._metadata_index: list[bytes] = []
         self._attachment_index: list[bytes] = []
+        self.summary_bytes = 0  # what the summary will repeat or index so far (schemas, channels, indexes)
         self._chunk_indexes: list[bytes] = []
         self._counts: dict[int, int] = {}
         self._messages = 0
@@ -82,6 +83,7 @@ class McapWriter:
         sid = len(self._schemas) + 1
         rec = _record(OP_SCHEMA, _U16.pack(sid) + _str(name) + _str(encoding) + _U32.pack(len(data)) + data)
         self._schemas.append(rec)
+        self.summary_bytes += len(rec)
         self._out.write(rec)
         return sid
 
@@ -91,6 +93,7 @@ class McapWriter:
         rec = _record(OP_CHANNEL, _U16.pack(cid) + _U16.pack(schema_id) + _str(topic) + _str(message_encoding)
                       + _map_str(metadata or {}))
         self._channels.append(rec)
+        self.summary_bytes += len(rec)
         self._channel_ids.append(cid)
         self._counts[cid] = 0
         self._out.write(rec)
@@ -101,6 +104,7 @@ class McapWriter:
         rec = _record(OP_METADATA, _str(name) + _map_str(data))
         self._out.write(rec)
         self._metadata_index.append(_record(OP_METADATA_INDEX, _U64.pack(offset) + _U64.pack(len(rec)) + _str(name)))
+        self.summary_bytes += len(self._metadata_index[-1])
 
     def add_attachment(self, name: str, media_type: str, data: bytes, log_time: int, create_time: int = 0) -> None:
         """A file carried in the capture (outside the chunks, indexed in the summary)."""
@@ -112,6 +116,7 @@ class McapWriter:
         self._attachment_index.append(_record(OP_ATTACHMENT_INDEX, (
             _U64.pack(offset) + _U64.pack(len(rec)) + _U64.pack(log_time) + _U64.pack(create_time)
             + _U64.pack(len(data)) + _str(name) + _str(media_type))))
+        self.summary_bytes += len(self._attachment_index[-1])
 
     # ------------------------------------------------------------ messages
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int = 0) -> None:
@@ -158,6 +163,7 @@ class McapWriter:
             _U64.pack(self._c_start) + _U64.pack(self._c_end) + _U64.pack(chunk_offset) + _U64.pack(len(chunk_rec))
             + _U32.pack(len(offsets)) + offsets + _U64.pack(pos - chunk_offset - len(chunk_rec))
             + _str(self.compression) + _U64.pack(len(data)) + _U64.pack(len(raw)))))
+        self.summary_bytes += len(self._chunk_indexes[-1])
         n = sum(len(v) for v in self._index.values()) // 2
         if n:
             self._start = self._c_start if self._start is None else min(self._start, self._c_start)

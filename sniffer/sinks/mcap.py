@@ -176,8 +176,9 @@ class McapSink(Sink):
 
     @property
     def size(self) -> int:
-        """Bytes of the file so far, written or waiting to be (not the open chunk in memory)."""
-        return self._file.tell()
+        """Bytes of the file so far, written or waiting to be, and of the summary it will end with (a
+        Foxglove capture has a channel per register: the summary repeats them); not the open chunk."""
+        return self._file.tell() + (self._writer.summary_bytes if self._writer is not None else 0)
 
     def start(self, info: CaptureInfo) -> None:
         self._t0 = info.t0_ns
