@@ -167,6 +167,21 @@ def trigger_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--on-trigger-timeout", metavar="TIME", help="kill --on-trigger's command after this (default 60s)")
 
 
+def _device_name(text: str) -> str:
+    name = text.strip()
+    if not name or len(name) > 200 or not name.isprintable():
+        raise argparse.ArgumentTypeError(f"--foxglove-device {text[:40]!r}: a name of 1-200 printable characters")
+    return name
+
+
+def foxglove_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("Foxglove (docs/foxglove.md)")
+    g.add_argument("--foxglove-device", type=_device_name, metavar="NAME",
+                   help="the device the MCAP names for Foxglove (its `foxglove` metadata: deviceName, which "
+                        "Foxglove's agent and Edge Sites file the recording under); default: what the capture "
+                        "recorded, else this host's name")
+
+
 def dataset_flags(p: argparse.ArgumentParser, progress: str) -> None:
     """export's and ingest's: --progress, --link, and the line and decoding flags a capture is read with."""
     p.add_argument("--progress", action="store_true", help=progress)
@@ -210,6 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
     publish_flags(s)
     unattended_flags(s, port=True)
     trigger_flags(s)
+    foxglove_flags(s)
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap)")
     input_flags(s)
@@ -221,6 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", metavar="FOLDER", help="with --rotate: write the capture again as segments in FOLDER")
     unattended_flags(s)
     trigger_flags(s)
+    foxglove_flags(s)
 
     s = sub.add_parser("decode", help="decode frames given as hex, one argument per frame (no timing: "
                                       "no latency or silence verdicts)")
@@ -252,6 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--receiver-parity", choices=["N", "E", "O"], type=str.upper)
     g.add_argument("--receiver-stopbits", type=int, choices=[1, 2])
     unattended_flags(s)
+    foxglove_flags(s)
 
     s = sub.add_parser("demo", help="live capture of a simulated bus over a pseudo-terminal")
     s.add_argument("--scenario", default="default", help=_SCENARIO_HELP)
@@ -263,6 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
     publish_flags(s)
     unattended_flags(s)
     trigger_flags(s)
+    foxglove_flags(s)
 
     s = sub.add_parser("attach", help="view a capture that another process publishes (--publish, sniffer serve)")
     s.add_argument("socket", help="the capture's socket (or tcp:[HOST:]PORT)")
@@ -290,6 +309,7 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar="N", help="frames a viewer that joins late gets first (default 100000)")
     unattended_flags(s, port=True)
     trigger_flags(s)
+    foxglove_flags(s)
 
     s = sub.add_parser(
         "detect", formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -351,6 +371,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", metavar="PATH", help="output file (csv/parquet: also PATH stem.points.*); with --to "
                                                  "dataset: the dataset folder")
     dataset_flags(s, "show a progress bar on stderr")
+    foxglove_flags(s)
 
     s = sub.add_parser("ingest", help="take a folder of MCAP captures into a fleet dataset; already taken ones "
                                       "are skipped (docs/fleet.md)")

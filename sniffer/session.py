@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -131,6 +132,9 @@ class Session:
             else:
                 self.resolved = self.spec.resolve(info, need_baud=self.need_baud)
                 self.resolved.record_in(info)
+            # the station that captured it (Foxglove's deviceName: sniffer.foxglove): kept by a replay or export
+            info.extra["device_name"] = (self.spec.foxglove_device or info.extra.get("device_name")
+                                         or socket.gethostname())
             self.registry = self.resolved.registry()
             for s in self.planned:
                 self.sinks.append(s.open() if isinstance(s, (FileSink, SegmentPlan)) else s)
