@@ -137,6 +137,24 @@ def trigger_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--on-trigger-timeout", metavar="TIME", help="kill --on-trigger's command after this (default 60s)")
 
 
+def mqtt_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("live values to MQTT / Home Assistant (sniffer/mqtt; read-only: nothing goes to the bus)")
+    g.add_argument("--mqtt", metavar="URL", help="publish decoded values to this broker: mqtt://[USER[:PASS]@]HOST[:PORT]"
+                   "/PREFIX, mqtts:// for TLS (a USER without :PASS takes $SNIFFER_MQTT_PASSWORD)")
+    g.add_argument("--mqtt-ca", metavar="FILE", help="CA certificate (PEM) the broker's certificate is checked against "
+                   "(default: the system's)")
+    g.add_argument("--mqtt-cert", metavar="FILE", help="client certificate (PEM), for brokers that ask for one")
+    g.add_argument("--mqtt-key", metavar="FILE", help="the client certificate's private key (PEM)")
+    g.add_argument("--mqtt-interval", metavar="TIME", help="at most one value per register in this much capture time "
+                   "(the newest goes out): 1s, 500ms (default: every confirmed value)")
+    g.add_argument("--mqtt-changes", action="store_true", help="publish a value only when it changed")
+    g.add_argument("--mqtt-ha", nargs="?", const="homeassistant", metavar="PREFIX",
+                   help="Home Assistant MQTT discovery: each drive a device, its registers sensors "
+                        "(discovery prefix, default homeassistant)")
+    g.add_argument("--mqtt-queue", type=_number(int, "--mqtt-queue", 1, 10_000_000), metavar="N",
+                   help="messages waiting for the broker; past that they are dropped and counted (default 10000)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="sniffer", description="Passive RS-485 sniffer for PLC <-> drive links (Modbus RTU).")
     p.add_argument("--version", action="version", version=f"sniffer {__version__}")
@@ -151,6 +169,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--headless", action="store_true", help="text stream instead of the TUI (default off a tty)")
     publish_flags(s)
     trigger_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap)")
     input_flags(s)
@@ -160,6 +179,7 @@ def build_parser() -> argparse.ArgumentParser:
     decode_flags(s)
     stream_flags(s, quiet=True)
     trigger_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser("decode", help="decode frames given as hex, one argument per frame (no timing: "
                                       "no latency or silence verdicts)")
@@ -200,6 +220,7 @@ def build_parser() -> argparse.ArgumentParser:
     stream_flags(s, quiet=True)
     publish_flags(s)
     trigger_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser("attach", help="view a capture that another process publishes (--publish, sniffer serve)")
     s.add_argument("socket", help="the capture's socket (or tcp:[HOST:]PORT)")
@@ -226,6 +247,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--publish-backlog", type=_number(int, "--publish-backlog", 0, 10_000_000), default=100_000,
                    metavar="N", help="frames a viewer that joins late gets first (default 100000)")
     trigger_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser(
         "detect", formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -19,7 +19,9 @@ ended a capture (`keep_partial`, live/demo/simulate), discarded when a derived
 output (an export) could not be written.
 
 Every command goes through here: live, demo, replay, decode, simulate, export,
-check, diff, serve's capture process and the TUI's feeds.
+check, diff, serve's capture process and the TUI's feeds.  Sinks the spec asks
+for are added here, so every command has them: the trigger sink (--trigger,
+sniffer.triggers) and the MQTT sink (--mqtt, sniffer.mqtt).
 """
 
 from __future__ import annotations
@@ -116,6 +118,10 @@ class Session:
 
                 triggers = trigger_sink(self.spec, self.resolved, self.registry)
                 self.sinks.append(triggers)
+            if self.spec.mqtt is not None:
+                from .mqtt.sink import mqtt_sink
+
+                self.sinks.append(mqtt_sink(self.spec, self.registry))
             self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
             if triggers is not None:
                 triggers.settled = self.pipeline.settled

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field, replace
 from . import protocols
 from .events import CaptureInfo
 from .line import LineSettings, SettingsError
+from .mqtt.options import MqttSpec
 from .pairer import DEFAULT_TIMEOUT_MS
 from .pipeline import Pipeline
 from .triggers.options import TriggerSpec
@@ -146,6 +147,7 @@ class CaptureSpec:
     publish: str | None = None
     publish_backlog: int = 100_000
     trigger: TriggerSpec | None = None  # --trigger and its flags: windows around events (sniffer.triggers)
+    mqtt: MqttSpec | None = None  # --mqtt URL and its flags: decoded values to a broker (sniffer.mqtt)
 
     @classmethod
     def of(cls, *, baud=None, parity=None, stopbits=None, protocol=None, devices=None, timeout_ms=None,
@@ -180,6 +182,7 @@ class CaptureSpec:
             stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
             headless=bool(opt("headless")), publish=opt("publish"),
             publish_backlog=opt("publish_backlog", 100_000), trigger=TriggerSpec.from_args(args),
+            mqtt=MqttSpec.from_args(args),
         )
 
     def with_(self, **changes) -> CaptureSpec:
@@ -233,6 +236,8 @@ class CaptureSpec:
             argv += ["--publish", self.publish, "--publish-backlog", str(self.publish_backlog)]
         if self.trigger is not None:
             argv += self.trigger.to_argv()
+        if self.mqtt is not None:
+            argv += self.mqtt.to_argv()
         if self.headless:
             argv.append("--headless")
         if self.stream is None:
