@@ -85,9 +85,9 @@ class Bridge:
             st.count(f, fl)
             self.dirty.add(key)
         self._events(f, link, out)
-        for points, source in self._confirmed(f):
+        for points, source, written in self._confirmed(f):
             for p in points:
-                self._value(f, link, p, source, out)
+                self._value(f, link, p, source, written, out)
         out += self.advance(f.t_ns)
         return out
 
@@ -104,14 +104,16 @@ class Bridge:
         req = self.pending.pop(f.pair, None) if f.pair is not None else None
         if not f.crc_ok or f.exception:
             return ()
-        got = []
-        if req is not None and req.unit == f.unit:
-            got.append((req.points, req))
-        if f.points:
-            got.append((f.points, f))
+        written = req is not None and req.unit == f.unit
+        got = [(f.points, f, written)] if f.points else []  # a write's echo (fc 05/06) repeats its values
+        if written:
+            echoed = {(p.get("name"), p.get("address")) for p in f.points}
+            points = [p for p in req.points if (p.get("name"), p.get("address")) not in echoed]
+            if points:
+                got.append((points, req, True))
         return got
 
-    def _value(self, f, link: str, p: dict, source, out: list[Message]) -> None:
+    def _value(self, f, link: str, p: dict, source, written: bool, out: list[Message]) -> None:
         self.values += 1
         topic, first = self._topic(link, f.unit, f.model, p)
         vkey = (p.get("raw"), p.get("value"), p.get("text"))
@@ -121,7 +123,7 @@ class Bridge:
             if (held[2] if held is not None else last[1] if last is not None else None) == vkey:
                 self.suppressed += 1
                 return
-        msg = Message(topic, self._payload(f, p, source), True)
+        msg = Message(topic, self._payload(f, p, source, written), True)
         if first and self.spec.ha_prefix:
             model = f.model or "generic"
             shared = p.get("name") in self.shared_names(f.model)
@@ -153,7 +155,7 @@ class Bridge:
         self.taken.add(topic)
         return topic, True
 
-    def _payload(self, f, p: dict, source) -> bytes:
+    def _payload(self, f, p: dict, source, written: bool) -> bytes:
         d = {"value": p.get("value"), "unit": p.get("unit"), "raw": p.get("raw"), "name": p.get("name"),
              "address": p.get("address")}
         if p.get("text") is not None:
@@ -161,7 +163,7 @@ class Bridge:
         if p.get("id"):
             d["id"] = p["id"]
         d.update(self._when(f.t_ns))
-        d.update(model=f.model, frame=f.index, written=source is not f,
+        d.update(model=f.model, frame=f.index, written=written,
                  quality={"crc_ok": bool(f.crc_ok and source.crc_ok), "annotations": _codes(f, source)})
         return orjson.dumps(d)
 

@@ -136,7 +136,8 @@ class Publisher:
             else:
                 c.connect(self.spec.host, self.spec.port, keepalive=30)
             deadline = time.monotonic() + c.connect_timeout
-            while not self._ready and self._refused is None and time.monotonic() < deadline:
+            while (not self._ready and self._refused is None and time.monotonic() < deadline
+                   and not self._closing.is_set()):
                 if c.loop(0.05) != mqtt.MQTT_ERR_SUCCESS and not self._ready:
                     break
         except (OSError, ValueError) as e:  # refused, unreachable, DNS, TLS (ssl errors are OSErrors)
@@ -232,9 +233,16 @@ class Publisher:
     def _finish(self) -> None:
         """The end: what is queued goes out while the broker is there (until the deadline), then offline."""
         c = self._client
-        if c is None or not self.connected:
+        if c is None:
             return
         by = getattr(self, "_close_by", time.monotonic() + CLOSE_S)
+        if not self.connected:  # one more try: the broker may be back, and the final state is worth it
+            self._closing.clear()
+            try:
+                if not self._connect():
+                    return
+            finally:
+                self._closing.set()
         try:
             while time.monotonic() < by and (self.q.qsize() or self.stale or c.want_write()):
                 if not c.want_write():

@@ -124,6 +124,9 @@ class MqttSpec:
 def parse_url(url: str) -> MqttSpec:
     """MqttSpec of mqtt[s]://[user[:pass]@]host[:port]/prefix; SettingsError naming what is wrong."""
     shown = _safe(url)
+    if "#" in url or "?" in url:
+        raise SettingsError(f"--mqtt {shown}: the topic prefix may not hold '#', '+' or '?' (in a password "
+                            "write them %23, %2B, %3F)")
     try:
         u = urlsplit(url)
         port = u.port
@@ -140,8 +143,6 @@ def parse_url(url: str) -> MqttSpec:
         raise SettingsError(f"--mqtt {shown}: no topic prefix (mqtt://{u.hostname}/PREFIX, e.g. /plant/line3)")
     if not _PREFIX_OK.match(prefix) or "//" in prefix:
         raise SettingsError(f"--mqtt {shown}: the topic prefix {prefix!r} may not hold '#', '+' or an empty level")
-    if u.query or u.fragment:
-        raise SettingsError(f"--mqtt {shown}: no '?' or '#' in the URL")
     tls = u.scheme == "mqtts"
     user = unquote(u.username) if u.username else None
     password = unquote(u.password) if u.password is not None else None
