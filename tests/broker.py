@@ -28,7 +28,8 @@ START_S = 15.0
 def mosquitto() -> str:
     exe = shutil.which("mosquitto") or next((p for p in ("/usr/sbin/mosquitto",) if os.access(p, os.X_OK)), None)
     if exe is None:
-        pytest.fail("mosquitto is not installed: run scripts/install-system-deps.sh (the MQTT tests need a real broker)")
+        pytest.fail("mosquitto is not installed: run scripts/install-system-deps.sh "
+                    "(the MQTT tests need a real broker)")
     return exe
 
 
@@ -80,8 +81,8 @@ class Broker:
             pw = self.folder / "passwd"
             pw.write_text("")
             for u, p in users.items():
-                r = subprocess.run([shutil.which("mosquitto_passwd") or "/usr/bin/mosquitto_passwd", "-b", str(pw), u, p],
-                                   capture_output=True, text=True)
+                exe = shutil.which("mosquitto_passwd") or "/usr/bin/mosquitto_passwd"
+                r = subprocess.run([exe, "-b", str(pw), u, p], capture_output=True, text=True)
                 if r.returncode:
                     pytest.fail(f"mosquitto_passwd: {r.stderr.strip()}")
             os.chmod(pw, 0o600)
