@@ -101,7 +101,7 @@ class Broker:
         return "mqtts" if self.tls else "mqtt"
 
     def url(self, prefix: str = "plant/line3", user: str | None = None, password: str | None = None) -> str:
-        auth = f"{user}:{password}@" if user else ""
+        auth = f"{user}{'' if password is None else ':' + password}@" if user else ""
         return f"{self.scheme}://{auth}127.0.0.1:{self.port}/{prefix}"
 
     def start(self) -> Broker:
@@ -178,8 +178,10 @@ class Subscriber:
         self.client.disconnect()
 
 
-def retained(broker: Broker, topic: str = "#", settle_s: float = 1.0, **kw) -> dict[str, bytes]:
-    """The broker's retained messages under `topic` (a fresh subscriber gets them first, flagged retained)."""
+def retained(broker: Broker, topic: str = "#", settle_s: float = 1.0, *, live: bool = False,
+             **kw) -> dict[str, bytes]:
+    """The broker's retained messages under `topic` (a fresh subscriber gets them first, flagged retained);
+    `live`: also those that come while it listens (retained ones published meanwhile come unflagged)."""
     sub = Subscriber(broker, topic, **kw)
     try:
         last, n = time.monotonic(), -1
@@ -188,6 +190,6 @@ def retained(broker: Broker, topic: str = "#", settle_s: float = 1.0, **kw) -> d
             k = len(sub.messages)
             if k != n:
                 n, last = k, time.monotonic()
-        return {t: p for t, p, r in sub.messages if r}
+        return {t: p for t, p, r in sub.messages if r or live}
     finally:
         sub.close()

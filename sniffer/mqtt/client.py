@@ -145,10 +145,10 @@ class Publisher:
         if not self._ready:
             return self._failed(f"the broker refused the connection: {self._refused}" if self._refused
                                 else "no answer from the broker")
+        again = self.connects > 0 or self.last_error is not None
+        n = self._resync()
         self.connects += 1
         self.connected = True
-        again = self.connects > 1 or self.last_error is not None
-        n = self._resync()
         self.last_error = None
         self._said.clear()
         self.report(f"mqtt: {'reconnected' if again else 'connected'} to {self.spec.broker}"
@@ -199,8 +199,8 @@ class Publisher:
             rc = c.loop(0.0 if busy else 0.05)
             if rc != mqtt.MQTT_ERR_SUCCESS:
                 self.connected = False
-                self.last_error = f"connection lost ({mqtt.error_string(rc)})"
-                self.report(f"mqtt: lost {self.spec.broker}: {mqtt.error_string(rc)}; reconnecting "
+                self.last_error = f"connection lost ({mqtt.error_string(rc).rstrip('.')})"
+                self.report(f"mqtt: lost the connection to {self.spec.broker}; reconnecting "
                             "(the capture goes on, retained values are kept)")
                 self._said.add(self.last_error)
                 return
