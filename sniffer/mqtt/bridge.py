@@ -35,6 +35,7 @@ from .options import MqttSpec
 
 _NS = 1_000_000_000
 HEALTH_EVERY_NS = _NS  # a unit's health topic at most once a second of capture time
+_NEVER = 1 << 62
 PENDING_WRITES = 1024  # write requests waiting for their acknowledgement (older ones are forgotten)
 
 
@@ -61,7 +62,8 @@ class Bridge:
         self.names: dict[tuple, str] = {}  # (link, unit, point name, address) -> topic
         self.taken: set[str] = set()
         self.sent: dict[str, tuple] = {}  # topic -> (t_ns, value key) of the last value sent
-        self.held: dict[str, tuple[int, Message, tuple]] = {}  # topic -> (due t_ns, message, value key)
+        self.held: dict[str, tuple] = {}  # topic -> (due t_ns, point, common part, value key)
+        self.next_due = _NEVER  # the earliest due time of the held values
         self.units: dict[tuple, UnitStats] = {}
         self.health_due: dict[tuple, int] = {}  # (link, unit) -> capture time its health is next sent
         self.dirty: set[tuple] = set()
@@ -86,8 +88,9 @@ class Bridge:
             self.dirty.add(key)
         self._events(f, link, out)
         for points, source, written in self._confirmed(f):
+            common = self._common(f, source, written)  # what every value of this group says alike
             for p in points:
-                self._value(f, link, p, source, written, out)
+                self._value(f, link, p, common, out)
         out += self.advance(f.t_ns)
         return out
 
@@ -113,17 +116,16 @@ class Bridge:
                 got.append((points, req, True))
         return got
 
-    def _value(self, f, link: str, p: dict, source, written: bool, out: list[Message]) -> None:
+    def _value(self, f, link: str, p: dict, common: dict, out: list[Message]) -> None:
         self.values += 1
         topic, first = self._topic(link, f.unit, f.model, p)
         vkey = (p.get("raw"), p.get("value"), p.get("text"))
         if self.spec.changes:
             last = self.sent.get(topic)
             held = self.held.get(topic)
-            if (held[2] if held is not None else last[1] if last is not None else None) == vkey:
+            if (held[3] if held is not None else last[1] if last is not None else None) == vkey:
                 self.suppressed += 1
                 return
-        msg = Message(topic, self._payload(f, p, source, written), True)
         if first and self.spec.ha_prefix:
             model = f.model or "generic"
             shared = p.get("name") in self.shared_names(f.model)
@@ -131,14 +133,15 @@ class Bridge:
                                True))
         last = self.sent.get(topic)
         due = last[0] + self.interval_ns if last is not None and self.interval_ns else f.t_ns
-        if due > f.t_ns:
+        if due > f.t_ns:  # held back (encoded only if it is still the newest when it is due)
             if topic in self.held:
                 self.suppressed += 1
-            self.held[topic] = (due, msg, vkey)
+            self.held[topic] = (due, p, common, vkey)
+            self.next_due = min(self.next_due, due)
             return
         self.held.pop(topic, None)
         self.sent[topic] = (f.t_ns, vkey)
-        out.append(msg)
+        out.append(Message(topic, _payload(p, common), True))
 
     def _topic(self, link: str, unit: int, model: str | None, p: dict) -> tuple[str, bool]:
         """The register's topic (and whether it is new): its name slugged; a name the model gives several
@@ -155,17 +158,11 @@ class Bridge:
         self.taken.add(topic)
         return topic, True
 
-    def _payload(self, f, p: dict, source, written: bool) -> bytes:
-        d = {"value": p.get("value"), "unit": p.get("unit"), "raw": p.get("raw"), "name": p.get("name"),
-             "address": p.get("address")}
-        if p.get("text") is not None:
-            d["text"] = p["text"]
-        if p.get("id"):
-            d["id"] = p["id"]
-        d.update(self._when(f.t_ns))
+    def _common(self, f, source, written: bool) -> dict:
+        d = self._when(f.t_ns)
         d.update(model=f.model, frame=f.index, written=written,
                  quality={"crc_ok": bool(f.crc_ok and source.crc_ok), "annotations": _codes(f, source)})
-        return orjson.dumps(d)
+        return d
 
     def _when(self, t_ns: int) -> dict:
         t_rel = t_ns - self.t0
@@ -189,12 +186,16 @@ class Bridge:
         """Capture time is t_ns: the held values and the health topics that are due."""
         self.now = max(self.now, t_ns)
         out: list[Message] = []
-        if self.held:
-            for topic, (due, msg, vkey) in list(self.held.items()):
+        if self.held and self.next_due <= t_ns:
+            nxt = _NEVER
+            for topic, (due, p, common, vkey) in list(self.held.items()):
                 if due <= t_ns:
                     del self.held[topic]
                     self.sent[topic] = (t_ns, vkey)
-                    out.append(msg)
+                    out.append(Message(topic, _payload(p, common), True))
+                else:
+                    nxt = min(nxt, due)
+            self.next_due = nxt
         if self.dirty:
             every = max(HEALTH_EVERY_NS, self.interval_ns)
             for key in list(self.dirty):
@@ -206,7 +207,7 @@ class Bridge:
 
     def finish(self) -> list[Message]:
         """The end of the capture: every held value and every unit's final health."""
-        out = [msg for _due, msg, _v in self.held.values()]
+        out = [Message(topic, _payload(p, common), True) for topic, (_due, p, common, _v) in self.held.items()]
         self.held.clear()
         for key in sorted(self.dirty, key=str):
             out += self._health(key)
@@ -231,6 +232,18 @@ class Bridge:
         d.update(self._when(st.last_seen_ns or self.now))
         out.append(Message(topic, orjson.dumps(d), True))
         return out
+
+
+def _payload(p: dict, common: dict) -> bytes:
+    """A value's JSON: the point (value, unit, raw, name, address, text, id), then when and how it came."""
+    d = {"value": p.get("value"), "unit": p.get("unit"), "raw": p.get("raw"), "name": p.get("name"),
+         "address": p.get("address")}
+    if p.get("text") is not None:
+        d["text"] = p["text"]
+    if p.get("id"):
+        d["id"] = p["id"]
+    d.update(common)
+    return orjson.dumps(d)
 
 
 def _codes(f, source) -> list[str]:
