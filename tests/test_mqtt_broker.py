@@ -43,7 +43,9 @@ def test_replay_publishes_retained_values_health_and_discovery(mqtt_broker):
     assert not any(t.endswith("/events") for t in got)  # events are never retained
 
 
-def test_the_last_retained_value_is_the_captures_last_confirmed_one(mqtt_broker, tmp_path):
+@pytest.mark.parametrize("queue", [None, 5])
+def test_the_last_retained_value_is_the_captures_last_confirmed_one(mqtt_broker, queue):
+    """Also when the queue overflows (5 messages: most are dropped): a retained value dropped goes out again."""
     r = sniffer("replay", A510, "--format", "jsonl")
     last = {}
     for line in r.stdout.splitlines():
@@ -52,7 +54,10 @@ def test_the_last_retained_value_is_the_captures_last_confirmed_one(mqtt_broker,
             for p in rec["points"]:
                 if p["name"] == "Output frequency":
                     last[rec["unit"]] = p["raw"]
-    assert sniffer("replay", A510, "--quiet", "--mqtt", mqtt_broker.url()).returncode == 0
+    flags = ["--mqtt-queue", str(queue)] if queue else []
+    run = sniffer("replay", A510, "--quiet", "--mqtt", mqtt_broker.url(), *flags)
+    assert run.returncode == 0, run.stderr
+    assert ("dropped (queue full)" in run.stderr) == bool(queue), run.stderr
     got = retained(mqtt_broker, "plant/line3/+/+/output_frequency")
     assert {int(t.split("/")[3]): json.loads(p)["raw"] for t, p in got.items()} == last
 
