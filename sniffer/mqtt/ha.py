@@ -49,10 +49,12 @@ def availability(prefix: str) -> str:
 
 def device(prefix: str, link: str, unit: int, model: str, model_name: str | None) -> dict:
     title = model_name or model
-    return {"identifiers": [node_id(prefix, link, unit)], "name": f"{title} unit {unit}" +
-            ("" if link == "default" else f" ({link})"), "model": title, "model_id": model,
-            "manufacturer": "rs485-sniffer (passive)", "sw_version": __version__,
-            "suggested_area": link if link != "default" else None}
+    d = {"identifiers": [node_id(prefix, link, unit)], "name": f"{title} unit {unit}" +
+         ("" if link == "default" else f" ({link})"), "model": title, "model_id": model,
+         "manufacturer": "rs485-sniffer (passive)", "sw_version": __version__}
+    if link != "default":  # Home Assistant wants a string or nothing
+        d["suggested_area"] = link
+    return d
 
 
 def discovery(spec, link: str, unit: int, model: str, model_name: str | None, state_topic: str,
