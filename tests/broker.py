@@ -56,18 +56,20 @@ def make_ca(folder: Path, name: str = "ca") -> Path:
     return folder / f"{name}.pem"
 
 
-def make_server_cert(folder: Path, ca: str = "ca") -> tuple[Path, Path]:
-    """server.pem / server.key for 127.0.0.1 and localhost, signed by the CA `ca` in folder."""
+def make_server_cert(folder: Path, ca: str = "ca", name: str = "server") -> tuple[Path, Path]:
+    """NAME.pem / NAME.key for 127.0.0.1 and localhost, signed by the CA `ca` in folder (a server's, or
+    a client's certificate)."""
     (folder / "san.ext").write_text("subjectAltName=IP:127.0.0.1,DNS:localhost\n")
-    openssl("req", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=localhost", "-keyout", "server.key",
-            "-out", "server.csr", cwd=folder)
-    openssl("x509", "-req", "-in", "server.csr", "-CA", f"{ca}.pem", "-CAkey", f"{ca}.key", "-CAcreateserial",
-            "-days", "2", "-extfile", "san.ext", "-out", "server.pem", cwd=folder)
-    return folder / "server.pem", folder / "server.key"
+    openssl("req", "-newkey", "rsa:2048", "-nodes", "-subj", f"/CN={name}", "-keyout", f"{name}.key",
+            "-out", f"{name}.csr", cwd=folder)
+    openssl("x509", "-req", "-in", f"{name}.csr", "-CA", f"{ca}.pem", "-CAkey", f"{ca}.key", "-CAcreateserial",
+            "-days", "2", "-extfile", "san.ext", "-out", f"{name}.pem", cwd=folder)
+    return folder / f"{name}.pem", folder / f"{name}.key"
 
 
 class Broker:
-    def __init__(self, folder: Path, *, users: dict[str, str] | None = None, tls: bool = False) -> None:
+    def __init__(self, folder: Path, *, users: dict[str, str] | None = None, tls: bool = False,
+                 client_certs: bool = False) -> None:
         self.folder = Path(folder) / f"broker-{free_port()}"
         self.folder.mkdir(parents=True)
         self.users = users
@@ -75,6 +77,7 @@ class Broker:
         self.port = free_port()
         self.proc: subprocess.Popen | None = None
         self.ca: Path | None = None
+        self.client_cert = self.client_key = None  # with client_certs: one the CA signed
         lines = [f"listener {self.port} 127.0.0.1", "persistence false", f"user {getpass.getuser()}",
                  "log_dest stderr", "log_type error", "log_type warning"]
         if users:
@@ -93,6 +96,9 @@ class Broker:
             self.ca = make_ca(self.folder)
             cert, key = make_server_cert(self.folder)
             lines += [f"cafile {self.ca}", f"certfile {cert}", f"keyfile {key}"]
+            if client_certs:  # a client must show a certificate the CA signed
+                lines.append("require_certificate true")
+                self.client_cert, self.client_key = make_server_cert(self.folder, name="client")
         self.conf = self.folder / "mosquitto.conf"
         self.conf.write_text("\n".join(lines) + "\n")
 
@@ -144,7 +150,8 @@ class Subscriber:
         if user:
             c.username_pw_set(user, password)
         if broker.tls:
-            c.tls_set(ca_certs=str(broker.ca))
+            c.tls_set(ca_certs=str(broker.ca), certfile=str(broker.client_cert) if broker.client_cert else None,
+                      keyfile=str(broker.client_key) if broker.client_cert else None)
         c.on_message = self._on_message
         c.on_subscribe = lambda *a: self.subscribed.set()
         c.connect("127.0.0.1", broker.port)

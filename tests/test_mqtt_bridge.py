@@ -177,3 +177,25 @@ def test_url_defaults_and_the_password_from_the_environment(monkeypatch):
     assert (s.host, s.port, s.tls, s.prefix, s.username, s.password) == (
         "broker.local", 8883, True, "plant/line 3", "plc", "from-env")
     assert parse_url("mqtt://[::1]/p").broker == "[::1]:1883"
+
+
+class _OnLink:
+    """A frame of a capture of several links (frames carry `link` there; sniffer.links)."""
+
+    def __init__(self, f, link: str) -> None:
+        self._f = f
+        self.link = link
+
+    def __getattr__(self, name):
+        return getattr(self._f, name)
+
+
+def test_each_link_has_its_own_topics_health_and_devices():
+    frames = run_events(bursts(READ, LINE), LINE)
+    b = Bridge(spec(ha_prefix="homeassistant"), CaptureInfo(baud=19200))
+    msgs = [m for link in ("Cab 3", "") for f in frames for m in b.frame(_OnLink(f, link))] + b.finish()
+    topics = {m.topic for m in msgs}
+    assert {"plant/line3/cab_3/1/holding_8449", "plant/line3/default/1/holding_8449",
+            "plant/line3/cab_3/1/health", "plant/line3/default/1/health"} <= topics
+    dev = {json.loads(m.payload)["device"]["name"] for m in msgs if m.topic.endswith("/config")}
+    assert dev == {"generic unit 1 (Cab 3)", "generic unit 1"}

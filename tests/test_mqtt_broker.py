@@ -110,6 +110,20 @@ def test_tls_with_the_brokers_ca_and_a_wrong_one(tmp_path):
     assert any("TLS:" in x and "certificate" in x for x in bad.stderr.splitlines()), bad.stderr
 
 
+def test_tls_with_a_client_certificate(tmp_path):
+    b = Broker(tmp_path, tls=True, client_certs=True).start()
+    try:
+        without = sniffer("replay", A510, "--quiet", "--mqtt", b.url(), "--mqtt-ca", str(b.ca))
+        ok = sniffer("replay", A510, "--quiet", "--mqtt", b.url(), "--mqtt-ca", str(b.ca),
+                     "--mqtt-cert", str(b.client_cert), "--mqtt-key", str(b.client_key))
+        assert ok.returncode == 0 and "mqtt: connected" in ok.stderr, ok.stderr
+        assert "plant/line3/default/1/output_frequency" in retained(b)
+    finally:
+        b.stop()
+    assert without.returncode == 0 and "mqtt: connected" not in without.stderr
+    assert "mqtt: cannot connect" in without.stderr and "Traceback" not in without.stderr, without.stderr
+
+
 @pytest.mark.parametrize("flags, says", [
     (["--mqtt", "mqtt://127.0.0.1"], "no topic prefix"),
     (["--mqtt", "mqtts://127.0.0.1/p", "--mqtt-ca", "missing.pem"], "--mqtt-ca missing.pem: no such file"),

@@ -127,23 +127,27 @@ class Publisher:
 
     def _connect(self) -> bool:
         """Open the connection and wait for the broker's answer; False (said once per reason) if it fails."""
-        import paho.mqtt.client as mqtt
-
-        c, self._ready, self._refused = self._client, False, None
+        c, self._ready, self._refused, lost = self._client, False, None, False
         try:
             if self.connects or self.last_error:
                 c.reconnect()
             else:
                 c.connect(self.spec.host, self.spec.port, keepalive=30)
             deadline = time.monotonic() + c.connect_timeout
-            while (not self._ready and self._refused is None and time.monotonic() < deadline
-                   and not self._closing.is_set()):
-                if c.loop(0.05) != mqtt.MQTT_ERR_SUCCESS and not self._ready:
+            while not self._ready and self._refused is None and time.monotonic() < deadline:
+                if self._closing.is_set():  # the capture ended meanwhile: wait only as long as closing may
+                    deadline = min(deadline, getattr(self, "_close_by", deadline))
+                rc = c.loop(0.05)
+                if not _ok(rc) and not self._ready:
+                    lost = True
                     break
         except (OSError, ValueError) as e:  # refused, unreachable, DNS, TLS (ssl errors are OSErrors)
             return self._failed(_reason(e))
         if not self._ready:
             return self._failed(f"the broker refused the connection: {self._refused}" if self._refused
+                                else "the broker closed the connection before accepting it"
+                                + (" (does it want a client certificate? --mqtt-cert)" if self.spec.tls
+                                   and not self.spec.cert else "") if lost
                                 else "no answer from the broker")
         again = self.connects > 0 or self.last_error is not None
         n = self._resync()
@@ -197,7 +201,7 @@ class Publisher:
             if not c.want_write():
                 busy = self._hand_over(BATCH)
             rc = c.loop(0.0 if busy else 0.05)
-            if rc != mqtt.MQTT_ERR_SUCCESS:
+            if not _ok(rc):
                 self.connected = False
                 self.last_error = f"connection lost ({mqtt.error_string(rc).rstrip('.')})"
                 self.report(f"mqtt: lost the connection to {self.spec.broker}; reconnecting "
@@ -247,11 +251,11 @@ class Publisher:
             while time.monotonic() < by and (self.q.qsize() or self.stale or c.want_write()):
                 if not c.want_write():
                     self._hand_over(BATCH)
-                if c.loop(0.01) != 0:
+                if not _ok(c.loop(0.01)):
                     return
             info = c.publish(availability(self.spec.prefix), b"offline", qos=1, retain=True)
             while time.monotonic() < by and not info.is_published():
-                if c.loop(0.01) != 0:
+                if not _ok(c.loop(0.01)):
                     return
             c.disconnect()
             c.loop(0.01)
@@ -259,6 +263,11 @@ class Publisher:
             pass
         finally:
             self.connected = False
+
+
+def _ok(rc) -> bool:
+    """A pass of paho's loop that left the connection up (AGAIN: TLS read a record without MQTT data)."""
+    return rc in (0, -1)  # MQTT_ERR_SUCCESS, MQTT_ERR_AGAIN
 
 
 def _reason(e: Exception) -> str:
