@@ -148,9 +148,10 @@ def mqtt_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--mqtt-interval", metavar="TIME", help="at most one value per register in this much capture time "
                    "(the newest goes out): 1s, 500ms (default: every confirmed value)")
     g.add_argument("--mqtt-changes", action="store_true", help="publish a value only when it changed")
-    g.add_argument("--mqtt-ha", nargs="?", const="homeassistant", metavar="PREFIX",
-                   help="Home Assistant MQTT discovery: each drive a device, its registers sensors "
-                        "(discovery prefix, default homeassistant)")
+    g.add_argument("--mqtt-ha", action="store_true",
+                   help="Home Assistant MQTT discovery: each drive a device, its registers sensors")
+    g.add_argument("--mqtt-ha-prefix", metavar="PREFIX",
+                   help="Home Assistant's discovery prefix (default homeassistant)")
     g.add_argument("--mqtt-queue", type=_number(int, "--mqtt-queue", 1, 10_000_000), metavar="N",
                    help="messages waiting for the broker; past that they are dropped and counted (default 10000)")
 

@@ -131,6 +131,8 @@ def test_tls_with_a_client_certificate(tmp_path):
     (["--mqtt", "mqtts://127.0.0.1/p", "--mqtt-cert", "README.md"], "not a certificate and its private key"),
     (["--mqtt", "mqtt://127.0.0.1/p", "--mqtt-ca", "README.md"], "needs an mqtts:// URL"),
     (["--mqtt-ha"], "--mqtt-ha needs --mqtt URL"),
+    (["--mqtt", "mqtt://127.0.0.1/p", "--mqtt-ha-prefix", "ha"], "--mqtt-ha-prefix needs --mqtt-ha"),
+    (["--mqtt", "mqtt://127.0.0.1/p", "--mqtt-ha", "--mqtt-ha-prefix", "ha/#"], "--mqtt-ha-prefix 'ha/#'"),
     (["--mqtt", "mqtt://127.0.0.1/p", "--mqtt-interval", "soon"], "--mqtt-interval 'soon'"),
 ])
 def test_bad_flags_are_one_line_and_exit_2(flags, says):

@@ -20,7 +20,7 @@ def test_the_mqtt_flags_travel_to_a_capture_process_unchanged(tmp_path):
     cert, key = make_server_cert(tmp_path)  # any certificate and key will do as a client's
     argv = ["live", "/dev/ttyUSB0", "--mqtt", "mqtts://plc:pw@broker.local:8884/plant/line3", "--mqtt-ca",
             str(tmp_path / "ca.pem"), "--mqtt-cert", str(cert), "--mqtt-key", str(key), "--mqtt-interval", "2s",
-            "--mqtt-changes", "--mqtt-ha", "--mqtt-queue", "500"]
+            "--mqtt-changes", "--mqtt-ha", "--mqtt-queue", "500"]  # --mqtt-ha before nothing: no PREFIX eaten
     spec = CaptureSpec.from_args(build_parser().parse_args(argv))
     m = spec.mqtt
     assert (m.host, m.port, m.tls, m.prefix, m.username, m.password) == (
@@ -36,7 +36,7 @@ def test_the_mqtt_flags_travel_to_a_capture_process_unchanged(tmp_path):
 
 @pytest.mark.parametrize("command", [["live", "/dev/ttyUSB0"], ["demo"], ["replay", "x.mcap"], ["serve", "--demo"]])
 def test_every_capture_command_takes_the_flags(command):
-    args = build_parser().parse_args([*command, "--mqtt", "mqtt://h/p", "--mqtt-ha", "ha"])
+    args = build_parser().parse_args([*command, "--mqtt", "mqtt://h/p", "--mqtt-ha", "--mqtt-ha-prefix", "ha"])
     assert CaptureSpec.from_args(args).mqtt == MqttSpec("mqtt://h/p", "h", 1883, "p", ha_prefix="ha")
 
 

@@ -1,4 +1,4 @@
-"""Home Assistant MQTT discovery (`--mqtt-ha [PREFIX]`): each drive a device, each register a sensor.
+"""Home Assistant MQTT discovery (`--mqtt-ha`, `--mqtt-ha-prefix`): each drive a device, each register a sensor.
 
     HA_PREFIX/sensor/NODE/OBJECT/config      retained, one per register, sent before its first value
 

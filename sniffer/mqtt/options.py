@@ -55,9 +55,9 @@ class MqttSpec:
 
         url = opt("mqtt")
         if not url:
-            for flag in ("ca", "cert", "key", "interval", "changes", "ha", "queue"):
+            for flag in ("ca", "cert", "key", "interval", "changes", "ha", "ha_prefix", "queue"):
                 if opt(f"mqtt_{flag}") not in (None, False):
-                    raise SettingsError(f"--mqtt-{flag} needs --mqtt URL (the broker to publish to)")
+                    raise SettingsError(f"--mqtt-{flag.replace('_', '-')} needs --mqtt URL (the broker to publish to)")
             return None
         spec = parse_url(url)
         interval = opt("mqtt_interval")
@@ -68,11 +68,13 @@ class MqttSpec:
         queue = opt("mqtt_queue")
         if queue is not None:
             spec = _with(spec, queue=queue)
-        ha = opt("mqtt_ha")
+        ha = (opt("mqtt_ha_prefix") or DEFAULT_HA_PREFIX) if opt("mqtt_ha") else None
+        if opt("mqtt_ha_prefix") and not ha:
+            raise SettingsError("--mqtt-ha-prefix needs --mqtt-ha (Home Assistant discovery)")
         if ha:
             if not _PREFIX_OK.match(ha) or ha.startswith("/") or ha.endswith("/"):
-                raise SettingsError(f"--mqtt-ha {ha[:60]!r}: a discovery prefix without '#', '+' or a leading or "
-                                    "trailing '/' (default homeassistant)")
+                raise SettingsError(f"--mqtt-ha-prefix {ha[:60]!r}: a discovery prefix without '#', '+' or a "
+                                    "leading or trailing '/' (default homeassistant)")
         spec = _with(spec, changes=bool(opt("mqtt_changes")), ha_prefix=ha or None,
                      ca=opt("mqtt_ca"), cert=opt("mqtt_cert"), key=opt("mqtt_key"))
         spec.tls_context()  # bad TLS files: one line now, not a retry loop later
@@ -112,7 +114,7 @@ class MqttSpec:
         if self.changes:
             argv.append("--mqtt-changes")
         if self.ha_prefix:
-            argv += ["--mqtt-ha", self.ha_prefix]
+            argv += ["--mqtt-ha", "--mqtt-ha-prefix", self.ha_prefix]
         if self.queue != DEFAULT_QUEUE:
             argv += ["--mqtt-queue", str(self.queue)]
         for flag, path in (("--mqtt-ca", self.ca), ("--mqtt-cert", self.cert), ("--mqtt-key", self.key)):
