@@ -18,6 +18,25 @@
                            # rules unit 0 (broadcast) frames; same as [units] 0 = "tds-v8".
                            # Without it a broadcast takes the model all units share, if one.
 
+Several links on one timeline (`sniffer live --bus plant.toml`): one [[links]]
+table per link, each with its name, its port (or `tap`, the two receive-only
+adapters of a 4-wire link: the master's pair first), and its own settings and
+units; [serial] and [units] above them are every link's defaults.
+
+    [[links]]
+    name = "drives"
+    port = "/dev/ttyUSB0"
+    baud = 19200
+    parity = "E"
+    units = { 1 = "a510", 2 = "a510" }
+    timeouts_ms = { 1 = 250 }
+
+    [[links]]
+    name = "pumps"
+    tap = ["/dev/ttyUSB1", "/dev/ttyUSB2"]   # master's pair, slaves' pair
+    baud = 9600
+    protocol = "pd-rtu"
+
 `format_bus_file` writes one (`sniffer detect --write-bus`), `load_bus_file`
 reads it.  Every field is checked before use; a bad one is BusFileError("<path>: <what>"),
 one line.  Unknown tables and keys are errors too, naming what was found: a
@@ -33,9 +52,10 @@ from dataclasses import dataclass, field
 from .tomlfile import read_toml
 
 BAUD_RANGE = (50, 4_000_000)
-TABLES = ("serial", "units", "timeouts_ms")
+TABLES = ("serial", "units", "timeouts_ms", "links")
 TOP_KEYS = ("broadcast",)
 SERIAL_KEYS = ("baud", "parity", "stopbits", "databits", "protocol")
+LINK_KEYS = ("name", "port", "tap", *SERIAL_KEYS, "units", "timeouts_ms")
 MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo
 
 
@@ -52,6 +72,11 @@ class BusFile:
     databits: int | None = None
     devices: dict[int, str] = field(default_factory=dict)
     timeouts_ms: dict[int, float] = field(default_factory=dict)
+    path: str = ""
+    links: list[BusFile] = field(default_factory=list)  # [[links]]: each a BusFile with a name and ports
+    name: str = ""
+    ports: tuple[str, ...] = ()
+    tap: bool = False
 
 
 def _show(v) -> str:
@@ -77,30 +102,30 @@ def _table(path: str, doc: dict, name: str) -> dict:
     return t
 
 
-def _serial(path: str, serial: dict, bus: BusFile) -> None:
+def _serial(path: str, serial: dict, bus: BusFile, where: str = "[serial]") -> None:
     from .protocols import NAMES
 
     unknown = sorted(set(serial) - set(SERIAL_KEYS))
     if unknown:
-        raise BusFileError(f"{path}: [serial] unknown keys {_show(unknown)} (known: {', '.join(SERIAL_KEYS)})")
+        raise BusFileError(f"{path}: {where} unknown keys {_show(unknown)} (known: {', '.join(SERIAL_KEYS)})")
     baud = serial.get("baud")
     if baud is not None and (not _is_int(baud) or not BAUD_RANGE[0] <= baud <= BAUD_RANGE[1]):
-        raise BusFileError(f"{path}: [serial] baud must be an integer {BAUD_RANGE[0]}..{BAUD_RANGE[1]}, "
+        raise BusFileError(f"{path}: {where} baud must be an integer {BAUD_RANGE[0]}..{BAUD_RANGE[1]}, "
                            f"not {_show(baud)}")
     parity = serial.get("parity")
     if parity is not None:
         if not isinstance(parity, str) or parity.strip().upper() not in ("N", "E", "O"):
-            raise BusFileError(f"{path}: [serial] parity must be \"N\", \"E\" or \"O\", not {_show(parity)}")
+            raise BusFileError(f"{path}: {where} parity must be \"N\", \"E\" or \"O\", not {_show(parity)}")
         parity = parity.strip().upper()
     stopbits = serial.get("stopbits")
     if stopbits is not None and (not _is_int(stopbits) or stopbits not in (1, 2)):
-        raise BusFileError(f"{path}: [serial] stopbits must be 1 or 2, not {_show(stopbits)}")
+        raise BusFileError(f"{path}: {where} stopbits must be 1 or 2, not {_show(stopbits)}")
     databits = serial.get("databits")
     if databits is not None and (not _is_int(databits) or databits not in (7, 8)):
-        raise BusFileError(f"{path}: [serial] databits must be 7 or 8, not {_show(databits)}")
+        raise BusFileError(f"{path}: {where} databits must be 7 or 8, not {_show(databits)}")
     protocol = serial.get("protocol")
     if protocol is not None and protocol not in NAMES:
-        raise BusFileError(f"{path}: [serial] protocol {_show(protocol)} is not one of {', '.join(NAMES)}")
+        raise BusFileError(f"{path}: {where} protocol {_show(protocol)} is not one of {', '.join(NAMES)}")
     bus.baud, bus.parity, bus.stopbits, bus.databits, bus.protocol = baud, parity, stopbits, databits, protocol
 
 
@@ -111,13 +136,9 @@ def load_bus_file(path: str) -> BusFile:
     if unknown:
         raise BusFileError(f"{path}: unknown tables or keys {_show(unknown)} "
                            f"(known: {', '.join(TABLES + TOP_KEYS)})")
-    bus = BusFile()
+    bus = BusFile(path=path)
     _serial(path, _table(path, doc, "serial"), bus)
-    for key, model in _table(path, doc, "units").items():
-        unit = _unit(path, "units", key)
-        if not isinstance(model, str) or not model.strip():
-            raise BusFileError(f"{path}: [units] {key} must be a model id string (e.g. \"a510\"), not {_show(model)}")
-        bus.devices[unit] = model.strip()
+    _units(path, doc, bus, "")
     if "broadcast" in doc:
         model = doc["broadcast"]
         if not isinstance(model, str) or not model.strip():
@@ -125,14 +146,60 @@ def load_bus_file(path: str) -> BusFile:
         if bus.devices.get(0, model.strip()) != model.strip():
             raise BusFileError(f"{path}: broadcast = {_show(model)} but [units] 0 = {_show(bus.devices[0])}")
         bus.devices[0] = model.strip()
+    links = doc.get("links", [])
+    if not isinstance(links, list) or not all(isinstance(x, dict) for x in links):
+        raise BusFileError(f"{path}: links must be tables [[links]], not {_show(links)}")
+    bus.links = [_link(path, i, x) for i, x in enumerate(links)]
+    names = [b.name for b in bus.links]
+    ports = [p for b in bus.links for p in b.ports]
+    for what, seen in (("name", names), ("port", ports)):
+        twice = sorted({x for x in seen if seen.count(x) > 1})
+        if twice:
+            raise BusFileError(f"{path}: [[links]] {what} {_show(twice[0])} given twice")
+    return bus
+
+
+def _link(path: str, i: int, t: dict) -> BusFile:
+    """One [[links]] table: a name, a port or a tap, and the link's own settings and units."""
+    where = f"[[links]] #{i + 1}"
+    unknown = sorted(set(t) - set(LINK_KEYS))
+    if unknown:
+        raise BusFileError(f"{path}: {where} unknown keys {_show(unknown)} (known: {', '.join(LINK_KEYS)})")
+    name = t.get("name")
+    if not isinstance(name, str) or not name.strip() or any(c.isspace() or c in ",:\"" for c in name.strip()):
+        raise BusFileError(f"{path}: {where} needs a name: a word (e.g. name = \"drives\"), not {_show(name)}")
+    where = f"[[links]] {name.strip()}"
+    port, tap = t.get("port"), t.get("tap")
+    if (port is None) == (tap is None):
+        raise BusFileError(f"{path}: {where} needs a port = \"/dev/...\" or a tap = [master's port, slaves' port]")
+    if port is not None and (not isinstance(port, str) or not port.strip()):
+        raise BusFileError(f"{path}: {where} port must be a device path, not {_show(port)}")
+    if tap is not None and (not isinstance(tap, list) or len(tap) != 2
+                            or not all(isinstance(p, str) and p.strip() for p in tap)):
+        raise BusFileError(f"{path}: {where} tap must be two device paths [master's pair, slaves' pair], "
+                           f"not {_show(tap)}")
+    link = BusFile(path=path, name=name.strip(), ports=(port.strip(),) if port is not None else
+                   tuple(p.strip() for p in tap), tap=tap is not None)
+    _serial(path, {k: v for k, v in t.items() if k in SERIAL_KEYS}, link, where)
+    _units(path, t, link, f"{where} ")
+    return link
+
+
+def _units(path: str, doc: dict, bus: BusFile, where: str) -> None:
+    """[units] and [timeouts_ms] of the file, or of one link (`where` names it)."""
+    for key, model in _table(path, doc, "units").items():
+        unit = _unit(path, "units", key)
+        if not isinstance(model, str) or not model.strip():
+            raise BusFileError(f"{path}: {where}[units] {key} must be a model id string (e.g. \"a510\"), "
+                               f"not {_show(model)}")
+        bus.devices[unit] = model.strip()
     for key, ms in _table(path, doc, "timeouts_ms").items():
         unit = _unit(path, "timeouts_ms", key)
         ok = (_is_int(ms) or isinstance(ms, float)) and math.isfinite(ms) and 0 <= ms <= MAX_TIMEOUT_MS
         if not ok:
-            raise BusFileError(f"{path}: [timeouts_ms] {key} must be a number of milliseconds "
+            raise BusFileError(f"{path}: {where}[timeouts_ms] {key} must be a number of milliseconds "
                                f"0..{MAX_TIMEOUT_MS:.0f}, not {_show(ms)}")
         bus.timeouts_ms[unit] = float(ms)
-    return bus
 
 
 def format_bus_file(bus: BusFile, comments: list[str] = (), trailer: list[str] = ()) -> str:

@@ -66,6 +66,15 @@ def _number(kind, what: str, lo, hi):
 
 
 # ---------------------------------------------------------------- flag groups (each declared once)
+def port_flags(p: argparse.ArgumentParser, what: str = "") -> None:
+    p.add_argument("ports", nargs="*", metavar="PORT",
+                   help=f"serial device, e.g. /dev/ttyUSB0{what}; several: one link each, captured together "
+                        "(one clock, one MCAP, a link column); or a --bus file's [[links]]")
+    p.add_argument("--tap", nargs=2, action="append", metavar=("PORT_A", "PORT_B"),
+                   help="one 4-wire link tapped by two receive-only adapters: the master's pair (requests) "
+                        "on PORT_A, the slaves' pair (responses) on PORT_B, merged by time (repeatable)")
+
+
 def serial_flags(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("serial line")
     g.add_argument("--baud", type=_number(int, "baud rate", 1, MAX_BAUD), help="baud rate (e.g. 9600, 19200, 115200)")
@@ -161,8 +170,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"sniffer {__version__}")
     sub = p.add_subparsers(dest="cmd", metavar="COMMAND", parser_class=_Parser)
 
-    s = sub.add_parser("live", help="capture a serial port (read-only) and decode live")
-    s.add_argument("port", help="serial device, e.g. /dev/ttyUSB0")
+    s = sub.add_parser("live", help="capture a serial port (read-only) and decode live; several ports: "
+                                    "several links on one timeline")
+    port_flags(s)
     serial_flags(s)
     decode_flags(s)
     stream_flags(s, quiet=True)
@@ -231,7 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
     stream_flags(s)
 
     s = sub.add_parser("serve", help="serve the TUI to browsers (textual-serve); the capture runs on its own")
-    s.add_argument("port", nargs="?", help="serial device to capture, e.g. /dev/ttyUSB0 (or --demo)")
+    port_flags(s, " (or --demo)")
     s.add_argument("--demo", action="store_true", help="capture the simulated bus of `sniffer demo` instead")
     s.add_argument("--scenario", default="default", help="with --demo: the scenario (default default)")
     s.add_argument("--seed", type=int, default=1, help=argparse.SUPPRESS)

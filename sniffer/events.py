@@ -26,7 +26,8 @@ class Chunk:
     data: bytes
     byte_t_ns: tuple[int, ...] | None = None
     flags: tuple[tuple[int, str], ...] = ()  # (offset in data, FLAG_*)
-    channel: str = ""
+    channel: str = ""  # which wire of one link (two receive-only adapters on a 4-wire link: --tap)
+    link: str = ""  # which link of a multi-link capture ("" when there is one line)
 
     @property
     def per_byte(self) -> bool:
@@ -42,6 +43,7 @@ class Tick:
     """
 
     t_ns: int
+    link: str = ""
 
 
 @dataclass(slots=True, frozen=True)
@@ -51,6 +53,7 @@ class Gap:
     t_ns: int
     t_end_ns: int
     reason: str
+    link: str = ""
 
 
 Event = Chunk | Tick | Gap
@@ -74,9 +77,12 @@ class CaptureInfo:
     protocol: str = "modbus-rtu"
     sniffer_version: str = ""
     extra: dict = field(default_factory=dict)
+    # several links on one timeline (sniffer.links): one dict per link, in order: name, ports,
+    # channels, and the settings it was captured with (baud ... devices); empty for one line
+    links: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
-        return {
+        d = {
             "source": self.source,
             "port": self.port,
             "baud": self.baud,
@@ -92,6 +98,9 @@ class CaptureInfo:
             "sniffer_version": self.sniffer_version,
             "extra": dict(self.extra),
         }
+        if self.links:  # only then: a one-line capture's metadata is as it always was
+            d["links"] = [dict(link) for link in self.links]
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "CaptureInfo":
@@ -103,4 +112,6 @@ class CaptureInfo:
             if key in d and d[key] is not None:
                 setattr(info, key, d[key])
         info.devices = {int(k): v for k, v in (d.get("devices") or {}).items()}
+        links = d.get("links")
+        info.links = [dict(x) for x in links if isinstance(x, dict)] if isinstance(links, list) else []
         return info

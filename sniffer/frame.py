@@ -24,6 +24,41 @@ CAN_REQ = 1
 CAN_RSP = 2
 
 
+class LinkUnit(tuple):
+    """A unit of one link of several: (link, unit), shown "link:unit", in order of link, then unit.
+
+    A unit 1 on link A is not unit 1 on link B: viewers key their per-unit tables (units,
+    registers, latencies) by `unit_key(frame)`, which is this for a frame of a multi-link capture
+    and the plain unit number otherwise."""
+
+    __slots__ = ()
+
+    def __new__(cls, link: str, unit: int) -> LinkUnit:
+        return tuple.__new__(cls, (link, unit))
+
+    @property
+    def link(self) -> str:
+        return self[0]
+
+    @property
+    def unit(self) -> int:
+        return self[1]
+
+    def __str__(self) -> str:
+        return f"{self[0]}:{self[1]}"
+
+    def __repr__(self) -> str:
+        return f"LinkUnit({self[0]!r}, {self[1]})"
+
+
+def unit_key(f) -> int | LinkUnit | None:
+    """The frame's unit as viewers key it: its number, or (link, number) in a capture of several links."""
+    u = f.unit
+    if u is None or not f.link:
+        return u
+    return LinkUnit(f.link, u)
+
+
 class PointBlock(Protocol):
     """Points kept compactly by a decoder until someone reads them (decoders.generic.block)."""
 
@@ -38,6 +73,7 @@ class Frame:
         "can", "role", "crc_ok", "crc_expected", "time_source", "idle_before_ns",
         "annotations", "pair", "latency_ms", "model", "_points", "exception",
         "fields", "summary", "noise_reason", "channel", "peer", "adu", "encoded", "writes",
+        "link",
     )
 
     def __init__(
@@ -88,6 +124,7 @@ class Frame:
         # what decoding this frame put into its unit's register shadow: [[table, start, [raw, ...]], ...]
         # (decoders.base.UnitState.commit writes both)
         self.writes: list[list] = []
+        self.link = ""  # the link's name in a capture of several links (sniffer.links), else ""
 
     @property
     def points(self) -> list[dict]:

@@ -7,6 +7,7 @@ The golden text has one line per frame:
 A summary shows at most 6 points ("... (+N)"); v2 goldens add the rest after it
 (" | rest: name=value ..."), so a value changed in the 7th register of a read
 is a changed line too.  A v1 golden (no rest) is compared as v1.
+A capture of several links starts each line's content with `link=NAME`.
 Content is compared exactly; the two timing columns within tolerances
 (`Tolerances(time_ms=..., latency_ms=...)`), so a golden survives a rounding
 change in a clock model but not a changed verdict.  Exit codes: 0 same,
@@ -74,6 +75,8 @@ def golden_line(f: Frame, t0_ns: int, version: int = 2) -> str:
         rest = _rest(f) if version >= 2 else ""
         content = (f"{f.role} u{unit} {f.model or '-'} fc{fc} crc={crc} pair={pair} "
                    f"{f.summary}{rest}{tail}")
+    if f.link:  # a capture of several links: which link the frame is on is content too
+        content = f"link={f.link} {content}"
     return f"{t:.6f} {lat} | {content}"
 
 

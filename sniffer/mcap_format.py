@@ -14,6 +14,17 @@ Channels (JSON messages described by JSON Schema, so Foxglove can plot fields):
   sniffer.records (schema FRAME_SCHEMA).
 
 log_time = publish_time = wall_anchor_ns + (t_ns - t0_ns), clamped to >= 0.
+
+Several links on one timeline (`sniffer live P1 P2 ...`, `--tap`, a bus file's
+``[[links]]``): still one /raw and one /frames channel, one clock; every /raw
+event and every /frames record of such a capture carries a ``link`` field (the
+link's name), and /capture's ``links`` lists the links in order (name, ports,
+channels, the settings each was captured with).  A replay hands each link's
+events to that link's own framer, pairer and decoders, in the order written,
+so it re-splits the links exactly.  A one-line capture has no ``link`` field
+and no ``links`` list: its files are as they always were.  ``channel`` is the
+wire within one link: with --tap, "master" (the master's pair: requests) or
+"slaves" (the slaves' pair: responses).
 """
 
 from __future__ import annotations
@@ -52,7 +63,8 @@ RAW_SCHEMA = {
             "description": "[byte offset, 'framing'|'parity'] UART errors",
             "items": {"type": "array", "prefixItems": [{"type": "integer"}, {"type": "string"}]},
         },
-        "channel": {"type": "string"},
+        "channel": {"type": "string", "description": "the wire within the link (--tap: master or slaves)"},
+        "link": {"type": "string", "description": "the link's name (captures of several links only)"},
         "t_end_ns": {"type": "integer", "description": "gap: end of the interruption"},
         "reason": {"type": "string", "description": "gap: why the source was interrupted"},
     },
@@ -79,6 +91,8 @@ CAPTURE_SCHEMA = {
         "protocol": {"type": "string"},
         "sniffer_version": {"type": "string"},
         "extra": {"type": "object"},
+        "links": {"type": "array", "items": {"type": "object"},
+                  "description": "several links: name, ports, channels and settings of each, in order"},
     },
 }
 
@@ -95,19 +109,23 @@ def encode_event(ev: Chunk | Tick | Gap) -> bytes:
     """The /raw message of one event (exactly invertible by `decode_event`)."""
     if type(ev) is Chunk:
         t = ev.t_ns
-        return msgspec.json.encode({
+        d = {
             "kind": "chunk",
             "t_ns": t,
             "data": ev.data.hex(),
             "byte_dt_ns": None if ev.byte_t_ns is None else [b - t for b in ev.byte_t_ns],
             "flags": [[i, f] for i, f in ev.flags],
             "channel": ev.channel,
-        })
-    if type(ev) is Tick:
-        return msgspec.json.encode({"kind": "tick", "t_ns": ev.t_ns})
-    if type(ev) is Gap:
-        return msgspec.json.encode({"kind": "gap", "t_ns": ev.t_ns, "t_end_ns": ev.t_end_ns, "reason": ev.reason})
-    raise TypeError(f"not a source event: {ev!r}")
+        }
+    elif type(ev) is Tick:
+        d = {"kind": "tick", "t_ns": ev.t_ns}
+    elif type(ev) is Gap:
+        d = {"kind": "gap", "t_ns": ev.t_ns, "t_end_ns": ev.t_end_ns, "reason": ev.reason}
+    else:
+        raise TypeError(f"not a source event: {ev!r}")
+    if ev.link:
+        d["link"] = ev.link
+    return msgspec.json.encode(d)
 
 
 def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
@@ -118,6 +136,7 @@ def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
     d = msgspec.json.decode(data)
     kind = d["kind"]
     t = int(d["t_ns"])
+    link = str(d.get("link") or "")
     if kind == "chunk":
         raw = bytes.fromhex(d["data"])
         dt = d.get("byte_dt_ns")
@@ -125,11 +144,11 @@ def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
         if byte_t is not None and len(byte_t) != len(raw):
             raise ValueError("byte_dt_ns and data differ in length")
         flags = tuple((int(i), str(f)) for i, f in d.get("flags") or ())
-        return Chunk(t, raw, byte_t, flags, str(d.get("channel") or ""))
+        return Chunk(t, raw, byte_t, flags, str(d.get("channel") or ""), link)
     if kind == "tick":
-        return Tick(t)
+        return Tick(t, link)
     if kind == "gap":
-        return Gap(t, int(d["t_end_ns"]), str(d["reason"]))
+        return Gap(t, int(d["t_end_ns"]), str(d["reason"]), link)
     return None
 
 

@@ -64,11 +64,16 @@ class Pairer:
         self.pending: Frame | None = None
         self.held: list[Frame] = []  # the pending request and what came after it
         self.last_request: Frame | None = None  # for broadcast-response detection
+        self.before: int | None = None  # Frame.index of the frame pushed before this one (on this line)
+        self._last_index: int | None = None
 
     def _timeout(self, unit: int) -> int:
         return self.unit_timeouts.get(unit, self.timeout_ns)
 
     def push(self, f: Frame) -> list[Frame]:
+        # a line's frames are numbered in a capture-wide sequence when several links share it:
+        # "the frame just before" is the one pushed before, not index - 1
+        self.before, self._last_index = self._last_index, f.index
         if f.protocol == "noise" or f.function is None or f.unit is None:
             return self._pass_through(f)
         can = f.can
@@ -122,7 +127,7 @@ class Pairer:
     def _answers_broadcast(self, f: Frame) -> bool:
         """A unit's echo of the broadcast write just before it (a bug to flag, not a new request)."""
         last = self.last_request
-        if (last is None or last.unit != 0 or last.function != f.function or last.index != f.index - 1
+        if (last is None or last.unit != 0 or last.function != f.function or last.index != self.before
                 or f.unit == 0):  # unit 0 again: the master repeating its broadcast, not an answer
             return False
         if f.function in (0x05, 0x06, 0x16):
@@ -161,7 +166,7 @@ class Pairer:
             self.held = []
             return out
         last = self.last_request
-        if req is None and last is not None and last.unit == 0 and last.index == f.index - 1:
+        if req is None and last is not None and last.unit == 0 and last.index == self.before:
             f.annotations.append(
                 note(codes.BROADCAST_RESPONSE, f"unit {f.unit} answered broadcast frame #{last.index}",
                      0, len(f.raw))

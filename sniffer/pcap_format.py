@@ -120,17 +120,23 @@ def _opt(code: int, value: bytes) -> bytes:
 
 
 def pcapng_header(info: CaptureInfo, linktype: int = LINKTYPE_USER0) -> bytes:
-    """Section header + one interface (nanosecond timestamps, the capture's source as its name)."""
+    """Section header + one interface (nanosecond timestamps, the capture's source as its name); a capture
+    of several links: one interface per link, in the order of `info.links`, named for the link."""
     shb = _block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1)
                  + _opt(4, b"rs485-sniffer") + _opt(0, b""))  # shb_userappl
-    line = f"{info.baud or '?'} {8}{info.parity or 'N'}{info.stopbits or 1}"
-    idb = _block(1, struct.pack("<HHI", linktype, 0, SNAPLEN)
-                 + _opt(2, (info.source or "rs485").encode()[:200])  # if_name
-                 + _opt(3, f"RS-485 {info.protocol} {line}".encode())  # if_description
-                 + _opt(9, b"\x09") + _opt(0, b""))  # if_tsresol: 10^-9
-    return shb + idb
+    lines = [(info.source or "rs485", info)] if not info.links else [
+        (f"{x.get('name')} ({' + '.join(x.get('ports') or ())})", CaptureInfo.from_dict({**info.to_dict(), **x}))
+        for x in info.links]
+    idbs = b""
+    for name, li in lines:
+        line = f"{li.baud or '?'} {8}{li.parity or 'N'}{li.stopbits or 1}"
+        idbs += _block(1, struct.pack("<HHI", linktype, 0, SNAPLEN)
+                       + _opt(2, name.encode()[:200])  # if_name
+                       + _opt(3, f"RS-485 {li.protocol} {line}".encode())  # if_description
+                       + _opt(9, b"\x09") + _opt(0, b""))  # if_tsresol: 10^-9
+    return shb + idbs
 
 
-def pcapng_packet(t_ns: int, data: bytes) -> bytes:
+def pcapng_packet(t_ns: int, data: bytes, interface: int = 0) -> bytes:
     t = max(t_ns, 0)
-    return _block(6, struct.pack("<IIIII", 0, t >> 32, t & 0xFFFFFFFF, len(data), len(data)) + data)
+    return _block(6, struct.pack("<IIIII", interface, t >> 32, t & 0xFFFFFFFF, len(data), len(data)) + data)

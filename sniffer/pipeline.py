@@ -6,6 +6,13 @@
 frames (and hand them to the sinks); `close()` closes the sinks.  A sink is
 any object with `start(info)`, `raw(event)`, `frame(frame)` and `close()`
 (sniffer.sinks.base.Sink).  Sans-I/O: sniffer.session drives it.
+
+Several links (sniffer.links.LinkPipelines) run one Pipeline per link over the
+same sinks: `link` names the line (set on every frame), `numbering` is the
+capture-wide frame counter the links share (a frame is numbered as it leaves
+its framer, before pairing, so pairs and notes name capture-wide numbers), and
+`directions` maps a wire (Chunk.channel) to the one role its frames can have
+(--tap: the master's pair carries requests, the slaves' pair responses).
 """
 
 from __future__ import annotations
@@ -30,6 +37,11 @@ class Pipeline:
         protocol: str = "modbus-rtu",
         timeout_ms: float = DEFAULT_TIMEOUT_MS,
         unit_timeouts: dict[int, float] | None = None,
+        *,
+        link: str = "",
+        numbering=None,
+        directions: dict[str, int] | None = None,
+        start: bool = True,
     ) -> None:
         self.info = info
         self.line = line
@@ -43,26 +55,34 @@ class Pipeline:
         self.bytes_in = 0
         self.noise_bytes = 0
         self._gap_pending: Gap | None = None
-        for s in self.sinks:
-            s.start(info)
-
-    def feed(self, ev) -> list[Frame]:
-        if type(ev) is Chunk:
+        self.link = link
+        self.numbering = numbering
+        self.directions = directions or None
+        if start:
             for s in self.sinks:
-                s.raw(ev)
+                s.start(info)
+
+    def feed(self, ev, record: bool = True) -> list[Frame]:
+        """The frames `ev` settles; `record=False`: the sinks have the event already (LinkPipelines)."""
+        if type(ev) is Chunk:
+            if record:
+                for s in self.sinks:
+                    s.raw(ev)
             self.bytes_in += len(ev.data)
             return self._settle(self.framer.feed(ev))
         if type(ev) is Tick:
             if not self.framer.would_close(ev.t_ns) and not self.pairer.would_time_out(ev.t_ns):
                 return []  # a tick that changes nothing is not recorded
-            for s in self.sinks:
-                s.raw(ev)
+            if record:
+                for s in self.sinks:
+                    s.raw(ev)
             out = self._settle(self.framer.tick(ev.t_ns))
             out += self._decode(self.pairer.tick(ev.t_ns))
             return out
         if type(ev) is Gap:
-            for s in self.sinks:
-                s.raw(ev)
+            if record:
+                for s in self.sinks:
+                    s.raw(ev)
             self._gap_pending = ev
             out = self._settle(self.framer.flush())
             return out
@@ -103,6 +123,8 @@ class Pipeline:
     def _settle(self, frames: list[Frame]) -> list[Frame]:
         if not frames:
             return frames
+        if self.numbering is not None or self.directions is not None:
+            self._mark(frames)
         out: list[Frame] = []
         push = self.pairer.push
         gap = self._gap_pending
@@ -116,6 +138,18 @@ class Pipeline:
                 self._gap_pending = gap = None
             out.extend(push(f))
         return self._decode(out)
+
+    def _mark(self, frames: list[Frame]) -> None:
+        """A multi-link capture's number and link name; a tapped wire's role."""
+        numbering, link, directions = self.numbering, self.link, self.directions
+        for f in frames:
+            if numbering is not None:
+                f.index = next(numbering)
+                f.link = link
+            if directions is not None:
+                can = directions.get(f.channel, 0)
+                if f.can & can:
+                    f.can = can
 
     def _decode(self, frames: list[Frame]) -> list[Frame]:
         decode = self.registry.decode

@@ -10,6 +10,12 @@ in any interleaving) and, once every byte of a read is in a frame, gives the
 sans-I/O (no threads, clocks or files); the TUI's sink and the publisher of
 the viewers' stream (sinks/publish.py, stream_format.py) both run one.
 
+Several links (sniffer.links): every link is a byte stream of its own, cut into
+frames by its own framer, so frames are counted against the reads of their own
+link (`frame(index, size, link)`); reads still come out in the order they were
+read (a read waits for the reads before it, of every link), `offset` counting
+the bytes of every link before it, and each says its `link`.
+
 Memory: a read waits only until its frames have settled (the pairer holds a
 request until its answer: one transaction); who keeps reads afterwards keeps
 a ring of the last RING_READS of them (tui/readring.py, the publisher's
@@ -40,6 +46,7 @@ class Read:  # not frozen: 2.5 times quicker to make (the capture thread makes o
     cont: bool = False
     last_ns: int | None = None  # per byte: its last byte's start; None: one time for the read
     channel: str = ""
+    link: str = ""  # the link it was read on, in a capture of several links
 
     @property
     def per_byte(self) -> bool:
@@ -70,27 +77,52 @@ class Read:  # not frozen: 2.5 times quicker to make (the capture thread makes o
         return None
 
 
-class ReadMarker:
-    """Chunks and frames in, Reads with their marks out (see the module doc)."""
+class _Stream:
+    """One link's byte stream: its bytes read, its bytes framed, its frames not placed yet."""
+
+    __slots__ = ("current", "framed", "offset", "starts")
 
     def __init__(self) -> None:
         self.offset = 0  # bytes of the reads seen
         self.framed = 0  # bytes of the frames seen: the next frame begins here
-        self._waiting: deque[tuple[Chunk, int]] = deque()  # reads whose bytes are not all framed yet
-        self._starts: deque[tuple[int, int]] = deque()  # (stream offset, index) of frames not placed yet
-        self._current: tuple[int, int] | None = None  # the last frame placed: (offset, index)
+        self.starts: deque[tuple[int, int]] = deque()  # (stream offset, index) of frames not placed yet
+        self.current: tuple[int, int] | None = None  # the last frame placed: (offset, index)
+
+
+class ReadMarker:
+    """Chunks and frames in, Reads with their marks out (see the module doc)."""
+
+    def __init__(self) -> None:
+        self.offset = 0  # bytes of the reads seen (every link's)
+        self._streams: dict[str, _Stream] = {"": _Stream()}
+        # reads whose bytes are not all framed yet (or behind one that is not): (chunk, offset, link's offset)
+        self._waiting: deque[tuple[Chunk, int, int]] = deque()
+
+    @property
+    def framed(self) -> int:
+        """Bytes of the frames seen (every link's)."""
+        return sum(s.framed for s in self._streams.values())
+
+    def _stream(self, link: str) -> _Stream:
+        s = self._streams.get(link)
+        if s is None:
+            s = self._streams[link] = _Stream()
+        return s
 
     def chunk(self, c: Chunk) -> list[Read]:
         if not c.data:
             return []
-        self._waiting.append((c, self.offset))
+        s = self._stream(c.link)
+        self._waiting.append((c, self.offset, s.offset))
         self.offset += len(c.data)
+        s.offset += len(c.data)
         return self._ready()
 
-    def frame(self, index: int, size: int) -> list[Read]:
-        """A settled frame of `size` bytes (frames come in stream order)."""
-        self._starts.append((self.framed, index))
-        self.framed += size
+    def frame(self, index: int, size: int, link: str = "") -> list[Read]:
+        """A settled frame of `size` bytes of `link` (a link's frames come in its stream's order)."""
+        s = self._stream(link)
+        s.starts.append((s.framed, index))
+        s.framed += size
         return self._ready() if self._waiting else []
 
     def flush(self) -> list[Read]:
@@ -98,27 +130,30 @@ class ReadMarker:
         would count as the last frame's)."""
         out = self._ready()
         if self._waiting:
-            self.framed = self.offset
+            for s in self._streams.values():
+                s.framed = s.offset
             out += self._ready()
         return out
 
     def _ready(self) -> list[Read]:
         out = []
-        waiting, starts = self._waiting, self._starts
+        waiting, streams = self._waiting, self._streams
         while waiting:
-            c, off = waiting[0]
-            end = off + len(c.data)
-            if self.framed < end:
+            c, off, loff = waiting[0]
+            st = streams[c.link]
+            end = loff + len(c.data)
+            if st.framed < end:
                 break
             waiting.popleft()
-            while starts and starts[0][0] <= off:
-                self._current = starts.popleft()
-            cur = self._current
+            starts = st.starts
+            while starts and starts[0][0] <= loff:
+                st.current = starts.popleft()
+            cur = st.current
             marks = [] if cur is None else [(0, cur[1])]
-            cont = cur is not None and cur[0] < off
+            cont = cur is not None and cur[0] < loff
             while starts and starts[0][0] < end:
-                self._current = s = starts.popleft()
-                marks.append((s[0] - off, s[1]))
+                st.current = s = starts.popleft()
+                marks.append((s[0] - loff, s[1]))
             out.append(Read(c.t_ns, off, c.data, tuple(marks), cont,
-                            c.byte_t_ns[-1] if c.byte_t_ns else None, c.channel))
+                            c.byte_t_ns[-1] if c.byte_t_ns else None, c.channel, c.link))
         return out

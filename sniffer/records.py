@@ -7,6 +7,7 @@ only ever added, never renamed.
 
 | `points` | `[{name, address, raw, value, unit, span, ...}]`; `span` = `[start, end)` of the value's bytes in `raw` |
 | `writes` | `[[table, start, [raw, ...]], ...]`: what the frame wrote into its unit's register shadow |
+| `link` | the link's name, in a capture of several links only (`sniffer live P1 P2`, `--tap`, `[[links]]`) |
 
 A point of a value of several registers (u32, f32, str ...) adds `words` (its registers as on
 the wire); one register of such a value without the others adds `part` ([index, of]); see
@@ -28,7 +29,7 @@ from .frame import Frame
 from .protocols import NAMES, TABLES
 
 
-class _Record(msgspec.Struct, gc=False):
+class _Record(msgspec.Struct, gc=False, omit_defaults=True):
     """The frame record's keys, in order: built positionally and encoded by msgspec in one C call.
 
     Half the cost of building a dict and encoding it with orjson (measured with valgrind on the
@@ -56,6 +57,7 @@ class _Record(msgspec.Struct, gc=False):
     time_source: str
     channel: str
     noise_reason: str | None
+    link: str = ""  # written only in a capture of several links: a one-line record is as it was
 
 
 _encode = msgspec.json.Encoder().encode
@@ -68,13 +70,16 @@ def _record(f: Frame, t0_ns: int, points) -> _Record:
         f.index, (f.t_ns - t0_ns) / 1e9, (f.t_end_ns - t0_ns) / 1e9, f.raw.hex(), f.protocol, f.unit,
         f.function, f.role, f.crc_ok, None if ce is None else f"{ce:04x}", f.exception, f.model, points,
         f.writes, [a.to_dict() for a in f.annotations] if f.annotations else [], f.latency_ms, f.pair,
-        f.summary, f.time_source, f.channel, f.noise_reason,
+        f.summary, f.time_source, f.channel, f.noise_reason, f.link,
     )
 
 
 def frame_record(f: Frame, t0_ns: int) -> dict:
     """The frame as the record's dict (points as dicts)."""
-    return msgspec.structs.asdict(_record(f, t0_ns, f.points))
+    d = msgspec.structs.asdict(_record(f, t0_ns, f.points))
+    if not d["link"]:
+        del d["link"]  # as the JSON has it
+    return d
 
 
 def frame_json(f: Frame, t0_ns: int) -> bytes:
@@ -178,6 +183,7 @@ FRAME_SCHEMA = {
         "time_source": {"type": "string", "enum": ["byte", "read", "none"]},
         "channel": {"type": "string"},
         "noise_reason": {"type": ["string", "null"]},
+        "link": {"type": "string", "description": "the link's name; only in a capture of several links"},
     },
     "required": [
         "t", "raw", "protocol", "unit", "function", "role", "crc_ok", "exception",

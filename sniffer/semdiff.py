@@ -5,6 +5,10 @@ Each capture is summarised incrementally as it decodes (`Summary.add(frame)`),
 so memory does not grow with its length: per request key and per register a
 few numbers, the first distinct values, and quantiles that are exact up to
 `Quantiles.EXACT` samples and within 0.1 % beyond (a log-bucket histogram).
+
+In a capture of several links a unit is a unit of its link: units, requests,
+registers and latencies are keyed by (link, unit) and named `LINK:UNIT`
+(`LINK:u1 ...` for requests and registers); a one-line capture names them as before.
 """
 
 from __future__ import annotations
@@ -110,12 +114,12 @@ class Summary:
 
     def __init__(self) -> None:
         self.frames = 0
-        self.units: dict[int, dict] = {}
+        self.units: dict[tuple, dict] = {}  # (link, unit) -> counts
         self.requests: dict[tuple, list] = {}  # key -> [count, last t_ns, Quantiles of gaps in ms]
         self.values: dict[tuple, dict] = {}
         self.codes: Counter = Counter()
         self.lat_all = Quantiles()
-        self.lat_unit: dict[int, Quantiles] = {}
+        self.lat_unit: dict[tuple, Quantiles] = {}
 
     def add(self, f: Frame) -> None:
         self.frames += 1
@@ -129,14 +133,15 @@ class Summary:
             codes[f"exception.{int(f.exception.get('code') or 0):02x}"] += 1
         if f.is_noise or f.unit is None:
             return
-        u = self.units.get(f.unit)
+        uk = (f.link, f.unit)
+        u = self.units.get(uk)
         if u is None:
-            u = self.units[f.unit] = {"model": f.model, "requests": 0, "responses": 0}
+            u = self.units[uk] = {"model": f.model, "requests": 0, "responses": 0}
         elif u["model"] in (None, "generic"):
             u["model"] = f.model
         if f.role == "request":
             u["requests"] += 1
-            key = (f.unit, *_request_key(f))
+            key = (f.link, f.unit, *_request_key(f))
             r = self.requests.get(key)
             if r is None:
                 self.requests[key] = [1, f.t_ns, Quantiles()]
@@ -147,14 +152,14 @@ class Summary:
         elif f.role == "response" and f.latency_ms is not None:
             u["responses"] += 1
             self.lat_all.add(f.latency_ms)
-            q = self.lat_unit.get(f.unit)
+            q = self.lat_unit.get(uk)
             if q is None:
-                q = self.lat_unit[f.unit] = Quantiles()
+                q = self.lat_unit[uk] = Quantiles()
             q.add(f.latency_ms)
         elif f.role == "response":
             u["responses"] += 1
         for pt in f.points:
-            self._value((f.unit, pt.get("address"), pt.get("name") or ""), pt.get("value"))
+            self._value((f.link, f.unit, pt.get("address"), pt.get("name") or ""), pt.get("value"))
 
     def _value(self, key: tuple, v) -> None:
         r = self.values.get(key)
@@ -177,28 +182,34 @@ class Summary:
 
     def to_dict(self) -> dict:
         requests = {}
-        for (unit, *k), (count, _last, gaps) in sorted(self.requests.items(), key=lambda kv: _sort_key(kv[0])):
+        for (link, unit, *k), (count, _last, gaps) in sorted(self.requests.items(),
+                                                             key=lambda kv: _sort_key(kv[0])):
             med = gaps.median()
-            requests[f"u{unit} {_key_text(tuple(k))}"] = {
+            requests[f"{_on(link)}u{unit} {_key_text(tuple(k))}"] = {
                 "unit": unit, "count": count, "period_ms": round(med, 1) if med is not None else None,
             }
         regs = {}
-        for (unit, addr, name), r in self.values.items():
-            key = f"u{unit} {addr if addr is not None else '-'} {name}".rstrip()
+        for (link, unit, addr, name), r in self.values.items():
+            key = f"{_on(link)}u{unit} {addr if addr is not None else '-'} {name}".rstrip()
             n = MAX_DISTINCT if r["more"] else len(r["distinct"])
             regs[key] = {"unit": unit, "address": addr, "name": name, "values": list(r["first"]),
                          "n_values": n, "n_values_capped": r["more"], "last": r["last"],
                          "range": [r["lo"], r["hi"]] if r["lo"] is not None else None}
         return {
             "frames": self.frames,
-            "units": {str(k): v for k, v in sorted(self.units.items())},
+            "units": {_on(k[0]) + str(k[1]): v for k, v in sorted(self.units.items())},
             "requests": requests,
             "registers": regs,
             "codes": dict(sorted(self.codes.items())),
             "latency_ms": {"n": self.lat_all.n, "median": self.lat_all.pct(0.5), "p95": self.lat_all.pct(0.95),
-                           "per_unit": {str(u): {"n": q.n, "median": q.pct(0.5), "p95": q.pct(0.95)}
+                           "per_unit": {_on(u[0]) + str(u[1]): {"n": q.n, "median": q.pct(0.5), "p95": q.pct(0.95)}
                                         for u, q in sorted(self.lat_unit.items())}},
         }
+
+
+def _on(link: str) -> str:
+    """'LINK:' before a unit of one link of several; '' for one line."""
+    return f"{link}:" if link else ""
 
 
 def summarize(frames) -> dict:

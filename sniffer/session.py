@@ -19,9 +19,13 @@ ended a capture (`keep_partial`, live/demo/simulate), discarded when a derived
 output (an export) could not be written.
 
 Every command goes through here: live, demo, replay, decode, simulate, export,
-check, diff, serve's capture process and the TUI's feeds.  Sinks the spec asks
-for are added here, so every command has them: the trigger sink (--trigger,
-sniffer.triggers) and the MQTT sink (--mqtt, sniffer.mqtt).
+check, diff, serve's capture process and the TUI's feeds.  A capture of
+several links (its CaptureInfo lists `links`) runs one pipeline per link over
+the same sinks (sniffer.links.LinkPipelines); `resolved` and `registry` are
+then its first link's, `pipeline.resolved` / `.registries` every link's.
+Sinks the spec asks for are added here, so every command has them: the
+trigger sink (--trigger, sniffer.triggers) and the MQTT sink (--mqtt,
+sniffer.mqtt).
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ import signal
 import threading
 import time
 from collections.abc import Iterable, Iterator
+from typing import TYPE_CHECKING
 
 from . import __version__
 from .events import CaptureInfo, Gap
@@ -39,6 +44,9 @@ from .pipeline import Pipeline
 from .settings import (  # noqa: F401 - re-exported: the session's settings
     DEFAULTS, MAX_DURATION_S, MAX_TIMEOUT_MS, CaptureSpec, LineChoice, Resolved, finite, layered,
 )
+
+if TYPE_CHECKING:
+    from .links import LinkPipelines
 from .sinks import FileSink
 from .sinks.mcap import CaptureStorageError
 from .sources import CaptureError
@@ -65,7 +73,7 @@ class Session:
         self.info: CaptureInfo | None = None
         self.resolved: Resolved | None = None
         self.registry = None
-        self.pipeline: Pipeline | None = None
+        self.pipeline: Pipeline | LinkPipelines | None = None
         self.sinks: list = []
         self.error: str | None = None
         self.storage_error = False
@@ -106,9 +114,16 @@ class Session:
             return self.info
         info = self.source.open()
         try:
-            self.resolved = self.spec.resolve(info, need_baud=self.need_baud)
-            self.resolved.record_in(info)
             info.sniffer_version = info.sniffer_version or __version__
+            links = None
+            if info.links:  # several links: one pipeline each (sniffer.links), each link's settings checked now
+                links = {str(x.get("name", "")): self.spec.resolve_link(str(x.get("name", "")), info,
+                                                                        need_baud=self.need_baud)
+                         for x in info.links}
+                self.resolved = next(iter(links.values()))
+            else:
+                self.resolved = self.spec.resolve(info, need_baud=self.need_baud)
+                self.resolved.record_in(info)
             self.registry = self.resolved.registry()
             for s in self.planned:
                 self.sinks.append(s.open() if isinstance(s, FileSink) else s)
@@ -116,13 +131,26 @@ class Session:
             if self.spec.trigger is not None:
                 from .triggers import trigger_sink
 
-                triggers = trigger_sink(self.spec, self.resolved, self.registry)
+                # several links: the link that waits longest for an answer decides how long a window waits
+                slowest = max(links.values(), key=lambda r: max([r.timeout_ms, *r.unit_timeouts.values()])) \
+                    if links else self.resolved
+                triggers = trigger_sink(self.spec, slowest, self.registry)
                 self.sinks.append(triggers)
+            mqtt = None
             if self.spec.mqtt is not None:
                 from .mqtt.sink import mqtt_sink
 
-                self.sinks.append(mqtt_sink(self.spec, self.registry))
-            self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
+                mqtt = mqtt_sink(self.spec, self.registry)
+                self.sinks.append(mqtt)
+            if links:
+                from .links import LinkPipelines
+
+                self.pipeline = LinkPipelines(info, links, self.sinks)
+                self.registry = next(iter(self.pipeline.registries.values()))
+                if mqtt is not None:  # model names from every link's models
+                    mqtt.registries = list(self.pipeline.registries.values())
+            else:
+                self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
             if triggers is not None:
                 triggers.settled = self.pipeline.settled
         except BaseException as e:

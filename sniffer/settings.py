@@ -9,6 +9,12 @@ inverse, `to_argv`, gives `serve` the command line of its capture process);
 result (baud known, a protocol we speak, models that speak it), giving
 `Resolved`: line settings, protocol, device map, timeouts, and a fresh decoder
 registry.  sniffer.session runs a capture with it.
+
+Several links (`live P1 P2 ...`, `--tap A B`, a bus file's [[links]]): each is
+a `LinkPlan` (name, ports, its own table of the bus file) and resolves on its
+own, one layer more: flags > the link's table > the bus file's [serial] and
+[units] (every link's defaults) > what the capture recorded for that link >
+defaults (`resolve_link`).  Flags apply to every link.
 """
 
 from __future__ import annotations
@@ -58,6 +64,15 @@ class LineChoice:
         if info is None:
             return cls()
         return cls(info.baud, info.parity, info.stopbits, info.databits, info.protocol, dict(info.devices or {}))
+
+    @classmethod
+    def from_link(cls, link: dict | None) -> LineChoice:
+        """What a capture recorded for one of its links (CaptureInfo.links)."""
+        if not link:
+            return cls()
+        return cls(link.get("baud"), link.get("parity"), link.get("stopbits"), link.get("databits"),
+                   link.get("protocol"), {int(u): m for u, m in (link.get("devices") or {}).items()},
+                   link.get("timeout_ms"), {int(u): ms for u, ms in (link.get("unit_timeouts") or {}).items()})
 
     @classmethod
     def from_bus(cls, bus) -> LineChoice:
@@ -114,9 +129,62 @@ class Resolved:
         info.protocol = self.protocol.name
         info.devices = dict(self.devices)
 
+    def record_link(self, link: dict) -> None:
+        """The settings one link of several ran with, into its CaptureInfo.links entry (replay re-splits
+        each link with them)."""
+        link.update(baud=self.line.baud, parity=self.line.parity, stopbits=self.line.stopbits,
+                    databits=self.line.databits, protocol=self.protocol.name,
+                    devices={str(u): m for u, m in sorted(self.devices.items())}, timeout_ms=self.timeout_ms,
+                    unit_timeouts={str(u): ms for u, ms in sorted(self.unit_timeouts.items())})
+
     def describe(self) -> str:
         models = ", ".join(f"{u}={m}" for u, m in sorted(self.devices.items()))
         return f"{self.line.label()} {self.protocol.name}" + (f" ({models})" if models else "")
+
+
+MASTER, SLAVES = "master", "slaves"  # the wires of a tapped 4-wire link (Chunk.channel)
+
+
+@dataclass(frozen=True)
+class LinkPlan:
+    """One link of several: its name, its port (two with --tap: the master's pair, the slaves' pair),
+    and what its own [[links]] table of the bus file says."""
+
+    name: str
+    ports: tuple[str, ...]
+    tap: bool = False
+    choice: LineChoice = LineChoice()
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        return (MASTER, SLAVES) if self.tap else ("",)
+
+    def entry(self) -> dict:
+        """Its CaptureInfo.links entry before the settings are added (Resolved.record_link)."""
+        return {"name": self.name, "ports": list(self.ports), "tap": self.tap, "channels": list(self.channels)}
+
+
+def link_plans(ports=(), taps=(), bus=None) -> tuple[LinkPlan, ...]:
+    """The links of `live P1 P2 ... --tap A B`, or of the bus file's [[links]]: () for one plain port.
+
+    A link is named for its port's file name (ttyUSB0; a tap: ttyUSB1+ttyUSB2), or its path where
+    two names would clash; a bus file's links have the names it gives them."""
+    import os
+
+    if bus is not None and bus.links:
+        if ports or taps:
+            raise SettingsError(f"{bus.path}: has [[links]]: give no ports on the command line (or no [[links]])")
+        return tuple(LinkPlan(b.name, b.ports, b.tap, LineChoice.from_bus(b)) for b in bus.links)
+    groups = [((p,), False) for p in ports] + [(tuple(t), True) for t in taps]
+    if len(groups) < 2 and not taps:
+        return ()
+    names = ["+".join(os.path.basename(p.rstrip("/")) or p for p in g) for g, _ in groups]
+    names = [n if names.count(n) == 1 else "+".join(g) for n, (g, _) in zip(names, groups)]
+    seen = [p for g, _ in groups for p in g]
+    for p in seen:
+        if seen.count(p) > 1:
+            raise SettingsError(f"{p}: given twice (one port is one link, or one wire of a --tap)")
+    return tuple(LinkPlan(n, g, tap) for n, (g, tap) in zip(names, groups))
 
 
 @dataclass(frozen=True)
@@ -135,6 +203,7 @@ class CaptureSpec:
     map_base: str | None = None  # --map-base 0|1|modicon for CSV model files (None: what the file says, else 0)
     # where the capture comes from
     port: str | None = None
+    links: tuple[LinkPlan, ...] = ()  # several links (or a --tap) instead of one port
     input: str | None = None
     input_format: str = "auto"
     scenario: str | None = None
@@ -156,7 +225,10 @@ class CaptureSpec:
         flags = LineChoice(baud, parity.upper() if parity else None, stopbits, None, protocol,
                            {int(u): str(m) for u, m in (devices or {}).items()}, timeout_ms,
                            dict(unit_timeouts or {}))
-        return cls(flags=flags, bus_file=bus_file, bus=_load_bus(bus_file), model_files=tuple(model_files), **kw)
+        bus = _bus_file(bus_file)
+        links = kw.pop("links", None) or link_plans(bus=bus)
+        return cls(flags=flags, bus_file=bus_file, bus=LineChoice.from_bus(bus), model_files=tuple(model_files),
+                   links=links, **kw)
 
     @classmethod
     def from_args(cls, args) -> CaptureSpec:
@@ -172,10 +244,17 @@ class CaptureSpec:
                            None if timeout is None else finite(timeout, "--timeout-ms", upper=MAX_TIMEOUT_MS))
         duration = opt("duration", 0.0) or 0.0
         fmt = opt("format", "text")
+        bus_file = _bus_file(opt("bus"))
+        ports = list(opt("ports") or ())
+        links = link_plans(ports, opt("tap") or (), bus_file)
+        port = opt("port") or (ports[0] if ports else None)
+        if links:
+            port = links[0].ports[0]
         return cls(
-            flags=flags, bus_file=opt("bus"), bus=_load_bus(opt("bus")), model_files=tuple(opt("model_file") or ()),
+            flags=flags, bus_file=opt("bus"), bus=LineChoice.from_bus(bus_file),
+            model_files=tuple(opt("model_file") or ()),
             map_base=opt("map_base"),
-            port=opt("port"), input=opt("file"), input_format=opt("input_format", "auto") or "auto",
+            port=port, links=links, input=opt("file"), input_format=opt("input_format", "auto") or "auto",
             scenario=opt("scenario"), seed=opt("seed", 1) or 1,
             duration_s=finite(duration, "--duration", upper=MAX_DURATION_S),
             out=None if opt("no_out") else opt("out"),
@@ -192,6 +271,20 @@ class CaptureSpec:
         """flags > bus file > `info` (the capture's metadata) > defaults, checked; SettingsError otherwise."""
         c = layered(self.flags, self.bus, LineChoice.from_info(info), DEFAULTS)
         where = f"{info.source or 'the capture'}" if info is not None else "the line"
+        return self._checked(c, where, need_baud)
+
+    def resolve_link(self, name: str, info: CaptureInfo | None = None, *, need_baud: bool = True) -> Resolved:
+        """One link of several: flags > its [[links]] table > the bus file > what `info` recorded for it
+        > the capture's line settings > defaults."""
+        plan = next((p for p in self.links if p.name == name), None)
+        recorded = next((x for x in (info.links if info is not None else ()) if x.get("name") == name), None)
+        # the capture's own line fields come last (its first link's): its line settings, not its units
+        line_only = replace(LineChoice.from_info(info), devices={}) if info is not None else LineChoice()
+        c = layered(self.flags, plan.choice if plan else LineChoice(), self.bus, LineChoice.from_link(recorded),
+                    line_only, DEFAULTS)
+        return self._checked(c, f"link {name}", need_baud)
+
+    def _checked(self, c: LineChoice, where: str, need_baud: bool) -> Resolved:
         if c.baud is None:
             if need_baud:
                 raise SettingsError(f"{where} does not say its baud rate: give --baud (and --parity/--stopbits)")
@@ -215,7 +308,10 @@ class CaptureSpec:
     def to_argv(self, command: str) -> list[str]:
         """The `sniffer live|demo ...` arguments that run this capture (serve starts it as a process)."""
         argv = [command]
-        if command == "live":
+        if command == "live" and self.links and not self.bus_file:
+            for plan in self.links:
+                argv += ["--tap", *plan.ports] if plan.tap else list(plan.ports)
+        elif command == "live" and not self.links:
             argv.append(self.port or "")
         f = self.flags
         for flag, value in (("--baud", f.baud), ("--parity", f.parity), ("--stopbits", f.stopbits),
@@ -256,9 +352,9 @@ def _int(v, what: str) -> int:
         raise SettingsError(f"{what} {str(v)[:60]!r} is not a whole number") from None
 
 
-def _load_bus(path: str | None) -> LineChoice:
+def _bus_file(path: str | None):
     if not path:
-        return LineChoice()
+        return None
     from .busfile import load_bus_file
 
-    return LineChoice.from_bus(load_bus_file(path))
+    return load_bus_file(path)

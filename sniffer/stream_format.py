@@ -14,6 +14,7 @@ Reads (sniffer.reads.Read) travel in batches, a read once every byte of it is
 in a settled frame, each read a compact array:
 
     [t, offset, "hex", cont, [pos, index, pos, index, ...]]   + [last, "channel"] when not per read / ""
+                                                              + ["link"] in a capture of several links
 
 `t`: ns since the capture's t0 (per read: when it returned; per byte: its
 first byte); `offset`: bytes of the capture before it; `cont`: 1 if its first
@@ -82,8 +83,10 @@ def control(kind: str, **fields) -> bytes:
 def read_item(r: Read, t0_ns: int) -> bytes:
     """One read as the array of a reads line (see the module doc)."""
     item = [r.t_ns - t0_ns, r.offset, r.data.hex(), int(r.cont), [x for m in r.marks for x in m]]
-    if r.last_ns is not None or r.channel:
+    if r.last_ns is not None or r.channel or r.link:
         item += [None if r.last_ns is None else r.last_ns - t0_ns, r.channel]
+    if r.link:
+        item.append(r.link)
     return dumps(item)
 
 
@@ -97,8 +100,8 @@ def parse_reads(msg: dict, t0_ns: int) -> list[Read]:
     out = []
     for item in msg.get("r") or ():
         t, off, data, cont, flat = item[:5]
-        last, channel = (item[5:7] + [None, ""])[:2] if len(item) > 5 else (None, "")
+        last, channel, link = (item[5:8] + [None, "", ""][len(item[5:8]):]) if len(item) > 5 else (None, "", "")
         marks = tuple((int(flat[k]), int(flat[k + 1])) for k in range(0, len(flat) - 1, 2))
         out.append(Read(t0_ns + int(t), int(off), bytes.fromhex(data), marks, bool(cont),
-                        None if last is None else t0_ns + int(last), str(channel or "")))
+                        None if last is None else t0_ns + int(last), str(channel or ""), str(link or "")))
     return out

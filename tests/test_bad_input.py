@@ -147,7 +147,7 @@ BUS_CASES = [
     ('[serial]\nprotocol = "can-bus"',
      "[serial] protocol 'can-bus' is not one of modbus-rtu, modbus-ascii, pd-rtu, pd-ascii"),
     ("[serial]\nbuad = 9600", "[serial] unknown keys ['buad'] (known: baud, parity, stopbits, databits, protocol)"),
-    ('[unit]\n1 = "a510"', "unknown tables or keys ['unit'] (known: serial, units, timeouts_ms, broadcast)"),
+    ('[unit]\n1 = "a510"', "unknown tables or keys ['unit'] (known: serial, units, timeouts_ms, links, broadcast)"),
     ('[units]\n300 = "a510"', "[units] key '300' is not a unit number 0..255"),
     ('[units]\nx = "a510"', "[units] key 'x' is not a unit number 0..255"),
     ("[units]\n1 = 5", '[units] 1 must be a model id string (e.g. "a510"), not 5'),

@@ -240,3 +240,33 @@ def test_a_broker_that_goes_away_mid_capture_loses_no_retained_state_and_no_fram
     assert st["dropped"] >= seen["dropped"] and st["connects"] == 2 and st["connected"] is False
     final = retained(mqtt_broker)
     assert {t: p for t, p in pub.retained.items()} == {t: final[t] for t in pub.retained}  # the latest of each
+
+
+def test_a_capture_of_several_links_publishes_each_links_units_apart(tmp_path, mqtt_broker):
+    """`live P1 P2 --mqtt`: two simulated lines (`simulate --pty`), unit 1 on each: two topics trees, two
+    Home Assistant devices."""
+    import os
+    import signal
+    import time
+
+    paths = [str(tmp_path / "drives"), str(tmp_path / "pumps")]
+    sims = [subprocess.Popen([sys.executable, "-m", "sniffer", "simulate", "--pty", p, "--seed", str(i)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for i, p in enumerate(paths)]
+    try:
+        deadline = time.monotonic() + 30
+        while not all(os.path.exists(p) for p in paths) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        r = sniffer("live", *paths, "--baud", "19200", "--parity", "E", "--duration", "3", "--headless", "--quiet",
+                    "--no-out", "--mqtt", mqtt_broker.url(), "--mqtt-ha")
+    finally:
+        for p in sims:
+            p.send_signal(signal.SIGTERM)
+            p.communicate(timeout=30)
+    assert r.returncode == 0, r.stderr
+    got = retained(mqtt_broker)
+    for link in ("drives", "pumps"):
+        assert f"plant/line3/{link}/1/health" in got
+        assert any(t.startswith(f"plant/line3/{link}/1/holding_") for t in got)
+        cfg = json.loads(got[f"homeassistant/sensor/sniffer_plant_line3_{link}_u1/health/config"])
+        assert cfg["device"]["name"] == f"generic unit 1 ({link})" and cfg["device"]["suggested_area"] == link
+    assert not any("/default/" in t for t in got)

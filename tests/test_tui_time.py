@@ -183,7 +183,7 @@ def test_columns_fit_the_width_and_keep_the_summary():
     tb = s.time
     span = (s.t_ns[0], s.last_t_ns, s.frames[-1].index)
     wide = fit_columns(138, tb, *span)
-    assert [c.key for c in wide.columns] == ["mark", "time", "dt", "dir", "unit", "model", "fc", "link", "lat"]
+    assert [c.key for c in wide.columns] == ["mark", "time", "dt", "dir", "unit", "model", "fc", "pair", "lat"]
     narrow = fit_columns(78, tb, *span)  # 80 columns less the scrollbar
     assert narrow.summary >= MIN_SUMMARY and not narrow.has("model") and narrow.has("dt") and narrow.has("lat")
     tb.mode = WALL
@@ -192,9 +192,9 @@ def test_columns_fit_the_width_and_keep_the_summary():
     assert wall.summary >= MIN_SUMMARY and wall.has("dt") and not wall.has("fc")
     tb.mode = REL
     big = fit_columns(78, tb, s.t0_ns, s.t0_ns + 5000 * S, 999_999)  # an hour and a half, a million frames
-    assert big.summary >= MIN_SUMMARY and big.has("lat") and big.has("link")
+    assert big.summary >= MIN_SUMMARY and big.has("lat") and big.has("pair")
     tiny = fit_columns(40, tb, *span)  # nothing more to drop: the summary gets what is left
-    assert [c.key for c in tiny.columns] == ["mark", "time", "dir", "unit", "link"]
+    assert [c.key for c in tiny.columns] == ["mark", "time", "dir", "unit", "pair"]
 
 
 @pytest.mark.parametrize("width", [78, 100, 138])

@@ -12,14 +12,30 @@ import sys
 
 from ..session import Session, on_signals
 from ..settings import CaptureSpec
-from .common import capture_sinks, default_capture_name, report, say, summary_line, tui_wanted
+from .common import UsageError, capture_sinks, default_capture_name, report, say, summary_line, tui_wanted
 
 
 def cmd_live(spec: CaptureSpec, args) -> int:
     from ..sources.serial_live import SerialSource
 
+    if not spec.port:
+        raise UsageError("live: give a PORT (several for several links), --tap PORT_A PORT_B, "
+                         "or a --bus file with [[links]]")
     if not args.no_out and not spec.out:
         spec = spec.with_(out=default_capture_name())
+    if spec.links:  # several links, or a tapped one: each resolved now, before a port opens
+        from ..sources.serial_links import LinksSource
+
+        plans = [(plan, spec.resolve_link(plan.name, need_baud=False).line) for plan in spec.links]
+        label = " ".join(plan.name for plan in spec.links)
+        ports = [p for plan in spec.links for p in plan.ports]
+        if tui_wanted(spec):
+            from ..tui.run import run_capture_tui
+
+            return run_capture_tui(spec, "live", label)
+        return _capture(spec, LinksSource(plans), label, inputs=ports,
+                        what=lambda: f"capturing {len(plans)} links: " + "; ".join(
+                            f"{p.name} ({' + '.join(p.ports)}{', tapped' if p.tap else ''})" for p, _ in plans))
     line = spec.resolve(None, need_baud=False).line  # flags > bus file > defaults: the port's settings
     if tui_wanted(spec):
         from ..tui.run import run_capture_tui
@@ -61,7 +77,10 @@ def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None) -> int
     on_signals(session.stop)
     session.open()  # a missing port, a bad setting: one line, and nothing created
     where = f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)" if session.outputs else ""
-    say(f"{what() if what else 'capturing ' + label} at {session.resolved.describe()} (read-only){where}")
+    links = getattr(session.pipeline, "resolved", None)
+    at = ("; ".join(f"{name} at {r.describe()}" for name, r in links.items()) if links
+          else f"at {session.resolved.describe()}")
+    say(f"{what() if what else 'capturing ' + label} {at} (read-only){where}")
     session.run()
     print(summary_line(session), file=sys.stderr)
     return report(session)

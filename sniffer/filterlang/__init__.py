@@ -12,7 +12,7 @@ Grammar (words and keys are case-insensitive; a filter of nothing passes every f
     or       := and ( ("or" | "||" | "|") and )*
     and      := unary ( ["and" | "&&" | "&"] unary )*       two terms side by side: and
     unary    := ("not" | "!") unary | "(" or ")" | term
-    term     := key ":" items                                u:1,2  reg:2520H..2525H  t:10s..20s
+    term     := key ":" items                                u:1,2  reg:2520H..2525H  link:drives
               | operand op value                             "Output frequency" > 50   lat>20ms
               | flag                                         err crc exc timeout fault noise warn
               | "rate" "(" or ")" op count "/" time          rate(crc) > 5/min   (no rate inside)
@@ -30,7 +30,9 @@ its response's values): 9508 decimal, 2520H or 0x2520 hex, holding[300] / input[
 discrete[0] for one table, a model's parameter id (12-00, Cn-02), ranges 2520H..2525H; `t:` time since
 the capture started, a range only (t:10s..20s, t:..5s, t:30s..; units ns us ms s min h, bare numbers
 in s); `lat:` the response's latency, a range (bare numbers in ms); `model:` the decoder (a510,
-tds-v8, generic).  Fields compare too: lat>20ms, t>=5s, u!=9, fc=16.
+tds-v8, generic); `link:` the link, in a capture of several links (`sniffer live P1 P2`, --tap,
+a bus file's [[links]]): link:drives,pumps (a unit is its link's: `link:drives u:1`).
+Fields compare too: lat>20ms, t>=5s, u!=9, fc=16.
 
 Rates: `rate(EXPR) > 5/min` is the count of frames matching EXPR in the last minute of capture time
 (rate(timeout u:3) >= 3/10s, rate(exc) < 1/h); see sniffer/filterlang/rate.py.  A query with a rate

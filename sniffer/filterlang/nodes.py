@@ -177,6 +177,17 @@ class Models(Choice):
 
 
 @dataclass(frozen=True)
+class Links(Choice):
+    """link:drives,pumps  the frames of these links (a capture of several links; one line has none)."""
+
+    def value(self, frame) -> str:
+        return (frame.link or "").lower()
+
+    def column(self, cols) -> tuple:
+        return cols.link, dict(enumerate(cols.link_names))
+
+
+@dataclass(frozen=True)
 class Regs(Node):
     """reg:2520H  reg:holding[300]..holding[310]  reg:12-00: frames touching any of these registers.  A
     parameter id is looked up in the models' register maps (that model's frames at that address) and

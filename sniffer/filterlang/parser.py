@@ -10,7 +10,7 @@ import re
 from dataclasses import dataclass
 
 from ..frameflags import F_CRC, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN
-from .nodes import And, Compare, Field, Flag, Models, Node, Not, Or, Regs, Roles, Text
+from .nodes import And, Compare, Field, Flag, Links, Models, Node, Not, Or, Regs, Roles, Text
 from .rate import make_rate
 from .values import (
     BadValue, Interval, RegRange, comparison_intervals, looks_like_register, parse_duration, parse_int,
@@ -28,7 +28,8 @@ class FilterError(ValueError):
 
 
 KEYS = {"u": "u", "unit": "u", "fc": "fc", "function": "fc", "role": "role", "reg": "reg", "register": "reg",
-        "t": "t", "time": "t", "lat": "lat", "latency": "lat", "model": "model"}
+        "t": "t", "time": "t", "lat": "lat", "latency": "lat", "model": "model",
+        "link": "link"}
 FIELDS = {k: v for k, v in KEYS.items() if v in ("u", "fc", "t", "lat")}  # these compare: lat>20ms
 FLAGS = {"err": F_PROBLEM, "errors": F_PROBLEM, "error": F_PROBLEM, "crc": F_CRC, "exc": F_EXC,
          "exception": F_EXC, "exceptions": F_EXC, "timeout": F_TIMEOUT, "timeouts": F_TIMEOUT, "fault": F_FAULT,
@@ -182,7 +183,8 @@ class _Parser:
         if sep and k in KEYS:
             return self.keyed(t, KEYS[k], key, rest)
         if sep and k.isalpha():
-            self.fail(f"unknown key {key + ':'!r} (u: fc: role: reg: t: lat: model:); quote text to search it", t.pos)
+            self.fail(f"unknown key {key + ':'!r} (u: fc: role: reg: t: lat: model: link:); quote text to search it",
+                      t.pos)
         if self.peek is not None and self.peek.kind == "OP":
             return self.compare(t, self.next())
         if t.kind == "STR":
@@ -226,6 +228,8 @@ class _Parser:
             return Roles(src, frozenset(self._role(p, pos) for p, pos in items))
         if key == "model":
             return Models(src, frozenset(p.lower() for p, _ in items))
+        if key == "link":
+            return Links(src, frozenset(p.lower() for p, _ in items))
         if key == "reg":
             ranges, ids = [], []
             for p, pos in items:

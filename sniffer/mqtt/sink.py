@@ -19,7 +19,7 @@ from .options import MqttSpec
 class MqttSink(Sink):
     def __init__(self, spec: MqttSpec, *, registry=None, report=None, publisher: Publisher | None = None) -> None:
         self.spec = spec
-        self.registry = registry
+        self.registries = [registry] if registry is not None else []  # a capture of several links: each link's
         self.publisher = publisher or Publisher(spec, report=report)
         self.bridge: Bridge | None = None
         self._shared: dict = {}
@@ -53,8 +53,11 @@ class MqttSink(Sink):
         return {"mqtt": st}
 
     def _map(self, model: str | None):
-        dec = getattr(self.registry, "decoders", {}).get(model) if self.registry is not None else None
-        return getattr(dec, "map", None)  # a model of register tables (decoders.model.TableDecoder)
+        for registry in self.registries:
+            dec = getattr(registry, "decoders", {}).get(model)
+            if dec is not None:
+                return getattr(dec, "map", None)  # a model of register tables (decoders.model.TableDecoder)
+        return None
 
     def _model_name(self, model: str) -> str | None:
         regmap = self._map(model)

@@ -143,3 +143,33 @@ class PtyBus:
                     os.close(fd)
                 except OSError:
                     pass
+
+
+MASTER_ROLES = ("request", "broadcast")  # WireFrame.role of what the master sends
+
+
+def play_tap(master: PtyBus, slaves: PtyBus, frames: Iterable[WireFrame], speed: float = 1.0,
+             stop_event: threading.Event | None = None) -> tuple[PlayStats, PlayStats]:
+    """One link's traffic on two ptys, as two receive-only adapters on a 4-wire link get it: what the
+    master sends (requests, broadcasts) on `master`, what the slaves send (answers, noise) on `slaves`;
+    each frame at its bus time (scaled by 1/speed), from one thread, so a request is written before its
+    answer.  Returns what each pty carried."""
+    if speed <= 0:
+        raise ValueError("speed must be > 0")
+    start = time.monotonic_ns()
+    first: int | None = None
+    counts = {id(master): [0, 0], id(slaves): [0, 0]}
+    stopped = False
+    for f in frames:
+        if first is None:
+            first = f.t_ns
+        bus = master if f.role in MASTER_ROLES else slaves
+        due = start + int((f.t_end_ns - first) / speed)
+        if not bus.wait_until(due, stop_event) or not bus.write_all(f.raw, stop_event):
+            stopped = True
+            break
+        counts[id(bus)][0] += 1
+        counts[id(bus)][1] += len(f.raw)
+    master.drain()
+    slaves.drain()
+    return (PlayStats(*counts[id(master)], stopped), PlayStats(*counts[id(slaves)], stopped))

@@ -14,6 +14,8 @@ protocol `mbrtu`).  `TSHARK_ARGS` holds those options.  Requests and
 responses travel in the same direction on a bus: mbrtu tells them apart by
 its own request tracking.  Timestamps: the capture's wall-clock anchor +
 the frame's start time (t0 = Unix epoch when the capture has no anchor).
+A capture of several links: in pcapng each link is an interface of its own
+(named for the link); classic pcap has one, and holds every link's frames.
 """
 
 from __future__ import annotations
@@ -38,11 +40,13 @@ class PcapSink(Sink):
         self._fh = open(self.path, "wb", buffering=1 << 16)
         self._t0 = 0
         self._anchor = 0
+        self._interface: dict[str, int] = {}  # link -> pcapng interface
         self.frames = 0
 
     def start(self, info: CaptureInfo) -> None:
         self._t0 = info.t0_ns
         self._anchor = info.wall_anchor_ns or 0
+        self._interface = {str(x.get("name")): k for k, x in enumerate(info.links)}
         self._fh.write(pcapng_header(info) if self.ng else global_header())
         self._fh.flush()  # a disk that is full already fails now, before the input is read
 
@@ -50,7 +54,7 @@ class PcapSink(Sink):
         if f.is_noise and not self.include_noise:
             return
         t = self._anchor + (f.t_ns - self._t0)
-        self._fh.write(pcapng_packet(t, f.raw) if self.ng else packet(t, f.raw))
+        self._fh.write(pcapng_packet(t, f.raw, self._interface.get(f.link, 0)) if self.ng else packet(t, f.raw))
         self.frames += 1
 
     def close(self) -> None:

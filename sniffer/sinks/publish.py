@@ -267,7 +267,7 @@ class PublishSink(Sink):
         for c in chunks:
             reads += marker.chunk(c)
         for f in frames:
-            reads += marker.frame(f.index, len(f.raw))
+            reads += marker.frame(f.index, len(f.raw), f.link)
         if end:
             reads += marker.flush()
         t0 = self._t0

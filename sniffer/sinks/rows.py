@@ -15,6 +15,9 @@ A value of several registers (decoders/regtypes.py) is one point row: `raw` its
 registers joined (a float's bit pattern; null where it does not fit int64, a u64
 from 2**63 on, or is text), `value` the number as float64 (a 64-bit integer
 beyond 2**53 is rounded there), `value_text` the exact number or the string.
+
+`link` (last in both tables) is the frame's link in a capture of several links
+(a unit is a unit of its link: group by link and unit), null for one line.
 """
 
 from __future__ import annotations
@@ -29,11 +32,11 @@ from ..frame import Frame
 FRAME_COLUMNS = (
     "index", "t", "t_end", "t_wall_ns", "protocol", "role", "unit", "function", "crc_ok", "exception_code",
     "model", "pair", "latency_ms", "n_points", "annotations", "summary", "raw", "channel", "time_source",
-    "noise_reason",
+    "noise_reason", "link",
 )
 POINT_COLUMNS = (
     "frame", "t", "unit", "function", "role", "crc_ok", "model", "address", "name", "id", "raw", "value",
-    "value_text", "eng_unit",
+    "value_text", "eng_unit", "link",
 )
 
 
@@ -52,7 +55,7 @@ def frame_row(f: Frame, t0_ns: int, anchor_ns: int) -> tuple:
         f.protocol, f.role, f.unit, f.function, f.crc_ok, exc.get("code") if exc else None,
         f.model, f.pair, None if lat is None else round(lat, 3), len(f.points),
         " ".join([a.code for a in f.annotations]), f.summary, f.raw.hex(), f.channel, f.time_source,
-        f.noise_reason,
+        f.noise_reason, f.link or None,
     )
 
 
@@ -83,6 +86,7 @@ def point_rows(f: Frame, t0_ns: int) -> list[tuple]:
         return []
     t = (f.t_ns - t0_ns) / 1e9
     head = (f.index, t, f.unit, f.function, f.role, f.crc_ok, f.model)
+    link = f.link or None
     rows = []
     for p in pts:
         raw = p.get("raw")
@@ -90,6 +94,6 @@ def point_rows(f: Frame, t0_ns: int) -> list[tuple]:
         rows.append(head + (
             p.get("address"), p.get("name") or "", p.get("id") or "",
             raw if type(raw) is int and raw <= _INT64_MAX else None, _num(v), p.get("text") or _text(v),
-            p.get("unit"),
+            p.get("unit"), link,
         ))
     return rows

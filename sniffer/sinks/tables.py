@@ -24,9 +24,9 @@ def schemas():
 
     i, f, s, b = pa.int64(), pa.float64(), pa.string(), pa.bool_()
     frames = pa.schema(list(zip(FRAME_COLUMNS, (
-        i, f, f, i, s, s, i, i, b, i, s, i, f, i, s, s, s, s, s, s,
+        i, f, f, i, s, s, i, i, b, i, s, i, f, i, s, s, s, s, s, s, s,
     ))))
-    points = pa.schema(list(zip(POINT_COLUMNS, (i, f, i, i, s, b, s, i, s, s, i, f, s, s))))
+    points = pa.schema(list(zip(POINT_COLUMNS, (i, f, i, i, s, b, s, i, s, s, i, f, s, s, s))))
     return frames, points
 
 

@@ -1,4 +1,9 @@
-"""One human line per frame, for a terminal or a log file."""
+"""One human line per frame, for a terminal or a log file.
+
+A capture of several links has a link column after the time (the link's
+name); a one-line capture has none, so its lines (and golden files) are as
+they always were.
+"""
 
 from __future__ import annotations
 
@@ -16,9 +21,12 @@ _UNIT = [f"{i:<3d}" for i in range(256)]
 _NO_TIME = f"{'-':>12}"  # the time column of a frame without a time
 
 
-def frame_line(f: Frame, t0_ns: int) -> str:
+def frame_line(f: Frame, t0_ns: int, link_width: int = 0) -> str:
+    """The frame's line; `link_width` > 0: with a link column that wide (several links)."""
     # frames typed in (`sniffer decode`) have no time: their column says so, not a made-up figure
     t = f"{(f.t_ns - t0_ns) / 1e9:12.6f}" if f.time_source != "none" else _NO_TIME
+    if link_width:
+        t = f"{t} {f.link:<{link_width}}"
     mark = _MARK[f.worst_severity()] if f.annotations else "  "
     if f.protocol == "noise":
         more = "..." if len(f.raw) > 24 else ""
@@ -95,9 +103,20 @@ class StreamSink(Sink):
                 self.out.flush()
 
 
+def link_width(info: CaptureInfo | None) -> int:
+    """How wide a frame line's link column is: 0 (none) unless the capture has several links."""
+    names = [str(x.get("name", "")) for x in (info.links if info is not None else ())]
+    return max(map(len, names)) if len(names) > 1 else 0
+
+
 class TextSink(StreamSink):
     def __init__(self, out: TextIO | None = None, flush: bool = False, own: bool = False) -> None:
         super().__init__(out or sys.stdout, flush, own)
+        self.link_width = 0
+
+    def start(self, info: CaptureInfo) -> None:
+        super().start(info)
+        self.link_width = link_width(info)
 
     def line(self, f: Frame) -> str:
-        return frame_line(f, self.t0)
+        return frame_line(f, self.t0, self.link_width)

@@ -23,7 +23,11 @@ can start a motor.  So:
   drive the bus: use an auto-direction adapter, or a receive-only one.
 
 One reader thread does every read and every Tick, so the event stream is in
-time order by construction; the consumer only drains a queue.
+time order by construction; the consumer only drains a queue (a `Hub`).
+Several ports (sources/serial_links.py: several links, or the two wires of a
+--tap) share one Hub: each port has its own reader thread, and every reader
+takes its event's time and queues the event under the Hub's one lock, so the
+merged stream is in time order too.
 
 Reads must not come late: a read that comes after the answer has arrived too
 holds request and answer together, and the answer has no latency.  The reader
@@ -63,14 +67,57 @@ class PortLostError(CaptureError):
     """The port went away during a capture and reconnect was off."""
 
 
-_END = object()
+class _End:
+    """A reader's last item: its source (whose `_error`, if any, the consumer raises)."""
+
+    __slots__ = ("source",)
+
+    def __init__(self, source) -> None:
+        self.source = source
+
+
+class Hub:
+    """Where reader threads hand over their events: one queue, in time order (see the module doc).
+
+    A reader holds `clock` from taking an event's time until the event is queued.  Ticks of one
+    link that the consumer has not taken yet are kept as the latest only.
+    """
+
+    def __init__(self) -> None:
+        self.clock = threading.Lock()
+        self._queue: deque = deque()
+        self._cond = threading.Condition()
+
+    def push(self, item) -> None:
+        with self._cond:
+            q = self._queue
+            if type(item) is Tick and q and type(q[-1]) is Tick and q[-1].link == item.link:
+                q[-1] = item  # consumer is behind: only the latest silence matters
+            else:
+                q.append(item)
+            self._cond.notify()
+
+    def events(self, readers: int) -> Iterator[Chunk | Tick | Gap]:
+        """Every queued event until `readers` readers have ended; a reader's error is raised."""
+        while readers:
+            with self._cond:
+                while not self._queue:
+                    self._cond.wait(0.1)
+                item = self._queue.popleft()
+            if type(item) is _End:
+                readers -= 1
+                if item.source._error is not None:
+                    raise item.source._error
+                continue
+            yield item
 
 
 class SerialSource:
     """Read-only serial capture: `open()`, iterate `events()`, `stop()` from any thread."""
 
     def __init__(self, port: str, line: LineSettings, *, tick_interval_s: float = 0.005,
-                 reconnect: bool = True, low_latency: bool = True, sysfs: str = "/sys") -> None:
+                 reconnect: bool = True, low_latency: bool = True, sysfs: str = "/sys",
+                 hub: Hub | None = None, link: str = "", channel: str = "") -> None:
         self.port = port
         self.line = line
         self.tick_ns = max(1, int(tick_interval_s * 1e9))
@@ -81,8 +128,9 @@ class SerialSource:
         self.lost_since_ns: int | None = None  # set while the port is away (for a status line)
         self._fd: int | None = None
         self._rdev: int | None = None
-        self._queue: deque = deque()
-        self._cond = threading.Condition()
+        self.hub = hub or Hub()
+        self.link = link  # Chunk/Tick/Gap.link of every event (several links share the hub)
+        self.channel = channel  # Chunk.channel: the wire of a tapped link
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._error: BaseException | None = None
@@ -124,17 +172,9 @@ class SerialSource:
     def events(self) -> Iterator[Chunk | Tick | Gap]:
         """Chunks, Ticks and Gaps in time order; ends once stop() was called and the queue is drained."""
         self.open()
-        while not self._ended:
-            with self._cond:
-                while not self._queue:
-                    self._cond.wait(0.1)
-                item = self._queue.popleft()
-            if item is _END:
-                self._ended = True
-                if self._error is not None:
-                    raise self._error
-                return
-            yield item
+        if not self._ended:
+            self._ended = True
+            yield from self.hub.events(1)
 
     def stop(self) -> None:
         self._stop.set()
@@ -151,16 +191,8 @@ class SerialSource:
 
     # -- reader thread -------------------------------------------------------------
 
-    def _push(self, item) -> None:
-        with self._cond:
-            q = self._queue
-            if type(item) is Tick and q and type(q[-1]) is Tick:
-                q[-1] = item  # consumer is behind: only the latest silence matters
-            else:
-                q.append(item)
-            self._cond.notify()
-
     def _run(self) -> None:
+        clock, push, link, channel = self.hub.clock, self.hub.push, self.link, self.channel
         try:
             last = time.monotonic_ns()  # time of the last event handed out
             next_path_check = last + int(PORT_POLL_S * 1e9)
@@ -181,17 +213,18 @@ class SerialSource:
                         raise
                     self._lose(e.strerror or str(e))
                     continue
-                now = time.monotonic_ns()  # right after the read: the read's timestamp
-                if data:
-                    self._push(Chunk(now, data))
-                    last = now
-                    continue
                 if data == b"":  # readable but empty: the tty was hung up
                     self._lose("hang-up (end of file)")
                     continue
-                if now - last >= self.tick_ns:
-                    self._push(Tick(now))
-                    last = now
+                with clock:  # one order of time for every port of the hub
+                    now = time.monotonic_ns()  # right after the read: the read's timestamp
+                    if data:
+                        push(Chunk(now, data, None, (), channel, link))
+                        last = now
+                        continue
+                    if now - last >= self.tick_ns:
+                        push(Tick(now, link))
+                        last = now
                 if now >= next_path_check:
                     next_path_check = now + int(PORT_POLL_S * 1e9)
                     gone = self._path_gone()
@@ -201,7 +234,7 @@ class SerialSource:
             self._error = e
         finally:
             self._close()
-            self._push(_END)
+            self.hub.push(_End(self))
 
     def _lose(self, reason: str) -> None:
         self._close()
@@ -223,9 +256,12 @@ class SerialSource:
                 request_low_latency(fd, self.port, self.sysfs)
             self._fd = fd
             self.lost_since_ns = None
-            self._push(Gap(lost, back, f"port lost ({reason}), reopened"))
+            with self.hub.clock:
+                self.hub.push(Gap(lost, back, f"port lost ({reason}), reopened", self.link))
             return
-        self._push(Gap(lost, time.monotonic_ns(), f"port lost ({reason}), capture stopped before it returned"))
+        with self.hub.clock:
+            self.hub.push(Gap(lost, time.monotonic_ns(), f"port lost ({reason}), capture stopped before it returned",
+                              self.link))
 
     def _path_gone(self) -> str:
         """A vanished or re-pointed port path means the adapter we hold is not the port any more."""

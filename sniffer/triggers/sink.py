@@ -20,7 +20,7 @@ import time
 from ..events import Chunk, Gap
 from ..filterlang import Context, Query
 from ..frameflags import frame_flags
-from ..mcap_format import encode_event
+from ..mcap_format import decode_event, encode_event
 from ..records import frame_json, loads
 from ..sinks.base import Sink
 from ..sinks.text import frame_line
@@ -77,7 +77,8 @@ class TriggerSink(Sink):
         if type(event) is Chunk:
             bt = event.byte_t_ns
             t = bt[0] if bt else event.t_ns - len(event.data) * self.char_ns  # the first byte (as linebuf.py)
-            kind = RAW_CLEAN if self.settled() == 2 else RAW  # nothing pending: no orphan answer at a start
+            # nothing pending (on its own link, with several): no orphan answer at a start
+            kind = RAW_CLEAN if (self.settled(event.link) if event.link else self.settled()) == 2 else RAW
         else:
             t, kind = event.t_ns, RAW
         self.advance(event.t_end_ns if type(event) is Gap else event.t_ns)
@@ -178,6 +179,9 @@ class TriggerSink(Sink):
         """The ring's records from the window's start (see the module doc) up to now into its file."""
         asked, ring = w.start_ns, self.ring
         since = asked - ALIGN_NS
+        if self.info is not None and self.info.links:
+            self._dump_links(w, f, asked, since)
+            return
         clean = after = None
         for i, (kind, t, _log, _data) in enumerate(ring.records(since)):
             if kind == FRAME:
@@ -197,6 +201,28 @@ class TriggerSink(Sink):
                 if f.first_ns is not None and f.first_ns <= t <= w.end_ns:
                     f.frame(t, data)
             elif t <= w.end_ns:
+                f.raw(t, log, data)
+
+    def _dump_links(self, w: Window, f: WindowFile, asked: int, since: int) -> None:
+        """`_dump` for a capture of several links: each link starts at its own last quiet point before the
+        window's start (the links are seldom all quiet at once), or at its first read after it."""
+        start: dict[str, int] = {}  # link -> index of its first record in the window
+        after: dict[str, int] = {}
+        for i, (kind, t, _log, data) in enumerate(self.ring.records(since)):
+            if kind == FRAME:
+                continue
+            link = decode_event(data).link
+            if t <= asked:
+                if kind == RAW_CLEAN and t >= since:
+                    start[link] = i
+            elif link not in after:
+                after[link] = i
+        first = {link: start.get(link, after.get(link, 1 << 62)) for link in start.keys() | after.keys()}
+        for i, (kind, t, log, data) in enumerate(self.ring.records(since)):
+            if kind == FRAME:
+                if f.first_ns is not None and f.first_ns <= t <= w.end_ns:
+                    f.frame(t, data)
+            elif t <= w.end_ns and i >= first.get(decode_event(data).link, 1 << 62):
                 f.raw(t, log, data)
 
     def _lost(self, w: Window, e: Exception) -> None:

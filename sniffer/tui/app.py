@@ -440,9 +440,9 @@ class SnifferApp(App):
     def action_unit_filter(self) -> None:
         f = self.selected_frame
         if self.store.filter.units is not None:
-            self.apply_filter(units=None)
-        elif f is not None and f.unit is not None:
-            self.apply_filter(units=frozenset({f.unit}))
+            self.apply_filter(units=None, links=None)
+        elif f is not None and f.unit is not None:  # with several links: that unit of that link
+            self.apply_filter(units=frozenset({f.unit}), links=frozenset({f.link.lower()}) if f.link else None)
 
     def action_function_filter(self) -> None:
         f = self.selected_frame
@@ -452,7 +452,7 @@ class SnifferApp(App):
             self.apply_filter(functions=frozenset({f.function & 0x7F}))
 
     def action_clear_filters(self) -> None:
-        self.apply_filter(units=None, functions=None, roles=None, errors_only=False, text="")
+        self.apply_filter(units=None, links=None, functions=None, roles=None, errors_only=False, text="")
 
     def action_filter_bar(self) -> None:
         bar = self.filter_bar

@@ -42,6 +42,7 @@ from .readring import ReadRing
 from .vlist import MOVE_KEYS
 
 PREFIX = 41  # "   time  gap  chars  len  " before the bytes
+LINK_LOOKBACK = 64  # reads looked back for the last one of the same link (the gap column, several links)
 S_SELECTED = Style(color="black", bgcolor="yellow", bold=True)
 S_BEGIN = Style(color="bright_white", bold=True)
 
@@ -229,6 +230,14 @@ class ByteView(ScrollView, can_focus=True):
             return "", ""
         if prev.offset + len(prev.data) != r.offset:  # reads between them never came (a viewer fell behind)
             return f"{r.offset - prev.offset - len(prev.data)}B lost", ""
+        back = 1
+        while prev.link != r.link and back < LINK_LOOKBACK:  # several links: the silence on this read's own
+            back += 1
+            prev = self.ring.get(seq - back)
+            if prev is None:
+                return "", ""
+        if prev.link != r.link:
+            return "", ""
         ch = self.char_ns
         if r.last_ns is not None and prev.last_ns is not None:  # per byte: silence between the two
             gap = r.t_ns - prev.last_ns - (ch or 0)
@@ -268,7 +277,7 @@ class ByteView(ScrollView, can_focus=True):
             text.append(f"{r.data[k]:02x}", st)
         if part == 0:
             text.append(" " * (3 * (bpl - min(bpl, len(r.data))) + 2))
-            text.append("→ " + " ".join(f"#{i}" for i in r.frames), "dim")
+            text.append("→ " + (f"{r.link} " if r.link else "") + " ".join(f"#{i}" for i in r.frames), "dim")
         if seq == self.cursor:
             text.stylize_before(S_CURSOR)
         return text

@@ -124,6 +124,8 @@ class DetailPane(Vertical):
             self._hex()
             return
         head = f"#{f.index} {f.role} t={self.time.full_text(f.t_ns)} {len(f.raw)}B"
+        if f.link:  # a capture of several links
+            head += f" link {f.link}"
         if f.unit is not None:
             head += f" unit {f.unit}"
         if f.function is not None:

@@ -73,18 +73,20 @@ class Layout:
         return any(c.key == key for c in self.columns)
 
 
-def fit_columns(width: int, tb: TimeBase, first_ns: int, last_ns: int, last_index: int) -> Layout:
+def fit_columns(width: int, tb: TimeBase, first_ns: int, last_ns: int, last_index: int, link: int = 0) -> Layout:
     """The columns that fit `width` (each followed by a space), the summary getting what is left.
 
     Widths follow the capture (the time column as wide as its times, the frame numbers as long as
     the last one's); below MIN_SUMMARY characters for the summary the least useful columns go first:
     the model (the detail and Units show it), the function code (the summary names it), Δt, latency.
+    `link` > 0: a capture of several links, whose names are up to that long: a link column after the time.
     """
     digits = len(str(max(last_index, 0)))
     cols = [Column("mark", "", 3), Column("time", tb.title(), tb.width(first_ns, last_ns), right=True),
-            Column("dt", "Δt", 8, right=True, drop=3), Column("dir", "dir", 5), Column("unit", "unit", 4),
+            Column("dt", "Δt", 8, right=True, drop=3), *([Column("link", "link", min(link, 12))] if link else []),
+            Column("dir", "dir", 5), Column("unit", "unit", 4),
             Column("model", "model", 8, drop=1), Column("fc", "fc", 4, drop=2),
-            Column("link", "frame→pair", 2 * digits + 3), Column("lat", "latency", 8, right=True, drop=4)]
+            Column("pair", "frame→pair", 2 * digits + 3), Column("lat", "latency", 8, right=True, drop=4)]
     cols = [Column(c.key, c.title, max(c.width, len(c.title)), c.right, c.drop) for c in cols]
     for drop in range(1, 5):
         if width - sum(c.width + 1 for c in cols) >= MIN_SUMMARY:
@@ -133,7 +135,8 @@ def format_row(f: Frame, fl: int, lay: Layout, tb: TimeBase, marked: bool, is_re
         "unit": "u  -" if f.unit is None else f"u{f.unit:3d}",
         "model": (f.model or "")[:8],
         "fc": "fc--" if f.function is None else f"fc{f.function:02X}",
-        "link": f"#{f.index}" + (f"{'→' if f.role == 'request' else '←'}#{f.pair}" if f.pair is not None else ""),
+        "pair": f"#{f.index}" + (f"{'→' if f.role == 'request' else '←'}#{f.pair}" if f.pair is not None else ""),
+        "link": f.link[:12],
         "lat": f"{f.latency_ms:6.1f}ms" if f.latency_ms is not None and f.role == "response" else "",
     }
     styles = {"dir": S_REQ if f.role == "request" else S_RSP if f.role == "response" else None,
@@ -179,7 +182,8 @@ class FrameList(CursorList):
 
     def __init__(self, store, **kw) -> None:
         super().__init__(store, **kw)
-        self._extent = (0, 0, 0)  # (first t_ns, last t_ns, last frame number): what the column widths fit
+        self._extent = (0, 0, 0, 0)  # (first t_ns, last t_ns, last frame number, link names' width): what
+        # the column widths fit
         self._layout: tuple[tuple, Layout] | None = None  # (what it was fitted to, the layout)
 
     def positions(self):
@@ -197,7 +201,7 @@ class FrameList(CursorList):
         store = self.store
         if len(store):
             columns = self.layout_columns() if grown else None
-            self._extent = (store.t_ns[0], store.last_t_ns, store.frame(len(store) - 1).index)
+            self._extent = (store.t_ns[0], store.last_t_ns, store.frame(len(store) - 1).index, store.link_width)
             grown = grown and self.layout_columns() == columns  # columns refitted: every row on screen changes
         super().refresh_rows(grown)
 

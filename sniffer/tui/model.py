@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 from ..codes import Annotation
 from ..filterlang import Query, matches_text, register_cell, registers_of
-from ..frame import Frame
+from ..frame import Frame, unit_key
 from ..frameflags import (  # the store's flag column (re-exported for the views)
     F_CRC, F_ERROR, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN, frame_flags,
 )
@@ -56,6 +56,7 @@ def frame_from_record(rec: dict, t0_ns: int = 0) -> Frame:
               crc_expected=None if rec.get("crc_expected") is None else int(rec["crc_expected"], 16),
               time_source=rec.get("time_source", "byte"), noise_reason=rec.get("noise_reason"),
               channel=rec.get("channel", ""))
+    f.link = rec.get("link", "")
     f.role = rec.get("role", f.role)
     proto = of_frame(f.protocol)
     f.adu = proto.adu_of(raw) if proto is not None else b""  # what the request's fields name (reg:)
@@ -70,6 +71,7 @@ def frame_from_record(rec: dict, t0_ns: int = 0) -> Frame:
 @dataclass
 class Filter:
     units: frozenset[int] | None = None
+    links: frozenset[str] | None = None  # link names (a capture of several links), lower case
     functions: frozenset[int] | None = None
     roles: frozenset[str] | None = None
     errors_only: bool = False
@@ -77,11 +79,14 @@ class Filter:
 
     @property
     def active(self) -> bool:
-        return bool(self.units is not None or self.functions is not None or self.roles is not None
+        return bool(self.units is not None or self.links is not None or self.functions is not None
+                    or self.roles is not None
                     or self.errors_only or self.text)
 
     def describe(self) -> str:
         parts = []
+        if self.links is not None:
+            parts.append("link " + ",".join(sorted(self.links)))
         if self.units is not None:
             parts.append("unit " + ",".join(map(str, sorted(self.units))))
         if self.functions is not None:
@@ -97,7 +102,7 @@ class Filter:
 
 @dataclass
 class UnitStats:
-    unit: int
+    unit: object  # frame.unit_key: the number, or (link, number) in a capture of several links
     model: str | None = None
     requests: int = 0
     responses: int = 0
@@ -174,6 +179,9 @@ class FrameStore:
         self.reg = array("i")  # the registers a frame touches (filterlang.register_cell), with:
         self.nreg = array("H")
         self.model = array("B")  # index into model_names
+        self.link = array("B")  # index into link_names (a capture of several links; one line: all 0, "")
+        self.link_names: list[str] = []
+        self._link_code: dict[str, int] = {}
         self.model_names: list[str | None] = []
         self._model_code: dict[str | None, int] = {}
         self.role_code = ROLE_CODE
@@ -183,7 +191,7 @@ class FrameStore:
         self.filter = Filter()
         self.view = array("q")  # rows passing the filter (up to the pause point)
         self.problems = array("q")  # rows with any problem flag (unfiltered)
-        self.units: dict[int, UnitStats] = {}
+        self.units: dict = {}  # frame.unit_key -> UnitStats (a unit of its link, with several links)
         self.book = RegisterBook(history_cap)  # the frames' `writes` applied: the decoders' register shadow
         self.registers = self.book.values  # (unit, table, address) -> RegisterValue
         self.transactions = Transactions()  # request + response as one entry, per-unit latency
@@ -192,6 +200,16 @@ class FrameStore:
         self.bytes_total = 0
         self.noise_bytes = 0
         self.generation = 0  # bumped on every change the views must redraw for
+
+    @property
+    def several_links(self) -> bool:
+        """Frames of more than one link came in: the lists show a link column."""
+        return len(self.link_names) > 1
+
+    @property
+    def link_width(self) -> int:
+        """How wide the lists' link column is: the longest link name, 0 (no column) for one line."""
+        return max(map(len, self.link_names)) if self.several_links else 0
 
     @property
     def t0_ns(self) -> int:
@@ -248,6 +266,11 @@ class FrameStore:
             code = self._model_code[f.model] = min(len(self.model_names), 255)
             self.model_names.append(f.model)
         self.model.append(code)
+        code = self._link_code.get(f.link)
+        if code is None:
+            code = self._link_code[f.link] = min(len(self.link_names), 255)
+            self.link_names.append(f.link)
+        self.link.append(code)
         ix = self.row_of
         if ix.rows is None and not ix.extra and (not ix.keys or f.index > ix.keys[-1]):
             ix.keys.append(f.index)  # in order, as the pipeline numbers them: RowIndex.add's common case
@@ -266,9 +289,10 @@ class FrameStore:
             self.book.frame(f)
 
     def _unit_stats(self, f: Frame, fl: int) -> None:
-        st = self.units.get(f.unit)
+        uk = unit_key(f)
+        st = self.units.get(uk)
         if st is None:
-            st = self.units[f.unit] = UnitStats(f.unit)
+            st = self.units[uk] = UnitStats(uk)
         st.count(f, fl)
 
     # ------------------------------------------------------------- filters

@@ -12,6 +12,7 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Static
 
+from ..frame import LinkUnit
 from .changelog import ChangeLog
 from .model import FrameStore
 from .plot import PlotView
@@ -102,8 +103,9 @@ class RegisterWatch(Vertical):
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         if event.row_key is None or event.row_key.value is None:
             return
-        u, table, a = event.row_key.value.split(":")
-        self.chosen = (int(u), table, int(a))
+        u, table, a = event.row_key.value.rsplit(":", 2)  # the unit may be a link's: "drives:1"
+        link, _, n = u.rpartition(":")
+        self.chosen = (LinkUnit(link, int(n)) if link else int(n), table, int(a))
         self._show_chosen()
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 from decoders.generic.block import RegisterBlock, names
 
-from ..frame import Frame
+from ..frame import Frame, unit_key
 from ..protocols import of_frame
 from .history import CAP, Series, cap_for, thin_queued
 
@@ -95,7 +95,7 @@ class RegisterBook:
             thin_queued(self.thin_queue, THIN_PER_FRAME)
 
     def _frame(self, f: Frame) -> None:
-        unit = f.unit
+        unit = unit_key(f)  # a unit of its link, in a capture of several links
         if unit is None:
             return
         blk = f._points
@@ -161,7 +161,7 @@ class RegisterBook:
         wtable, start, raws = writes[0]
         if start != sh.addr or raws != blk.values or wtable != table_of(f) or f.crc_ok is False:
             return False
-        unit, t_ns, index, values = f.unit, f.t_ns, f.index, self.values
+        unit, t_ns, index, values = unit_key(f), f.t_ns, f.index, self.values
         for a, nm, raw in zip(range(start, start + len(raws)), names(sh.space, start, len(raws)), raws):
             key = (unit, wtable, a)
             rv = values.get(key)

@@ -79,7 +79,7 @@ class TuiSink(Sink):
                 self.reads(reads)
 
     def frame(self, frame: Frame) -> None:
-        reads = self._marker.frame(frame.index, len(frame.raw))
+        reads = self._marker.frame(frame.index, len(frame.raw), frame.link)
         if reads:
             self.reads(reads)
         with self._lock:

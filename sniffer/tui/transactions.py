@@ -18,7 +18,7 @@ from __future__ import annotations
 import bisect
 from array import array
 
-from ..frame import REQUEST, RESPONSE, Frame
+from ..frame import REQUEST, RESPONSE, Frame, unit_key
 from .latency import LatencyStats
 
 OK, EXCEPTION, PENDING, TIMEOUT, NO_RESPONSE, END_OF_CAPTURE, BROADCAST, ORPHAN = range(8)
@@ -46,7 +46,7 @@ class Transactions:
         self.flags = array("B")  # the store's frame flags of both frames, OR-ed
         self.tx_of_row = array("i")  # per store row: its transaction, -1: none (noise, unknown role)
         self._open: dict[int, int] = {}  # a request's Frame.index -> its transaction, until its response comes
-        self.latency: dict[int, LatencyStats] = {}  # per unit
+        self.latency: dict = {}  # per unit (frame.unit_key: per link and unit with several links)
         self.all_units = LatencyStats()
         # the transactions shown: those with a frame in the store's view (ascending)
         self.view = array("q")
@@ -69,7 +69,7 @@ class Transactions:
             else:
                 kind = _unanswered_kind(f)
                 self.kind.append(kind)
-                self._unanswered(f.unit, kind)
+                self._unanswered(unit_key(f), kind)
         elif f.role == RESPONSE and f.unit is not None:
             tx = self._open.pop(f.pair, None) if f.pair is not None else None
             if tx is None:  # nothing pending, or its request came before this viewer joined
@@ -97,7 +97,7 @@ class Transactions:
         return st
 
     def _latency(self, f: Frame) -> None:
-        for st in (self.stats(f.unit), self.all_units):
+        for st in (self.stats(unit_key(f)), self.all_units):
             if f.latency_ms is None:
                 st.unmeasured += 1
             else:

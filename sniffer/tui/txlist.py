@@ -20,7 +20,7 @@ from textual.containers import Vertical
 from textual.message import Message
 from textual.widgets import Static
 
-from ..frame import Frame
+from ..frame import Frame, unit_key
 from .framelist import S_CURSOR, row_mark, row_style
 from .latency import BAR_ROWS, histogram_text
 from .model import F_PROBLEM, FrameStore
@@ -39,20 +39,24 @@ class Columns:
     model: bool = True
     asked: int = 32
     answer: int = 38
+    link: int = 0  # the link column's width (a capture of several links), 0: none
 
 
-def fit_columns(width: int, time: int = 12) -> Columns:
+def fit_columns(width: int, time: int = 12, link: int = 0) -> Columns:
     """The columns for a width: the model goes under 110 characters, asked and answer share the rest (each
-    within 12..48 and 12..60 characters; past that, the problems have the room)."""
+    within 12..48 and 12..60 characters; past that, the problems have the room).  `link` > 0: a link
+    column that wide (up to 12) after the time."""
+    link = min(max(link, 4), 12) if link else 0
     model = width >= 110
-    rest = width - (3 + time + 1 + 5 + (9 if model else 0) + 5 + 10) - 3 - 1
+    rest = width - (3 + time + 1 + 5 + (9 if model else 0) + 5 + 10) - 3 - 1 - (link + 1 if link else 0)
     asked = min(max(rest * 4 // 9, 12), 48)
-    return Columns(time, model, asked, min(max(rest - asked, 12), 60))
+    return Columns(time, model, asked, min(max(rest - asked, 12), 60), link)
 
 
 def header(time_title: str, cols: Columns) -> str:
     model = f"{'model':<8} " if cols.model else ""
-    return (f"   {time_title:>{cols.time}} {'unit':4} {model}{'fc':4} {'latency':>9} {'asked':<{cols.asked}}   "
+    link = f"{'link':<{cols.link}} " if cols.link else ""
+    return (f"   {time_title:>{cols.time}} {link}{'unit':4} {model}{'fc':4} {'latency':>9} {'asked':<{cols.asked}}   "
             f"{'answer':<{cols.answer}}  [problems]")
 # what the answer column already says
 _SAID = frozenset({"pair.no_response", "pair.timeout", "pair.end_of_capture", "pair.orphan_response"})
@@ -116,7 +120,8 @@ def format_tx(store: FrameStore, tx: int, cols: Columns = Columns()) -> Text:
     notes = problems(f for f in (req, rsp) if f is not None)
     text = Text(no_wrap=True, overflow="ellipsis")
     model = f"{(f0.model or '')[:8]:<8} " if cols.model else ""
-    text.append(f" {row_mark(fl)}{store.time.text(f0.t_ns):>{cols.time}} u{f0.unit:3d} {model}fc{fc} ")
+    link = f"{f0.link[:12]:<{cols.link}} " if cols.link else ""
+    text.append(f" {row_mark(fl)}{store.time.text(f0.t_ns):>{cols.time}} {link}u{f0.unit:3d} {model}fc{fc} ")
     text.append(f"{lat_s} {_clip(asked_text(req, rsp), cols.asked):<{cols.asked}} → ")
     text.append(f"{_clip(answer_text(kind, req, rsp), cols.answer):<{cols.answer}}")
     if notes:
@@ -167,7 +172,7 @@ class TransactionList(CursorList):
     def columns(self) -> Columns:
         store, tb = self.store, self.store.time
         time = max(tb.width(store.t_ns[0], store.last_t_ns) if len(store) else 8, len(tb.title()))
-        return fit_columns(self.scrollable_content_region.width, time)
+        return fit_columns(self.scrollable_content_region.width, time, store.link_width)
 
     def line_text(self, pos: int) -> Text:
         text = format_tx(self.store, self.store.transactions.view[pos], self.columns())
@@ -260,7 +265,7 @@ class TransactionsPane(Vertical):
         tx = self.list.selected_tx
         # following the tail, the selection changes every tick: all units then, not a unit jumping about
         whole = tx is None or self.list.all_units or self.list.follow
-        unit = None if whole else self.store.frame(txs.first_row(tx)).unit
+        unit = None if whole else unit_key(self.store.frame(txs.first_row(tx)))
         st = txs.all_units if unit is None else txs.stats(unit)
         rows = BAR_ROWS if self.app.size.height >= 36 else 2  # 80x24: the list keeps 10 lines
         key = (unit, rows, st.count, st.timeouts, st.no_response, st.end_of_capture, st.unmeasured)

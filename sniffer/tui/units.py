@@ -15,7 +15,11 @@ def _ms(v: float | None) -> str:
 
 
 def unit_cells(st, t0_ns: int, guesses: dict | None = None, given: dict | None = None) -> tuple:
+    """A unit's row; `st.unit` is the number, or (link, number) in a capture of several links, whose
+    given models and guesses are its link's registry's (the frames' models say them)."""
     model = st.model or "-"
+    if not isinstance(st.unit, int):
+        guesses = given = None
     if not st.good:  # only CRC-bad frames named it: likely a corrupted unit byte, not a device
         model = "ghost? (CRC-bad frames only)"
     elif given and st.unit in given:
