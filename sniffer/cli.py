@@ -17,6 +17,7 @@ from .commands.common import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_USAGE, UsageErr
 from .line import SettingsError
 from .pairer import DEFAULT_TIMEOUT_MS
 from .protocols import NAMES as PROTOCOLS
+from .dataset.query import PRESETS
 from .sinks import EXPORT_FORMATS
 from .sources import CaptureError
 from .sources.replay import FORMATS as INPUT_FORMATS
@@ -165,6 +166,33 @@ def mqtt_flags(p: argparse.ArgumentParser) -> None:
                    help="messages waiting for the broker; past that they are dropped and counted (default 10000)")
 
 
+def dataset_flags(p: argparse.ArgumentParser, progress: str) -> None:
+    """export's and ingest's: --progress, --link, and the line and decoding flags a capture is read with."""
+    p.add_argument("--progress", action="store_true", help=progress)
+    g = p.add_argument_group("fleet dataset")
+    g.add_argument("--link", metavar="NAME",
+                   help="the link a one-line capture is filed under (default: its port's name, e.g. ttyUSB0, "
+                        "or \"default\"); a capture of several links files each under its own name")
+    serial_flags(p)
+    decode_flags(p)
+
+
+class _ExportTo(argparse.Action):
+    """`--to FORMAT`, or `--to dataset DIR` (DIR may also be given as --out); files after DIR are inputs."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        fmt, *rest = values
+        if fmt not in (*EXPORT_FORMATS, "dataset"):
+            raise UsageError(f"argument --to: invalid choice: {fmt[:40]!r} (choose from "
+                             f"{', '.join(EXPORT_FORMATS)}, dataset)")
+        namespace.to = fmt
+        if fmt == "dataset" and rest:
+            namespace.dataset, rest = rest[0], rest[1:]
+        elif rest:
+            raise UsageError(f"--to {fmt} takes no folder: give the file as --out PATH (and the captures before --to)")
+        namespace.more_files = rest
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="sniffer", description="Passive RS-485 sniffer for PLC <-> drive links (Modbus RTU).")
     p.add_argument("--version", action="version", version=f"sniffer {__version__}")
@@ -304,13 +332,35 @@ def build_parser() -> argparse.ArgumentParser:
     serial_flags(s)
     decode_flags(s)
 
-    s = sub.add_parser("export", help="decode a capture into csv, parquet, pcap (Wireshark), mcap or jsonl")
-    input_flags(s)
-    s.add_argument("--to", required=True, choices=EXPORT_FORMATS, help="output format")
-    s.add_argument("--out", required=True, metavar="PATH", help="output file (csv/parquet: also PATH stem.points.*)")
-    s.add_argument("--progress", action="store_true", help="show a progress bar on stderr")
-    serial_flags(s)
-    decode_flags(s)
+    s = sub.add_parser("export", help="decode a capture into csv, parquet, pcap (Wireshark), mcap or jsonl, or "
+                                      "captures into a fleet dataset (--to dataset DIR)")
+    s.add_argument("file", nargs="*", help="capture file: MCAP, byte CSV, Saleae CSV, pcap/pcapng (several with "
+                                           "--to dataset: each is a segment of the dataset)")
+    s.add_argument("--input-format", choices=INPUT_FORMATS, default="auto")
+    s.add_argument("--to", required=True, nargs="+", action=_ExportTo, metavar=("FORMAT", "DIR"),
+                   help=f"output format: {', '.join(EXPORT_FORMATS)}, or `dataset DIR`: a partitioned Parquet "
+                        "dataset in folder DIR (made if new, else appended to; docs/fleet.md)")
+    s.add_argument("--out", metavar="PATH", help="output file (csv/parquet: also PATH stem.points.*); with --to "
+                                                 "dataset: the dataset folder")
+    dataset_flags(s, "show a progress bar on stderr")
+
+    s = sub.add_parser("ingest", help="take a folder of MCAP captures into a fleet dataset; already taken ones "
+                                      "are skipped (docs/fleet.md)")
+    s.add_argument("folder", help="the folder of captures (*.mcap, in subfolders too; *.part files are left out)")
+    s.add_argument("--to", required=True, metavar="DIR", dest="dataset", help="the dataset folder (made if new)")
+    dataset_flags(s, "show a progress bar per capture on stderr")
+
+    s = sub.add_parser("query", help="SQL over a fleet dataset with DuckDB: views frames, points, annotations, "
+                                     "captures (docs/fleet.md)")
+    s.add_argument("dataset", metavar="DIR", help="the dataset folder")
+    s.add_argument("sql", nargs="?", help="a query, e.g. \"SELECT link, count(*) FROM frames GROUP BY link\"")
+    s.add_argument("--preset", choices=sorted(PRESETS), help="a named query instead: " + "; ".join(
+        f"{name}: {p.about}" for name, p in sorted(PRESETS.items())))
+    s.add_argument("--format", choices=["table", "csv", "json"], default="table",
+                   help="output: an aligned table (default), CSV, or JSON (an array of objects)")
+    s.add_argument("--max-rows", type=_number(int, "--max-rows", 1, 10**9), default=100,
+                   help="rows a table shows (default 100; csv and json give every row)")
+    s.add_argument("--show-sql", action="store_true", help="print the preset's SQL instead of running it")
     return p
 
 

@@ -204,7 +204,8 @@ class CaptureSpec:
     # where the capture comes from
     port: str | None = None
     links: tuple[LinkPlan, ...] = ()  # several links (or a --tap) instead of one port
-    input: str | None = None
+    input: str | None = None  # the capture file (the first, when several)
+    inputs: tuple[str, ...] = ()  # several files (export --to dataset)
     input_format: str = "auto"
     scenario: str | None = None
     seed: int = 1
@@ -244,6 +245,8 @@ class CaptureSpec:
                            None if timeout is None else finite(timeout, "--timeout-ms", upper=MAX_TIMEOUT_MS))
         duration = opt("duration", 0.0) or 0.0
         fmt = opt("format", "text")
+        files = opt("file")
+        files = list(files) if isinstance(files, (list, tuple)) else [files] if files else []
         bus_file = _bus_file(opt("bus"))
         ports = list(opt("ports") or ())
         links = link_plans(ports, opt("tap") or (), bus_file)
@@ -254,7 +257,8 @@ class CaptureSpec:
             flags=flags, bus_file=opt("bus"), bus=LineChoice.from_bus(bus_file),
             model_files=tuple(opt("model_file") or ()),
             map_base=opt("map_base"),
-            port=port, links=links, input=opt("file"), input_format=opt("input_format", "auto") or "auto",
+            port=port, links=links, input=files[0] if files else None, inputs=tuple(files),
+            input_format=opt("input_format", "auto") or "auto",
             scenario=opt("scenario"), seed=opt("seed", 1) or 1,
             duration_s=finite(duration, "--duration", upper=MAX_DURATION_S),
             out=None if opt("no_out") else opt("out"),

@@ -238,3 +238,22 @@ def test_trigger_windows_of_a_multi_link_capture_keep_their_links(three):
         mine = [x for x in got if x["link"] == name]
         head = [x for x in mine if x["t"] < mine[0]["t"] + 0.2]  # (the end may cut a frame: --post ends it)
         assert head and all(x["crc_ok"] and (name, x["raw"]) in whole for x in head), head
+
+
+def test_fleet_dataset_files_each_link_under_its_own_partition(three):
+    from collections import Counter
+
+    from sniffer.dataset.layout import open_dataset
+    from sniffer.dataset.query import connect
+
+    recs, out, tmp = three
+    ds = tmp / "fleet"
+    r = run_sniffer("export", out, "--to", "dataset", str(ds), "--link", "ignored")  # links name themselves
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in (ds / "frames").iterdir()) == ["link=line1", "link=line2", "link=line3"]
+    con = connect(open_dataset(str(ds)))
+    got = dict(con.execute("SELECT link, count(*) FROM frames GROUP BY link").fetchall())
+    units = {u for (u,) in con.execute("SELECT DISTINCT link || ':' || unit FROM points").fetchall()}
+    con.close()
+    assert got == dict(Counter(r["link"] for r in recs))
+    assert {"line1:1", "line2:1", "line3:1"} <= units

@@ -1,4 +1,5 @@
-"""`sniffer export CAPTURE --to FORMAT --out PATH`: a decoded capture as csv, parquet, pcap(ng), mcap or jsonl.
+"""`sniffer export CAPTURE --to FORMAT --out PATH`: a decoded capture as csv, parquet, pcap(ng), mcap or jsonl;
+`sniffer export CAPTURE... --to dataset DIR`: captures into a fleet dataset (commands/dataset.py).
 
 csv writes PATH (frames) and PATH's stem + '.points.csv'; parquet likewise with
 '.points.parquet'.  Files are written under temporary names and renamed when
@@ -11,11 +12,29 @@ from __future__ import annotations
 from ..session import Session
 from ..settings import CaptureSpec
 from ..sinks import FileSink
-from .common import report, say
+from .common import UsageError, report, say
 from .replay import file_source
 
 
 def cmd_export(spec: CaptureSpec, args) -> int:
+    files = [*spec.inputs, *getattr(args, "more_files", ())]
+    if args.to == "dataset":
+        root = getattr(args, "dataset", None) or args.out
+        if not root:
+            raise UsageError("--to dataset needs the dataset folder: --to dataset DIR")
+        if not files:
+            raise UsageError("export needs a capture file: sniffer export CAPTURE... --to dataset DIR")
+        from .dataset import export_dataset
+
+        return export_dataset(spec, args, files, root)
+    if len(files) != 1:
+        raise UsageError(f"--to {args.to} writes one capture: give one file (several go into --to dataset DIR)"
+                         if files else "export needs a capture file: sniffer export CAPTURE --to FORMAT --out PATH")
+    if not args.out:
+        raise UsageError(f"--to {args.to} needs --out PATH")
+    if args.link:
+        raise UsageError("--link is for --to dataset")
+    spec = spec.with_(input=files[0])
     sink = FileSink(args.to, args.out, inputs=[spec.input])  # checked before the input is read
     source = file_source(spec)
     session = Session(spec, source, [sink])

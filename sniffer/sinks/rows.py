@@ -18,6 +18,9 @@ beyond 2**53 is rounded there), `value_text` the exact number or the string.
 
 `link` (last in both tables) is the frame's link in a capture of several links
 (a unit is a unit of its link: group by link and unit), null for one line.
+
+An annotation row (the fleet dataset's third table) is one annotation of a frame: its code,
+severity, detail and byte span, with the frame's number, time, unit, function, role and model.
 """
 
 from __future__ import annotations
@@ -37,6 +40,10 @@ FRAME_COLUMNS = (
 POINT_COLUMNS = (
     "frame", "t", "unit", "function", "role", "crc_ok", "model", "address", "name", "id", "raw", "value",
     "value_text", "eng_unit", "link",
+)
+ANNOTATION_COLUMNS = (
+    "frame", "t", "unit", "function", "role", "crc_ok", "model", "code", "severity", "detail", "span_start",
+    "span_end",
 )
 
 
@@ -97,3 +104,11 @@ def point_rows(f: Frame, t0_ns: int) -> list[tuple]:
             p.get("unit"), link,
         ))
     return rows
+
+
+def annotation_rows(f: Frame, t0_ns: int) -> list[tuple]:
+    anns = f.annotations
+    if not anns:
+        return []
+    head = (f.index, (f.t_ns - t0_ns) / 1e9, f.unit, f.function, f.role, f.crc_ok, f.model)
+    return [head + a for a in anns]  # an Annotation is a tuple: code, severity, detail, start, end

@@ -13,21 +13,23 @@ from __future__ import annotations
 from ..events import CaptureInfo
 from ..frame import Frame
 from .base import Sink
-from .rows import FRAME_COLUMNS, POINT_COLUMNS, frame_row, point_rows
+from .rows import frame_row, point_rows
+from .schemas import export_schemas
 
 CONVERT = 4_096  # rows held as Python tuples before they become an Arrow record batch
 
 
 def schemas():
-    """Arrow schemas of the frames and points tables (plain types: int64, float64, bool, string)."""
+    """Arrow schemas of the frames and points tables (sniffer.sinks.schemas)."""
+    return export_schemas()
+
+
+def to_batch(rows: list, schema, pool):
+    """Row tuples (in the schema's column order) -> one Arrow record batch (the columns transposed)."""
     import pyarrow as pa
 
-    i, f, s, b = pa.int64(), pa.float64(), pa.string(), pa.bool_()
-    frames = pa.schema(list(zip(FRAME_COLUMNS, (
-        i, f, f, i, s, s, i, i, b, i, s, i, f, i, s, s, s, s, s, s, s,
-    ))))
-    points = pa.schema(list(zip(POINT_COLUMNS, (i, f, i, i, s, b, s, i, s, s, i, f, s, s, s))))
-    return frames, points
+    cols = [pa.array(col, type=field.type, memory_pool=pool) for col, field in zip(zip(*rows), schema)]
+    return pa.RecordBatch.from_arrays(cols, schema=schema)
 
 
 class TableSink(Sink):
@@ -59,15 +61,12 @@ class TableSink(Sink):
 
     def _convert(self, table: int) -> None:
         """The waiting rows of table 0 (frames) or 1 (points) -> one record batch -> `_put`."""
-        import pyarrow as pa
-
         rows = self._rows[table]
         if not rows:
             return
-        schema = self.schemas[table]
-        cols = [pa.array(col, type=field.type, memory_pool=self._pool) for col, field in zip(zip(*rows), schema)]
+        batch = to_batch(rows, self.schemas[table], self._pool)
         rows.clear()
-        self._put(table, pa.RecordBatch.from_arrays(cols, schema=schema))
+        self._put(table, batch)
 
     def _put(self, table: int, batch) -> None:  # pragma: no cover - subclasses write
         raise NotImplementedError

@@ -1,0 +1,76 @@
+"""`sniffer export CAPTURE... --to dataset DIR` and `sniffer ingest FOLDER --to DIR`: captures into a fleet dataset.
+
+Each capture is one segment: decoded by its own Session into its own files (sniffer.dataset.ingest),
+taken in whole or not at all; one line per capture on stderr, then a total.  A capture the
+dataset has already is skipped.  Exit 0 when every capture was taken in (or was there already),
+2 when one could not be read (the others are taken in all the same), 1 when the dataset could
+not be written.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..dataset.ingest import Failed, Skipped, Taken, take_in
+from ..dataset.layout import Known, create_dataset
+from ..outputs import shown
+from ..settings import CaptureSpec
+from .common import EXIT_FAILED, EXIT_OK, EXIT_USAGE, UsageError, say
+
+
+def export_dataset(spec: CaptureSpec, args, files: list[str], root: str) -> int:
+    """export --to dataset: the captures named, in the order given."""
+    return _take_in(spec, args, files, root)
+
+
+def cmd_ingest(spec: CaptureSpec, args) -> int:
+    folder = args.folder
+    if not os.path.isdir(folder):
+        raise UsageError(f"{shown(folder)}: no such folder" if not os.path.exists(folder) else
+                         f"{shown(folder)}: not a folder (sniffer export FILE --to dataset DIR takes files)")
+    root = os.path.abspath(args.dataset)
+    files = []
+    for here, dirs, names in os.walk(folder):
+        dirs[:] = sorted(d for d in dirs if os.path.abspath(os.path.join(here, d)) != root)  # not the dataset
+        files += [os.path.join(here, n) for n in sorted(names) if n.endswith(".mcap")]
+    if not files:
+        create_dataset(args.dataset)
+        say(f"no MCAP files in {shown(folder)}")
+        return EXIT_OK
+    return _take_in(spec, args, files, args.dataset)
+
+
+def _take_in(spec: CaptureSpec, args, files: list[str], root: str) -> int:
+    ds = create_dataset(root)
+    known = Known(ds.manifest())
+    taken = skipped = frames = 0
+    failed: list[Failed] = []
+    for path in files:
+        bar = _bar(path, args) if getattr(args, "progress", False) else None
+        try:
+            result = take_in(ds, path, spec, known, link=args.link, on_event=bar.update if bar else None)
+        finally:
+            if bar is not None:
+                bar.close()
+        if isinstance(result, Taken):
+            taken += 1
+            frames += result.entry["frames"]
+            say(result.line())
+        elif isinstance(result, Skipped):
+            skipped += 1
+            say(result.line())
+        else:
+            failed.append(result)
+            say(f"error: {result.line()}")
+    more = f", {len(failed)} not taken in (said above)" if failed else ""
+    say(f"{shown(root)}: {taken} capture{'s' if taken != 1 else ''} taken in ({frames} frames), "
+        f"{skipped} already there{more}")
+    if any(f.why.startswith(f"{shown(f.path)}: cannot write the dataset") for f in failed):
+        return EXIT_FAILED
+    return EXIT_USAGE if failed else EXIT_OK
+
+
+def _bar(path: str, args):
+    from ..progress import ReplayProgress
+
+    return ReplayProgress(path)

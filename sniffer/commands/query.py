@@ -1,0 +1,39 @@
+"""`sniffer query DIR "SQL"` / `--preset NAME`: SQL over a fleet dataset with DuckDB (sniffer.dataset.query).
+
+The result goes to stdout as a table, CSV or JSON.  A missing dataset or SQL that DuckDB
+refuses is one line on stderr and exit code 2; a query stopped with Ctrl-C, 130.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from ..dataset.layout import open_dataset
+from ..dataset.query import PRESETS, VIEWS, connect, write
+from ..settings import CaptureSpec
+from .common import EXIT_OK, UsageError
+
+
+def cmd_query(spec: CaptureSpec, args) -> int:
+    if (args.sql is None) == (args.preset is None):
+        raise UsageError("query needs SQL or --preset NAME (one of them): "
+                         f"sniffer query DIR \"SELECT ... FROM frames\" (views: {', '.join(VIEWS)}), "
+                         f"or --preset {'|'.join(sorted(PRESETS))}")
+    sql = PRESETS[args.preset].sql if args.preset else args.sql
+    if args.show_sql:
+        print(sql)
+        return EXIT_OK
+    ds = open_dataset(args.dataset)
+    import duckdb
+
+    con = None
+    try:
+        con = connect(ds)
+        write(con.execute(sql), args.format, sys.stdout, max_rows=args.max_rows)
+    except duckdb.Error as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise UsageError(f"query: {first}") from None
+    finally:
+        if con is not None:
+            con.close()
+    return EXIT_OK

@@ -1,0 +1,202 @@
+"""SQL over a dataset with DuckDB (embedded): views, the named queries, and their output.
+
+    con = connect(open_dataset("fleet"))          # views frames, points, annotations, captures
+    write(con.execute(PRESETS["faults"].sql), "table", sys.stdout)
+
+The views read every file of a table under the hive partitions (`link` VARCHAR, `date` DATE,
+given, not guessed: a link named `7` stays text), by column name (`union_by_name`: files of
+an older schema version read beside newer ones).  A table no capture has rows for yet is an
+empty view with its columns, so every query runs on a new dataset.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import decimal
+import glob
+import os
+from dataclasses import dataclass
+
+from ..sinks.schemas import DATASET_TABLES, PARTITIONS, dataset_schemas
+from .layout import Dataset
+
+
+@dataclass(frozen=True)
+class Preset:
+    about: str
+    sql: str
+
+
+PRESETS = {
+    "faults": Preset(
+        "problems by link, unit and code: CRC errors, exceptions, timeouts, drive faults and alarms, "
+        "how often, first and last seen",
+        """SELECT link, unit, code, severity, count(*) AS n, min(time) AS first, max(time) AS last,
+       count(DISTINCT capture) AS captures, any_value(detail) AS example
+FROM annotations
+WHERE severity = 'error'
+   OR code IN ('modbus.exception', 'model.exception.vendor', 'model.fault', 'model.alarm', 'pair.timeout',
+               'pair.no_response', 'source.gap')
+GROUP BY link, unit, code, severity
+ORDER BY n DESC, link, unit, code"""),
+    "latency": Preset(
+        "response latency per link and unit: responses, median, p95, p99 and max (ms)",
+        """SELECT link, unit, count(*) AS responses,
+       round(quantile_cont(latency_ms, 0.5), 3) AS median_ms, round(quantile_cont(latency_ms, 0.95), 3) AS p95_ms,
+       round(quantile_cont(latency_ms, 0.99), 3) AS p99_ms, max(latency_ms) AS max_ms
+FROM frames
+WHERE role = 'response' AND latency_ms IS NOT NULL
+GROUP BY link, unit
+ORDER BY link, unit"""),
+    "writes": Preset(
+        "every write request (function 5, 6, 15, 16, 22, 23) with its outcome: confirmed, exception, "
+        "bad CRC, no response, broadcast",
+        """SELECT q.link, q.time, q.capture, q.index AS frame, q.unit, q.function, q.summary AS write,
+       CASE WHEN q.unit = 0 THEN 'broadcast'
+            WHEN NOT q.crc_ok THEN 'request CRC bad'
+            WHEN r.index IS NULL THEN 'no response'
+            WHEN r.exception_code IS NOT NULL THEN 'exception ' || r.exception_code
+            WHEN NOT r.crc_ok THEN 'response CRC bad'
+            ELSE 'confirmed' END AS outcome,
+       r.latency_ms
+FROM frames q
+LEFT JOIN frames r ON r.capture = q.capture AND r.index = q.pair AND r.role = 'response'
+WHERE q.role = 'request' AND q.function IN (5, 6, 15, 16, 22, 23)
+ORDER BY q.time, q.capture, q.index"""),
+}
+
+
+def _literal(text: str) -> str:
+    return "'" + text.replace("'", "''") + "'"
+
+
+def _partitioned(schema):
+    import pyarrow as pa
+
+    return schema.append(pa.field(PARTITIONS[0], pa.string())).append(pa.field(PARTITIONS[1], pa.date32()))
+
+
+def _captures(ds: Dataset):
+    """The manifest as a table (entries that cannot be read are left out, as when ingesting)."""
+    import pyarrow as pa
+
+    i, s = pa.int64(), pa.string()
+    schema = pa.schema([("capture", s), ("source", s), ("size", i), ("sha256", s), ("frames", i), ("points", i),
+                        ("annotations", i), ("links", pa.list_(s)), ("partitions", pa.list_(s)), ("settings", s),
+                        ("first", pa.timestamp("ns", tz="UTC")), ("last", pa.timestamp("ns", tz="UTC")),
+                        ("ingested_at", s), ("sniffer_version", s)])
+    rows = []
+    for e in ds.manifest():
+        row = {name: e.get(name) for name in schema.names}
+        row["first"], row["last"] = e.get("first_ns"), e.get("last_ns")
+        rows.append(row)
+    try:
+        return pa.Table.from_pylist(rows, schema=schema)
+    except (pa.ArrowInvalid, pa.ArrowTypeError, TypeError):  # an entry edited by hand: keep the ones that fit
+        return pa.Table.from_pylist([r for r in rows if _fits(r, schema)], schema=schema)
+
+
+def _fits(row: dict, schema) -> bool:
+    import pyarrow as pa
+
+    try:
+        pa.Table.from_pylist([row], schema=schema)
+    except (pa.ArrowInvalid, pa.ArrowTypeError, TypeError):
+        return False
+    return True
+
+
+def connect(ds: Dataset, *, threads: int | None = None):
+    """An in-memory DuckDB connection with the dataset's views (frames, points, annotations, captures)."""
+    import duckdb
+
+    con = duckdb.connect(config={"threads": threads} if threads else {})
+    hive_types = "{" + ", ".join(f"{_literal(p)}: {_literal(t)}" for p, t in zip(PARTITIONS, ("VARCHAR", "DATE"))) + "}"
+    for name, schema in dataset_schemas().items():
+        pattern = os.path.join(glob.escape(ds.root), name, f"{PARTITIONS[0]}=*", f"{PARTITIONS[1]}=*", "*.parquet")
+        if next(glob.iglob(pattern), None) is None:
+            con.register(f"_{name}_empty", _partitioned(schema).empty_table())
+            con.execute(f"CREATE VIEW {name} AS SELECT * FROM _{name}_empty")
+            continue
+        con.execute(f"CREATE VIEW {name} AS SELECT * FROM read_parquet({_literal(pattern)}, hive_partitioning = true, "
+                    f"hive_types = {hive_types}, union_by_name = true)")
+    con.register("_captures", _captures(ds))
+    con.execute("CREATE VIEW captures AS SELECT * FROM _captures")
+    return con
+
+
+VIEWS = (*DATASET_TABLES, "captures")
+FETCH = 2_048
+
+
+def _text(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, (dt.datetime, dt.date, dt.time)):
+        return v.isoformat()
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_text(x) for x in v) + "]"
+    return str(v)
+
+
+CELL = 60  # characters of a table cell (csv and json keep everything)
+
+
+def _cell(v) -> str:
+    text = "NULL" if v is None else _text(v)
+    return text if len(text) <= CELL else text[:CELL - 1] + "…"
+
+
+def _json_default(v):
+    if isinstance(v, decimal.Decimal):
+        return float(v)
+    if isinstance(v, (dt.timedelta, bytes, bytearray, memoryview)):
+        return str(v) if isinstance(v, dt.timedelta) else bytes(v).hex()
+    return str(v)
+
+
+def write(cursor, fmt: str, out, *, max_rows: int = 100) -> int:
+    """The result as `table` (aligned text, the first `max_rows` rows), `csv` or `json` (an array of
+    objects), fetched and written a block at a time; returns the number of rows written."""
+    names = [d[0] for d in cursor.description or ()]
+    if fmt == "csv":
+        w = csv.writer(out, lineterminator="\n")
+        w.writerow(names)
+        n = 0
+        while rows := cursor.fetchmany(FETCH):
+            w.writerows([[_text(v) for v in r] for r in rows])
+            n += len(rows)
+        return n
+    if fmt == "json":
+        import orjson
+
+        n = 0
+        out.write("[")
+        while rows := cursor.fetchmany(FETCH):
+            for r in rows:
+                out.write(",\n" if n else "\n")
+                out.write(orjson.dumps(dict(zip(names, r)), default=_json_default,
+                                       option=orjson.OPT_NON_STR_KEYS).decode())
+                n += 1
+        out.write("\n]\n" if n else "]\n")
+        return n
+    rows = cursor.fetchmany(max_rows + 1)
+    more = len(rows) > max_rows
+    rows = rows[:max_rows]
+    cells = [[_cell(v) for v in r] for r in rows]
+    numeric = [all(isinstance(r[i], (int, float, decimal.Decimal)) and not isinstance(r[i], bool)
+                   for r in rows if r[i] is not None) for i in range(len(names))]
+    widths = [max([len(nm)] + [len(c[i]) for c in cells]) for i, nm in enumerate(names)]
+    lines = ["  ".join(nm.rjust(w) if num else nm.ljust(w) for nm, w, num in zip(names, widths, numeric)).rstrip(),
+             "  ".join("-" * w for w in widths)]
+    for c in cells:
+        lines.append("  ".join(v.rjust(w) if num else v.ljust(w) for v, w, num in zip(c, widths, numeric)).rstrip())
+    out.write("\n".join(lines) + "\n")
+    if more:
+        out.write(f"(the first {max_rows} rows; more not shown: --max-rows N, or --format csv / json for all)\n")
+    else:
+        out.write(f"({len(rows)} row{'s' if len(rows) != 1 else ''})\n")
+    return len(rows)
