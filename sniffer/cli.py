@@ -101,7 +101,8 @@ def decode_flags(p: argparse.ArgumentParser, bus: bool = True) -> None:
 
 
 def input_flags(p: argparse.ArgumentParser) -> None:
-    p.add_argument("file", help="capture file: MCAP, byte CSV, Saleae CSV, pcap/pcapng")
+    p.add_argument("file", nargs="+", help="capture file: MCAP, byte CSV, Saleae CSV, pcap/pcapng; several files, "
+                                          "a rotated capture's folder or its index.json are read as one capture")
     p.add_argument("--input-format", choices=INPUT_FORMATS, default="auto")
 
 
@@ -118,6 +119,25 @@ def capture_out_flags(p: argparse.ArgumentParser, default_out: str | None, durat
     g.add_argument("--no-out", action="store_true", help="do not write an MCAP file")
     g.add_argument("--duration", type=float, default=duration,
                    help=f"stop after S seconds (default {duration:g}; 0 = until Ctrl-C)")
+
+
+def unattended_flags(p: argparse.ArgumentParser, port: bool = False) -> None:
+    g = p.add_argument_group("unattended capture (docs/unattended.md)")
+    g.add_argument("--rotate", action="append", metavar="SIZE|TIME",
+                   help="write the MCAP as segments in the folder --out names (FOLDER or FOLDER.mcap), a new one "
+                        "after TIME of capture (30m, 1h, 1d: on the clock) or SIZE bytes (100MB, 2GB), whichever "
+                        "comes first (1h,100MB or the flag twice); each segment replays alone, and "
+                        "`sniffer replay FOLDER` replays them as one capture")
+    g.add_argument("--keep", action="append", metavar="AGE|SIZE|N",
+                   help="with --rotate: delete the oldest closed segments past AGE (7d, 12h), past SIZE in all "
+                        "(20GB), or past N segments (repeatable: all apply); the open one never")
+    g.add_argument("--status", metavar="FILE.json",
+                   help="keep a status file (uptime, frames, errors, segments, disk use) for `sniffer status`; "
+                        "default with --rotate: status.json in the capture's folder")
+    if port:
+        g.add_argument("--wait-port", action="store_true",
+                       help="a port that is not there yet (adapter not plugged in, boot) is waited for instead "
+                            "of an error; an adapter unplugged during the capture is always waited for")
 
 
 def publish_flags(p: argparse.ArgumentParser) -> None:
@@ -207,6 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
     capture_out_flags(s, None, 0)
     s.add_argument("--headless", action="store_true", help="text stream instead of the TUI (default off a tty)")
     publish_flags(s)
+    unattended_flags(s, port=True)
     trigger_flags(s)
     mqtt_flags(s)
 
@@ -217,6 +238,8 @@ def build_parser() -> argparse.ArgumentParser:
     serial_flags(s)
     decode_flags(s)
     stream_flags(s, quiet=True)
+    s.add_argument("--out", metavar="FOLDER", help="with --rotate: write the capture again as segments in FOLDER")
+    unattended_flags(s)
     trigger_flags(s)
     mqtt_flags(s)
 
@@ -249,6 +272,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--receiver-baud", type=_number(int, "--receiver-baud", 50, MAX_BAUD), metavar="BAUD")
     g.add_argument("--receiver-parity", choices=["N", "E", "O"], type=str.upper)
     g.add_argument("--receiver-stopbits", type=int, choices=[1, 2])
+    unattended_flags(s)
 
     s = sub.add_parser("demo", help="live capture of a simulated bus over a pseudo-terminal")
     s.add_argument("--scenario", default="default", help=_SCENARIO_HELP)
@@ -258,6 +282,7 @@ def build_parser() -> argparse.ArgumentParser:
     decode_flags(s, bus=False)
     stream_flags(s, quiet=True)
     publish_flags(s)
+    unattended_flags(s)
     trigger_flags(s)
     mqtt_flags(s)
 
@@ -285,6 +310,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="where the capture publishes (default: a fresh one in $XDG_RUNTIME_DIR or /tmp)")
     g.add_argument("--publish-backlog", type=_number(int, "--publish-backlog", 0, 10_000_000), default=100_000,
                    metavar="N", help="frames a viewer that joins late gets first (default 100000)")
+    unattended_flags(s, port=True)
     trigger_flags(s)
     mqtt_flags(s)
 
@@ -303,6 +329,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--units-time", type=float, default=2.0, metavar="S",
                    help="once certain, listen S seconds more for the units and their poll periods (default 2)")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
+
+    s = sub.add_parser("status", help="how an unattended capture is doing: uptime, frames, errors, segments, "
+                                      "disk use (its status file)")
+    s.add_argument("path", nargs="?", default=".", help="the capture's folder or its status file (default: .)")
+    s.add_argument("--json", action="store_true", help="print the status file as it is")
 
     s = sub.add_parser("repair", help="make a truncated (killed) or damaged capture readable by any MCAP reader")
     s.add_argument("file")

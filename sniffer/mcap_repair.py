@@ -24,8 +24,14 @@ from .sources.mcapscan import Hole, Scan, open_file
 
 
 def default_output(src: str | os.PathLike[str]) -> str:
-    """`capture.mcap` -> `capture.repaired.mcap`."""
-    base, ext = os.path.splitext(os.fspath(src))
+    """`capture.mcap` -> `capture.repaired.mcap`; a killed capture's `capture.mcap.part` -> `capture.mcap`
+    (the name it would have had), unless that is taken."""
+    src = os.fspath(src)
+    if src.endswith(".part") and src[:-5].endswith(".mcap") and not os.path.lexists(src[:-5]):
+        return src[:-5]
+    if src.endswith(".part"):
+        src = src[:-5]
+    base, ext = os.path.splitext(src)
     return f"{base}.repaired{ext or '.mcap'}"
 
 

@@ -15,6 +15,7 @@ The part file of a capture that was killed stays on disk (`NAME.part`):
 
 from __future__ import annotations
 
+import json
 import os
 
 from .sources import CaptureError
@@ -106,3 +107,19 @@ def readable(path: str) -> tuple[str, str | None]:
         return path, None
     return part, (f"{shown(path)} is not there, but {shown(part)} is: a capture that did not end cleanly "
                   f"(killed?); reading that")
+
+
+def write_json_atomic(path: str, obj) -> None:
+    """Write `obj` as JSON to `path` through a temporary file renamed over it (a reader never sees half)."""
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            json.dump(obj, fh, indent=1)
+            fh.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+        raise

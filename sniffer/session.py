@@ -18,6 +18,13 @@ closed and their files renamed into place (sniffer.outputs): kept whatever
 ended a capture (`keep_partial`, live/demo/simulate), discarded when a derived
 output (an export) could not be written.
 
+Unattended capture (sniffer.segments).  With `--rotate` the MCAP is a set of
+segments (sinks/segments.py): between two events, once one is due and the
+pipeline has settled (`Pipeline.settled`), the loop closes the segment and
+opens the next, so each replays alone.  With a status file (`--status`, or
+the folder of a rotated capture) a StatusSink (sniffer.status) counts frames
+and errors and merges every sink's `status()` into the file.
+
 Every command goes through here: live, demo, replay, decode, simulate, export,
 check, diff, serve's capture process and the TUI's feeds.  A capture of
 several links (its CaptureInfo lists `links`) runs one pipeline per link over
@@ -44,11 +51,13 @@ from .pipeline import Pipeline
 from .settings import (  # noqa: F401 - re-exported: the session's settings
     DEFAULTS, MAX_DURATION_S, MAX_TIMEOUT_MS, CaptureSpec, LineChoice, Resolved, finite, layered,
 )
+from .segments import STATUS_NAME, folder_for
 
 if TYPE_CHECKING:
     from .links import LinkPipelines
 from .sinks import FileSink
 from .sinks.mcap import CaptureStorageError
+from .sinks.segments import SegmentPlan
 from .sources import CaptureError
 
 
@@ -62,7 +71,7 @@ class Session:
     """
 
     def __init__(self, spec: CaptureSpec, source, sinks: Iterable = (), *, stop: threading.Event | None = None,
-                 keep_partial: bool = False, need_baud: bool = True, on_event=None) -> None:
+                 keep_partial: bool = False, need_baud: bool = True, on_event=None, label: str = "") -> None:
         self.spec = spec
         self.source = source
         self.planned = list(sinks)
@@ -70,6 +79,7 @@ class Session:
         self.keep_partial = keep_partial
         self.need_baud = need_baud
         self.on_event = on_event  # called with each source event (a progress bar)
+        self.label = label or spec.port or spec.input or spec.scenario or ""  # what the status file says it is
         self.info: CaptureInfo | None = None
         self.resolved: Resolved | None = None
         self.registry = None
@@ -126,7 +136,7 @@ class Session:
                 self.resolved.record_in(info)
             self.registry = self.resolved.registry()
             for s in self.planned:
-                self.sinks.append(s.open() if isinstance(s, FileSink) else s)
+                self.sinks.append(s.open() if isinstance(s, (FileSink, SegmentPlan)) else s)
             triggers = None
             if self.spec.trigger is not None:
                 from .triggers import trigger_sink
@@ -142,6 +152,11 @@ class Session:
 
                 mqtt = mqtt_sink(self.spec, self.registry)
                 self.sinks.append(mqtt)
+            status = self.status_path()
+            if status:
+                from .status import StatusSink
+
+                self.sinks.append(StatusSink(status, self, self.label))
             if links:
                 from .links import LinkPipelines
 
@@ -160,6 +175,15 @@ class Session:
             raise
         self.info = info
         return info
+
+    def status_path(self) -> str | None:
+        """The status file: --status, or status.json in a rotated capture's folder (None: no status file)."""
+        spec = self.spec
+        if spec.status:
+            return spec.status
+        if spec.rotate is not None and spec.out:
+            return os.path.join(folder_for(spec.out), STATUS_NAME)
+        return None
 
     def _abandon(self) -> None:
         """open() failed: close what was opened, remove every part file."""
@@ -186,6 +210,7 @@ class Session:
         self.open()
         p = self.pipeline
         flushers = [s.maybe_flush for s in self.sinks if hasattr(s, "maybe_flush")]
+        rotators = [s for s in self.sinks if hasattr(s, "rotate_if")]  # segments close between events
         clocks = [s.advance for s in self.sinks if hasattr(s, "advance")]  # capture time, every event
         watcher = self._watch()
         stop, on_event, feed = self.stop, self.on_event, p.feed
@@ -196,6 +221,9 @@ class Session:
                     out = feed(ev)
                     for flush in flushers:
                         flush()
+                    for r in rotators:
+                        if r.rotate_due:
+                            r.rotate_if(p.settled())
                     for clock in clocks:
                         clock(ev.t_end_ns if type(ev) is Gap else ev.t_ns)
                     if on_event is not None:
@@ -338,10 +366,11 @@ def decode_capture(path: str | os.PathLike[str], spec: CaptureSpec | None = None
     `.info` is the capture's metadata with the settings used; CaptureError /
     SettingsError (one line) for unreadable input or impossible settings.
     """
-    from .sources.replay import FileSource
+    from .sources.segset import capture_source
 
     spec = spec or CaptureSpec()
-    session = Session(spec, FileSource(os.fspath(path), spec.input_format), sinks, on_event=on_event)
+    whole = spec.inputs if spec.inputs and spec.input == os.fspath(path) else os.fspath(path)  # check's set
+    session = Session(spec, capture_source(whole, spec.input_format), sinks, on_event=on_event)
     session.open()
     return session
 

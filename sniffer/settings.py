@@ -29,6 +29,7 @@ from .line import LineSettings, SettingsError
 from .mqtt.options import MqttSpec
 from .pairer import DEFAULT_TIMEOUT_MS
 from .pipeline import Pipeline
+from .segments import Keep, Rotate
 from .triggers.options import TriggerSpec
 
 MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo, not a response timeout
@@ -205,7 +206,8 @@ class CaptureSpec:
     port: str | None = None
     links: tuple[LinkPlan, ...] = ()  # several links (or a --tap) instead of one port
     input: str | None = None  # the capture file (the first, when several)
-    inputs: tuple[str, ...] = ()  # several files (export --to dataset)
+    inputs: tuple[str, ...] = ()  # several files, a rotated capture's folder or its index (replay, check,
+    # export; export --to dataset: each file a segment of the dataset)
     input_format: str = "auto"
     scenario: str | None = None
     seed: int = 1
@@ -216,6 +218,11 @@ class CaptureSpec:
     headless: bool = False
     publish: str | None = None
     publish_backlog: int = 100_000
+    # unattended (sniffer.segments, sniffer.status)
+    rotate: Rotate | None = None  # --rotate: the MCAP as segments in the folder --out names
+    keep: Keep | None = None  # --keep: retention of closed segments
+    status: str | None = None  # --status FILE (default with --rotate: status.json in the capture's folder)
+    wait_port: bool = False  # --wait-port: a port that is not there yet is waited for
     trigger: TriggerSpec | None = None  # --trigger and its flags: windows around events (sniffer.triggers)
     mqtt: MqttSpec | None = None  # --mqtt URL and its flags: decoded values to a broker (sniffer.mqtt)
 
@@ -247,6 +254,15 @@ class CaptureSpec:
         fmt = opt("format", "text")
         files = opt("file")
         files = list(files) if isinstance(files, (list, tuple)) else [files] if files else []
+        rotate, keep = Rotate.parse(opt("rotate")), Keep.parse(opt("keep"))
+        if keep is not None and rotate is None:
+            raise SettingsError("--keep needs --rotate (it deletes a rotated capture's oldest segments)")
+        if rotate is not None and opt("no_out"):
+            raise SettingsError("--rotate writes the capture's MCAP as segments: not with --no-out")
+        trigger = TriggerSpec.from_args(args)
+        if rotate is not None and trigger is not None and trigger.ring:
+            raise SettingsError("--ring keeps only the trigger windows, --rotate the whole capture as segments: "
+                                "give one of them")
         bus_file = _bus_file(opt("bus"))
         ports = list(opt("ports") or ())
         links = link_plans(ports, opt("tap") or (), bus_file)
@@ -264,8 +280,8 @@ class CaptureSpec:
             out=None if opt("no_out") else opt("out"),
             stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
             headless=bool(opt("headless")), publish=opt("publish"),
-            publish_backlog=opt("publish_backlog", 100_000), trigger=TriggerSpec.from_args(args),
-            mqtt=MqttSpec.from_args(args),
+            publish_backlog=opt("publish_backlog", 100_000), trigger=trigger, mqtt=MqttSpec.from_args(args),
+            rotate=rotate, keep=keep, status=opt("status"), wait_port=bool(opt("wait_port")),
         )
 
     def with_(self, **changes) -> CaptureSpec:
@@ -334,6 +350,14 @@ class CaptureSpec:
         argv += ["--duration", repr(self.duration_s)]
         if self.publish:
             argv += ["--publish", self.publish, "--publish-backlog", str(self.publish_backlog)]
+        if self.rotate is not None:
+            argv += ["--rotate", self.rotate.to_flag()]
+        if self.keep is not None:
+            argv += ["--keep", self.keep.to_flag()]
+        if self.status:
+            argv += ["--status", self.status]
+        if self.wait_port and command == "live":
+            argv.append("--wait-port")
         if self.trigger is not None:
             argv += self.trigger.to_argv()
         if self.mqtt is not None:

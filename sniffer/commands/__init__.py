@@ -5,7 +5,8 @@
     check.py     check               diff.py     diff
     repair.py    repair              view.py     attach, serve
     learn.py     learn               detect.py   detect
-    dataset.py   export --to dataset, ingest          query.py    query
+    status.py    status              dataset.py  export --to dataset, ingest
+    query.py     query
     common.py    what they share: the stdout stream, the capture's sinks, the end-of-run report
 
 cli.py parses the flags into a CaptureSpec and calls `COMMANDS[name](spec, args)`.
@@ -18,7 +19,7 @@ import importlib
 _WHERE = {
     "live": "capture", "demo": "capture", "replay": "replay", "decode": "replay", "simulate": "simulate",
     "export": "export", "check": "check", "diff": "diff", "repair": "repair", "attach": "view", "serve": "view",
-    "learn": "learn", "detect": "detect", "ingest": "dataset", "query": "query",
+    "learn": "learn", "detect": "detect", "status": "status", "ingest": "dataset", "query": "query",
 }
 NAMES = tuple(_WHERE)
 

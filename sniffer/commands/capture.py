@@ -12,7 +12,9 @@ import sys
 
 from ..session import Session, on_signals
 from ..settings import CaptureSpec
-from .common import UsageError, capture_sinks, default_capture_name, report, say, summary_line, tui_wanted
+from .common import (
+    UsageError, capture_sinks, default_capture_name, destination, report, say, summary_line, tui_wanted,
+)
 
 
 def cmd_live(spec: CaptureSpec, args) -> int:
@@ -22,7 +24,8 @@ def cmd_live(spec: CaptureSpec, args) -> int:
         raise UsageError("live: give a PORT (several for several links), --tap PORT_A PORT_B, "
                          "or a --bus file with [[links]]")
     if not args.no_out and not spec.out:
-        spec = spec.with_(out=default_capture_name())
+        name = default_capture_name()
+        spec = spec.with_(out=name[:-5] if spec.rotate is not None else name)
     if spec.links:  # several links, or a tapped one: each resolved now, before a port opens
         from ..sources.serial_links import LinksSource
 
@@ -42,7 +45,7 @@ def cmd_live(spec: CaptureSpec, args) -> int:
 
         return run_capture_tui(spec, "live", spec.port)
     source = SerialSource(spec.port, line)
-    return _capture(spec, source, spec.port, inputs=[spec.port])
+    return _capture(spec, source, spec.port, inputs=[spec.port], status_label=f"live {spec.port}")
 
 
 def cmd_demo(spec: CaptureSpec, args) -> int:
@@ -58,29 +61,34 @@ def cmd_demo(spec: CaptureSpec, args) -> int:
     source = DemoSource(scenario, spec.seed, spec.duration_s)
     # the bus ends the demo (DemoSource stops after the scenario's duration): no deadline of the session's own
     rc = _capture(spec.with_(duration_s=0.0), source, f"demo {scenario.name}",
-                  what=lambda: f"demo '{scenario.name}' on simulated bus {source.port}")
+                  what=lambda: f"demo '{scenario.name}' on simulated bus {source.port}",
+                  status_label=f"demo {scenario.name}")
     if source.stats is not None:
         say(f"simulator sent {source.stats.frames} frames ({source.stats.bytes} bytes); "
             f"sniffer wrote {source.bytes_written_back} bytes to the bus")
     return rc
 
 
-def capture_session(spec: CaptureSpec, source, label: str, *, inputs=()) -> Session:
+def capture_session(spec: CaptureSpec, source, label: str, *, inputs=(), status_label: str = "") -> Session:
     """The session of a capture: the stdout stream, the MCAP file, the viewers' socket; its files are kept
     whatever ends it.  Outputs are checked now; nothing is opened yet."""
     sinks = capture_sinks(spec, label, stream=True, inputs=inputs)
-    return Session(spec, source, sinks, keep_partial=True, need_baud=False)
+    return Session(spec, source, sinks, keep_partial=True, need_baud=False, label=status_label or label)
 
 
-def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None) -> int:
-    session = capture_session(spec, source, label, inputs=inputs)
+def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None, status_label="") -> int:
+    session = capture_session(spec, source, label, inputs=inputs, status_label=status_label)
     on_signals(session.stop)
+    if spec.wait_port and spec.port:
+        from ..status import wait_for_port
+
+        if not wait_for_port(spec.port, session.stop, session.status_path(), status_label or label):
+            return report(session)  # stopped while waiting: nothing captured, nothing to say
     session.open()  # a missing port, a bad setting: one line, and nothing created
-    where = f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)" if session.outputs else ""
     links = getattr(session.pipeline, "resolved", None)
     at = ("; ".join(f"{name} at {r.describe()}" for name, r in links.items()) if links
           else f"at {session.resolved.describe()}")
-    say(f"{what() if what else 'capturing ' + label} {at} (read-only){where}")
+    say(f"{what() if what else 'capturing ' + label} {at} (read-only){destination(spec, session)}")
     session.run()
     print(summary_line(session), file=sys.stderr)
     return report(session)

@@ -38,18 +38,23 @@ def default_capture_name() -> str:
     return time.strftime("sniffer-%Y%m%d-%H%M%S.mcap")
 
 
-def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=()) -> list:
-    """A capture's sinks: the stdout stream, the MCAP file, viewers on a socket (last: the file
-    is closed before viewers are let go).  Outputs are checked (and the socket bound) now, before
-    the port opens."""
+def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=(), line_buffered=True) -> list:
+    """A capture's sinks: the stdout stream, the MCAP file (or its segments, --rotate), viewers on a
+    socket (last: the file is closed before viewers are let go).  Outputs are checked (and the socket
+    bound) now, before the port opens."""
     from ..sinks.publish import PublishSink
 
     sinks = []
     if stream:
-        s = stream_sink(spec, line_buffered=True)
+        s = stream_sink(spec, line_buffered=line_buffered)
         if s is not None:
             sinks.append(s)
-    if spec.out and not (spec.trigger is not None and spec.trigger.ring):  # --ring: only the windows
+    ring = spec.trigger is not None and spec.trigger.ring  # --ring: only the windows
+    if spec.out and spec.rotate is not None and not ring:
+        from ..sinks.segments import SegmentPlan
+
+        sinks.append(SegmentPlan(spec.out, spec.rotate, spec.keep, inputs=inputs))
+    elif spec.out and not ring:
         sinks.append(FileSink("mcap", spec.out, inputs=inputs))
     if spec.publish:
         sinks.append(PublishSink(spec.publish, label=label, capture_path=spec.out, backlog=spec.publish_backlog))
@@ -67,7 +72,23 @@ def written(session: Session) -> str:
             continue
         kind = os.path.splitext(o.path)[1].lstrip(".").upper() or "file"
         parts.append(f"{kind} {o.path} ({size} bytes)")
+    parts += [s.written_text for s in session.sinks if hasattr(s, "written_text")]
     return "; " + ", ".join(parts) if parts else ""
+
+
+def destination(spec: CaptureSpec, session: Session) -> str:
+    """' -> cab3.mcap (written as cab3.mcap.part until the capture ends)', or the segments' folder, or ''."""
+    if not spec.out:
+        return ""
+    if spec.rotate is not None:
+        from ..segments import folder_for
+
+        keep = f", keeping {spec.keep.describe()}" if spec.keep else ""
+        return (f" -> segments in {folder_for(spec.out)}/ (a new one every {spec.rotate.describe()}{keep}; "
+                f"status: sniffer status {folder_for(spec.out)})")
+    if not session.outputs:
+        return ""  # --ring: only the trigger windows are written
+    return f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)"
 
 
 def summary_line(session: Session) -> str:

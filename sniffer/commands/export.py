@@ -28,13 +28,14 @@ def cmd_export(spec: CaptureSpec, args) -> int:
 
         return export_dataset(spec, args, files, root)
     if len(files) != 1:
-        raise UsageError(f"--to {args.to} writes one capture: give one file (several go into --to dataset DIR)"
+        raise UsageError(f"--to {args.to} writes one capture: give one file, or a rotated capture's folder "
+                         f"(several files go into --to dataset DIR)"
                          if files else "export needs a capture file: sniffer export CAPTURE --to FORMAT --out PATH")
     if not args.out:
         raise UsageError(f"--to {args.to} needs --out PATH")
     if args.link:
         raise UsageError("--link is for --to dataset")
-    spec = spec.with_(input=files[0])
+    spec = spec.with_(input=files[0], inputs=(files[0],))  # a folder of segments is one capture (segset.py)
     sink = FileSink(args.to, args.out, inputs=[spec.input])  # checked before the input is read
     source = file_source(spec)
     session = Session(spec, source, [sink])

@@ -17,7 +17,10 @@ def cmd_repair(spec: CaptureSpec, args) -> int:
         raise CaptureError(f"{shown(src)}: no such file")
     if note:
         say(f"note: {note}")
-    out = Output(args.out or default_output(args.file), inputs=[src], what="--out")
+    path = args.out or default_output(args.file)
+    # a killed capture's NAME.part finished as NAME: its own name, not an input (the part file stays)
+    own_name = os.path.abspath(path) + ".part" == os.path.abspath(src)
+    out = Output(path, inputs=[] if own_name else [src], what="--out")
     try:
         st = repair(src, out.part)
     except BaseException:

@@ -11,18 +11,26 @@ from .common import UsageError, report, say, stream_sink
 
 
 def file_source(spec: CaptureSpec):
-    """The capture file of a replay-like command (a killed capture's part file when only that is there)."""
+    """The capture of a replay-like command: one file (a killed capture's part file when only that is
+    there), or a set read as one capture: several files, a rotated capture's folder or its index."""
     from ..outputs import readable
-    from ..sources.replay import FileSource
+    from ..sources.segset import capture_source, is_set
 
+    if is_set(spec.inputs or spec.input):
+        return capture_source(spec.inputs, spec.input_format)
     path, note = readable(spec.input)
     if note:
         say(f"note: {note}")
-    return FileSource(path, spec.input_format)
+    return capture_source(path, spec.input_format)
 
 
 def cmd_replay(spec: CaptureSpec, args) -> int:
+    if (spec.rotate is None) != (args.out is None):
+        raise UsageError("replay writes a capture again only as segments: give --rotate and --out FOLDER together "
+                         "(one file: sniffer export --to mcap)")
     source = file_source(spec)
+    if spec.rotate is not None:
+        return _rotate(spec, source)
     if args.tui:
         if not (sys.stdout.isatty() and sys.stdin.isatty()):
             raise UsageError("replay --tui needs a terminal (stdin and stdout); without one, leave out --tui")
@@ -49,14 +57,32 @@ def cmd_replay(spec: CaptureSpec, args) -> int:
     finally:
         if bar is not None:
             bar.close()
+    if getattr(source, "unfinished", None):
+        _note_unfinished(session)  # a set's segments are read only as the replay reaches them
+    return report(session, label=spec.input)
+
+
+def _rotate(spec: CaptureSpec, source) -> int:
+    """replay --rotate --out FOLDER: the capture written again as segments, as a live capture writes them."""
+    from .common import capture_sinks, destination, summary_line
+
+    sinks = capture_sinks(spec, spec.input, inputs=spec.inputs or [spec.input], line_buffered=False)
+    session = Session(spec, source, sinks, label=f"replay {spec.input}")
+    session.open()
+    say(f"replaying {spec.input}{destination(spec, session)}")
+    session.run()
+    _note_unfinished(session)
+    print(summary_line(session), file=sys.stderr)
     return report(session, label=spec.input)
 
 
 def _note_unfinished(session: Session) -> None:
-    if session.info.extra.get("mcap_unfinished"):
-        path = session.spec.input
-        say(f"note: {path} was not closed cleanly (capture killed?); read up to its last complete record. "
-            f"'sniffer repair {path}' writes a clean copy.")
+    paths = list(getattr(session.source, "unfinished", None) or ())
+    if not paths and session.info.extra.get("mcap_unfinished"):
+        paths = [session.spec.input]
+    for path in paths:
+        say(f"note: {path} was not closed cleanly (capture killed, or still being written?); read up to its last "
+            f"complete record. 'sniffer repair {path}' writes a clean copy.")
 
 
 class HexSource:

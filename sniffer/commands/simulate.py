@@ -37,12 +37,14 @@ def cmd_simulate(spec: CaptureSpec, args) -> int:
     if args.pty:
         return _serve(scenario, line, spec.seed, spec.duration_s, args.pty)
     out = args.out
-    if out.endswith(".csv"):
+    if spec.rotate is not None:
+        fmt = "segments"  # a simulated day as an unattended capture writes it (--rotate 1h --out FOLDER)
+    elif out.endswith(".csv"):
         fmt = "bytecsv"
     elif out.endswith(".mcap"):
         fmt = "mcap"
     else:
-        raise UsageError("--out must end in .mcap or .csv")
+        raise UsageError("--out must end in .mcap or .csv (or name a folder, with --rotate)")
     duration = spec.duration_s if args.duration is not None else 10.0
     if duration <= 0:
         raise UsageError("--duration must be more than 0 seconds")
@@ -52,9 +54,14 @@ def cmd_simulate(spec: CaptureSpec, args) -> int:
                                 args.receiver_stopbits or line.stopbits, line.databits)
     source = SimulatedSource(scenario, line, duration, spec.seed, args.adapter, receiver=receiver)
     recorded = receiver or line
-    sink = FileSink(fmt, out)
+    if fmt == "segments":
+        from ..sinks.segments import SegmentPlan
+
+        sink = SegmentPlan(out, spec.rotate, spec.keep)
+    else:
+        sink = FileSink(fmt, out)
     # the simulated bus is what it is: the flags set its line, the scenario its protocol and drives
-    session = Session(spec.with_(duration_s=0.0), source, [sink], keep_partial=True)
+    session = Session(spec.with_(duration_s=0.0), source, [sink], keep_partial=True, label=f"simulate {scenario.name}")
     session.run()
     if session.error:
         return report(session)
@@ -66,8 +73,9 @@ def cmd_simulate(spec: CaptureSpec, args) -> int:
         say(f"wrote {session.bytes_in} bytes of scenario '{scenario.name}' at {_at(line, receiver)} to {out} "
             f"(replay with {flags})")
     else:
+        where = session.sinks[0].written_text if fmt == "segments" else out
         say(f"wrote {session.frames_out} frames ({session.bytes_in} bytes) of scenario '{scenario.name}' "
-            f"at {_at(line, receiver)} to {out}")
+            f"at {_at(line, receiver)} to {where}")
     return report(session)
 
 

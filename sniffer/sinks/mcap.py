@@ -162,6 +162,11 @@ class McapSink(Sink):
         """Bytes on disk so far (the flushed, complete part of the file)."""
         return self._file.on_disk
 
+    @property
+    def size(self) -> int:
+        """Bytes of the file so far, written or waiting to be (not the open chunk in memory)."""
+        return self._file.tell()
+
     def start(self, info: CaptureInfo) -> None:
         self._t0 = info.t0_ns
         self._anchor = info.wall_anchor_ns

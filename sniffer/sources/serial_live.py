@@ -134,7 +134,7 @@ class SerialSource:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._error: BaseException | None = None
-        self._lost_reason = ""
+        self.lost_reason = ""
         self.ignored: dict = {}  # settings the driver dropped and why that is harmless (serial_port.configure)
         self._ended = False
 
@@ -241,11 +241,11 @@ class SerialSource:
         if not self.reconnect:
             raise PortLostError(f"{self.port}: port lost ({reason})")
         self.lost_since_ns = time.monotonic_ns()
-        self._lost_reason = reason
+        self.lost_reason = reason
 
     def _wait_for_port(self) -> None:
         """Poll for the port to come back; one Gap covers the whole outage."""
-        lost, reason = self.lost_since_ns, self._lost_reason
+        lost, reason = self.lost_since_ns, self.lost_reason
         while not self._stop.wait(PORT_POLL_S):
             try:
                 fd = self._open_port()
