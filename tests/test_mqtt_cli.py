@@ -71,3 +71,18 @@ def test_the_sinks_status_says_what_the_client_did(mqtt_broker):
     st = session.sinks[-1].status()["mqtt"]
     assert st["broker"] == f"127.0.0.1:{mqtt_broker.port}" and st["dropped"] == 0 and st["queued"] == 0
     assert st["published"] > st["topics"] > 20 and st["values"] > st["topics"] and st["connects"] == 1
+
+
+def test_the_status_file_has_the_mqtt_section(mqtt_broker, tmp_path):
+    status = tmp_path / "status.json"
+    r = subprocess.run([sys.executable, "-m", "sniffer", "demo", "--headless", "--quiet", "--duration", "2", "--no-out",
+                        "--status", str(status), "--mqtt", mqtt_broker.url(), "--mqtt-queue", "100000"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    st = json.loads(status.read_text())
+    m = st["mqtt"]
+    assert st["state"] == "ended" and m["broker"] == f"127.0.0.1:{mqtt_broker.port}"
+    assert m["published"] > 0 and m["dropped"] == 0 and m["queued"] == 0 and m["connected"] is False
+    shown = subprocess.run([sys.executable, "-m", "sniffer", "status", str(status)], capture_output=True, text=True,
+                           timeout=60)
+    assert "mqtt" in shown.stdout and str(m["published"]) in shown.stdout, shown.stdout + shown.stderr
