@@ -117,7 +117,7 @@ class StatusSink:
         d = {
             "format": STATUS_FORMAT, "state": state, "pid": os.getpid(), "command": self.label,
             "source": info.source if info is not None else "",
-            "line": s.resolved.describe() if s.resolved is not None else "",
+            "line": _line(s),
             "started": iso(self.started_wall), "updated": iso(time.time_ns()),
             "updated_ns": time.time_ns(), "every_s": self.every_ns / _NS,
             "uptime_s": round((now_mono - self.started_mono) / _NS, 1),
@@ -219,3 +219,12 @@ def wait_for_port(port: str, stop: threading.Event, status_path: str | None, lab
         if stop.wait(poll_s):
             return False
     return True
+
+
+def _line(session) -> str:
+    """The line's settings; with several links each link's, by name ("drives: 19200 8E1 ...; pumps: ...")."""
+    links = getattr(session.pipeline, "resolved", None)
+    if isinstance(links, dict) and len(links) > 1:
+        return "; ".join(f"{name}: {r.describe()}" for name, r in links.items())
+    return session.resolved.describe() if session.resolved is not None else ""
+

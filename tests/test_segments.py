@@ -402,6 +402,8 @@ def test_a_multi_link_capture_rotates_and_replays_with_its_links(tmp_path):
     assert again == [(r["link"], r["raw"], r["role"], r["pair"]) for r in whole.records]
     first = [f for f in decode_capture(str(folder / index[1]["file"]))]
     assert {f.link for f in first} == {"A", "B"} and all(f.crc_ok for f in first)
+    status = json.loads((folder / "status.json").read_text())
+    assert status["line"].startswith("A: 19200 8E1") and "; B: 19200 8E1" in status["line"]  # each link's
 
 
 def test_status_names_each_lost_port_of_several_links(tmp_path):

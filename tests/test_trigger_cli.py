@@ -155,3 +155,13 @@ def test_bad_trigger_flags_are_one_error_line_and_exit_2(tds, tmp_path, flags, s
         assert r.returncode == 2 and len(lines) == 1 and lines[0].startswith("sniffer: error:"), r.stderr
         assert says in lines[0] and "Traceback" not in r.stderr
     assert not list(tmp_path.glob("*.mcap*"))
+
+
+def test_windows_folder_is_made_when_its_parent_exists(tds, tmp_path):
+    """`--windows DIR` makes DIR (one level, as --rotate makes its folder); a path whose parent is missing
+    too is a typo: one line (the bad-flags test)."""
+    path, _ = tds
+    folder = tmp_path / "windows"
+    r = run("replay", path, "--quiet", "--trigger", "fault", "--pre", "10s", "--post", "5s", "--windows", folder)
+    assert r.returncode == 0, r.stderr
+    assert folder.is_dir() and list(folder.glob("*.trigger-*.mcap"))

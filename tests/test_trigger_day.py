@@ -87,3 +87,35 @@ def test_a_simulated_day_keeps_every_window_whole_with_flat_memory(day, tmp_path
     # a trip shows in two polls or more before the PLC resets it: the rate joins the fault's window
     assert any(m["rules"] == ["fault", "rate(fault) >= 2/5s"] for m in metas)
     assert f"{len(files)} window files" in err
+
+
+def test_the_day_rotated_hourly_with_triggers_replays_whole(day, tmp_path):
+    """The same four hours through `replay --rotate 1h --trigger fault`, the path a live capture left for the
+    night takes: one segment an hour (each replays alone), the set replayed as one capture is the day, frame
+    for frame, and the trigger windows are written beside it, each holding its fault."""
+    out, windows = tmp_path / "night", tmp_path / "windows"
+    windows.mkdir()
+    r = subprocess.run(SNIFFER + ["replay", str(day), "--quiet", "--rotate", "1h", "--out", str(out),
+                                  "--windows", str(windows), "--trigger", "fault", "--pre", "2m", "--post", "30s"],
+                       capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr
+    segments = sorted(out.glob("*.mcap"))
+    assert HOURS <= len(segments) <= HOURS + 1, [s.name for s in segments]
+    assert (out / "index.json").exists()
+    day_frames = [(f.t_ns, f.raw) for f in decode_capture(day)]
+    whole = []
+    for seg in segments:  # each alone: its frames are a run of the day's, in order
+        alone = [(f.t_ns, f.raw) for f in decode_capture(seg)]
+        assert alone, seg.name
+        whole += alone
+    assert whole == day_frames  # the same bytes at the same times: one clock across the segments
+    as_one = subprocess.run(SNIFFER + ["replay", str(out), "--format", "jsonl"], capture_output=True, text=True,
+                            timeout=600)
+    assert as_one.returncode == 0, as_one.stderr
+    assert len(as_one.stdout.splitlines()) == len(day_frames)
+    files = sorted(windows.glob("*.trigger-*.mcap"))
+    assert len(files) >= HOURS * 2
+    for path in files:
+        m = read_trigger(str(path))
+        held = {r["raw"] for r in read_frames(str(path))}
+        assert all(firing["record"]["raw"] in held for firing in m["firings"]), path.name

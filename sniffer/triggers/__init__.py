@@ -31,6 +31,11 @@ def windows_place(spec) -> tuple[str, str]:
     for ext in (".part", ".mcap", ".csv", ".pcapng", ".pcap"):
         stem = stem.removesuffix(ext)
     folder = t.windows or (os.path.dirname(spec.out) if spec.out else "") or "."
+    if t.windows and not os.path.exists(folder) and os.path.isdir(os.path.dirname(os.path.abspath(folder))):
+        try:  # a new folder for the windows, as --rotate makes its own (not a whole missing path: a typo)
+            os.mkdir(folder)
+        except OSError as e:
+            raise OutputError(f"--windows {shown(folder)}: cannot create the folder ({e.strerror})") from None
     if not os.path.isdir(folder):
         raise OutputError(f"--windows {shown(folder)}: not a folder")
     if not os.access(folder, os.W_OK):
