@@ -182,6 +182,25 @@ def foxglove_flags(p: argparse.ArgumentParser) -> None:
                         "recorded, else this host's name")
 
 
+def mqtt_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("live values to MQTT / Home Assistant (sniffer/mqtt; read-only: nothing goes to the bus)")
+    g.add_argument("--mqtt", metavar="URL", help="publish decoded values to this broker: mqtt://[USER[:PASS]@]HOST[:PORT]"
+                   "/PREFIX, mqtts:// for TLS (a USER without :PASS takes $SNIFFER_MQTT_PASSWORD)")
+    g.add_argument("--mqtt-ca", metavar="FILE", help="CA certificate (PEM) the broker's certificate is checked against "
+                   "(default: the system's)")
+    g.add_argument("--mqtt-cert", metavar="FILE", help="client certificate (PEM), for brokers that ask for one")
+    g.add_argument("--mqtt-key", metavar="FILE", help="the client certificate's private key (PEM)")
+    g.add_argument("--mqtt-interval", metavar="TIME", help="at most one value per register in this much capture time "
+                   "(the newest goes out): 1s, 500ms (default: every confirmed value)")
+    g.add_argument("--mqtt-changes", action="store_true", help="publish a value only when it changed")
+    g.add_argument("--mqtt-ha", action="store_true",
+                   help="Home Assistant MQTT discovery: each drive a device, its registers sensors")
+    g.add_argument("--mqtt-ha-prefix", metavar="PREFIX",
+                   help="Home Assistant's discovery prefix (default homeassistant)")
+    g.add_argument("--mqtt-queue", type=_number(int, "--mqtt-queue", 1, 10_000_000), metavar="N",
+                   help="messages waiting for the broker; past that they are dropped and counted (default 10000)")
+
+
 def dataset_flags(p: argparse.ArgumentParser, progress: str) -> None:
     """export's and ingest's: --progress, --link, and the line and decoding flags a capture is read with."""
     p.add_argument("--progress", action="store_true", help=progress)
@@ -226,6 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
     unattended_flags(s, port=True)
     trigger_flags(s)
     foxglove_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap)")
     input_flags(s)
@@ -238,6 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
     unattended_flags(s)
     trigger_flags(s)
     foxglove_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser("decode", help="decode frames given as hex, one argument per frame (no timing: "
                                       "no latency or silence verdicts)")
@@ -282,6 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
     unattended_flags(s)
     trigger_flags(s)
     foxglove_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser("attach", help="view a capture that another process publishes (--publish, sniffer serve)")
     s.add_argument("socket", help="the capture's socket (or tcp:[HOST:]PORT)")
@@ -310,6 +332,7 @@ def build_parser() -> argparse.ArgumentParser:
     unattended_flags(s, port=True)
     trigger_flags(s)
     foxglove_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser(
         "detect", formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -30,6 +30,9 @@ check, diff, serve's capture process and the TUI's feeds.  A capture of
 several links (its CaptureInfo lists `links`) runs one pipeline per link over
 the same sinks (sniffer.links.LinkPipelines); `resolved` and `registry` are
 then its first link's, `pipeline.resolved` / `.registries` every link's.
+Sinks the spec asks for are added here, so every command has them: the
+trigger sink (--trigger, sniffer.triggers) and the MQTT sink (--mqtt,
+sniffer.mqtt).
 """
 
 from __future__ import annotations
@@ -147,6 +150,12 @@ class Session:
                     if links else self.resolved
                 triggers = trigger_sink(self.spec, slowest, self.registry)
                 self.sinks.append(triggers)
+            mqtt = None
+            if self.spec.mqtt is not None:
+                from .mqtt.sink import mqtt_sink
+
+                mqtt = mqtt_sink(self.spec, self.registry)
+                self.sinks.append(mqtt)
             status = self.status_path()
             if status:
                 from .status import StatusSink
@@ -157,6 +166,8 @@ class Session:
 
                 self.pipeline = LinkPipelines(info, links, self.sinks)
                 self.registry = next(iter(self.pipeline.registries.values()))
+                if mqtt is not None:  # model names from every link's models
+                    mqtt.registries = list(self.pipeline.registries.values())
             else:
                 self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
             if triggers is not None:

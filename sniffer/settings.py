@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 from . import protocols
 from .events import CaptureInfo
 from .line import LineSettings, SettingsError
+from .mqtt.options import MqttSpec
 from .pairer import DEFAULT_TIMEOUT_MS
 from .pipeline import Pipeline
 from .segments import Keep, Rotate
@@ -232,6 +233,7 @@ class CaptureSpec:
     wait_port: bool = False  # --wait-port: a port that is not there yet is waited for
     trigger: TriggerSpec | None = None  # --trigger and its flags: windows around events (sniffer.triggers)
     foxglove_device: str | None = None  # --foxglove-device: the device an MCAP names for Foxglove (sniffer.foxglove)
+    mqtt: MqttSpec | None = None  # --mqtt URL and its flags: decoded values to a broker (sniffer.mqtt)
 
     @classmethod
     def of(cls, *, baud=None, parity=None, stopbits=None, protocol=None, devices=None, timeout_ms=None,
@@ -287,7 +289,7 @@ class CaptureSpec:
             out=None if opt("no_out") else opt("out"),
             stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
             headless=bool(opt("headless")), publish=opt("publish"),
-            publish_backlog=opt("publish_backlog", 100_000), trigger=trigger,
+            publish_backlog=opt("publish_backlog", 100_000), trigger=trigger, mqtt=MqttSpec.from_args(args),
             rotate=rotate, keep=keep, status=opt("status"), wait_port=bool(opt("wait_port")),
             foxglove_device=opt("foxglove_device"),
         )
@@ -370,6 +372,8 @@ class CaptureSpec:
             argv += self.trigger.to_argv()
         if self.foxglove_device:
             argv += ["--foxglove-device", self.foxglove_device]
+        if self.mqtt is not None:
+            argv += self.mqtt.to_argv()
         if self.headless:
             argv.append("--headless")
         if self.stream is None:
