@@ -4,8 +4,11 @@
 #   chromium           - headless, drives the browser view (`sniffer serve`) with keys
 #                        (tests/test_serve_chromium.py) and opens `sniffer report`'s page offline
 #                        (tests/test_report_chromium.py; the report itself needs no system package);
-#   fonts-dejavu-core  - a monospace font for the page's terminal.
-# Without them those tests skip with a reason, except the Chromium test on CI (CI set), which fails.
+#   fonts-dejavu-core  - a monospace font for the page's terminal;
+#   mosquitto          - the MQTT broker the --mqtt tests start on a free port (tests/broker.py);
+#   openssl            - the tests' CA and server certificate for the broker's TLS listener.
+# Without them those tests skip with a reason, except the Chromium test on CI (CI set), which fails,
+# and the MQTT tests, which always fail without mosquitto (they need a real broker).
 # Idempotent and non-interactive: installs only what is missing; does nothing (and succeeds) without
 # root or passwordless sudo.
 set -uo pipefail
@@ -14,6 +17,8 @@ missing=()
 command -v tshark >/dev/null 2>&1 || missing+=(tshark)
 command -v chromium >/dev/null 2>&1 || missing+=(chromium)
 [ -e /usr/share/fonts/truetype/dejavu/DejaVuSansMono.ttf ] || missing+=(fonts-dejavu-core)
+command -v mosquitto >/dev/null 2>&1 || [ -x /usr/sbin/mosquitto ] || missing+=(mosquitto)
+command -v openssl >/dev/null 2>&1 || missing+=(openssl)
 if [ "${#missing[@]}" = 0 ]; then
   exit 0
 fi

@@ -167,6 +167,40 @@ def trigger_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--on-trigger-timeout", metavar="TIME", help="kill --on-trigger's command after this (default 60s)")
 
 
+def _device_name(text: str) -> str:
+    name = text.strip()
+    if not name or len(name) > 200 or not name.isprintable():
+        raise argparse.ArgumentTypeError(f"--foxglove-device {text[:40]!r}: a name of 1-200 printable characters")
+    return name
+
+
+def foxglove_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("Foxglove (docs/foxglove.md)")
+    g.add_argument("--foxglove-device", type=_device_name, metavar="NAME",
+                   help="the device the MCAP names for Foxglove (its `foxglove` metadata: deviceName, which "
+                        "Foxglove's agent and Edge Sites file the recording under); default: what the capture "
+                        "recorded, else this host's name")
+
+
+def mqtt_flags(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("live values to MQTT / Home Assistant (sniffer/mqtt; read-only: nothing goes to the bus)")
+    g.add_argument("--mqtt", metavar="URL", help="publish decoded values to this broker: mqtt://[USER[:PASS]@]HOST[:PORT]"
+                   "/PREFIX, mqtts:// for TLS (a USER without :PASS takes $SNIFFER_MQTT_PASSWORD)")
+    g.add_argument("--mqtt-ca", metavar="FILE", help="CA certificate (PEM) the broker's certificate is checked against "
+                   "(default: the system's)")
+    g.add_argument("--mqtt-cert", metavar="FILE", help="client certificate (PEM), for brokers that ask for one")
+    g.add_argument("--mqtt-key", metavar="FILE", help="the client certificate's private key (PEM)")
+    g.add_argument("--mqtt-interval", metavar="TIME", help="at most one value per register in this much capture time "
+                   "(the newest goes out): 1s, 500ms (default: every confirmed value)")
+    g.add_argument("--mqtt-changes", action="store_true", help="publish a value only when it changed")
+    g.add_argument("--mqtt-ha", action="store_true",
+                   help="Home Assistant MQTT discovery: each drive a device, its registers sensors")
+    g.add_argument("--mqtt-ha-prefix", metavar="PREFIX",
+                   help="Home Assistant's discovery prefix (default homeassistant)")
+    g.add_argument("--mqtt-queue", type=_number(int, "--mqtt-queue", 1, 10_000_000), metavar="N",
+                   help="messages waiting for the broker; past that they are dropped and counted (default 10000)")
+
+
 def dataset_flags(p: argparse.ArgumentParser, progress: str) -> None:
     """export's and ingest's: --progress, --link, and the line and decoding flags a capture is read with."""
     p.add_argument("--progress", action="store_true", help=progress)
@@ -210,6 +244,8 @@ def build_parser() -> argparse.ArgumentParser:
     publish_flags(s)
     unattended_flags(s, port=True)
     trigger_flags(s)
+    foxglove_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap)")
     input_flags(s)
@@ -221,6 +257,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", metavar="FOLDER", help="with --rotate: write the capture again as segments in FOLDER")
     unattended_flags(s)
     trigger_flags(s)
+    foxglove_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser("decode", help="decode frames given as hex, one argument per frame (no timing: "
                                       "no latency or silence verdicts)")
@@ -252,6 +290,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--receiver-parity", choices=["N", "E", "O"], type=str.upper)
     g.add_argument("--receiver-stopbits", type=int, choices=[1, 2])
     unattended_flags(s)
+    foxglove_flags(s)
 
     s = sub.add_parser("demo", help="live capture of a simulated bus over a pseudo-terminal")
     s.add_argument("--scenario", default="default", help=_SCENARIO_HELP)
@@ -263,6 +302,8 @@ def build_parser() -> argparse.ArgumentParser:
     publish_flags(s)
     unattended_flags(s)
     trigger_flags(s)
+    foxglove_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser("attach", help="view a capture that another process publishes (--publish, sniffer serve)")
     s.add_argument("socket", help="the capture's socket (or tcp:[HOST:]PORT)")
@@ -290,6 +331,8 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar="N", help="frames a viewer that joins late gets first (default 100000)")
     unattended_flags(s, port=True)
     trigger_flags(s)
+    foxglove_flags(s)
+    mqtt_flags(s)
 
     s = sub.add_parser(
         "detect", formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -364,6 +407,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", metavar="PATH", help="output file (csv/parquet: also PATH stem.points.*); with --to "
                                                  "dataset: the dataset folder")
     dataset_flags(s, "show a progress bar on stderr")
+    foxglove_flags(s)
 
     s = sub.add_parser("ingest", help="take a folder of MCAP captures into a fleet dataset; already taken ones "
                                       "are skipped (docs/fleet.md)")

@@ -8,6 +8,7 @@ which registers the frame wrote into its unit's shadow, `writes`).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Protocol
 
 from .codes import Annotation
@@ -65,6 +66,11 @@ class PointBlock(Protocol):
     def points(self) -> list[dict]: ...
 
     def json(self) -> bytes: ...
+
+    def samples(self) -> Iterable[tuple[str, int, int]]:
+        """(name, address, value) of each point: unnamed registers' values are their raw numbers, with
+        no unit or text (what sniffer.foxglove reads, without building the dicts)."""
+        ...
 
 
 class Frame:

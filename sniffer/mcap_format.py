@@ -15,6 +15,10 @@ Channels (JSON messages described by JSON Schema, so Foxglove can plot fields):
 
 log_time = publish_time = wall_anchor_ns + (t_ns - t0_ns), clamped to >= 0.
 
+What Foxglove's panels read besides (the `foxglove` metadata, /annotations as
+foxglove.Log, /values/... per register, the register maps as attachments) is
+sniffer.foxglove; a replay reads /capture and /raw only.
+
 Several links on one timeline (`sniffer live P1 P2 ...`, `--tap`, a bus file's
 ``[[links]]``): still one /raw and one /frames channel, one clock; every /raw
 event and every /frames record of such a capture carries a ``link`` field (the

@@ -6,9 +6,11 @@ source event, so on a fast replay or export the Writer took a third of the
 run.  This one packs a message record with one struct call into the current
 chunk and keeps the chunk's message index as flat lists.  The file is plain
 MCAP (https://mcap.dev/spec): magic, Header, Metadata, Schemas, Channels,
-zstd Chunks each followed by their Message Index records, Data End, and a
-summary (Schemas, Channels, Statistics, Chunk Indexes, Metadata Index,
-Summary Offsets) with the Footer.  Chunk CRCs are written; the data-section
+zstd Chunks each followed by their Message Index records, Attachments, Data
+End, and a summary (Schemas, Channels, Statistics, Chunk Indexes, Attachment
+Indexes, Metadata Indexes, Summary Offsets) with the Footer.  A channel may be
+registered at any time (it is written before the chunk holding its first
+message).  Chunk and attachment CRCs are written; the data-section
 and summary CRCs are 0 ("not computed", as the spec allows).  The mcap
 library reads it back in the tests (tests/test_mcap.py).
 
@@ -27,7 +29,8 @@ import zstandard
 from .mcap_format import MAGIC
 
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
-OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_STATISTICS, OP_METADATA, OP_METADATA_INDEX = 0x07, 0x08, 0x0B, 0x0C, 0x0D
+OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_ATTACHMENT, OP_ATTACHMENT_INDEX = 0x07, 0x08, 0x09, 0x0A
+OP_STATISTICS, OP_METADATA, OP_METADATA_INDEX = 0x0B, 0x0C, 0x0D
 OP_SUMMARY_OFFSET, OP_DATA_END = 0x0E, 0x0F
 
 _RECORD = struct.Struct("<BQ")
@@ -61,6 +64,8 @@ class McapWriter:
         self._channels: list[bytes] = []
         self._channel_ids: list[int] = []
         self._metadata_index: list[bytes] = []
+        self._attachment_index: list[bytes] = []
+        self.summary_bytes = 0  # what the summary will repeat or index so far (schemas, channels, indexes)
         self._chunk_indexes: list[bytes] = []
         self._counts: dict[int, int] = {}
         self._messages = 0
@@ -78,6 +83,7 @@ class McapWriter:
         sid = len(self._schemas) + 1
         rec = _record(OP_SCHEMA, _U16.pack(sid) + _str(name) + _str(encoding) + _U32.pack(len(data)) + data)
         self._schemas.append(rec)
+        self.summary_bytes += len(rec)
         self._out.write(rec)
         return sid
 
@@ -87,6 +93,7 @@ class McapWriter:
         rec = _record(OP_CHANNEL, _U16.pack(cid) + _U16.pack(schema_id) + _str(topic) + _str(message_encoding)
                       + _map_str(metadata or {}))
         self._channels.append(rec)
+        self.summary_bytes += len(rec)
         self._channel_ids.append(cid)
         self._counts[cid] = 0
         self._out.write(rec)
@@ -97,6 +104,19 @@ class McapWriter:
         rec = _record(OP_METADATA, _str(name) + _map_str(data))
         self._out.write(rec)
         self._metadata_index.append(_record(OP_METADATA_INDEX, _U64.pack(offset) + _U64.pack(len(rec)) + _str(name)))
+        self.summary_bytes += len(self._metadata_index[-1])
+
+    def add_attachment(self, name: str, media_type: str, data: bytes, log_time: int, create_time: int = 0) -> None:
+        """A file carried in the capture (outside the chunks, indexed in the summary)."""
+        offset = self._out.tell()
+        body = (_U64.pack(log_time) + _U64.pack(create_time) + _str(name) + _str(media_type)
+                + _U64.pack(len(data)) + data)
+        rec = _record(OP_ATTACHMENT, body + _U32.pack(zlib.crc32(body)))
+        self._out.write(rec)
+        self._attachment_index.append(_record(OP_ATTACHMENT_INDEX, (
+            _U64.pack(offset) + _U64.pack(len(rec)) + _U64.pack(log_time) + _U64.pack(create_time)
+            + _U64.pack(len(data)) + _str(name) + _str(media_type))))
+        self.summary_bytes += len(self._attachment_index[-1])
 
     # ------------------------------------------------------------ messages
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int = 0) -> None:
@@ -143,6 +163,7 @@ class McapWriter:
             _U64.pack(self._c_start) + _U64.pack(self._c_end) + _U64.pack(chunk_offset) + _U64.pack(len(chunk_rec))
             + _U32.pack(len(offsets)) + offsets + _U64.pack(pos - chunk_offset - len(chunk_rec))
             + _str(self.compression) + _U64.pack(len(data)) + _U64.pack(len(raw)))))
+        self.summary_bytes += len(self._chunk_indexes[-1])
         n = sum(len(v) for v in self._index.values()) // 2
         if n:
             self._start = self._c_start if self._start is None else min(self._start, self._c_start)
@@ -167,10 +188,12 @@ class McapWriter:
         counts = b"".join(_U16.pack(c) + _U64.pack(n) for c, n in self._counts.items())
         stats = _record(OP_STATISTICS, (
             _U64.pack(self._messages) + _U16.pack(len(self._schemas)) + _U32.pack(len(self._channels))
-            + _U32.pack(0) + _U32.pack(len(self._metadata_index)) + _U32.pack(len(self._chunk_indexes))
+            + _U32.pack(len(self._attachment_index)) + _U32.pack(len(self._metadata_index))
+            + _U32.pack(len(self._chunk_indexes))
             + _U64.pack(self._start or 0) + _U64.pack(self._end or 0) + _U32.pack(len(counts)) + counts))
         for opcode, recs in ((OP_SCHEMA, self._schemas), (OP_CHANNEL, self._channels), (OP_STATISTICS, [stats]),
-                             (OP_CHUNK_INDEX, self._chunk_indexes), (OP_METADATA_INDEX, self._metadata_index)):
+                             (OP_CHUNK_INDEX, self._chunk_indexes), (OP_ATTACHMENT_INDEX, self._attachment_index),
+                             (OP_METADATA_INDEX, self._metadata_index)):
             if recs:
                 blob = b"".join(recs)
                 groups.append((opcode, pos, len(blob)))

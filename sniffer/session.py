@@ -30,12 +30,16 @@ check, diff, serve's capture process and the TUI's feeds.  A capture of
 several links (its CaptureInfo lists `links`) runs one pipeline per link over
 the same sinks (sniffer.links.LinkPipelines); `resolved` and `registry` are
 then its first link's, `pipeline.resolved` / `.registries` every link's.
+Sinks the spec asks for are added here, so every command has them: the
+trigger sink (--trigger, sniffer.triggers) and the MQTT sink (--mqtt,
+sniffer.mqtt).
 """
 
 from __future__ import annotations
 
 import os
 import signal
+import socket
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -131,6 +135,9 @@ class Session:
             else:
                 self.resolved = self.spec.resolve(info, need_baud=self.need_baud)
                 self.resolved.record_in(info)
+            # the station that captured it (Foxglove's deviceName: sniffer.foxglove): kept by a replay or export
+            info.extra["device_name"] = (self.spec.foxglove_device or info.extra.get("device_name")
+                                         or socket.gethostname())
             self.registry = self.resolved.registry()
             for s in self.planned:
                 self.sinks.append(s.open() if isinstance(s, (FileSink, SegmentPlan)) else s)
@@ -143,6 +150,12 @@ class Session:
                     if links else self.resolved
                 triggers = trigger_sink(self.spec, slowest, self.registry)
                 self.sinks.append(triggers)
+            mqtt = None
+            if self.spec.mqtt is not None:
+                from .mqtt.sink import mqtt_sink
+
+                mqtt = mqtt_sink(self.spec, self.registry)
+                self.sinks.append(mqtt)
             status = self.status_path()
             if status:
                 from .status import StatusSink
@@ -153,6 +166,8 @@ class Session:
 
                 self.pipeline = LinkPipelines(info, links, self.sinks)
                 self.registry = next(iter(self.pipeline.registries.values()))
+                if mqtt is not None:  # model names from every link's models
+                    mqtt.registries = list(self.pipeline.registries.values())
             else:
                 self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
             if triggers is not None:

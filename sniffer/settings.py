@@ -20,12 +20,14 @@ defaults (`resolve_link`).  Flags apply to every link.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 from . import protocols
 from .events import CaptureInfo
 from .line import LineSettings, SettingsError
+from .mqtt.options import MqttSpec
 from .pairer import DEFAULT_TIMEOUT_MS
 from .pipeline import Pipeline
 from .segments import Keep, Rotate
@@ -123,11 +125,18 @@ class Resolved:
                         timeout_ms=self.timeout_ms, unit_timeouts=self.unit_timeouts or None)
 
     def record_in(self, info: CaptureInfo) -> None:
-        """The settings used travel with the capture (an MCAP written from it replays without flags)."""
+        """The settings used travel with the capture (an MCAP written from it replays without flags;
+        its register maps are attached from the model files named here: decoders.mapfile)."""
         info.baud, info.parity, info.stopbits = self.line.baud, self.line.parity, self.line.stopbits
         info.databits = self.line.databits
         info.protocol = self.protocol.name
         info.devices = dict(self.devices)
+        for key in ("model_files", "map_base"):
+            info.extra.pop(key, None)  # a replay says what it decoded with, not what the capture was
+        if self.model_files:
+            info.extra["model_files"] = [os.path.abspath(p) for p in self.model_files]
+            if self.map_base is not None:
+                info.extra["map_base"] = self.map_base
 
     def record_link(self, link: dict) -> None:
         """The settings one link of several ran with, into its CaptureInfo.links entry (replay re-splits
@@ -223,6 +232,8 @@ class CaptureSpec:
     status: str | None = None  # --status FILE (default with --rotate: status.json in the capture's folder)
     wait_port: bool = False  # --wait-port: a port that is not there yet is waited for
     trigger: TriggerSpec | None = None  # --trigger and its flags: windows around events (sniffer.triggers)
+    foxglove_device: str | None = None  # --foxglove-device: the device an MCAP names for Foxglove (sniffer.foxglove)
+    mqtt: MqttSpec | None = None  # --mqtt URL and its flags: decoded values to a broker (sniffer.mqtt)
 
     @classmethod
     def of(cls, *, baud=None, parity=None, stopbits=None, protocol=None, devices=None, timeout_ms=None,
@@ -278,8 +289,9 @@ class CaptureSpec:
             out=None if opt("no_out") else opt("out"),
             stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
             headless=bool(opt("headless")), publish=opt("publish"),
-            publish_backlog=opt("publish_backlog", 100_000), trigger=trigger,
+            publish_backlog=opt("publish_backlog", 100_000), trigger=trigger, mqtt=MqttSpec.from_args(args),
             rotate=rotate, keep=keep, status=opt("status"), wait_port=bool(opt("wait_port")),
+            foxglove_device=opt("foxglove_device"),
         )
 
     def with_(self, **changes) -> CaptureSpec:
@@ -358,6 +370,10 @@ class CaptureSpec:
             argv.append("--wait-port")
         if self.trigger is not None:
             argv += self.trigger.to_argv()
+        if self.foxglove_device:
+            argv += ["--foxglove-device", self.foxglove_device]
+        if self.mqtt is not None:
+            argv += self.mqtt.to_argv()
         if self.headless:
             argv.append("--headless")
         if self.stream is None:

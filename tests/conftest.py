@@ -12,3 +12,13 @@ def stress_mcap(tmp_path_factory) -> str:
     from tui_helpers import write_stress_capture
 
     return write_stress_capture(tmp_path_factory.mktemp("stress"))
+
+
+@pytest.fixture
+def mqtt_broker(tmp_path):
+    """A mosquitto broker of this test's own (tests/broker.py): anonymous, plain, on a free port."""
+    from broker import Broker
+
+    b = Broker(tmp_path).start()
+    yield b
+    b.stop()

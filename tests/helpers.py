@@ -118,3 +118,19 @@ def export(capture, fmt: str, out, *flags: str) -> int:
     from sniffer.cli import main
 
     return main(["export", str(capture), "--to", fmt, "--out", str(out), *flags])
+
+
+def read_mcap(path):
+    """An MCAP read back with the mcap library: (summary, {metadata name: map}, {attachment name: attachment},
+    [(channel, log time, the message's JSON decoded)] in file order)."""
+    import json
+
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+        attachments = {a.name: a for a in reader.iter_attachments()}
+        msgs = [(ch, m.log_time, json.loads(m.data)) for _s, ch, m in reader.iter_messages()]
+    return summary, meta, attachments, msgs

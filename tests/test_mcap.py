@@ -95,8 +95,8 @@ def test_events_and_info_round_trip(tmp_path):
 
     with open(p, "rb") as fh:  # the default (seeking) reader opens a finished file
         reader = make_reader(fh)
-        [meta] = list(reader.iter_metadata())
-    assert meta.name == "sniffer.capture"
+        meta, fox = list(reader.iter_metadata())
+    assert (meta.name, fox.name) == ("sniffer.capture", "foxglove")
     assert {k: json.loads(v) for k, v in meta.metadata.items()} == INFO.to_dict()
 
     msgs = messages(p)
@@ -349,7 +349,7 @@ def test_sigkilled_writer_is_readable_and_repairable(tmp_path):
     with open(out, "rb") as fh:
         reader = make_reader(fh)
         assert reader.get_summary().statistics.message_count == len(got) + 1
-        assert [m.name for m in reader.iter_metadata()] == ["sniffer.capture"]
+        assert [m.name for m in reader.iter_metadata()] == ["sniffer.capture", "foxglove"]
     info2, it2 = open_mcap(out)
     assert "mcap_unfinished" not in info2.extra and list(it2) == got
     with pytest.raises(CaptureError, match="different output"):

@@ -127,6 +127,11 @@ class RegisterBlock:
                                     spans(sh.offset, n, sh.space in BIT_SPACES))
         ]
 
+    def samples(self):
+        """(name, address, value) of each register (frame.PointBlock.samples)."""
+        sh, n = self.shape, len(self.values)
+        return zip(names(sh.space, sh.addr, n), range(sh.addr, sh.addr + n), self.values)
+
     def json(self) -> bytes:
         values, shape = self.values, self.shape
         if values == shape.last and shape.last_json is not None:

@@ -56,6 +56,20 @@ class PdSeriesDecoder:
     model = "pd-series"
     codes: tuple[Code, ...] = DECODER_CODES + (core.PAIR_MISMATCH,)
 
+    def tables(self) -> dict:
+        """The protocol's tables (schema.py) as JSON rows, for a capture to carry (decoders.mapfile)."""
+        from ..mapfile import dataclass_rows
+
+        return {
+            "source": "decoders/pd_series/schema.py (the manual: pd-series-protocol.txt, 'line' = its line)",
+            "parameters": [{"id": p.id, **row} for p, row in zip(PARAMS.values(), dataclass_rows(PARAMS.values()))],
+            "status_selectors": dataclass_rows(STATUS.values()),
+            "control_bits": dataclass_rows(CNTR_BITS),
+            "status_bits": dataclass_rows(CNST_BITS),
+            "functions": dataclass_rows(FUNCTIONS.values()),
+            "error_replies": dataclass_rows(ERRORS.values()),
+        }
+
     def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
         adu = f.adu
         if len(adu) < 2:

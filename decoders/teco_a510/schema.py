@@ -43,6 +43,14 @@ class A510Decoder(TableDecoder):
         if high_frequency:
             self.model = regmap.model_id + "-hf"
 
+    @property
+    def map_note(self) -> str:
+        """What the table does not say for this model (decoders.mapfile writes it above the map)."""
+        if self.high_frequency:
+            return f"Model {self.model}: rows with scale_rule = \"{RULE}\" are 0.1 Hz per count, not their scale."
+        return (f"Rows with scale_rule = \"{RULE}\" are 0.01 Hz per count (their scale) until a raw value above "
+                "30000 shows the drive runs at 0.1 Hz per count.")
+
     def value_of(self, r: Register, raw: int, state):
         if r.scale_rule != RULE:
             return super().value_of(r, raw, state)

@@ -1,6 +1,10 @@
 """MCAP sink: a capture file that replays exactly and opens in Foxglove.
 
-What goes in it (topics, schemas, the /raw codec) is sniffer.mcap_format.
+What goes in it (topics, schemas, the /raw codec) is sniffer.mcap_format;
+what Foxglove's panels read besides (the `foxglove` metadata, /annotations as
+foxglove.Log, a /values topic per register, the models' register maps as
+attachments) is sniffer.foxglove, derived here from the frames (a trigger
+window's encoded records too).
 /capture and the `sniffer.capture` metadata are on disk right after start(),
 which flushes at once, so even a file cut a second after start still knows
 its baud, parity and t0 (the metadata index in the summary would be lost).
@@ -32,6 +36,7 @@ from collections.abc import Callable
 import msgspec
 
 from .. import __version__
+from .. import foxglove
 from ..events import CaptureInfo, Chunk, Gap, Tick
 from ..frame import Frame
 from ..mcap_format import (
@@ -125,12 +130,13 @@ class _AppendFile:
 
 
 class McapSink(Sink):
-    """Pipeline sink writing /capture, /raw and /frames to one MCAP file.
+    """Pipeline sink writing /capture, /raw and /frames to one MCAP file, and Foxglove's parts.
 
     Raises CaptureStorageError once, from whichever call first fails to
     write; after that every call is a no-op and close() only releases the
     file (whose complete records stay readable).  `clock` (monotonic ns)
-    decides when to flush; tests pass a fake one.
+    decides when to flush; tests pass a fake one.  `foxglove=False` writes
+    the capture alone (what a benchmark sets beside it).
     """
 
     def __init__(
@@ -140,6 +146,7 @@ class McapSink(Sink):
         flush_interval_s: float = 1.0,
         clock: Callable[[], int] = time.monotonic_ns,
         compress: bool = True,
+        foxglove: bool = True,
     ) -> None:
         self.path = os.fspath(path)
         self._interval_ns = int(flush_interval_s * 1e9)
@@ -149,6 +156,11 @@ class McapSink(Sink):
         self._t0 = 0
         self._anchor = 0
         self._seq: dict[int, int] = {}
+        self._foxglove_on = foxglove
+        self._fox: foxglove.Foxglove | None = None
+        self._fox_channels: dict[str, int] = {}
+        self._value_schema = 0
+        self._maps: tuple = ((), None)  # the capture's --model-file maps, --map-base (decoders.mapfile)
         self._last_flush = 0
         self._closed = False
         self.error: CaptureStorageError | None = None
@@ -164,8 +176,9 @@ class McapSink(Sink):
 
     @property
     def size(self) -> int:
-        """Bytes of the file so far, written or waiting to be (not the open chunk in memory)."""
-        return self._file.tell()
+        """Bytes of the file so far, written or waiting to be, and of the summary it will end with (a
+        Foxglove capture has a channel per register: the summary repeats them); not the open chunk."""
+        return self._file.tell() + (self._writer.summary_bytes if self._writer is not None else 0)
 
     def start(self, info: CaptureInfo) -> None:
         self._t0 = info.t0_ns
@@ -182,6 +195,8 @@ class McapSink(Sink):
                 sid = w.register_schema(name, "jsonschema", msgspec.json.encode(schema))
                 ids[topic] = w.register_channel(topic, "json", sid, meta)
             self._ch_capture, self._ch_raw, self._ch_frames = ids[CAPTURE_TOPIC], ids[RAW_TOPIC], ids[FRAMES_TOPIC]
+            if self._foxglove_on:
+                self._start_foxglove(info)
             self._add(self._ch_capture, info.t0_ns, msgspec.json.encode(info.to_dict()))
             self._flush_now()
         except OSError as e:
@@ -194,11 +209,18 @@ class McapSink(Sink):
     def frame(self, frame: Frame) -> None:
         if self._usable():
             self._write(self._ch_frames, frame.t_ns, frame_json(frame, self._t0))
+            if self._fox is not None:
+                self._foxglove(self._fox.frame(frame, frame.t_ns), frame.t_ns)
 
     def encoded(self, kind: str, t_ns: int, data: bytes) -> None:
         """A /raw event or /frames record already encoded (`kind` "raw" or "frame"): a trigger's ring."""
         if self._usable():
-            self._write(self._ch_raw if kind == "raw" else self._ch_frames, t_ns, data)
+            if kind == "raw":
+                self._write(self._ch_raw, t_ns, data)
+            else:
+                self._write(self._ch_frames, t_ns, data)
+                if self._fox is not None:
+                    self._foxglove(self._fox.record(data, t_ns), t_ns)
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         """A metadata record besides `sniffer.capture` (a trigger window's `sniffer.trigger`)."""
@@ -232,6 +254,8 @@ class McapSink(Sink):
         try:
             if self._writer is not None and self.error is None:
                 try:
+                    for topic, t_ns, data in self._fox.finish() if self._fox is not None else ():
+                        self._add(self._fox_channels[topic], t_ns, data)  # each register's last sample
                     self._writer.finish()
                     self._file.flush()
                 except OSError as e:
@@ -240,6 +264,46 @@ class McapSink(Sink):
             self._file.close()
 
     # -- internals -------------------------------------------------------------------
+
+    def _start_foxglove(self, info: CaptureInfo) -> None:
+        """The `foxglove` metadata, the /annotations channel and the value schema (sniffer.foxglove)."""
+        w = self._writer
+        w.add_metadata(foxglove.METADATA_NAME, foxglove.metadata(info))
+        sid = w.register_schema(foxglove.LOG_SCHEMA_NAME, "jsonschema", msgspec.json.encode(foxglove.LOG_SCHEMA))
+        self._fox_channels[foxglove.LOG_TOPIC] = w.register_channel(foxglove.LOG_TOPIC, "json", sid)
+        self._value_schema = w.register_schema(foxglove.VALUE_SCHEMA_NAME, "jsonschema",
+                                               msgspec.json.encode(foxglove.VALUE_SCHEMA))
+        self._fox = foxglove.Foxglove(info)
+        self._maps = (tuple(info.extra.get("model_files") or ()), info.extra.get("map_base"))
+
+    def _foxglove(self, messages: list, t_ns: int) -> None:
+        """A frame's Foxglove messages, after the channels and attachments they are the first to need."""
+        fox = self._fox
+        try:
+            if fox.new_models:
+                self._attach(t_ns)
+            if fox.new_topics:
+                w = self._writer
+                for topic in fox.new_topics:
+                    self._fox_channels[topic] = w.register_channel(topic, "json", self._value_schema,
+                                                                   fox.channel_meta[topic])
+                fox.new_topics.clear()
+        except OSError as e:
+            raise self._fail(e) from None
+        channels = self._fox_channels
+        for topic, t_ns, data in messages:
+            self._write(channels[topic], t_ns, data)
+
+    def _attach(self, t_ns: int) -> None:
+        """The register maps of the models first seen (decoders.mapfile)."""
+        from decoders.mapfile import map_file
+
+        log_time = max(0, self._anchor + (t_ns - self._t0))
+        for model in self._fox.new_models:
+            got = map_file(model, *self._maps, version=__version__)
+            if got is not None:
+                self._writer.add_attachment(got[0], got[1], got[2], log_time, log_time)
+        self._fox.new_models.clear()
 
     def _usable(self) -> bool:
         if self.error is not None:

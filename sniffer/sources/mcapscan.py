@@ -129,10 +129,13 @@ class Scan:
     """
 
     def __init__(self, fh: BinaryIO, size: int, *, tail_ok: bool, salvage: bool = False,
-                 skip_topics: frozenset[str] = frozenset()) -> None:
+                 skip_topics: frozenset[str] = frozenset(), keep_topics: frozenset[str] | None = None) -> None:
         self._fh = fh
-        self.skip_topics = skip_topics  # messages of these topics are not parsed nor yielded (a replay
-        # needs /raw only, and /frames holds most of the messages)
+        # messages of the skip topics (of every topic but the keep topics) are not parsed nor yielded
+        # (a replay needs /raw only; /frames and the Foxglove topics hold most of the messages)
+        self.skip_topics = skip_topics
+        self.keep_topics = keep_topics
+        self._skip = keep_topics is not None or bool(skip_topics)
         self._size = size
         self._tail_ok = tail_ok
         self.end = len(MAGIC)
@@ -142,6 +145,10 @@ class Scan:
         self.channels: dict[int, Channel] = {}
         self._chunked = False
         self._summary: dict | None = None
+
+    def skipped(self, topic: str) -> bool:
+        """Are this topic's messages left out?"""
+        return topic in self.skip_topics or (self.keep_topics is not None and topic not in self.keep_topics)
 
     def topic(self, msg: Message) -> str | None:
         ch = self.channels.get(msg.channel_id) or self.lost_channel(msg.channel_id)
@@ -219,8 +226,8 @@ class Scan:
                 try:
                     if first and opcode != Opcode.HEADER:
                         raise ValueError("the file does not start with a header record")
-                    if opcode == Opcode.CHUNK and self.skip_topics:
-                        recs = _walk_chunk(fh.read(length), self.channels, self.skip_topics)
+                    if opcode == Opcode.CHUNK and self._skip:
+                        recs = _walk_chunk(fh.read(length), self.channels, self.skipped)
                     else:
                         recs = _parse(opcode, fh.read(length))
                 except Exception as e:  # parsing foreign bytes: any failure means damage
@@ -228,9 +235,10 @@ class Scan:
             first = False
             if why is None:
                 pos += 9 + length
-                self.end = pos
                 if opcode == Opcode.CHUNK:
                     self._chunked = True
+                    pos = self._past_indexes(pos)
+                self.end = pos
                 for r in recs:
                     if isinstance(r, Channel):
                         self.channels[r.id] = r
@@ -253,6 +261,26 @@ class Scan:
             if q is None:
                 return
             pos = q
+
+    def _past_indexes(self, pos: int) -> int:
+        """Past the message index records a chunk is followed by (one per channel in it), read in blocks:
+        a file with many channels has hundreds after each chunk.  One that is not well formed is left to
+        `records` (which reports it)."""
+        fh = self._fh
+        while True:
+            fh.seek(pos)
+            buf = fh.read(_SCAN_BLOCK)
+            i, n = 0, len(buf)
+            while i + 15 <= n:
+                opcode, length = _RECORD_HEAD.unpack_from(buf, i)
+                end = i + 9 + length
+                if (opcode != Opcode.MESSAGE_INDEX or end > n or (length - 6) % 16
+                        or int.from_bytes(buf[i + 11 : i + 15], "little") != length - 6):
+                    break
+                i = end
+            if i == 0:
+                return pos
+            pos += i
 
     def _cut(self, pos: int, why: str) -> None:
         self.problem = f"{why} at byte {pos}"
@@ -309,8 +337,8 @@ def _name(opcode: int) -> str:
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 
 
-def _walk_chunk(body: bytes, channels: dict[int, Channel], skip: frozenset[str]) -> list[McapRecord]:
-    """breakup_chunk (CRC checked) that does not build the messages of the `skip` topics.
+def _walk_chunk(body: bytes, channels: dict[int, Channel], skip) -> list[McapRecord]:
+    """breakup_chunk (CRC checked) that does not build the messages of the topics `skip(topic)` leaves out.
 
     Channels defined in the chunk count from where they stand; a message whose
     channel is not known yet is kept (its reader decides what it is).
@@ -320,7 +348,7 @@ def _walk_chunk(body: bytes, channels: dict[int, Channel], skip: frozenset[str])
     data = stream.read(n)
     out: list[McapRecord] = []
     known = dict(channels)
-    skipped = {cid for cid, ch in known.items() if ch.topic in skip}
+    skipped = {cid for cid, ch in known.items() if skip(ch.topic)}
     unpack_head, unpack_msg = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
     pos = 0
     while pos < n:
@@ -339,7 +367,7 @@ def _walk_chunk(body: bytes, channels: dict[int, Channel], skip: frozenset[str])
             rec = (Channel if opcode == Opcode.CHANNEL else Schema).read(ReadDataStream(io.BytesIO(data[start:pos])))
             if isinstance(rec, Channel):
                 known[rec.id] = rec
-                if rec.topic in skip:
+                if skip(rec.topic):
                     skipped.add(rec.id)
             out.append(rec)
     return out

@@ -77,7 +77,7 @@ class McapSource:
         p = self.path
         fh, size, tail_ok = open_file(p)
         self._fh, self._size = fh, size
-        scan = self._scan = Scan(fh, size, tail_ok=tail_ok, skip_topics=frozenset({FRAMES_TOPIC}))
+        scan = self._scan = Scan(fh, size, tail_ok=tail_ok, keep_topics=frozenset({CAPTURE_TOPIC, RAW_TOPIC}))
         records = self._records = scan.records()
         info: CaptureInfo | None = None
         try:

@@ -130,6 +130,35 @@ class UnitStats:
         span = (r[-1] - r[0]) / 1e9
         return (len(r) - 1) / span if span > 0 else 0.0
 
+    def count(self, f: Frame, fl: int) -> None:
+        """Count frame `f` of this unit (`fl`: its frame_flags)."""
+        if f.model:
+            self.model = f.model
+        self.last_seen_ns = f.t_ns
+        if f.role == "request":
+            self.requests += 1
+            r = self.recent_requests
+            r.append(f.t_ns)
+            while r and f.t_ns - r[0] > _RATE_WINDOW_NS:
+                r.popleft()
+        elif f.role == "response":
+            self.responses += 1
+        if f.crc_ok is False:
+            self.crc_errors += 1
+        elif f.crc_ok:
+            self.good += 1
+        if fl & F_EXC:
+            self.exceptions += 1
+        if fl & F_TIMEOUT:
+            self.timeouts += 1
+        if fl & F_FAULT:
+            self.faults += 1
+        lat = f.latency_ms
+        if lat is not None and f.role == "response":
+            self.latencies.append(lat)
+            self.lat_min = lat if self.lat_min is None else min(self.lat_min, lat)
+            self.lat_max = lat if self.lat_max is None else max(self.lat_max, lat)
+
 
 class FrameStore:
     """All frames of a capture plus what the views need to find them quickly."""
@@ -264,32 +293,7 @@ class FrameStore:
         st = self.units.get(uk)
         if st is None:
             st = self.units[uk] = UnitStats(uk)
-        if f.model:
-            st.model = f.model
-        st.last_seen_ns = f.t_ns
-        if f.role == "request":
-            st.requests += 1
-            r = st.recent_requests
-            r.append(f.t_ns)
-            while r and f.t_ns - r[0] > _RATE_WINDOW_NS:
-                r.popleft()
-        elif f.role == "response":
-            st.responses += 1
-        if f.crc_ok is False:
-            st.crc_errors += 1
-        elif f.crc_ok:
-            st.good += 1
-        if fl & F_EXC:
-            st.exceptions += 1
-        if fl & F_TIMEOUT:
-            st.timeouts += 1
-        if fl & F_FAULT:
-            st.faults += 1
-        lat = f.latency_ms
-        if lat is not None and f.role == "response":
-            st.latencies.append(lat)
-            st.lat_min = lat if st.lat_min is None else min(st.lat_min, lat)
-            st.lat_max = lat if st.lat_max is None else max(st.lat_max, lat)
+        st.count(f, fl)
 
     # ------------------------------------------------------------- filters
     def set_filter(self, flt: Filter) -> None:
