@@ -262,6 +262,9 @@ def _rows(folder: Path, out: Path, meta: dict) -> list[Row]:
             lambda s: ["check", cap(s), "--golden", o(f"golden-{s}.txt")], needs="check --update-golden"),
         Row("diff", "diff FILE.mcap OTHER.mcap (seed + 1, same size): both decoded; exit 1, they differ",
             lambda s: ["diff", cap(s), cap(s, other=True)], rc=(1,), inputs=("full", "other")),
+        Row("report", "report FILE.mcap --out report.html (the page holds the frame count)",
+            lambda s: ["report", cap(s), "--out", o(f"report-{s}.html")], outputs=["report-{s}.html"],
+            check=_report_check(out)),
         Row("repair", "repair CUT.mcap (the MCAP cut at half its bytes) -o OUT",
             lambda s: ["repair", str(folder / f"{'full' if s == 'full' else 'quarter'}_cut.mcap"),
                        "-o", o("repaired.mcap")],
@@ -271,6 +274,19 @@ def _rows(folder: Path, out: Path, meta: dict) -> list[Row]:
                        f"{stress_s * (1.0 if s == 'full' else 0.25):.1f}", "--out", o("sim.mcap")],
             outputs=["sim.mcap"], inputs=()),
     ]
+
+
+def _report_check(out: Path):
+    """A check: the report is a complete page whose data block counts the frames the command decoded."""
+    def check(res: dict) -> str | None:
+        text = (out / f"report-{res['size']}.html").read_text(encoding="utf-8")
+        start = text.find('id="report-data">')
+        blob = text[start + len('id="report-data">'): text.find("</script>", start)]
+        got = json.loads(blob.replace("<\\/", "</"))["totals"]["frames"] if start >= 0 else None
+        res["out_count"] = got
+        ok = text.rstrip().endswith("</html>") and got == res["decoded"]
+        return None if ok else f"report holds {got} frames, {res['decoded']:,} decoded"
+    return check
 
 
 # ------------------------------------------------------------- the child

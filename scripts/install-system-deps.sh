@@ -2,7 +2,8 @@
 # System packages the test suite uses (Debian's apt):
 #   tshark             - checks that our pcap export decodes as Modbus/RTU in Wireshark;
 #   chromium           - headless, drives the browser view (`sniffer serve`) with keys
-#                        (tests/test_serve_chromium.py);
+#                        (tests/test_serve_chromium.py) and opens `sniffer report`'s page offline
+#                        (tests/test_report_chromium.py; the report itself needs no system package);
 #   fonts-dejavu-core  - a monospace font for the page's terminal;
 #   mosquitto          - the MQTT broker the --mqtt tests start on a free port (tests/broker.py);
 #   openssl            - the tests' CA and server certificate for the broker's TLS listener.

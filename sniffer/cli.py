@@ -383,6 +383,19 @@ def build_parser() -> argparse.ArgumentParser:
     serial_flags(s)
     decode_flags(s)
 
+    s = sub.add_parser("report", help="a bus-health report of captures: one HTML file that opens offline")
+    s.add_argument("captures", nargs="+", metavar="CAPTURE",
+                   help="capture files (MCAP, byte CSV, Saleae CSV, pcap/pcapng) or rotated captures' folders, "
+                        "reported as one, in this order")
+    s.add_argument("--input-format", choices=INPUT_FORMATS, default="auto")
+    s.add_argument("--out", required=True, metavar="FILE.html", help="the report to write")
+    s.add_argument("--compare", metavar="GOLDEN",
+                   help="a reference capture: the page adds what changed against it (as `sniffer diff GOLDEN ...`)")
+    s.add_argument("--title", help="the page's title (default: Bus report: the captures' names)")
+    s.add_argument("--progress", action="store_true", help="a progress bar per capture on stderr")
+    serial_flags(s)
+    decode_flags(s)
+
     s = sub.add_parser("export", help="decode a capture into csv, parquet, pcap (Wireshark), mcap or jsonl, or "
                                       "captures into a fleet dataset (--to dataset DIR)")
     s.add_argument("file", nargs="*", help="capture file: MCAP, byte CSV, Saleae CSV, pcap/pcapng (several with "

@@ -87,7 +87,7 @@ class Quantiles:
         return (self._at(lo) + self._at(hi)) / 2
 
 
-def _request_key(f: Frame) -> tuple:
+def request_key(f: Frame) -> tuple:
     """(function, first address, count) of a request; address/count None when not a register access."""
     adu, fc = f.adu, f.function
     if fc in (1, 2, 3, 4, 15, 16) and len(adu) >= 6:
@@ -97,7 +97,7 @@ def _request_key(f: Frame) -> tuple:
     return fc, None, None
 
 
-def _key_text(k: tuple) -> str:
+def key_text(k: tuple) -> str:
     fc, addr, n = k
     if addr is None:
         return f"fc{fc:02X}" if fc is not None else "fc--"
@@ -141,7 +141,7 @@ class Summary:
             u["model"] = f.model
         if f.role == "request":
             u["requests"] += 1
-            key = (f.link, f.unit, *_request_key(f))
+            key = (f.link, f.unit, *request_key(f))
             r = self.requests.get(key)
             if r is None:
                 self.requests[key] = [1, f.t_ns, Quantiles()]
@@ -185,7 +185,7 @@ class Summary:
         for (link, unit, *k), (count, _last, gaps) in sorted(self.requests.items(),
                                                              key=lambda kv: _sort_key(kv[0])):
             med = gaps.median()
-            requests[f"{_on(link)}u{unit} {_key_text(tuple(k))}"] = {
+            requests[f"{_on(link)}u{unit} {key_text(tuple(k))}"] = {
                 "unit": unit, "count": count, "period_ms": round(med, 1) if med is not None else None,
             }
         regs = {}
@@ -304,8 +304,11 @@ def _period_changed(pa, pb, rel: float = 0.1) -> bool:
 
 def diff(a, b, spec=None, spec_b=None) -> DiffReport:
     """Semantic diff of two captures (decoded with the same settings unless spec_b), one after the other."""
-    sa = summarize_capture(a, spec)
-    sb = summarize_capture(b, spec_b or spec)
+    return compare(summarize_capture(a, spec), summarize_capture(b, spec_b or spec), os.fspath(a), os.fspath(b))
+
+
+def compare(sa: dict, sb: dict, a: str, b: str) -> DiffReport:
+    """The semantic diff of two summaries (`Summary.to_dict()`), named a and b."""
     ua, ub = sa["units"], sb["units"]
     ra, rb = sa["requests"], sb["requests"]
     ga, gb = sa["registers"], sb["registers"]
@@ -328,4 +331,4 @@ def diff(a, b, spec=None, spec_b=None) -> DiffReport:
         "latency_ms": {"a": sa["latency_ms"], "b": sb["latency_ms"]},
         "frames": {"a": sa["frames"], "b": sb["frames"]},
     }
-    return DiffReport(os.fspath(a), os.fspath(b), data)
+    return DiffReport(a, b, data)

@@ -109,6 +109,7 @@ class Chromium:
         self._ids = itertools.count(1)
         self._pending: dict[int, asyncio.Future] = {}
         self._reader: asyncio.Task | None = None
+        self.on_event = None  # called with (method, params) of each event the page sends (after Log.enable ...)
 
     # ---------------------------------------------------------------- start and stop
     @classmethod
@@ -219,6 +220,8 @@ class Chromium:
             if msg.type != aiohttp.WSMsgType.TEXT:
                 break
             data = json.loads(msg.data)
+            if "method" in data and self.on_event is not None:
+                self.on_event(data["method"], data.get("params", {}))
             fut = self._pending.pop(data.get("id"), None)
             if fut is not None and not fut.done():
                 fut.set_result(data)

@@ -6,7 +6,7 @@
     repair.py    repair              view.py     attach, serve
     learn.py     learn               detect.py   detect
     status.py    status              dataset.py  export --to dataset, ingest
-    query.py     query
+    query.py     query               report.py   report
     common.py    what they share: the stdout stream, the capture's sinks, the end-of-run report
 
 cli.py parses the flags into a CaptureSpec and calls `COMMANDS[name](spec, args)`.
@@ -20,6 +20,7 @@ _WHERE = {
     "live": "capture", "demo": "capture", "replay": "replay", "decode": "replay", "simulate": "simulate",
     "export": "export", "check": "check", "diff": "diff", "repair": "repair", "attach": "view", "serve": "view",
     "learn": "learn", "detect": "detect", "status": "status", "ingest": "dataset", "query": "query",
+    "report": "report",
 }
 NAMES = tuple(_WHERE)
 

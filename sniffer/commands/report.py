@@ -1,0 +1,94 @@
+"""`sniffer report CAPTURE... --out report.html [--compare GOLDEN]`: a bus-health report (sniffer.report).
+
+Each capture runs through its own capture session, in the order given, and the
+report's collector takes the frames as they pass (flat memory).  Every input is
+checked before the first one is decoded; the page is written as NAME.part and
+renamed when complete, so a failed or interrupted run leaves no report behind.
+A capture that is damaged but readable is reported on (the page says what was
+lost) and the command ends with its error line and exit code 2, as replay does.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..outputs import Output, readable, shown
+from ..session import Session
+from ..settings import CaptureSpec
+from ..sources import CaptureError
+from .common import EXIT_OK, report, say
+from .replay import _note_unfinished, file_source
+
+
+def _check_input(spec: CaptureSpec, path: str, what: str = "") -> None:
+    """An input that is missing, unreadable, not a capture, or needs flags it was not given fails now, before
+    hours of decoding the ones before it (its header is read; the source names the problem)."""
+    from ..sources.segset import capture_source
+
+    real, _ = readable(path)
+    if not os.path.exists(real):
+        raise CaptureError(f"{shown(path)}: no such file" + (f" ({what})" if what else ""))
+    source = capture_source(real, spec.input_format)  # a file, or a rotated capture's folder or index
+    try:
+        spec.resolve(source.open())
+    finally:
+        source.close()
+
+
+def cmd_report(spec: CaptureSpec, args) -> int:
+    from ..report import Collector, render
+
+    captures = list(args.captures)
+    golden = args.compare
+    for path in captures:
+        _check_input(spec, path)
+    if golden:
+        _check_input(spec, golden, "--compare")
+    out = Output(args.out, inputs=[*captures, *([golden] if golden else []), *spec.model_files])
+    collector = Collector(compare=bool(golden))
+    rc = EXIT_OK
+    try:
+        for path in captures:
+            cspec = spec.with_(input=path, inputs=(path,))  # one capture: a file or a rotated capture's segments
+            source = file_source(cspec)
+            session = Session(cspec, source, [])
+            bar = None
+            if args.progress:
+                from ..progress import ReplayProgress
+
+                bar = ReplayProgress(path, source=source, frames=lambda s=session: s.frames_out)
+                session.on_event = bar.update
+            try:
+                session.open()
+                _note_unfinished(session)
+                collector.begin(path, session)
+                for f in session:
+                    collector.frame(f)
+            finally:
+                if bar is not None:
+                    bar.close()
+            collector.end(session)
+            rc = max(rc, report(session, label=path))
+        data = collector.to_data()
+        if golden:
+            data["compare"] = _compare(collector, golden, captures, spec)
+        title = args.title or f"Bus report: {', '.join(os.path.basename(p) for p in captures)}"
+        page = render(data, title)
+        with open(out.part, "w", encoding="utf-8") as fh:
+            fh.write(page)
+    except BaseException:
+        out.discard()
+        raise
+    out.commit()
+    frames = data["totals"]["frames"]
+    say(f"wrote {out.path} ({len(page.encode()):,} bytes: {frames:,} frames from {len(captures)} capture(s))")
+    return rc
+
+
+def _compare(collector, golden: str, captures: list[str], spec: CaptureSpec) -> dict:
+    """The semantic diff of the golden capture (before) against the captures of this report (after)."""
+    from ..semdiff import compare, summarize_capture
+
+    before = summarize_capture(golden, spec.with_(input=None))
+    d = compare(before, collector.summary.to_dict(), golden, " + ".join(captures))
+    return {"golden": golden, "same": d.same, "text": d.to_text(), "diff": d.to_dict()}
