@@ -18,7 +18,7 @@ class UsageError(Exception):
 
 
 def say(text: str) -> None:
-    print(f"sniffer: {text}", file=sys.stderr)
+    sys.stderr.write(f"sniffer: {text}\n")  # one write: a line from another thread never lands inside it
 
 
 def stream_sink(spec: CaptureSpec, line_buffered: bool):

@@ -47,7 +47,7 @@ class TriggerSink(Sink):
         self.stem = stem
         self.ids = ids or {}
         self.char_ns = char_ns
-        self.report = report or (lambda text: print(f"sniffer: {text}", file=sys.stderr, flush=True))
+        self.report = report or _say
         self.queries = [Query(r) for r in spec.rules]
         pre, post = int(spec.pre_s * _NS), int(spec.post_s * _NS)
         self.plan = Plan(len(self.queries), pre, post, settle_ns=settle_ns,
@@ -273,3 +273,11 @@ class TriggerSink(Sink):
 
 
 __all__ = ["ALIGN_NS", "TriggerSink"]
+
+
+def _say(text: str) -> None:
+    """One line on stderr in one write: the capture's thread and the --on-trigger thread both report, and
+    print's two writes (the text, then the newline) let another thread's line in between."""
+    sys.stderr.write(f"sniffer: {text}\n")
+    sys.stderr.flush()
+
