@@ -29,6 +29,7 @@ import time
 from . import codes
 from .events import Gap
 from .outputs import write_json_atomic
+from .stderr import say
 
 STATUS_FORMAT = "sniffer.status/1"
 STATUS_EVERY_S = 2.0
@@ -56,7 +57,7 @@ class StatusSink:
         self.session = session
         self.label = label
         self.every_ns = int(every_s * _NS)
-        self.announce = announce or (lambda text: print(f"sniffer: {text}", file=sys.stderr, flush=True))
+        self.announce = announce or say
         self.frames = 0
         self.errors = dict.fromkeys(("crc", "exceptions", "timeouts", "faults", "noise", "uart", "gaps"), 0)
         self.last_frame_t: int | None = None

@@ -9,16 +9,13 @@ import time
 from ..session import Session
 from ..settings import CaptureSpec
 from ..sinks import FileSink
+from ..stderr import say  # noqa: F401 - the commands' one line on stderr
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
 class UsageError(Exception):
     """A wrong flag or a combination that cannot work: one line, exit code 2."""
-
-
-def say(text: str) -> None:
-    sys.stderr.write(f"sniffer: {text}\n")  # one write: a line from another thread never lands inside it
 
 
 def stream_sink(spec: CaptureSpec, line_buffered: bool):

@@ -20,12 +20,12 @@ from __future__ import annotations
 import os
 import queue
 import ssl
-import sys
 import threading
 import time
 
 from .ha import availability
 from .options import MqttSpec
+from ..stderr import say
 
 BACKOFF_S = (0.5, 5.0)  # retry delays: from, up to (doubling)
 CLOSE_S = 5.0  # at the end: at most this long to send what is queued
@@ -35,7 +35,7 @@ BATCH = 256  # messages handed to paho between two network passes
 class Publisher:
     def __init__(self, spec: MqttSpec, *, report=None, client_id: str | None = None) -> None:
         self.spec = spec
-        self.report = report or (lambda text: print(f"sniffer: {text}", file=sys.stderr, flush=True))
+        self.report = report or say
         self.client_id = client_id or f"sniffer-{os.getpid()}-{os.urandom(3).hex()}"
         self.q: queue.Queue = queue.Queue(max(1, spec.queue))
         self.retained: dict[str, bytes] = {}

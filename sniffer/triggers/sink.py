@@ -14,7 +14,6 @@ the capture did) at or up to ALIGN_NS before `t - pre`, else at the first one af
 from __future__ import annotations
 
 import os
-import sys
 import time
 
 from ..events import Chunk, Gap
@@ -24,6 +23,7 @@ from ..mcap_format import decode_event, encode_event
 from ..records import frame_json, loads
 from ..sinks.base import Sink
 from ..sinks.text import frame_line
+from ..stderr import say
 from .command import CommandRunner
 from .options import TriggerSpec
 from .plan import Plan, Window
@@ -47,7 +47,7 @@ class TriggerSink(Sink):
         self.stem = stem
         self.ids = ids or {}
         self.char_ns = char_ns
-        self.report = report or _say
+        self.report = report or say
         self.queries = [Query(r) for r in spec.rules]
         pre, post = int(spec.pre_s * _NS), int(spec.post_s * _NS)
         self.plan = Plan(len(self.queries), pre, post, settle_ns=settle_ns,
@@ -273,11 +273,3 @@ class TriggerSink(Sink):
 
 
 __all__ = ["ALIGN_NS", "TriggerSink"]
-
-
-def _say(text: str) -> None:
-    """One line on stderr in one write: the capture's thread and the --on-trigger thread both report, and
-    print's two writes (the text, then the newline) let another thread's line in between."""
-    sys.stderr.write(f"sniffer: {text}\n")
-    sys.stderr.flush()
-
