@@ -8,15 +8,18 @@ the machine's load falls on all alike):
 
 * headless            `sniffer live PORT --headless --out F.mcap`
 * tui                 `sniffer live PORT --out F.mcap` on a terminal (a pty): the TUI attached to the
-                      capture process it started (issue 11)
-* headless, 5 ms GIL  the peer: the capture as before issue 11, its reader waiting up to CPython's default
-                      switch interval for the interpreter (READER_SWITCH_S patched back to 5 ms)
+                      capture process it started, at nice 19, giving way (sniffer/tui/giveway.py)
+* tui-no-give-way     the peer: the same TUI without giving way (as before it, nice 19 kept)
+* headless-5ms        the capture as before issue 11, its reader waiting up to CPython's default switch
+                      interval for the interpreter (READER_SWITCH_S patched back to 5 ms)
 
 and, with --kinds, where a TUI's harm comes from:
 
 * publish             headless, publishing on a socket nobody attaches to
 * attached            headless, publishing, a text viewer (`sniffer attach SOCK`) taking every frame
-* attached-idle       the same viewer under SCHED_IDLE (`chrt -i 0`), the TUI viewer's policy
+* attached-idle       the same viewer under SCHED_IDLE (`chrt -i 0`)
+* burst               headless, and a plain process at nice 19 busy 1.3 ms every 10 ms (a redraw's pattern)
+* burst-yield         the same process with the TUI's give-way: SIGALRM every 0.2 ms, handled by sched_yield
 
 For each: responses, responses with no latency (their request came in the same read: glued), responses
 timed before their request ended, and the read lateness (time of the read holding a frame's last byte minus
@@ -70,6 +73,23 @@ with Timed() as bus:
 
 OLD_SWITCH = ("import sys, sniffer.sources.serial_live as s; s.READER_SWITCH_S = 0.005; "
               "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
+NO_GIVE_WAY = ("import sys, sniffer.tui.giveway as g; g._LIBC = g._SCHED_YIELD = None; "
+               "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
+# a process busy 1.3 ms every 10 ms at nice 19 (13 % of a core, in bursts like a redraw's); with "yield", its
+# SIGALRM every 0.2 ms handled by sched_yield, as the TUI's give-way does (sniffer/tui/giveway.py)
+BURST = r"""
+import os, signal, sys, time
+os.nice(19)
+if sys.argv[1] == "yield":
+    from sniffer.tui.giveway import GiveWay
+    GiveWay(lambda: time.monotonic_ns()).start()
+end = time.monotonic() + float(sys.argv[2])
+while time.monotonic() < end:
+    t = time.monotonic()
+    while time.monotonic() - t < 0.0013:
+        pass
+    time.sleep(0.0087)
+"""
 
 
 def run_one(kind: str, scenario: str, seconds: float, work: Path) -> dict:
@@ -79,10 +99,11 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path) -> dict:
     feeder = subprocess.Popen([sys.executable, "-c", FEEDER, scenario, str(seconds), str(times_path)],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     port, baud, parity, stop = feeder.stdout.readline().split()
-    head = [sys.executable, "-c", OLD_SWITCH] if kind == "headless-5ms" else [sys.executable, "-m", "sniffer"]
+    head = {"headless-5ms": [sys.executable, "-c", OLD_SWITCH],
+            "tui-no-give-way": [sys.executable, "-c", NO_GIVE_WAY]}.get(kind, [sys.executable, "-m", "sniffer"])
     argv = [*head, "live", port, "--baud", baud, "--parity", parity, "--stopbits", stop, "--out", str(out)]
     sock = str(work / f"{kind}.sock")
-    extra = {"tui": [], "publish": ["--headless", "--quiet", "--publish", sock],
+    extra = {"tui": [], "tui-no-give-way": [], "publish": ["--headless", "--quiet", "--publish", sock],
              "attached": ["--headless", "--quiet", "--publish", sock],
              "attached-idle": ["--headless", "--quiet", "--publish", sock]}.get(kind, ["--headless", "--quiet"])
     term = Terminal(argv + extra)
@@ -92,9 +113,12 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path) -> dict:
         if not term.wait_for(port):
             raise SystemExit(f"{kind}: the capture did not start: {term.screen[-500:]!r}")
         if kind.startswith("attached"):  # a viewer without a UI: the frames as text, to /dev/null
-            idle = ["chrt", "-i", "0"] if kind == "attached-idle" else []  # at the TUI's scheduling policy
+            idle = ["chrt", "-i", "0"] if kind == "attached-idle" else []
             viewer = subprocess.Popen([*idle, sys.executable, "-m", "sniffer", "attach", sock],
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        elif kind.startswith("burst"):  # no viewer: a plain process busy in bursts
+            viewer = subprocess.Popen([sys.executable, "-c", BURST, "yield" if kind == "burst-yield" else "plain",
+                                       str(seconds + 1.5)])
         time.sleep(1.0)
         feeder.stdin.write("go\n")
         feeder.stdin.flush()
@@ -104,7 +128,7 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path) -> dict:
             if line.startswith("done"):
                 written_back = int(line.split()[1])
                 break
-        if kind == "tui":
+        if kind.startswith("tui"):
             term.type("q")
             term.wait_for("Stop the live capture", 10)
             term.type("y")
@@ -151,7 +175,7 @@ def main() -> None:
     ap.add_argument("--scenario", default="stress")
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--repeat", type=int, default=2)
-    ap.add_argument("--kinds", default="headless,tui,headless-5ms")
+    ap.add_argument("--kinds", default="headless,tui,tui-no-give-way")
     ap.add_argument("--keep", metavar="DIR", help="write the captures (KIND.mcap) here and keep them")
     a = ap.parse_args()
     print(f"{a.scenario}, {a.seconds:.0f} s per run, {os.cpu_count()} CPUs; load average at start "

@@ -7,12 +7,13 @@ frame records from the socket and turns them back into Frames for the TUI
 
 from __future__ import annotations
 
+import ipaddress
 import select
 import socket
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 from .events import CaptureInfo
 from .stream_format import CONTROL_PREFIX, STREAM_VERSION, Address, parse_address, parse_reads
@@ -96,6 +97,16 @@ class Attachment:
                                f"(sniffer {header.get('sniffer_version')}), this viewer reads {STREAM_VERSION}")
         return header
 
+    @property
+    def on_this_machine(self) -> bool:
+        """The capture runs here (a Unix socket, or TCP to a loopback address): its reads share our CPUs."""
+        if self.sock.family == socket.AF_UNIX:
+            return True
+        try:
+            return ipaddress.ip_address(self.sock.getpeername()[0]).is_loopback
+        except (OSError, ValueError):
+            return False
+
     def describe(self) -> str:
         i = self.info
         where = f" -> {self.capture_path}" if self.capture_path else ""
@@ -137,8 +148,9 @@ class Attachment:
         self.sock.close()
 
 
-def attach_feed(att: Attachment):
-    """A feed(sink, stop) for tui.run.run_tui: the published frames into the TuiSink."""
+def attach_feed(att: Attachment, pause: Callable[[], object] | None = None):
+    """A feed(sink, stop) for tui.run.run_tui: the published frames into the TuiSink.  `pause()` is called
+    between two lines (tui/giveway.py: a capture on this machine gets the CPU back in between)."""
     from .tui.model import frame_from_record
 
     def feed(sink, stop: threading.Event):
@@ -150,6 +162,8 @@ def attach_feed(att: Attachment):
             for lines in att.batches(stop):
                 frames = []
                 for line in lines:
+                    if pause is not None:
+                        pause()
                     if line.startswith(CONTROL_PREFIX):
                         msg = att.control(line)
                         if msg.get("sniffer") == "reads":  # the byte view's reads, marked by the capture
@@ -171,9 +185,16 @@ def attach_feed(att: Attachment):
 
 
 def attach_tui(att: Attachment) -> int:
-    from .tui.run import run_tui
+    """The App over the capture; a capture on this machine gets the CPU first, as under the TUI of `sniffer
+    live` (tui/run.py yield_to_capture, tui/giveway.py)."""
+    from .tui.giveway import give_cpu
+    from .tui.run import run_tui, yield_to_capture
 
-    return run_tui(attach_feed(att), source_label=att.label, capture_path=att.capture_path)
+    here = att.on_this_machine
+    if here:
+        yield_to_capture()  # before the App's threads: they inherit it
+    return run_tui(attach_feed(att, pause=give_cpu if here else None), source_label=att.label,
+                   capture_path=att.capture_path, attached=here)
 
 
 def run_headless(att: Attachment, fmt: str) -> int:

@@ -7,6 +7,7 @@ between while they wait: sink.py) and redraws once per tick.
 
 from __future__ import annotations
 
+import asyncio
 import os
 import threading
 import time
@@ -163,6 +164,7 @@ class SnifferApp(App):
                  clock: Callable[[], float] = time.monotonic, live: bool = False) -> None:
         super().__init__()
         self.live = live  # quitting stops a capture running here: ask first
+        self.give_way = None  # a GiveWay (giveway.py) when the App views a capture running now on this machine
         self.sink = sink
         self.feed = feed
         self.stop_event = threading.Event()
@@ -212,6 +214,8 @@ class SnifferApp(App):
         yield Footer()
 
     def on_mount(self) -> None:
+        if self.give_way is not None:
+            self.give_way.watch_loop(asyncio.get_running_loop())
         # widgets of the main screen, kept: App.query_one looks at whichever screen is on top (help)
         self.frame_list = self.query_one("#list", FrameList)
         self.detail = self.query_one("#detail", DetailPane)

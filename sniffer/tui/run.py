@@ -21,9 +21,10 @@ import threading
 from collections.abc import Callable
 
 from .app import SnifferApp
+from .giveway import GiveWay, give_cpu
 from .sink import TuiSink
 
-VIEWER_NICE = 5  # the viewer of a capture it started runs at lower priority than the capture
+VIEWER_NICE = 19  # the viewer of a capture on this machine: the lowest priority (yield_to_capture)
 # the longest the UI thread waits for the interpreter while a feed thread (a replay's decoding, an attached
 # capture's records) holds it: CPython's default, 5 ms, is paid at every hand-over of a key's way to the screen
 UI_SWITCH_S = 0.001
@@ -64,17 +65,22 @@ def session_app(session, sink: TuiSink, *, source_label: str = "", capture_path:
                     capture_path=capture_path, registry=session.registry, **kw)
 
 
-def run_tui(feed: Callable[[TuiSink, threading.Event], object], **kw) -> int:
+def run_tui(feed: Callable[[TuiSink, threading.Event], object], *, attached: bool = False, **kw) -> int:
     """Run the App until the user quits; `feed(sink, stop)` runs on a worker thread (make_app's arguments).
+    `attached`: the feed is a capture running now on this machine (the App gives way to it, give_way).
 
     A feed that returns a session gets the capture's summary line printed after the App closes.
     """
-    return _run(make_app(feed, **kw))
+    return _run(make_app(feed, **kw), attached=attached)
 
 
-def _run(app: SnifferApp) -> int:
+def _run(app: SnifferApp, *, attached: bool = False) -> int:
     _ready_interpreter()
-    app.run()
+    if attached:
+        with give_way(app):
+            app.run()
+    else:
+        app.run()
     app.stop_feed()
     result = app.feed_result
     if hasattr(result, "frames_out"):
@@ -95,21 +101,28 @@ def run_session_tui(session, sink: TuiSink, *, source_label: str, capture_path: 
     return _run(session_app(session, sink, source_label=source_label, capture_path=capture_path))
 
 
+def give_way(app: SnifferApp) -> GiveWay:
+    """The App's process hands its CPU back every GIVE_WAY_S while the capture it views records frames
+    (giveway.py: how a redraw's burst delays the capture's reads although the viewer runs at nice 19)."""
+    app.give_way = GiveWay(lambda: app.sink.frames_in)
+    return app.give_way
+
+
 def yield_to_capture() -> None:
-    """This process (the viewer of a capture it started) runs only when the capture does not want the CPU.
+    """This process (the viewer of a capture on this machine) leaves the CPU to the capture.
 
     On a busy machine a read that waits for a CPU holds the request and its answer together (the answer
-    loses its latency); the view can wait.  SCHED_IDLE: any normal task preempts it at once (a nice level
-    only shares the CPU in proportion: at nice 5 a viewer still glued 7-11 % of the stress line's answers,
-    against 1 % headless, benchmarks/bench_capture_timing.py).  Set before threads start (Linux applies it
-    to the calling thread; new threads inherit it); where the policy is not available, a nice level."""
+    loses its latency); the view can wait.  The lowest nice level (19): the viewer gets a CPU only in
+    proportion, and a normal task is placed on another CPU rather than behind it.  Not SCHED_IDLE, although
+    it sounds right: the scheduler counts a CPU running only SCHED_IDLE work as idle and puts the tty's flush
+    work and the capture's threads there, where (on a kernel that does not preempt on wakeup) they wait for
+    the viewer's burst to end; on the 115200 stress line with giveway.py, SCHED_IDLE glued 5-8 % of the
+    answers, nice 19 2.5-3 % (headless ~1 %, benchmarks/bench_capture_timing.py).  Set before threads start
+    (Linux applies it to the calling thread; new threads inherit it)."""
     try:
-        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
-    except (AttributeError, OSError):
-        try:
-            os.nice(VIEWER_NICE)
-        except OSError:
-            pass
+        os.nice(VIEWER_NICE - os.nice(0))
+    except OSError:
+        pass
 
 
 class CaptureViewer:
@@ -142,7 +155,8 @@ class CaptureViewer:
             print(f"sniffer: error: {e}", file=sys.stderr)
             return False
         self.attachment = att
-        self.app = make_app(attach_feed(att), source_label=self.label, capture_path=att.capture_path, live=True)
+        self.app = make_app(attach_feed(att, pause=give_cpu), source_label=self.label,
+                            capture_path=att.capture_path, live=True)
         self.capture.stderr.hold(self.app.notices.append)  # the terminal is the App's: notifications meanwhile
         return True
 
@@ -179,7 +193,8 @@ def run_capture_tui(spec, command: str, label: str) -> int:
         previous = {sig: signal.signal(sig, lambda *_: app.exit()) for sig in (signal.SIGTERM, signal.SIGHUP)}
         _ready_interpreter()
         try:
-            app.run()
+            with give_way(app):
+                app.run()
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
