@@ -21,10 +21,16 @@ and, with --kinds, where a TUI's harm comes from:
 * burst               headless, and a plain process at nice 19 busy 1.3 ms every 10 ms (a redraw's pattern)
 * burst-yield         the same process with the TUI's give-way: SIGALRM every 0.2 ms, handled by sched_yield
 
-For each: responses, responses with no latency (their request came in the same read: glued), responses
-timed before their request ended, and the read lateness (time of the read holding a frame's last byte minus
-the time the feeder wrote it; both the host's monotonic clock) p50 / p90 / p99 / max.  Also the load
-average, since a loaded machine delays reads whatever the sniffer does.  Figures are printed, nothing asserted.
+For each: responses, responses with no latency (their request came in the same read: glued), split into
+"line" (the feeder wrote request and answer less than LINE_GLUED_MS apart: the simulated line itself was
+late, the capture could not tell them apart) and "capture" (the capture's reads came late); responses timed
+before their request ended, and the read lateness (time of the read holding a frame's last byte minus the
+end of the feeder's write; both the host's monotonic clock) p50 / p90 / p99 / max.  Also the load average.
+
+The feeder runs SCHED_FIFO where permitted (--feeder normal: not): a real PLC and drive are not delayed by
+this machine's load, a feeder process at the normal policy is, and a late feeder writes a request and its
+answer together (before --feeder existed, a TUI's CPU counted twice: it delayed the feeder too).  Figures
+are printed, nothing asserted.
 """
 
 from __future__ import annotations
@@ -49,20 +55,28 @@ from sniffer.events import Chunk
 from sniffer.sources.mcapsrc import open_mcap, read_frames
 
 FEEDER = r"""
-import json, sys, time
+import json, os, sys, time
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
 from sniffer.simulator.scenario import get_scenario
 sc = get_scenario(sys.argv[1])
 frames = list(simulate(sc, sc.line, float(sys.argv[2]), 3))
+policy = "normal"
+if sys.argv[4] == "fifo":  # the line is hardware: nothing on this machine delays a real PLC or drive
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(10))
+        policy = "SCHED_FIFO"
+    except (AttributeError, OSError):
+        pass
 times = []
 class Timed(PtyBus):
     def write_all(self, data, stop_event):
+        before = time.monotonic_ns()
         ok = super().write_all(data, stop_event)
-        times.append(time.monotonic_ns())
+        times.append((before, time.monotonic_ns()))
         return ok
 with Timed() as bus:
-    print(bus.port, sc.line.baud, sc.line.parity, sc.line.stopbits, flush=True)
+    print(bus.port, sc.line.baud, sc.line.parity, sc.line.stopbits, policy, flush=True)
     sys.stdin.readline()
     bus.play(frames)
     time.sleep(0.5)
@@ -73,6 +87,7 @@ with Timed() as bus:
 
 OLD_SWITCH = ("import sys, sniffer.sources.serial_live as s; s.READER_SWITCH_S = 0.005; "
               "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
+LINE_GLUED_MS = 0.1  # a request and its answer written closer than this: the feeder's own lateness glued them
 NO_GIVE_WAY = ("import sys, sniffer.tui.giveway as g; g._LIBC = g._SCHED_YIELD = None; "
                "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 # a process busy 1.3 ms every 10 ms at nice 19 (13 % of a core, in bursts like a redraw's); with "yield", its
@@ -92,13 +107,13 @@ while time.monotonic() < end:
 """
 
 
-def run_one(kind: str, scenario: str, seconds: float, work: Path) -> dict:
+def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy: str = "fifo") -> dict:
     times_path, out = work / f"{kind}.times.json", work / f"{kind}.mcap"
     for p in (times_path, out):
         p.unlink(missing_ok=True)
-    feeder = subprocess.Popen([sys.executable, "-c", FEEDER, scenario, str(seconds), str(times_path)],
+    feeder = subprocess.Popen([sys.executable, "-c", FEEDER, scenario, str(seconds), str(times_path), feeder_policy],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-    port, baud, parity, stop = feeder.stdout.readline().split()
+    port, baud, parity, stop, policy = feeder.stdout.readline().split()
     head = {"headless-5ms": [sys.executable, "-c", OLD_SWITCH],
             "tui-no-give-way": [sys.executable, "-c", NO_GIVE_WAY]}.get(kind, [sys.executable, "-m", "sniffer"])
     argv = [*head, "live", port, "--baud", baud, "--parity", parity, "--stopbits", stop, "--out", str(out)]
@@ -142,7 +157,7 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path) -> dict:
         feeder.stdin.close()
         feeder.wait()
     cpu1 = os.times()
-    return {"kind": kind, "rc": rc, "written_back": written_back, "children_cpu_s":
+    return {"kind": kind, "rc": rc, "written_back": written_back, "feeder": policy, "children_cpu_s":
             (cpu1.children_user + cpu1.children_system) - (cpu0.children_user + cpu0.children_system),
             **figures(out, json.loads(times_path.read_text()))}
 
@@ -153,18 +168,29 @@ def _ready(f) -> bool:
     return bool(select.select([f], [], [], 0)[0])
 
 
-def figures(mcap: Path, written: list[int]) -> dict:
+def figures(mcap: Path, written: list[list[int]]) -> dict:
+    """`written`: the feeder's (time before, time after) each frame's write.  A read holds a frame if it came
+    after the write began; it is late by its time minus the write's end (0 at least: the feeder may take its
+    time after the write later than the capture its read).  A response with no latency whose write ended
+    less than LINE_GLUED_MS after its request's did not leave the feeder apart from it (the simulated line
+    itself was late): counted apart, it says nothing about the capture."""
     recs = read_frames(str(mcap))
     by = {r["index"]: r for r in recs}
     rsp = [r for r in recs if r.get("role") == "response"]
     _, events = open_mcap(str(mcap))
     reads = sorted(ev.t_ns for ev in events if type(ev) is Chunk)
-    late = sorted((reads[i] - w) / 1e6 for w in written if (i := bisect.bisect_left(reads, w)) < len(reads))
+    late = sorted(max(0, reads[i] - end) / 1e6 for begin, end in written
+                  if (i := bisect.bisect_left(reads, begin)) < len(reads))
+    nolat = [r for r in rsp if r.get("latency_ms") is None]
+    line_glued = 0
+    if len(recs) == len(written):  # frame i of the capture is write i of the feeder
+        line_glued = sum(1 for r in nolat if r.get("pair") in by
+                         and (written[r["index"]][1] - written[r["pair"]][1]) / 1e6 < LINE_GLUED_MS)
 
     def q(p: float) -> float:
         return late[min(len(late) - 1, int(p * len(late)))] if late else float("nan")
 
-    return {"frames": len(recs), "responses": len(rsp), "no_latency": sum(r.get("latency_ms") is None for r in rsp),
+    return {"frames": len(recs), "responses": len(rsp), "no_latency": len(nolat), "line_glued": line_glued,
             "before_request": sum(1 for r in rsp if r.get("pair") in by
                                   and r["t"] < by[r["pair"]].get("t_end", by[r["pair"]]["t"])),
             "late_p50": q(.5), "late_p90": q(.9), "late_p99": q(.99), "late_max": late[-1] if late else float("nan")}
@@ -177,10 +203,13 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--kinds", default="headless,tui,tui-no-give-way")
     ap.add_argument("--keep", metavar="DIR", help="write the captures (KIND.mcap) here and keep them")
+    ap.add_argument("--feeder", choices=("fifo", "normal"), default="fifo",
+                    help="the feeder's scheduling: SCHED_FIFO (default, where permitted: the line is hardware, "
+                    "this machine's load does not delay it) or normal (it competes with the sniffer)")
     a = ap.parse_args()
     print(f"{a.scenario}, {a.seconds:.0f} s per run, {os.cpu_count()} CPUs; load average at start "
           f"{os.getloadavg()[0]:.2f}")
-    print(f"{'run':<14} {'responses':>9} {'no latency':>14} {'before req':>10} "
+    print(f"{'run':<16} {'responses':>9} {'no latency':>14} {'line':>5} {'capture':>14} {'before req':>10} "
           f"{'read late ms p50':>16} {'p90':>6} {'p99':>7} {'max':>7} {'load':>5}")
     if a.keep:
         Path(a.keep).mkdir(parents=True, exist_ok=True)
@@ -188,11 +217,13 @@ def main() -> None:
         d = a.keep or tmp
         for _ in range(a.repeat):
             for kind in a.kinds.split(","):
-                r = run_one(kind, a.scenario, a.seconds, Path(d))
-                n = r["responses"]
-                print(f"{kind:<14} {n:>9} {r['no_latency']:>6} ({100 * r['no_latency'] / max(n, 1):4.1f} %) "
+                r = run_one(kind, a.scenario, a.seconds, Path(d), a.feeder)
+                n, nolat, line = r["responses"], r["no_latency"], r["line_glued"]
+                print(f"{kind:<16} {n:>9} {nolat:>6} ({100 * nolat / max(n, 1):4.1f} %) {line:>5} "
+                      f"{nolat - line:>6} ({100 * (nolat - line) / max(n, 1):4.1f} %) "
                       f"{r['before_request']:>10} {r['late_p50']:>16.2f} {r['late_p90']:>6.2f} {r['late_p99']:>7.2f} "
                       f"{r['late_max']:>7.1f} {os.getloadavg()[0]:>5.2f}"
+                      + ("" if r["feeder"] == "SCHED_FIFO" else f"  (feeder {r['feeder']})")
                       + ("" if r["rc"] == 0 and r["written_back"] == 0 else
                          f"  (exit {r['rc']}, {r['written_back']} bytes written back!)"), flush=True)
 

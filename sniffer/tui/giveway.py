@@ -21,12 +21,12 @@ records.  A thread of our own that takes the interpreter away periodically does 
 lands on the drawing's CPU and waits there like the kworker.  Nothing while the line is quiet or the capture
 has ended: idle means ~0 CPU.  SA_RESTART, and Python resumes what the signal still interrupts (PEP 475).
 
-Measured (bench_capture_timing.py, stress line, four 10 s runs each, benchmarks/README.md): 2.8-3.8 % of the
-answers glued with the TUI open and giving way, 4.0-8.9 % without (nice 19 both; 11-19 % before at
-SCHED_IDLE), 0.8-1.0 % headless.  What is left (a read-lateness p99 of 2 ms) came while both CPUs were idle:
-not the viewer's CPU.  On a kernel that preempts on wakeup (a desktop's preempt=voluntary or full) the
-viewer would not hold the CPU anyway; the timer then costs its signals only (5,000 a second while the App
-works and frames come in, ~1 us each).
+Measured (bench_capture_timing.py, feeder SCHED_FIFO, stress line, four 10 s runs each, benchmarks/README.md):
+3.0-4.3 % of the answers glued by the capture with the TUI open and giving way, 3.4-8.9 % without (nice 19
+both; 11-19 % before, SCHED_IDLE and a feeder of normal policy), 0.6-4.0 % headless; read lateness p99
+0.6-0.85 ms against 1.0-2.4 ms without.  On a kernel that preempts on wakeup (a desktop's preempt=voluntary
+or full) the viewer would not hold the CPU anyway; the timer then costs its signals only (5,000 a second
+while the App works and frames come in, ~1 us each).
 """
 
 from __future__ import annotations

@@ -116,9 +116,9 @@ def yield_to_capture() -> None:
     proportion, and a normal task is placed on another CPU rather than behind it.  Not SCHED_IDLE, although
     it sounds right: the scheduler counts a CPU running only SCHED_IDLE work as idle and puts the tty's flush
     work and the capture's threads there, where (on a kernel that does not preempt on wakeup) they wait for
-    the viewer's burst to end; on the 115200 stress line with giveway.py, SCHED_IDLE glued 5-8 % of the
-    answers, nice 19 2.5-3 % (headless ~1 %, benchmarks/bench_capture_timing.py).  Set before threads start
-    (Linux applies it to the calling thread; new threads inherit it)."""
+    the viewer's burst to end; on the 115200 stress line, giving way, SCHED_IDLE glued 5-8 % of the
+    answers, nice 19 2.8-3.0 % in the same runs (benchmarks/bench_capture_timing.py, 2026-11-26).  Set
+    before threads start (Linux applies it to the calling thread; new threads inherit it)."""
     try:
         os.nice(VIEWER_NICE - os.nice(0))
     except OSError:
