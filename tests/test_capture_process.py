@@ -142,3 +142,31 @@ def test_tui_on_a_missing_port_says_one_line(tmp_path):
     assert rc != 0 and "Traceback" not in text
     assert [ln for ln in text.splitlines() if "error" in ln] == [ln for ln in text.splitlines() if ln.strip()][-1:]
     assert "ttyNONE" in text and not (tmp_path / "x.mcap").exists()
+
+
+def test_a_terminal_gone_without_sighup_ends_the_tui_and_keeps_the_capture(tmp_path):
+    """The TUI's pty closes under it and no SIGHUP comes (the pty is not its controlling terminal, as for a
+    command another program started): the TUI quits as on SIGHUP instead of spinning, and the live capture
+    under it is stopped as Ctrl-C stops it, its MCAP closed with what it recorded."""
+    out = tmp_path / "gone.mcap"
+    sc, frames = _feed("a510", 3.0)
+    with PtyBus() as bus:
+        term = Terminal([sys.executable, "-m", "sniffer", "live", bus.port, "--baud", str(sc.line.baud), "--parity",
+                         sc.line.parity, "--stopbits", str(sc.line.stopbits), "--out", str(out)])
+        try:
+            assert term.wait_for(bus.port), term.screen[-2000:]
+            player = threading.Thread(target=bus.play, args=(frames,))
+            player.start()
+            while player.is_alive():
+                term.read()
+            term.read(0.5)  # the last answer reaches the capture
+            os.close(term.master)  # the terminal's window closed
+            term.proc.wait(HANG_S)
+        finally:
+            if term.proc.poll() is None:
+                term.proc.kill()
+                term.proc.wait()
+        bus.drain()
+    assert term.proc.returncode is not None
+    assert not list(tmp_path.glob("*.part")), "the capture was not closed"
+    assert [r["raw"] for r in read_frames(str(out))] == [f.raw.hex() for f in frames]

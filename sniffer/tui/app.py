@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import os
+import sys
 import threading
 import time
 from collections import deque
@@ -28,6 +29,7 @@ from .detail import DetailPane
 from .filters import filter_expr, parse_filter
 from .framelist import FrameList
 from .goto import parse_goto, resolve
+from .hangup import TerminalWatch
 from .gotobar import GotoBar
 from .model import FrameStore
 from .plot import JumpToFrame, PlotPane
@@ -114,6 +116,17 @@ class ConfirmQuit(ModalScreen[bool]):
         self.dismiss(stop)
 
 
+def _terminal_fd(driver_class) -> int | None:
+    """The terminal a Linux terminal driver reads keys from; None for any other driver (tests, the web)."""
+    try:
+        from textual.drivers.linux_driver import LinuxDriver
+    except ImportError:
+        return None
+    if not (isinstance(driver_class, type) and issubclass(driver_class, LinuxDriver)) or sys.__stdin__ is None:
+        return None
+    return sys.__stdin__.fileno()
+
+
 class SnifferApp(App):
     TITLE = "rs485-sniffer"
     CSS = """
@@ -165,6 +178,7 @@ class SnifferApp(App):
         super().__init__()
         self.live = live  # quitting stops a capture running here: ask first
         self.give_way = None  # a GiveWay (giveway.py) when the App views a capture running now on this machine
+        self._terminal = TerminalWatch(None)  # on_mount: the terminal it reads keys from (hangup.py)
         self.sink = sink
         self.feed = feed
         self.stop_event = threading.Event()
@@ -214,6 +228,7 @@ class SnifferApp(App):
         yield Footer()
 
     def on_mount(self) -> None:
+        self._terminal = TerminalWatch(_terminal_fd(self.driver_class))
         if self.give_way is not None:
             self.give_way.watch_loop(asyncio.get_running_loop())
         # widgets of the main screen, kept: App.query_one looks at whichever screen is on top (help)
@@ -268,6 +283,10 @@ class SnifferApp(App):
 
     def _tick(self) -> None:
         """The poll timer: frames in for at most INTAKE_BUDGET_S (a key waits no longer), then the view."""
+        if self._terminal.gone():  # hangup.py: quit as on SIGHUP (a live capture stopped, its MCAP kept)
+            self.stop_feed()
+            self.exit(self.feed_result)
+            return
         self.poll(INTAKE_BUDGET_S)
         if self.sink.backlog:
             self._more.resume()
