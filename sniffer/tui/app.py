@@ -21,12 +21,13 @@ from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical, VerticalScroll
 from textual.screen import ModalScreen
-from textual.widgets import Footer, Input, Static, TabbedContent, TabPane
+from textual.widgets import Input, Static, TabbedContent, TabPane
 
 from .byteview import BytesPane, ByteView, char_ns
 from ..filterlang import register_ids
 from .detail import DetailPane
 from .filters import filter_expr, parse_filter
+from .footer import KeyBar
 from .framelist import FrameList
 from .goto import parse_goto, resolve
 from .hangup import TerminalWatch
@@ -225,7 +226,7 @@ class SnifferApp(App):
             with TabPane("Bytes", id="bytes"):
                 yield BytesPane(self.reads, self.store, id="bytespane")
         yield Static("", id="status")
-        yield Footer()
+        yield KeyBar()
 
     def on_mount(self) -> None:
         self._terminal = TerminalWatch(_terminal_fd(self.driver_class))
