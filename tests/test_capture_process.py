@@ -10,6 +10,7 @@ count with a wide margin, between two runs of the same feed on this machine.
 from __future__ import annotations
 
 import os
+import resource
 import signal
 import sys
 import threading
@@ -20,7 +21,8 @@ from terminal import Terminal, children
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
 from sniffer.simulator.scenario import get_scenario
-from sniffer.sources.mcapsrc import read_frames
+from sniffer.sources.mcapsrc import open_mcap, read_frames
+from sniffer.sources.reader_priority import READER_RT_PRIORITY
 
 HANG_S = 60.0
 
@@ -50,12 +52,12 @@ def _feed(scenario: str, seconds: float):
     return sc, list(simulate(sc, sc.line, seconds, seed=3))
 
 
-def _run_live(tmp_path, name: str, frames, line, *, tui: bool):
-    """Play `frames` to `sniffer live` (its TUI on a terminal, or headless) and return (MCAP, bytes written
-    back, what the terminal showed)."""
+def _run_live(tmp_path, name: str, frames, line, *, tui: bool, prefix: tuple = ()):
+    """Play `frames` to `sniffer live` (its TUI on a terminal, or headless; `prefix`: a command it runs under)
+    and return (MCAP, bytes written back, what the terminal showed)."""
     out = tmp_path / f"{name}.mcap"
     with PtyBus() as bus:
-        argv = [sys.executable, "-m", "sniffer", "live", bus.port, "--baud", str(line.baud), "--parity",
+        argv = [*prefix, sys.executable, "-m", "sniffer", "live", bus.port, "--baud", str(line.baud), "--parity",
                 line.parity, "--stopbits", str(line.stopbits), "--out", str(out)]
         term = Terminal(argv if tui else argv + ["--headless", "--quiet"])
         try:
@@ -87,7 +89,12 @@ def _run_live(tmp_path, name: str, frames, line, *, tui: bool):
         return out, bus.bytes_received_from_sniffer, term, holders, policies
 
 
-SCHED_OTHER = 0
+SCHED_OTHER, SCHED_FIFO = 0, 1
+
+
+def _realtime_allowed() -> bool:
+    """Whether this user may ask for SCHED_FIFO (sources/reader_priority.py): root, or an rtprio limit."""
+    return os.geteuid() == 0 or resource.getrlimit(resource.RLIMIT_RTPRIO)[0] >= READER_RT_PRIORITY
 
 
 def _policies(pid: int) -> dict[str, tuple[int, int]]:
@@ -122,15 +129,38 @@ def test_tui_capture_runs_in_its_own_process_and_records_as_headless(tmp_path):
             viewer, own = policies[term.proc.pid], os.nice(0)
             assert viewer[f"python/{term.proc.pid}"] == (SCHED_OTHER, 19), viewer
             assert sum(p == (SCHED_OTHER, 19) for p in viewer.values()) >= 3, viewer  # the App's, the feed's
-            assert all(p == (SCHED_OTHER, own) for h in holders for p in policies[h].values()), policies
+            # the capture at this test's own priority, but for its reader: real-time where allowed
+            capture = sorted(p for h in holders for p in policies[h].values())
+            rt = [(SCHED_FIFO, 0)] if _realtime_allowed() else []
+            assert capture == [(SCHED_OTHER, own)] * (len(capture) - len(rt)) + rt, policies
             assert b"frames" in term.screen and f"{len(frames)} frames".encode() in term.screen  # the summary
         else:
             assert holders == [term.proc.pid]
+        reader = open_mcap(str(out))[0].extra["reader"]  # what the reader got, in the capture's metadata
+        if _realtime_allowed():
+            assert reader == {"policy": "SCHED_FIFO", "priority": READER_RT_PRIORITY}, reader
+        else:
+            assert reader["policy"] == "normal" and reader["why"], reader
         figures[name] = _timing(out)
     (n, tui_nolat, tui_before), (_, head_nolat, head_before) = figures["tui"], figures["headless"]
     assert n > 300
     margin = 3 + n // 20  # 5 %: the scheduler of a loaded machine, not the TUI (which cost 10 % before)
     assert tui_nolat <= head_nolat + margin and tui_before <= head_before + margin, figures
+
+
+def test_a_reader_refused_a_realtime_priority_records_all_the_same(tmp_path):
+    """Where the system grants no real-time priority (no CAP_SYS_NICE, RLIMIT_RTPRIO 0: a normal user's
+    default), the capture's reader stays a normal thread, says why in the capture's metadata, and records
+    every frame."""
+    sc, frames = _feed("a510", 4.0)
+    no_caps = ["setpriv", "--bounding-set", "-sys_nice", "--inh-caps", "-sys_nice"] if os.geteuid() == 0 else []
+    out, written_back, _, holders, policies = _run_live(tmp_path, "normal", frames, sc.line, tui=False,
+                                                        prefix=(*no_caps, "prlimit", "--rtprio=0:0"))
+    assert written_back == 0
+    assert [r["raw"] for r in read_frames(str(out))] == [f.raw.hex() for f in frames]
+    assert all(p[0] == SCHED_OTHER for h in holders for p in policies[h].values()), policies
+    reader = open_mcap(str(out))[0].extra["reader"]
+    assert reader == {"policy": "normal", "why": "Operation not permitted"}, reader
 
 
 def test_tui_on_a_missing_port_says_one_line(tmp_path):

@@ -36,7 +36,9 @@ took up to CPython's switch interval (5 ms) while the decoding thread held it:
 on the 115200 stress line (answers ~1 ms after their request) 12-19 % of the
 answers came in their request's read.  `open()` lowers the interval to
 READER_SWITCH_S for the process (a capture process, see capture_process.py;
-1-3 % then; what is left is the scheduler of a loaded machine).
+1-3 % then; what is left is the scheduler of a loaded machine), and the reader
+asks for a real-time priority (reader_priority.py: a woken normal thread waits
+for the CPU's running one).
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ from ..events import CaptureInfo, Chunk, Gap, Tick
 from ..line import LineSettings
 from ..lowlatency import request_low_latency
 from . import CaptureError
+from .reader_priority import raise_reader
 from .serial_port import open_read_only
 
 READ_SIZE = 4096
@@ -167,6 +170,7 @@ class SerialSource:
             self.info.extra["line_ignored"] = dict(self.ignored)
         self._thread = threading.Thread(target=self._run, name=f"serial-reader {self.port}", daemon=True)
         self._thread.start()
+        self.info.extra["reader"] = raise_reader(self._thread.native_id)
         return self.info
 
     def events(self) -> Iterator[Chunk | Tick | Gap]:

@@ -1,0 +1,33 @@
+"""A live capture's reader thread asks for a real-time priority, where the system grants one.
+
+A read that comes late holds a request and its answer together, and the answer loses its latency
+(serial_live.py).  The reader sleeps in select() and is woken when bytes arrive; on Linux 6.x a normal
+thread woken onto a CPU where another normal thread is running waits until that thread enters the
+kernel or the next tick (up to 4 ms at HZ=250), whatever their nice levels.  A SCHED_FIFO thread
+preempts it at once.  Traced on the 115200 stress line with a TUI open (2026-11-26): most waits of
+0.2 ms or more were the capture's reader behind the viewer; with the reader at SCHED_FIFO 1 the
+responses glued by the capture went from 3.1-3.8 % to 1.8-2.0 %, headless unchanged at 0.5-1.0 %
+(benchmarks/bench_capture_timing.py, benchmarks/README.md).
+
+The lowest real-time priority (1) is enough: it only has to come before normal work.  The reader's
+work per wake is small (a read, a timestamp, a queue push); Linux's real-time throttling still keeps
+5 % of every second for normal work should it ever spin.  Granted to root, to a process with
+CAP_SYS_NICE, or where RLIMIT_RTPRIO allows it (`ulimit -r`, /etc/security/limits.conf); elsewhere the
+reader stays a normal thread and the capture's metadata says why (`extra.reader`).
+"""
+
+from __future__ import annotations
+
+import os
+
+READER_RT_PRIORITY = 1  # SCHED_FIFO's lowest: ahead of every normal thread, behind the kernel's own
+
+
+def raise_reader(tid: int) -> dict:
+    """Thread `tid` (a reader's native id) to SCHED_FIFO at READER_RT_PRIORITY; what it got, for the
+    capture's metadata."""
+    try:
+        os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(READER_RT_PRIORITY))
+    except OSError as e:
+        return {"policy": "normal", "why": e.strerror or str(e)}
+    return {"policy": "SCHED_FIFO", "priority": READER_RT_PRIORITY}
