@@ -24,7 +24,10 @@ has ended: idle means ~0 CPU.  SA_RESTART, and Python resumes what the signal st
 Measured (bench_capture_timing.py, feeder SCHED_FIFO, stress line, four 10 s runs each, benchmarks/README.md):
 3.0-4.3 % of the answers glued by the capture with the TUI open and giving way, 3.4-8.9 % without (nice 19
 both; 11-19 % before, SCHED_IDLE and a feeder of normal policy), 0.6-4.0 % headless; read lateness p99
-0.6-0.85 ms against 1.0-2.4 ms without.  On a kernel that preempts on wakeup (a desktop's preempt=voluntary
+0.6-0.85 ms against 1.0-2.4 ms without.  The waits left were mostly the capture's reader woken behind the
+viewer between two signals; where the system grants it, the reader now runs SCHED_FIFO
+(sources/reader_priority.py), which preempts at once: 1.8-2.6 % glued with the TUI, 0.6-1.7 % headless
+(2026-11-26, later).  On a kernel that preempts on wakeup (a desktop's preempt=voluntary
 or full) the viewer would not hold the CPU anyway; the timer then costs its signals only (5,000 a second
 while the App works and frames come in, ~1 us each).
 """
