@@ -10,6 +10,7 @@ from tui_helpers import replay_frames
 from sniffer.tui.history import BUDGET, CAP, CHANGE, GAP, Series, cap_for
 from sniffer.tui.model import FrameStore
 from sniffer.tui.plotmodel import PlotSet, TimeWindow, Trace, column_ranges, nice_step, render, tick_text
+from sniffer.tui.timebase import TimeBase
 
 FREQ_OUT, FREQ_CMD, CURRENT = 0x2524, 0x2502, 0x2527  # A510: output frequency, frequency command, current
 FREQ_CMD_SEEN = 0x2523  # the frequency command as the monitor block reports it (read every cycle)
@@ -265,7 +266,7 @@ def test_render_two_units_and_hit_tests():
     assert not plots.add((1, "holding", FREQ_OUT))
     traces = [Trace(k, s.registers[k].name, s.registers[k].eng_unit or "", plots.colours[k], s.registers[k].history)
               for k in plots.keys]
-    img = render(traces, info.t0_ns, s.last_t_ns, 120, 30, info.t0_ns)
+    img = render(traces, info.t0_ns, s.last_t_ns, 120, 30, TimeBase(t0_ns=info.t0_ns))
     assert [(a.unit, a.side) for a in img.axes] == [("Hz", "left"), ("A", "right"), ("", "scaled")]
     assert len(img.lines) == 30 and all(sum(len(t) for t, _ in line) == 120 for line in img.lines)
     assert "Hz" in img.lines[0][0][0] and "A" in img.lines[0][-1][0]

@@ -60,7 +60,8 @@ HELP = """\
                lat>20ms  err crc exc timeout fault noise warn  not and or ( )  (README: Filter language)
   [b]c[/b]            clear all filters
   [b]space[/b]        pause the view (capture goes on); again to resume
-  [b]t[/b]            times since the start → wall clock → from the time reference (the header says which)
+  [b]t[/b]            times since the start → wall clock → from the time reference (the header says which;
+               plots and change logs follow)
   [b]T[/b]            this frame is the time reference (*REF*); T on it again clears it
   [b]g[/b]            go to frame 1234 (or #1234), or to the first frame at or after a time: 12.5s, 350ms
                (from the reference when times are shown from it), 19:22:01.250 (wall clock)
@@ -582,6 +583,8 @@ class SnifferApp(App):
         self.frame_list.refresh_rows()  # the columns fit the new times, the header names the base
         self.show_detail(self.frame_list.selected_row)
         self.tx_pane.refresh_view()
+        self.tabs.query_one("#changelog").refresh()  # the registers' times and the plots' time axes follow too
+        self.refresh_tables()
 
     def action_time_base(self) -> None:
         if self.store.time.cycle() is None:

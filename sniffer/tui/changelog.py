@@ -74,7 +74,7 @@ class ChangeLog(CursorList):
     def line_text(self, pos: int) -> Text:
         t, ix, old, new, thinned = self.change(pos)
         unit = self.register.eng_unit or ""
-        text = Text(f"{(t - self.store.t0_ns) / 1e9:11.3f} s  #{ix:<8} ", no_wrap=True, overflow="ellipsis")
+        text = Text(f"{self.store.time.text(t):>12}  #{ix:<8} ", no_wrap=True, overflow="ellipsis")
         text.append(f"{'first' if old is None else number(old)} → {number(new)} {unit}".rstrip())
         if thinned:
             text.append("  (changes before it thinned out)", S_THINNED)

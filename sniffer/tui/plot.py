@@ -24,7 +24,7 @@ from textual.widget import Widget
 from textual.widgets import DataTable, Static
 
 from .model import FrameStore
-from .plotmodel import PlotImage, PlotSet, TimeWindow, Trace, render
+from .plotmodel import PlotImage, PlotSet, TimeWindow, Trace, render, time_unit
 
 EMPTY = "nothing plotted: in the Registers tab (3) press a on a register to add it here"
 # the legend's columns and their widths (fixed: the rows are filled again as the view changes)
@@ -102,7 +102,7 @@ class PlotView(Widget, can_focus=True):
         lo, hi = self.time_range()
         w, h = self.size
         state = (self.plots.version, tuple((tr.series.seen, tr.series.thins) for tr in traces), lo, hi, w, h,
-                 self.cursor_ns)
+                 self.cursor_ns, self.store.time.version)
         if state == self._drawn_for and not force:
             return
         self._drawn_for = state
@@ -111,7 +111,7 @@ class PlotView(Widget, can_focus=True):
             self.image = None
             lines = [[(EMPTY if self.removable else "", "grey62")]]
         else:
-            self.image = render(traces, lo, hi, w, h - 1, self.store.t0_ns, self.cursor_ns)
+            self.image = render(traces, lo, hi, w, h - 1, self.store.time, self.cursor_ns)
             lines = self.image.lines + [[(self.info(), "")]]
         self._strips = [Strip([Segment(text, self._style(st)) for text, st in line]).crop_extend(0, w, None)
                         for line in lines]
@@ -127,15 +127,14 @@ class PlotView(Widget, can_focus=True):
     def info(self) -> str:
         """The line under the plot: the window, and the cursor's sample of the chosen register."""
         lo, hi = self.time_range()
-        t0 = self.store.t0_ns
-        text = f"{(lo - t0) / 1e9:.3f}..{(hi - t0) / 1e9:.3f} s" + (" (following the tail)" if
-                                                                  self.window.following else "")
+        at = self.store.time.text  # the frame list's time base
+        unit = time_unit(self.store.time, int(lo))
+        text = f"{at(int(lo))}..{at(int(hi))} {unit}" + (" (following the tail)" if self.window.following else "")
         hit = self.cursor_sample()
         if hit is not None:
             tr, (t, v, ix) = hit
             value = f"{number(v)} {tr.unit}".strip()
-            text += f" │ cursor {(self.cursor_ns - t0) / 1e9:.3f} s: {tr.label} {value} at #{ix} " \
-                    f"({(t - t0) / 1e9:.3f} s)"
+            text += f" │ cursor {at(int(self.cursor_ns))} {unit}: {tr.label} {value} at #{ix} ({at(t)})"
         return text
 
     def cursor_sample(self):

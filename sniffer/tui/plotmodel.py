@@ -18,6 +18,8 @@ import bisect
 import math
 from dataclasses import dataclass
 
+from .timebase import REL, WALL, TimeBase
+
 PALETTE = ("bright_cyan", "yellow", "bright_magenta", "bright_green", "dark_orange", "bright_blue", "bright_red",
            "white")
 MIN_SPAN_NS = 1_000_000  # zooming stops at a millisecond across
@@ -262,9 +264,10 @@ def _axes(traces: list[Trace], extents, rows: int) -> list[Axis]:
     return axes
 
 
-def render(traces: list[Trace], lo: float, hi: float, width: int, height: int, t0_ns: int,
+def render(traces: list[Trace], lo: float, hi: float, width: int, height: int, base: TimeBase,
            cursor_ns: float | None = None) -> PlotImage:
-    """The plot of `traces` over [lo, hi) in a width x height cell box (the last trace is drawn on top)."""
+    """The plot of `traces` over [lo, hi) in a width x height cell box (the last trace is drawn on top), its
+    time axis in the frame list's time base `base`."""
     right = 1 in _unit_positions(traces)
     x0 = LEFT_W
     cols = max(width - LEFT_W - (RIGHT_W if right else 1), 1)
@@ -317,7 +320,7 @@ def render(traces: list[Trace], lo: float, hi: float, width: int, height: int, t
         else:
             line.append((" ", ""))
         lines.append(line)
-    lines.extend(_time_axis(image, t0_ns, right))
+    lines.extend(_time_axis(image, base, right))
     return image
 
 
@@ -347,22 +350,56 @@ def _y_labels(ax: Axis | None, rows: int) -> dict[int, str]:
     return out
 
 
-def _time_axis(image: PlotImage, t0_ns: int, right: bool) -> list[list[tuple[str, str]]]:
-    """The x axis line with tick marks and the labels under it (capture-relative seconds)."""
-    cols, lo, hi = image.cols, image.lo, image.hi
-    span_s = (hi - lo) / 1e9
-    step = nice_step(span_s, max(cols // 14, 1))
+WALL_STEPS_S = (1, 2, 5, 10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 10800, 21600, 43200, 86400)
+
+
+def time_ticks(base: TimeBase, lo: float, hi: float, count: int) -> tuple[list[tuple[float, str]], str]:
+    """([(capture time ns, label)], unit after the labels) of about `count` ticks over [lo, hi), in the time
+    base the frame list shows: seconds since the start, seconds from the reference frame (signed), or the
+    wall clock (ticks on whole seconds, minutes, hours of the viewer's zone)."""
+    if base.mode == WALL:  # in integer ns: Unix times in ns are beyond a float's exactness
+        lo_ns, hi_ns = int(lo), int(hi)
+        raw = (hi - lo) / 1e9 / max(count, 1)
+        step = (nice_step((hi - lo) / 1e9, count) if raw < 1 else
+                next((s for s in WALL_STEPS_S if s >= raw * 0.999), math.ceil(raw / 86400) * 86400))
+        step_ns = max(round(step * 1e9), 1)
+        local = base.wall_ns(0) + int(base.wall_datetime(lo_ns).utcoffset().total_seconds()) * 1_000_000_000
+        out = []
+        t = -(-(lo_ns + local) // step_ns) * step_ns - local  # whole local steps: minutes, hours in the zone
+        while t <= hi_ns:
+            when = base.wall_datetime(t)
+            label = (f"{when:%H:%M:%S}" if step >= 1 else f"{when:%M:%S}.{when.microsecond // 1000:03d}"
+                     if step >= 0.001 else f"{when:%S}.{when.microsecond:06d}")
+            out.append((t, label))
+            t += step_ns
+        return out, time_unit(base, lo_ns)
+    origin = base.origin_ns()
+    step = nice_step((hi - lo) / 1e9, count)
+    seconds = ticks((lo - origin) / 1e9, (hi - origin) / 1e9, step)
+    return [(origin + s * 1e9, tick_text(s, step, 12)) for s in seconds], time_unit(base, int(lo))
+
+
+def time_unit(base: TimeBase, t_ns: int) -> str:
+    """What a time of the base is counted in: seconds, seconds from the reference, the wall clock's zone."""
+    if base.mode == WALL:
+        return base.wall_datetime(t_ns).tzname() or ""
+    return "s" if base.mode == REL else f"s from #{base.ref_index}"
+
+
+def _time_axis(image: PlotImage, base: TimeBase, right: bool) -> list[list[tuple[str, str]]]:
+    """The x axis line with tick marks and the labels under it, in the frame list's time base."""
+    cols = image.cols
     marks = ["─"] * cols
     labels = [" "] * (cols + RIGHT_W)
-    for s in ticks((lo - t0_ns) / 1e9, (hi - t0_ns) / 1e9, step):
-        c = image.column_of(t0_ns + s * 1e9)
+    points, unit = time_ticks(base, image.lo, image.hi, max(cols // 14, 1))
+    for t, text in points:
+        c = image.column_of(t)
         if c is None:
             continue
         marks[c] = "┬"
-        text = tick_text(s, step, 12)
         at = max(c - len(text) // 2, 0)
         if all(ch == " " for ch in labels[max(at - 1, 0):at + len(text) + 1]):
             labels[at:at + len(text)] = text
     tail = RIGHT_W if right else 1
     return [[(" " * (LEFT_W - 1) + "└" + "".join(marks) + ("┘" if right else "─") + " " * (tail - 1), _AXIS)],
-            [(" " * LEFT_W + "".join(labels[:cols + tail - 2]) + " s", _AXIS)]]
+            [(" " * LEFT_W + "".join(labels[:cols + tail - 2]) + f" {unit}", _AXIS)]]

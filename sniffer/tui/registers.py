@@ -82,7 +82,7 @@ class RegisterWatch(Vertical):
             fresh = bool(rv.changes) and now - rv.changed_ns < CHANGED_NS
             cells = (str(rv.unit), rv.table, rv.address_text, rv.title[:36],
                      (str(rv.value) if not rv.text else f"{rv.value} {rv.text}")[:40], rv.eng_unit or "",
-                     str(rv.raw), str(rv.changes), f"{(rv.t_ns - store.t0_ns) / 1e9:.3f}s", fresh,
+                     str(rv.raw), str(rv.changes), store.time.text(rv.t_ns), fresh,
                      colours.get((rv.unit, rv.table, rv.address)))
             old = shown.get(key)
             if old == cells:
