@@ -26,6 +26,8 @@ READER_RT_PRIORITY = 1  # SCHED_FIFO's lowest: ahead of every normal thread, beh
 def raise_reader(tid: int) -> dict:
     """Thread `tid` (a reader's native id) to SCHED_FIFO at READER_RT_PRIORITY; what it got, for the
     capture's metadata."""
+    if not hasattr(os, "sched_setscheduler"):  # not Linux
+        return {"policy": "normal", "why": "no sched_setscheduler on this system"}
     try:
         os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(READER_RT_PRIORITY))
     except OSError as e:
