@@ -187,13 +187,10 @@ def attach_feed(att: Attachment, pause: Callable[[], object] | None = None):
 def attach_tui(att: Attachment) -> int:
     """The App over the capture; a capture on this machine gets the CPU first, as under the TUI of `sniffer
     live` (tui/run.py yield_to_capture, tui/giveway.py)."""
-    from .tui.giveway import give_cpu
-    from .tui.run import run_tui, yield_to_capture
+    from .tui.run import local_capture_feed, run_tui
 
     here = att.on_this_machine
-    if here:
-        yield_to_capture()  # before the App's threads: they inherit it
-    return run_tui(attach_feed(att, pause=give_cpu if here else None), source_label=att.label,
+    return run_tui(local_capture_feed(att) if here else attach_feed(att), source_label=att.label,
                    capture_path=att.capture_path, attached=here)
 
 

@@ -15,6 +15,7 @@ session's stop event.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import threading
@@ -76,10 +77,7 @@ def run_tui(feed: Callable[[TuiSink, threading.Event], object], *, attached: boo
 
 def _run(app: SnifferApp, *, attached: bool = False) -> int:
     _ready_interpreter()
-    if attached:
-        with give_way(app):
-            app.run()
-    else:
+    with give_way(app) if attached else contextlib.nullcontext():
         app.run()
     app.stop_feed()
     result = app.feed_result
@@ -106,6 +104,16 @@ def give_way(app: SnifferApp) -> GiveWay:
     (giveway.py: how a redraw's burst delays the capture's reads although the viewer runs at nice 19)."""
     app.give_way = GiveWay(lambda: app.sink.frames_in)
     return app.give_way
+
+
+def local_capture_feed(att):
+    """The feed of a viewer of a capture on this machine (`sniffer live|demo`'s TUI, `attach --tui` to a local
+    socket): this process leaves the CPU to the capture (yield_to_capture, now: the App's threads inherit it)
+    and the feed gives way between two records (giveway.py).  Run the App with give_way as well."""
+    from ..attach import attach_feed
+
+    yield_to_capture()
+    return attach_feed(att, pause=give_cpu)
 
 
 def yield_to_capture() -> None:
@@ -142,21 +150,20 @@ class CaptureViewer:
         self.attachment = None
 
     def start(self) -> bool:
-        from ..attach import Attachment, attach_feed
+        from ..attach import Attachment
         from ..sources import CaptureError
 
         if not self.capture.wait_publishing():
             self.capture.stderr.release(wait_eof=True)  # its one line
             return False
-        yield_to_capture()  # before the attachment's and the App's threads: they inherit it
         try:
             att = Attachment(self.sock)
         except CaptureError as e:
             print(f"sniffer: error: {e}", file=sys.stderr)
             return False
         self.attachment = att
-        self.app = make_app(attach_feed(att, pause=give_cpu), source_label=self.label,
-                            capture_path=att.capture_path, live=True)
+        self.app = make_app(local_capture_feed(att), source_label=self.label, capture_path=att.capture_path,
+                            live=True)
         self.capture.stderr.hold(self.app.notices.append)  # the terminal is the App's: notifications meanwhile
         return True
 
