@@ -52,13 +52,18 @@ def _feed(scenario: str, seconds: float):
     return sc, list(simulate(sc, sc.line, seconds, seed=3))
 
 
+def _live_argv(port: str, line, out) -> list[str]:
+    """`sniffer live` on `port` with `line`'s settings, recording to `out` (its TUI on unless told)."""
+    return [sys.executable, "-m", "sniffer", "live", port, "--baud", str(line.baud), "--parity", line.parity,
+            "--stopbits", str(line.stopbits), "--out", str(out)]
+
+
 def _run_live(tmp_path, name: str, frames, line, *, tui: bool, prefix: tuple = ()):
     """Play `frames` to `sniffer live` (its TUI on a terminal, or headless; `prefix`: a command it runs under)
     and return (MCAP, bytes written back, what the terminal showed)."""
     out = tmp_path / f"{name}.mcap"
     with PtyBus() as bus:
-        argv = [*prefix, sys.executable, "-m", "sniffer", "live", bus.port, "--baud", str(line.baud), "--parity",
-                line.parity, "--stopbits", str(line.stopbits), "--out", str(out)]
+        argv = [*prefix, *_live_argv(bus.port, line, out)]
         term = Terminal(argv if tui else argv + ["--headless", "--quiet"])
         try:
             # the port is open once the capture publishes (TUI: the App shows its label) or says so
@@ -181,8 +186,7 @@ def test_a_terminal_gone_without_sighup_ends_the_tui_and_keeps_the_capture(tmp_p
     out = tmp_path / "gone.mcap"
     sc, frames = _feed("a510", 3.0)
     with PtyBus() as bus:
-        term = Terminal([sys.executable, "-m", "sniffer", "live", bus.port, "--baud", str(sc.line.baud), "--parity",
-                         sc.line.parity, "--stopbits", str(sc.line.stopbits), "--out", str(out)])
+        term = Terminal(_live_argv(bus.port, sc.line, out))
         try:
             assert term.wait_for(bus.port), term.screen[-2000:]
             player = threading.Thread(target=bus.play, args=(frames,))
