@@ -76,6 +76,8 @@ class LineBuffer:
         else:
             first_t = chunk.t_ns - n * char
             end_t = chunk.t_ns
+            if chunk.unseen_ns is not None:  # the bytes may have come as early as the reader's last empty look
+                first_t = min(first_t, chunk.t_ns - chunk.unseen_ns)
         cls = NONE
         if self.last_t_end is None:
             cls = HARD

@@ -69,6 +69,8 @@ RAW_SCHEMA = {
         },
         "channel": {"type": "string", "description": "the wire within the link (--tap: master or slaves)"},
         "link": {"type": "string", "description": "the link's name (captures of several links only)"},
+        "unseen_ns": {"type": "integer", "description": "chunk read live: the port was last seen empty this "
+                      "long before t_ns (the bytes came within it); absent: not known"},
         "t_end_ns": {"type": "integer", "description": "gap: end of the interruption"},
         "reason": {"type": "string", "description": "gap: why the source was interrupted"},
     },
@@ -121,6 +123,8 @@ def encode_event(ev: Chunk | Tick | Gap) -> bytes:
             "flags": [[i, f] for i, f in ev.flags],
             "channel": ev.channel,
         }
+        if ev.unseen_ns is not None:
+            d["unseen_ns"] = ev.unseen_ns
     elif type(ev) is Tick:
         d = {"kind": "tick", "t_ns": ev.t_ns}
     elif type(ev) is Gap:
@@ -148,7 +152,8 @@ def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
         if byte_t is not None and len(byte_t) != len(raw):
             raise ValueError("byte_dt_ns and data differ in length")
         flags = tuple((int(i), str(f)) for i, f in d.get("flags") or ())
-        return Chunk(t, raw, byte_t, flags, str(d.get("channel") or ""), link)
+        unseen = d.get("unseen_ns")
+        return Chunk(t, raw, byte_t, flags, str(d.get("channel") or ""), link, None if unseen is None else int(unseen))
     if kind == "tick":
         return Tick(t, link)
     if kind == "gap":

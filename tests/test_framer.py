@@ -184,6 +184,16 @@ def test_boundary_per_read_soft_within_t35_plus_slack_hard_beyond():
     assert [f.raw for f in frames(RtuFramer, hard)] == [REQ[:3], REQ[3:]]
 
 
+def test_boundary_per_read_counts_silence_only_from_the_readers_last_empty_look():
+    # the reader stalled 90 ms, its last look at the port 89 ms before the read: the rest of the frame may
+    # have waited in the tty all along, so the gap is no proven silence
+    stalled = [Chunk(10_000_000, REQ[:3], unseen_ns=2_000_000), Chunk(100_000_000, REQ[3:], unseen_ns=89_000_000)]
+    assert shape(frames(RtuFramer, stalled)) == [(REQ, "modbus-rtu", CAN_REQ, True)]
+    # it looked 3 ms before the read and found nothing: 87 ms of silence, the bytes are two runs
+    looked = [Chunk(10_000_000, REQ[:3], unseen_ns=2_000_000), Chunk(100_000_000, REQ[3:], unseen_ns=3_000_000)]
+    assert [f.raw for f in frames(RtuFramer, looked)] == [REQ[:3], REQ[3:]]
+
+
 def test_boundary_hard_on_a_channel_change():
     reads = [Chunk(10_000_000, REQ[:3], channel="RX"), Chunk(11_000_000, REQ[3:], channel="TX")]
     assert [f.raw for f in frames(RtuFramer, reads)] == [REQ[:3], REQ[3:]]

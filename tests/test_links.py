@@ -113,6 +113,9 @@ def test_raw_events_carry_their_link_and_one_line_files_do_not_change():
         assert decode_event(encode_event(ev)) == ev
     plain = encode_event(Chunk(5, b"\x01", None, (), ""))
     assert b"link" not in plain and decode_event(plain).link == ""
+    # a live read's unseen time, kept only where there is one
+    live = Chunk(9_000_000, b"\x01\x03", None, (), "", "", 4_250_000)
+    assert decode_event(encode_event(live)) == live and b"unseen_ns" not in plain
     assert "links" not in CaptureInfo().to_dict()
     info = CaptureInfo.from_dict(_info("A").to_dict())
     assert info.links[0]["name"] == "A"

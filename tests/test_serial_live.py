@@ -10,8 +10,10 @@ from __future__ import annotations
 import errno
 import fcntl
 import os
+import select
 import threading
 import time
+import types
 
 import pytest
 
@@ -145,6 +147,39 @@ def test_ticks_during_silence(pty, started):
     seen = collect(ev, lambda s: data_of(s) == b"\x05\x06" and type(s[-1]) is Tick)
     chunk_t = max(e.t_ns for e in seen if type(e) is Chunk)
     assert seen[-1].t_ns >= chunk_t  # the tick after the data says "silent since"
+
+
+def test_a_tick_never_claims_silence_the_reader_did_not_see(pty, started, monkeypatch):
+    """The reader's select gives up, then the thread stalls (its CPU or the interpreter taken) while the rest
+    of a frame comes: the time it takes after the stall must not become a tick, or the framer, seeing
+    silence past t3.5 + the read slack, cuts the frame in two."""
+    from sniffer.framer import RtuFramer
+    from sniffer.sources import serial_live
+
+    real = select.select
+    armed = threading.Event()
+    req = bytes.fromhex("010300000002c40b")
+
+    def stalling_select(r, w, x, timeout=None):
+        ready = real(r, w, x, timeout)
+        if armed.is_set() and timeout and not ready[0]:  # gave up: now the stall, and the bytes come in it
+            armed.clear()
+            os.write(pty.master, req[3:])
+            time.sleep(0.08)
+        return ready
+
+    monkeypatch.setattr(serial_live, "select", types.SimpleNamespace(select=stalling_select))
+    src = started(pty.path, LINE, tick_interval_s=0.005)
+    ev = src.events()
+    os.write(pty.master, req[:3])
+    seen = collect(ev, lambda s: data_of(s) == req[:3])
+    armed.set()
+    seen += collect(ev, lambda s: data_of(s) == req[3:])
+    first = next(i for i, e in enumerate(seen) if type(e) is Chunk)
+    assert not any(type(e) is Tick for e in seen[first:])  # nothing between the two halves
+    framer = RtuFramer(LINE)
+    out = [f for e in seen if type(e) is Chunk for f in framer.feed(e)] + framer.flush()
+    assert [(f.raw, f.crc_ok) for f in out] == [(req, True)]
 
 
 def test_stop_ends_events_and_joins(pty, started):

@@ -39,6 +39,13 @@ READER_SWITCH_S for the process (a capture process, see capture_process.py;
 1-3 % then; what is left is the scheduler of a loaded machine), and the reader
 asks for a real-time priority (reader_priority.py: a woken normal thread waits
 for the CPU's running one).
+
+A read can also come late because the reader stalled (its CPU or the interpreter taken for longer than
+the framer's read slack of 50 ms): then the time it takes is not when the bytes came, and a frame whose
+rest waited in the tty would look cut by silence.  So the reader says what it saw: each Chunk's
+`unseen_ns` reaches back to the last time it found the port empty (the framer counts silence only from
+there), and a Tick, which says "silent until now", goes out only if nothing is waiting once its time is
+taken.
 """
 
 from __future__ import annotations
@@ -199,13 +206,16 @@ class SerialSource:
         clock, push, link, channel = self.hub.clock, self.hub.push, self.link, self.channel
         try:
             last = time.monotonic_ns()  # time of the last event handed out
+            # when the port was last seen empty: a time taken before a select or read that then found
+            # nothing new, so what comes next came after it (a Chunk's unseen_ns)
+            empty = last
             next_path_check = last + int(PORT_POLL_S * 1e9)
             while not self._stop.is_set():
                 if self._fd is None:
                     self._wait_for_port()
-                    last = time.monotonic_ns()
+                    last = empty = time.monotonic_ns()
                     continue
-                now = time.monotonic_ns()
+                now = looked = time.monotonic_ns()
                 timeout = min(max(0, last + self.tick_ns - now) / 1e9, PORT_POLL_S)
                 try:
                     ready, _, _ = select.select([self._fd], [], [], timeout)
@@ -223,12 +233,18 @@ class SerialSource:
                 with clock:  # one order of time for every port of the hub
                     now = time.monotonic_ns()  # right after the read: the read's timestamp
                     if data:
-                        push(Chunk(now, data, None, (), channel, link))
+                        push(Chunk(now, data, None, (), channel, link, now - empty))
                         last = now
+                        if len(data) < READ_SIZE:  # the read took all there was, after `looked`
+                            empty = looked
                         continue
-                    if now - last >= self.tick_ns:
+                    empty = looked  # select found nothing after it
+                    # a tick says "silent until now", so nothing may be waiting now: the thread can lose its
+                    # CPU or wait for the interpreter between select giving up and taking the time, while
+                    # the rest of a frame comes (a tick past t3.5 + read slack would then cut it)
+                    if now - last >= self.tick_ns and not select.select([self._fd], [], [], 0)[0]:
                         push(Tick(now, link))
-                        last = now
+                        last = empty = now
                 if now >= next_path_check:
                     next_path_check = now + int(PORT_POLL_S * 1e9)
                     gone = self._path_gone()
