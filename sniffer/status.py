@@ -196,25 +196,29 @@ class StatusSink:
                 self._write(snap)
 
 
-def wait_for_port(port: str, stop: threading.Event, status_path: str | None, label: str,
-                  poll_s: float = 0.5) -> bool:
-    """--wait-port: until `port` exists (True) or `stop` is set (False), saying so once on stderr and in
-    the status file (`state` "waiting for port").  A port that exists but cannot be opened is not waited
-    for: opening it gives its error."""
-    if os.path.exists(port):
-        return True
-    print(f"sniffer: {port}: not there (adapter unplugged?); waiting for it (--wait-port)", file=sys.stderr,
-          flush=True)
+def wait_for_ports(ports: list[str], stop: threading.Event, status_path: str | None, label: str,
+                   poll_s: float = 0.5) -> bool:
+    """--wait-port: until every one of `ports` exists (True) or `stop` is set (False), saying once on
+    stderr which is not there (and again for one missing later, when the one before came), and in the
+    status file (`state` "waiting for port"; `port.path` the first missing, `port.missing` all).  A port
+    that exists but cannot be opened is not waited for: opening it gives its error."""
+    said: set[str] = set()
     since = time.time_ns()
     last = 0.0
-    while not os.path.exists(port):
+    while missing := [p for p in ports if not os.path.exists(p)]:
+        for port in missing:
+            if port not in said:
+                said.add(port)
+                print(f"sniffer: {port}: not there (adapter unplugged?); waiting for it (--wait-port)",
+                      file=sys.stderr, flush=True)
         if status_path and time.monotonic() - last >= STATUS_EVERY_S:
             last = time.monotonic()
             try:
                 write_json_atomic(status_path, {
                     "format": STATUS_FORMAT, "state": "waiting for port", "pid": os.getpid(), "command": label,
                     "started": iso(since), "updated": iso(time.time_ns()), "updated_ns": time.time_ns(),
-                    "every_s": STATUS_EVERY_S, "port": {"state": "absent", "since": iso(since), "path": port}})
+                    "every_s": STATUS_EVERY_S,
+                    "port": {"state": "absent", "since": iso(since), "path": missing[0], "missing": missing}})
             except OSError:
                 pass
         if stop.wait(poll_s):

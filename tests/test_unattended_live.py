@@ -107,6 +107,44 @@ def _status(folder: Path) -> dict:
     return read_json(folder / STATUS_NAME) or {}
 
 
+def test_wait_port_waits_for_every_port_of_a_multi_link_capture(tmp_path):
+    """live A B --wait-port with neither line there: it waits on through A coming (B still missing), then
+    captures both links once B comes too."""
+    a, b, status, out = tmp_path / "ttyA", tmp_path / "ttyB", tmp_path / "st.json", tmp_path / "two.mcap"
+    live = subprocess.Popen(SNIFFER + ["live", str(a), str(b), "--wait-port", "--baud", "19200", "--parity", "E",
+                                       "--status", str(status), "--out", str(out), "--quiet"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    sims = []
+
+    def plug(link):
+        sims.append(subprocess.Popen(SNIFFER + ["simulate", "--pty", str(link), "--scenario", "default"],
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True))
+
+    try:
+        st = wait_until("waiting for both", lambda: (read_json(status) or {}).get("port", {}).get("missing")
+                        == [str(a), str(b)] and read_json(status))
+        assert st["state"] == "waiting for port" and st["port"]["path"] == str(a)
+        plug(a)
+        wait_until("waiting for B alone", lambda: (read_json(status) or {}).get("port", {}).get("missing")
+                   == [str(b)])
+        assert live.poll() is None  # A alone did not start it, nor end it with "no such port"
+        plug(b)
+        wait_until("frames", lambda: (read_json(status) or {}).get("frames", 0) > 40)
+    finally:
+        live.send_signal(signal.SIGTERM)
+        rc = live.wait(timeout=30)
+        err = live.stderr.read()
+        for sim in sims:
+            sim.send_signal(signal.SIGTERM)
+            sim.wait(timeout=20)
+    assert rc == 0, err
+    said = [line for line in err.splitlines() if line.strip()]
+    assert said[:2] == [f"sniffer: {p}: not there (adapter unplugged?); waiting for it (--wait-port)" for p in (a, b)]
+    r = run("replay", out, "--format", "jsonl")
+    assert r.returncode == 0, r.stderr
+    assert {json.loads(x)["link"] for x in r.stdout.splitlines()} == {"ttyA", "ttyB"}
+
+
 def test_wait_for_the_port_and_survive_an_unplug(tmp_path):
     """live --wait-port on a line that is not there yet; the line goes away (the adapter unplugged) and
     comes back at the same path; SIGTERM ends the capture with every segment closed."""
