@@ -53,7 +53,8 @@ def _record(opcode: int, body: bytes) -> bytes:
 
 
 class McapWriter:
-    def __init__(self, out, *, chunk_size: int = 1 << 20, compression: str = "zstd") -> None:
+    def __init__(self, out, *, chunk_size: int = 1 << 20, compression: str = "zstd",
+                 packing: tuple[int, int] = (0, 0)) -> None:
         if compression not in ("zstd", ""):
             raise ValueError(f"compression {compression!r}: zstd or none")
         self._out = out
@@ -73,6 +74,9 @@ class McapWriter:
         self._chunk = bytearray()
         self._index: dict[int, list[int]] = {}  # channel -> [log time, offset, log time, offset, ...]
         self._c_start = self._c_end = 0
+        self._open_messages = 0  # in the open chunk
+        # of the chunks written, their compression so far (`packing`: a segment starts from the last one's)
+        self._raw_bytes, self._packed_bytes = packing
         self._finished = False
 
     # ------------------------------------------------------------ definitions
@@ -134,6 +138,7 @@ class McapWriter:
         chunk += _MESSAGE.pack(OP_MESSAGE, 22 + len(data), channel_id, sequence, log_time, publish_time)
         chunk += data
         self._counts[channel_id] += 1
+        self._open_messages += 1
         if len(chunk) >= self.chunk_size:
             self.flush()
 
@@ -164,6 +169,8 @@ class McapWriter:
             + _U32.pack(len(offsets)) + offsets + _U64.pack(pos - chunk_offset - len(chunk_rec))
             + _str(self.compression) + _U64.pack(len(data)) + _U64.pack(len(raw)))))
         self.summary_bytes += len(self._chunk_indexes[-1])
+        self._raw_bytes += len(raw)
+        self._packed_bytes += len(data)
         n = sum(len(v) for v in self._index.values()) // 2
         if n:
             self._start = self._c_start if self._start is None else min(self._start, self._c_start)
@@ -171,6 +178,22 @@ class McapWriter:
             self._messages += n
         self._chunk = bytearray()
         self._index = {}
+        self._open_messages = 0
+
+    @property
+    def packing(self) -> tuple[int, int]:
+        """(bytes, compressed bytes) of the messages in the chunks written so far."""
+        return self._raw_bytes, self._packed_bytes
+
+    def open_chunk_bytes(self) -> int:
+        """What the open chunk will add to the file once written, estimated: its messages at the compression
+        of the chunks before it, their index entries (16 bytes each), the records around them and the
+        chunk's index in the summary.  0 before a chunk was written (no compression known: a guess would
+        close a segment early, under its size)."""
+        n = len(self._chunk)
+        if not n or not self._raw_bytes:
+            return 0
+        return n * self._packed_bytes // self._raw_bytes + 16 * self._open_messages + 25 * len(self._index) + 140
 
     # ------------------------------------------------------------ the end
     def finish(self) -> None:

@@ -437,6 +437,43 @@ def test_scan_skipping_a_topic_yields_the_same_other_messages():
     assert raw_only == [m for m in every if m[0] != "/frames"] and len(raw_only) > 100
 
 
+def test_the_open_chunk_is_estimated_at_the_compression_so_far(tmp_path):
+    """What a size rotation counts (McapSink.size): the open chunk, estimated at the compression of the chunks
+    before it, comes within a tenth of what writing it adds, its summary entry included; nothing is guessed
+    before a chunk was written, and a segment's writer starts from the compression of the one before."""
+    import io
+    import random
+
+    from sniffer.mcap_writer import McapWriter
+
+    rng = random.Random(3)
+
+    def message(i):
+        return json.dumps({"t": i, "raw": bytes(rng.randrange(4) for _ in range(12)).hex(), "unit": 1 + i % 3,
+                           "points": [{"name": "Output frequency", "value": rng.randrange(6000) / 100}]}).encode()
+
+    w = McapWriter(io.BytesIO(), chunk_size=1 << 30)
+    w.start()
+    chs = [w.register_channel(f"/c{k}", "json", w.register_schema("s", "jsonschema", b"{}")) for k in range(5)]
+    for i in range(2000):
+        w.add_message(chs[i % 5], i, message(i), i)
+    assert w.open_chunk_bytes() == 0  # no compression known yet
+    w.flush()
+    raw, packed = w.packing
+    assert 0 < packed < raw / 3
+    for i in range(2000, 5000):
+        w.add_message(chs[i % 5], i, message(i), i)
+    guess = w.open_chunk_bytes()
+    before = w._out.tell() + w.summary_bytes
+    w.flush()
+    grew = w._out.tell() + w.summary_bytes - before
+    assert abs(guess - grew) < grew / 10, (guess, grew)
+    nxt = McapWriter(io.BytesIO(), packing=w.packing)
+    nxt.start()
+    nxt.add_message(nxt.register_channel("/c", "json", nxt.register_schema("s", "jsonschema", b"{}")), 1, message(1), 1)
+    assert 0 < nxt.open_chunk_bytes() < len(message(1)) + 200
+
+
 def test_our_mcap_writer_reads_back_through_the_mcap_library_index_and_all(tmp_path):
     """sniffer.mcap_writer is checked by the reference reader: summary, chunk indexes, message indexes, CRCs."""
     from mcap.reader import SeekingReader, StreamReader

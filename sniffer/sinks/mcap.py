@@ -147,8 +147,10 @@ class McapSink(Sink):
         clock: Callable[[], int] = time.monotonic_ns,
         compress: bool = True,
         foxglove: bool = True,
+        packing: tuple[int, int] = (0, 0),
     ) -> None:
         self.path = os.fspath(path)
+        self._packing = packing  # how the chunks of the file before (a segment's) compressed
         self._interval_ns = int(flush_interval_s * 1e9)
         self._clock = clock
         self._compression = "zstd" if compress else ""
@@ -175,16 +177,23 @@ class McapSink(Sink):
         return self._file.on_disk
 
     @property
+    def packing(self) -> tuple[int, int]:
+        """How its chunks compressed so far (McapWriter.packing): the next segment's estimates start there."""
+        return self._writer.packing if self._writer is not None else self._packing
+
+    @property
     def size(self) -> int:
-        """Bytes of the file so far, written or waiting to be, and of the summary it will end with (a
-        Foxglove capture has a channel per register: the summary repeats them); not the open chunk."""
-        return self._file.tell() + (self._writer.summary_bytes if self._writer is not None else 0)
+        """Bytes of the file so far, written or waiting to be, of the open chunk (estimated: mcap_writer
+        open_chunk_bytes) and of the summary it will end with (a Foxglove capture has a channel per
+        register: the summary repeats them)."""
+        w = self._writer
+        return self._file.tell() + (w.summary_bytes + w.open_chunk_bytes() if w is not None else 0)
 
     def start(self, info: CaptureInfo) -> None:
         self._t0 = info.t0_ns
         self._anchor = info.wall_anchor_ns
         # chunks of at most CHUNK_SIZE: a damaged byte loses one chunk (`replay` and `repair` go on after it)
-        w = McapWriter(self._file, compression=self._compression, chunk_size=CHUNK_SIZE)
+        w = McapWriter(self._file, compression=self._compression, chunk_size=CHUNK_SIZE, packing=self._packing)
         self._writer = w
         try:
             w.start(profile="", library=f"sniffer/{__version__}")

@@ -107,6 +107,7 @@ class SegmentSink(Sink):
         self.deleted = 0
         self.delete_errors: list[str] = []
         self.rotate_due = False
+        self._packing = (0, 0)  # how the segments so far compressed (McapSink.packing)
         self._info: CaptureInfo | None = None
         self._cur: McapSink | None = None
         self._out: Output | None = None
@@ -206,7 +207,7 @@ class SegmentSink(Sink):
         self._out = Output(os.path.join(self.folder, name), what="segment")
         seg_info = CaptureInfo.from_dict(info.to_dict())
         seg_info.extra = {**info.extra, "segment": seq, "segment_t_ns": t_ns}
-        self._cur = McapSink(self._out.part, flush_interval_s=self.flush_interval_s)
+        self._cur = McapSink(self._out.part, flush_interval_s=self.flush_interval_s, packing=self._packing)
         self._cur.start(seg_info)
         span = self.rotate.span_ns
         if span:  # on the clock: 1h segments change on the hour
@@ -226,6 +227,7 @@ class SegmentSink(Sink):
         try:
             cur.close()
         finally:
+            self._packing = cur.packing
             seg.end_ns = self._wall(self._t_last)
             seg.t_end = (self._t_last - self._info.t0_ns) / 1e9
             if (self._closed and seg.frames == 0 and seg.seq > self._first_seq) or not (
