@@ -36,9 +36,13 @@ took up to CPython's switch interval (5 ms) while the decoding thread held it:
 on the 115200 stress line (answers ~1 ms after their request) 12-19 % of the
 answers came in their request's read.  `open()` lowers the interval to
 READER_SWITCH_S for the process (a capture process, see capture_process.py;
-1-3 % then; what is left is the scheduler of a loaded machine), and the reader
-asks for a real-time priority (reader_priority.py: a woken normal thread waits
-for the CPU's running one).
+1-3 % then at 0.5 ms; what is left is the scheduler of a loaded machine), and the
+reader asks for a real-time priority (reader_priority.py: a woken normal thread
+waits for the CPU's running one).  With the reader real-time it never waits for a
+CPU (schedstat: 0 us), so what it still waits for is the interpreter: publishing
+to viewers (the publisher thread's 0.2-0.3 ms of work every 50 ms) took the stress
+line from 0.8-1.0 % to 1.1-1.6 % at 0.5 ms, and 0.1 ms brought both to 0.2-1.0 %
+(benchmarks/README.md, 2026-11-27), the capture's CPU unchanged.
 
 A read can also come late because the reader stalled (its CPU or the interpreter taken for longer than
 the framer's read slack of 50 ms): then the time it takes is not when the bytes came, and a frame whose
@@ -67,7 +71,7 @@ from .reader_priority import raise_reader
 from .serial_port import open_read_only
 
 READ_SIZE = 4096
-READER_SWITCH_S = 0.0005  # the longest the reader waits for the interpreter after a read is due
+READER_SWITCH_S = 0.0001  # the longest the reader waits for the interpreter after a read is due
 PORT_POLL_S = 0.2  # how often a lost port is looked for, and a live one's path checked
 # Errors that mean "the adapter went away", not "this program is broken".
 LOST_ERRNOS = {errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF}
