@@ -28,9 +28,10 @@ class Chunk:
     flags: tuple[tuple[int, str], ...] = ()  # (offset in data, FLAG_*)
     channel: str = ""  # which wire of one link (two receive-only adapters on a 4-wire link: --tap)
     link: str = ""  # which link of a multi-link capture ("" when there is one line)
-    # per read, from a live reader: the port was last seen empty this long before t_ns, so the bytes came
-    # within it (a few ms; longer when the reader lost its CPU or waited for the interpreter: then a long
-    # gap before the read is not proven silence).  None: not known (files, older captures)
+    # per read, from a live reader that stalled (lost its CPU or waited for the interpreter for several
+    # ticks): the port was last seen empty this long before t_ns, so the bytes came within it, and a long
+    # gap before the read is not proven silence.  None: the reader looked every tick (or a file, an older
+    # capture)
     unseen_ns: int | None = None
 
     @property

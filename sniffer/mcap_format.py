@@ -69,8 +69,9 @@ RAW_SCHEMA = {
         },
         "channel": {"type": "string", "description": "the wire within the link (--tap: master or slaves)"},
         "link": {"type": "string", "description": "the link's name (captures of several links only)"},
-        "unseen_ns": {"type": "integer", "description": "chunk read live: the port was last seen empty this "
-                      "long before t_ns (the bytes came within it); absent: not known"},
+        "unseen_ns": {"type": "integer", "description": "chunk read live after the reader stalled: the port "
+                      "was last seen empty this long before t_ns (the bytes came within it); absent: it "
+                      "looked every tick, or not known"},
         "t_end_ns": {"type": "integer", "description": "gap: end of the interruption"},
         "reason": {"type": "string", "description": "gap: why the source was interrupted"},
     },

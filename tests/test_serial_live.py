@@ -177,6 +177,7 @@ def test_a_tick_never_claims_silence_the_reader_did_not_see(pty, started, monkey
     seen += collect(ev, lambda s: data_of(s) == req[3:])
     first = next(i for i, e in enumerate(seen) if type(e) is Chunk)
     assert not any(type(e) is Tick for e in seen[first:])  # nothing between the two halves
+    assert seen[-1].unseen_ns >= 80_000_000  # the rest came while the reader did not look
     framer = RtuFramer(LINE)
     out = [f for e in seen if type(e) is Chunk for f in framer.feed(e)] + framer.flush()
     assert [(f.raw, f.crc_ok) for f in out] == [(req, True)]

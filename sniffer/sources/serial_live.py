@@ -46,10 +46,11 @@ line from 0.8-1.0 % to 1.1-1.6 % at 0.5 ms, and 0.1 ms brought both to 0.2-1.0 %
 
 A read can also come late because the reader stalled (its CPU or the interpreter taken for longer than
 the framer's read slack of 50 ms): then the time it takes is not when the bytes came, and a frame whose
-rest waited in the tty would look cut by silence.  So the reader says what it saw: each Chunk's
-`unseen_ns` reaches back to the last time it found the port empty (the framer counts silence only from
-there), and a Tick, which says "silent until now", goes out only if nothing is waiting once its time is
-taken.
+rest waited in the tty would look cut by silence.  So the reader says what it saw: a Chunk read after
+the port went unseen for longer than STALL_TICKS ticks has `unseen_ns`, reaching back to the last time
+it found the port empty (the framer counts silence only from there; normally it looks every tick, and
+the key would only grow the capture's /raw by 2 %), and a Tick, which says "silent until now", goes out
+only if nothing is waiting once its time is taken.
 """
 
 from __future__ import annotations
@@ -71,6 +72,7 @@ from .reader_priority import raise_reader
 from .serial_port import open_read_only
 
 READ_SIZE = 4096
+STALL_TICKS = 4  # the port unseen for longer than this many ticks: the reader stalled (a Chunk's unseen_ns)
 READER_SWITCH_S = 0.0001  # the longest the reader waits for the interpreter after a read is due
 PORT_POLL_S = 0.2  # how often a lost port is looked for, and a live one's path checked
 # Errors that mean "the adapter went away", not "this program is broken".
@@ -135,6 +137,7 @@ class SerialSource:
         self.port = port
         self.line = line
         self.tick_ns = max(1, int(tick_interval_s * 1e9))
+        self.stall_ns = STALL_TICKS * self.tick_ns
         self.reconnect = reconnect
         self.low_latency = low_latency
         self.sysfs = sysfs
@@ -207,7 +210,7 @@ class SerialSource:
     # -- reader thread -------------------------------------------------------------
 
     def _run(self) -> None:
-        clock, push, link, channel = self.hub.clock, self.hub.push, self.link, self.channel
+        clock, push, link, channel, stall = self.hub.clock, self.hub.push, self.link, self.channel, self.stall_ns
         try:
             last = time.monotonic_ns()  # time of the last event handed out
             # when the port was last seen empty: a time taken before a select or read that then found
@@ -237,7 +240,8 @@ class SerialSource:
                 with clock:  # one order of time for every port of the hub
                     now = time.monotonic_ns()  # right after the read: the read's timestamp
                     if data:
-                        push(Chunk(now, data, None, (), channel, link, now - empty))
+                        unseen = now - empty
+                        push(Chunk(now, data, None, (), channel, link, unseen if unseen > stall else None))
                         last = now
                         if len(data) < READ_SIZE:  # the read took all there was, after `looked`
                             empty = looked
