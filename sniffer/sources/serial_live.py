@@ -49,7 +49,7 @@ the framer's read slack of 50 ms): then the time it takes is not when the bytes 
 rest waited in the tty would look cut by silence.  So the reader says what it saw: a Chunk read after
 the port went unseen for longer than STALL_TICKS ticks has `unseen_ns`, reaching back to the last time
 it found the port empty (the framer counts silence only from there; normally it looks every tick, and
-the key would only grow the capture's /raw by 2 %), and a Tick, which says "silent until now", goes out
+the key on every read would grow a capture by 2 %), and a Tick, which says "silent until now", goes out
 only if nothing is waiting once its time is taken.
 """
 
