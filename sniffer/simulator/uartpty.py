@@ -118,6 +118,9 @@ class PtyLine:
                 return
 
     def close(self) -> None:
+        """Hang up, then remove the link: an unplugged adapter's tty hangs up before udev removes its node
+        (the other way round, a capture that checked the path in between said "port path vanished")."""
+        self.bus.close()
         if self._link is not None:
             try:
                 if os.path.islink(self._link):
@@ -125,4 +128,3 @@ class PtyLine:
             except OSError:
                 pass
             self._link = None
-        self.bus.close()
