@@ -171,7 +171,7 @@ class McapWriter:
         self.summary_bytes += len(self._chunk_indexes[-1])
         self._raw_bytes += len(raw)
         self._packed_bytes += len(data)
-        n = sum(len(v) for v in self._index.values()) // 2
+        n = self._open_messages
         if n:
             self._start = self._c_start if self._start is None else min(self._start, self._c_start)
             self._end = self._c_end if self._end is None else max(self._end, self._c_end)
