@@ -79,11 +79,10 @@ def capture_session(spec: CaptureSpec, source, label: str, *, inputs=(), status_
 def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None, status_label="") -> int:
     session = capture_session(spec, source, label, inputs=inputs, status_label=status_label)
     on_signals(session.stop)
-    ports = [p for plan in spec.links for p in plan.ports] or ([spec.port] if spec.port else [])
-    if spec.wait_port and ports:  # every port of every link (and both of a --tap), not the first only
+    if spec.wait_port and inputs:  # a live capture's inputs are its ports: of every link, both of a --tap
         from ..status import wait_for_ports
 
-        if not wait_for_ports(ports, session.stop, session.status_path(), status_label or label):
+        if not wait_for_ports(list(inputs), session.stop, session.status_path(), status_label or label):
             return report(session)  # stopped while waiting: nothing captured, nothing to say
     session.open()  # a missing port, a bad setting: one line, and nothing created
     links = getattr(session.pipeline, "resolved", None)
