@@ -103,6 +103,12 @@ def test_sigkill_leaves_closed_segments_whole_and_the_open_one_repairable(tmp_pa
         assert len(gaps) == 1 and gaps[0][0] >= len(frames) - 5 and "another capture starts" in gaps[0][1]
 
 
+def _plug(link) -> subprocess.Popen:
+    """A simulated line appears at `link` (an adapter plugged in), until SIGTERM (unplugged)."""
+    return subprocess.Popen(SNIFFER + ["simulate", "--pty", str(link), "--scenario", "default"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
 def _status(folder: Path) -> dict:
     return read_json(folder / STATUS_NAME) or {}
 
@@ -117,8 +123,7 @@ def test_wait_port_waits_for_every_port_of_a_multi_link_capture(tmp_path):
     sims = []
 
     def plug(link):
-        sims.append(subprocess.Popen(SNIFFER + ["simulate", "--pty", str(link), "--scenario", "default"],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True))
+        sims.append(_plug(link))
 
     try:
         st = wait_until("waiting for both", lambda: (read_json(status) or {}).get("port", {}).get("missing")
@@ -155,8 +160,7 @@ def test_wait_for_the_port_and_survive_an_unplug(tmp_path):
     sims = []
 
     def plug():
-        sims.append(subprocess.Popen(SNIFFER + ["simulate", "--pty", str(link), "--scenario", "default"],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True))
+        sims.append(_plug(link))
 
     try:
         st = wait_until("waiting for the port", lambda: _status(folder).get("state") == "waiting for port"
