@@ -17,6 +17,7 @@ and, with --kinds, where a TUI's harm comes from:
 
 * publish             headless, publishing on a socket nobody attaches to
 * attached            headless, publishing, a text viewer (`sniffer attach SOCK`) taking every frame
+* attached3           the same with three such viewers
 * attached-idle       the same viewer under SCHED_IDLE (`chrt -i 0`)
 * burst               headless, and a plain process at nice 19 busy 1.3 ms every 10 ms (a redraw's pattern)
 * burst-yield         the same process with the TUI's give-way: SIGALRM every 0.2 ms, handled by sched_yield
@@ -25,7 +26,8 @@ For each: responses, responses with no latency (their request came in the same r
 "line" (the feeder wrote request and answer less than LINE_GLUED_MS apart: the simulated line itself was
 late, the capture could not tell them apart) and "capture" (the capture's reads came late); responses timed
 before their request ended, and the read lateness (time of the read holding a frame's last byte minus the
-end of the feeder's write; both the host's monotonic clock) p50 / p90 / p99 / max.  Also the load average.
+end of the feeder's write; both the host's monotonic clock) p50 / p90 / p99 / max.  Also the load average,
+and the capture process's own CPU seconds (its threads; not its children, the publisher process among them).
 
 The feeder runs SCHED_FIFO where permitted (--feeder normal: not): a real PLC and drive are not delayed by
 this machine's load, a feeder process at the normal policy is, and a late feeder writes a request and its
@@ -120,20 +122,22 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy:
     sock = str(work / f"{kind}.sock")
     extra = {"tui": [], "tui-no-give-way": [], "publish": ["--headless", "--quiet", "--publish", sock],
              "attached": ["--headless", "--quiet", "--publish", sock],
+             "attached3": ["--headless", "--quiet", "--publish", sock],
              "attached-idle": ["--headless", "--quiet", "--publish", sock]}.get(kind, ["--headless", "--quiet"])
     term = Terminal(argv + extra)
-    viewer = None
+    viewers = []
     cpu0 = os.times()
     try:
         if not term.wait_for(port):
             raise SystemExit(f"{kind}: the capture did not start: {term.screen[-500:]!r}")
         if kind.startswith("attached"):  # a viewer without a UI: the frames as text, to /dev/null
             idle = ["chrt", "-i", "0"] if kind == "attached-idle" else []
-            viewer = subprocess.Popen([*idle, sys.executable, "-m", "sniffer", "attach", sock],
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            viewers = [subprocess.Popen([*idle, sys.executable, "-m", "sniffer", "attach", sock],
+                                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                       for _ in range(3 if kind == "attached3" else 1)]
         elif kind.startswith("burst"):  # no viewer: a plain process busy in bursts
-            viewer = subprocess.Popen([sys.executable, "-c", BURST, "yield" if kind == "burst-yield" else "plain",
-                                       str(seconds + 1.5)])
+            viewers = [subprocess.Popen([sys.executable, "-c", BURST, "yield" if kind == "burst-yield" else "plain",
+                                         str(seconds + 1.5)])]
         time.sleep(1.0)
         feeder.stdin.write("go\n")
         feeder.stdin.flush()
@@ -143,6 +147,7 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy:
             if line.startswith("done"):
                 written_back = int(line.split()[1])
                 break
+        capture_cpu = process_cpu_s(capture_pid(term.proc.pid, kind))
         if kind.startswith("tui"):
             term.type("q")
             term.wait_for("Stop the live capture", 10)
@@ -151,15 +156,33 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy:
             os.kill(term.proc.pid, signal.SIGINT)
     finally:
         rc = term.finish()
-        if viewer is not None:
-            viewer.wait(10)
+        for v in viewers:
+            v.wait(10)
         feeder.stdin.write("q\n")
         feeder.stdin.close()
         feeder.wait()
     cpu1 = os.times()
-    return {"kind": kind, "rc": rc, "written_back": written_back, "feeder": policy, "children_cpu_s":
+    return {"kind": kind, "rc": rc, "written_back": written_back, "feeder": policy, "capture_cpu_s": capture_cpu,
+            "children_cpu_s":
             (cpu1.children_user + cpu1.children_system) - (cpu0.children_user + cpu0.children_system),
             **figures(out, json.loads(times_path.read_text()))}
+
+
+def capture_pid(pid: int, kind: str) -> int:
+    """The capture process: the one started (headless), or the one the TUI started (its child running live)."""
+    if not kind.startswith("tui"):
+        return pid
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        for child in Path(f"/proc/{pid}/task/{tid}/children").read_text().split():
+            if b"--publish" in Path(f"/proc/{child}/cmdline").read_bytes():
+                return int(child)
+    raise SystemExit(f"{kind}: no capture process under {pid}")
+
+
+def process_cpu_s(pid: int) -> float:
+    """CPU seconds (user + system) of process `pid` itself, its threads included, its children not."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def _ready(f) -> bool:
@@ -210,7 +233,7 @@ def main() -> None:
     print(f"{a.scenario}, {a.seconds:.0f} s per run, {os.cpu_count()} CPUs; load average at start "
           f"{os.getloadavg()[0]:.2f}")
     print(f"{'run':<16} {'responses':>9} {'no latency':>14} {'line':>5} {'capture':>14} {'before req':>10} "
-          f"{'read late ms p50':>16} {'p90':>6} {'p99':>7} {'max':>7} {'load':>5}")
+          f"{'read late ms p50':>16} {'p90':>6} {'p99':>7} {'max':>7} {'load':>5} {'cap CPU s':>9}")
     if a.keep:
         Path(a.keep).mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
@@ -222,7 +245,7 @@ def main() -> None:
                 print(f"{kind:<16} {n:>9} {nolat:>6} ({100 * nolat / max(n, 1):4.1f} %) {line:>5} "
                       f"{nolat - line:>6} ({100 * (nolat - line) / max(n, 1):4.1f} %) "
                       f"{r['before_request']:>10} {r['late_p50']:>16.2f} {r['late_p90']:>6.2f} {r['late_p99']:>7.2f} "
-                      f"{r['late_max']:>7.1f} {os.getloadavg()[0]:>5.2f}"
+                      f"{r['late_max']:>7.1f} {os.getloadavg()[0]:>5.2f} {r['capture_cpu_s']:>9.2f}"
                       + ("" if r["feeder"] == "SCHED_FIFO" else f"  (feeder {r['feeder']})")
                       + ("" if r["rc"] == 0 and r["written_back"] == 0 else
                          f"  (exit {r['rc']}, {r['written_back']} bytes written back!)"), flush=True)

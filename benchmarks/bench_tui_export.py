@@ -8,7 +8,7 @@ pressed; while the worker thread writes, arrow keys are pressed and timed as in
 bench_tui.py (key posted -> the cursor moved).  Printed: the export's wall time,
 frames/s, the file size, key latency median / max during it.  Then the cost of
 marking reads with their frames (sniffer.reads.ReadMarker, on the capture
-thread of an in-process replay, on the publisher thread of `--publish`), per
+thread of an in-process replay, in the publisher process of `--publish`), per
 frame and per read, over the simulated captures.  Figures are printed, nothing
 is asserted.
 """

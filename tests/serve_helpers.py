@@ -22,6 +22,18 @@ def wait(cond, what: str, timeout: float = HANG_S) -> None:
         time.sleep(0.02)
 
 
+def published(sock: str) -> int:
+    """Frames the capture publishing at `sock` has given its viewers so far, as a viewer connecting now is told
+    (its publisher process may still be taking what the capture handed over: PublishSink.frames)."""
+    from sniffer.attach import Attachment
+
+    att = Attachment(sock)
+    try:
+        return att.earlier_frames + int(att.header["backlog_frames"])
+    finally:
+        att.close()
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

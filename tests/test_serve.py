@@ -20,7 +20,7 @@ import urllib.request
 
 import pytest
 from helpers import ListSink
-from serve_helpers import HANG_S, processes_with, start_serve
+from serve_helpers import HANG_S, processes_with, published, start_serve
 from serve_helpers import wait as _wait
 from tui_helpers import SIM, demo_viewer, replay_frames
 
@@ -100,7 +100,7 @@ def test_two_viewers_get_the_captures_frames(tmp_path):
 
         def play():
             bus.play(sent[:half], speed=4.0, stop_event=stop)
-            _wait(lambda: pub.frames > backlog + 5, "the first half to be published")
+            _wait(lambda: published(sock) > backlog + 5, "the first half to be published")
             viewers["late"] = Viewer(sock)
             viewers["late"].start()
             bus.play(sent[half:], speed=4.0, stop_event=stop)
@@ -431,7 +431,7 @@ def test_stalled_viewer_does_not_stall_the_capture(tmp_path):
     assert not feeder.is_alive()  # every event went through while the viewer read nothing
     n = len(collector.records)
     assert p.frames_out == n > 3000
-    _wait(lambda: pub.frames == n, "the publisher to serialise every frame")
+    _wait(lambda: published(sock) == n, "the publisher to take every frame")
     go.set()  # the viewer reads again: it gets what was queued, the skip, then the end
     p.finish()
     stalled.join(HANG_S)
@@ -441,3 +441,97 @@ def test_stalled_viewer_does_not_stall_the_capture(tmp_path):
     # what it got are the capture's own records, in the capture's order
     got = iter(collector.records)
     assert all(any(r == c for c in got) for r in stalled.records)
+
+
+# ---------------------------------------------------------------- (f) the publisher process
+def _replay_through(pub: PublishSink, collector: ListSink, name: str = "errors.mcap"):
+    info, events = open_replay(str(SIM / name))
+    p = Pipeline(info, LineSettings(info.baud, info.parity or "N", info.stopbits or 1),
+                 default_registry(info.devices), [collector, pub], protocol=info.protocol)
+    return p, list(events)
+
+
+def _sockets(pid: str) -> set[str]:
+    out = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            target = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:  # closed meanwhile
+            continue
+        if target.startswith("socket:"):
+            out.add(target)
+    return out
+
+
+def test_viewers_are_served_by_a_process_of_their_own(tmp_path):
+    """The capture's process only hands records over: the listening socket and the viewers' connections
+    are held by the publisher process."""
+    sock = str(tmp_path / "own.sock")
+    collector = ListSink()
+    pub = PublishSink(sock, label="own")
+    p, events = _replay_through(pub, collector)
+    viewer = Viewer(sock)
+    viewer.start()
+    child = str(pub._proc.pid)
+    theirs = _sockets(child)
+    assert len(theirs) >= 2 and not theirs & _sockets("self")  # listening + the viewer's: in the child only
+    for ev in events:
+        p.feed(ev)
+    p.finish()
+    viewer.join(HANG_S)
+    assert viewer.records == collector.records and len(collector.records) > 50
+    assert pub._proc.returncode == 0 and not os.path.exists(sock)
+
+
+def test_a_publisher_that_dies_costs_the_viewers_not_the_capture(tmp_path, capfd):
+    sock = str(tmp_path / "dies.sock")
+    collector = ListSink()
+    pub = PublishSink(sock, tick_s=0.01)
+    p, events = _replay_through(pub, collector)
+    half = len(events) // 2
+    for ev in events[:half]:
+        p.feed(ev)
+    pub._proc.kill()
+    pub._proc.wait()
+    for ev in events[half:]:
+        p.feed(ev)
+    _wait(lambda: pub._cut, "the flusher to meet the closed pipe")
+    p.finish()
+    err = capfd.readouterr().err
+    assert p.frames_out == len(collector.records) > 50  # every frame still went to the other sinks
+    said = [x for x in err.splitlines() if "publisher process ended" in x]
+    assert len(said) == 1 and "the capture goes on" in said[0], err
+    assert "Traceback" not in err
+    assert not os.path.exists(sock)
+
+
+def test_a_publisher_far_behind_is_cut_off_and_the_capture_never_waits(tmp_path, capfd):
+    """A publisher process that takes nothing (stopped) while the capture runs: the capture's sinks never
+    wait for it; past max_pending frames its viewers are cut off, with one line, and the end still reaches
+    them once it runs again."""
+    sc = get_scenario("default")
+    chunks = wire_chunks(list(simulate(sc, sc.line, 30.0, 2)))
+    sock = str(tmp_path / "behind.sock")
+    info = CaptureInfo(source="sim", baud=sc.line.baud, parity=sc.line.parity, stopbits=sc.line.stopbits)
+    collector = ListSink()
+    pub = PublishSink(sock, max_pending=300, linger_s=5.0)
+    p = Pipeline(info, sc.line, default_registry(sc.devices), [collector, pub], protocol=sc.protocol)
+    viewer = Viewer(sock)
+    viewer.start()
+    os.kill(pub._proc.pid, signal.SIGSTOP)
+    try:
+        feeder = threading.Thread(target=lambda: [p.feed(ev) for ev in chunks], daemon=True)
+        feeder.start()
+        feeder.join(HANG_S)
+        assert not feeder.is_alive() and p.frames_out > 1000
+    finally:
+        os.kill(pub._proc.pid, signal.SIGCONT)
+    p.finish()
+    viewer.join(HANG_S)
+    err = capfd.readouterr().err
+    said = [x for x in err.splitlines() if "frames behind" in x]
+    assert len(said) == 1 and "viewers get nothing more" in said[0], err
+    assert len(collector.records) == p.frames_out
+    assert viewer.att.ended is not None  # told the capture ended, not left hanging
+    assert len(viewer.records) < len(collector.records)
+    assert viewer.records == collector.records[:len(viewer.records)]

@@ -5,6 +5,7 @@ import asyncio
 import threading
 import time
 
+from serve_helpers import published
 from tui_helpers import SIM, demo_viewer, filled_sink, frames_from_reads, replay_frames, replay_reads
 
 from decoders.registry import default_registry
@@ -156,7 +157,7 @@ def test_an_attached_viewer_gets_the_reads_through_the_socket(tmp_path):
         for ev in events[:half]:
             p.feed(ev)
         deadline = time.monotonic() + HANG_S
-        while pub.frames < p.frames_out and time.monotonic() < deadline:  # published so far
+        while published(sock) < p.frames_out and time.monotonic() < deadline:  # published so far
             time.sleep(0.02)
         late["att"] = att = Attachment(sock)
         late["thread"] = t = threading.Thread(target=lambda: late.setdefault("reads", reads_of(att)), daemon=True)

@@ -42,7 +42,8 @@ waits for the CPU's running one).  With the reader real-time it never waits for 
 CPU (schedstat: 0 us), so what it still waits for is the interpreter: publishing
 to viewers (the publisher thread's 0.2-0.3 ms of work every 50 ms) took the stress
 line from 0.8-1.0 % to 1.1-1.6 % at 0.5 ms, and 0.1 ms brought both to 0.2-1.0 %
-(benchmarks/README.md, 2026-11-27), the capture's CPU unchanged.
+(benchmarks/README.md, 2026-11-27), the capture's CPU unchanged.  Viewers are now served by a
+process of its own (sinks/publish.py), so all the capture holds for them is a 16 us batch every 50 ms.
 
 A read can also come late because the reader stalled (its CPU or the interpreter taken for longer than
 the framer's read slack of 50 ms): then the time it takes is not when the bytes came, and a frame whose
