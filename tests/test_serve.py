@@ -331,6 +331,8 @@ def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
         viewers = processes_with(f"attach {sock} --tui")
         capture = processes_with(f"--publish {sock}")
         assert len(viewers) == 1 and len(capture) == 1
+        publisher = [pid for pid in processes_with("sniffer.publish_server") if _parent(pid) == capture[0]]
+        assert len(publisher) == 1  # the capture's viewers are served by a process of its own
         with open(f"/proc/{viewers[0]}/stat") as f:  # exec'd by the server's shell: no shell in between
             assert int(f.read().rpartition(")")[2].split()[1]) == proc.pid
         proc.kill()
@@ -338,11 +340,20 @@ def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
         stop.set()
         _wait(lambda: not processes_with(f"attach {sock} --tui"), "the viewer to end with the server")
         _wait(lambda: not processes_with(f"--publish {sock}"), "the capture to end with the server")
+        _wait(lambda: not os.path.exists(f"/proc/{publisher[0]}"), "the publisher to end with the capture")
     finally:
         if proc.poll() is None:
             proc.kill()
         for pid in processes_with(str(sock)):
             os.kill(pid, signal.SIGKILL)
+
+
+def _parent(pid: int) -> int | None:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return int(f.read().rpartition(")")[2].split()[1])
+    except OSError:
+        return None
 
 
 def test_serve_usage_errors(capsys):
