@@ -47,6 +47,9 @@ class Read:  # not frozen: 2.5 times quicker to make (the capture thread makes o
     last_ns: int | None = None  # per byte: its last byte's start; None: one time for the read
     channel: str = ""
     link: str = ""  # the link it was read on, in a capture of several links
+    # the live reader stalled before it (Chunk.unseen_ns): the port went unseen this long before t_ns, so the
+    # bytes came somewhere within it, and the gap since the previous read is not a measured silence
+    unseen_ns: int | None = None
 
     @property
     def per_byte(self) -> bool:
@@ -155,5 +158,5 @@ class ReadMarker:
                 st.current = s = starts.popleft()
                 marks.append((s[0] - loff, s[1]))
             out.append(Read(c.t_ns, off, c.data, tuple(marks), cont,
-                            c.byte_t_ns[-1] if c.byte_t_ns else None, c.channel, c.link))
+                            c.byte_t_ns[-1] if c.byte_t_ns else None, c.channel, c.link, c.unseen_ns))
         return out

@@ -15,12 +15,15 @@ in a settled frame, each read a compact array:
 
     [t, offset, "hex", cont, [pos, index, pos, index, ...]]   + [last, "channel"] when not per read / ""
                                                               + ["link"] in a capture of several links
+                                                              + [unseen] after the reader stalled
 
 `t`: ns since the capture's t0 (per read: when it returned; per byte: its
 first byte); `offset`: bytes of the capture before it; `cont`: 1 if its first
 byte continues a frame begun in an earlier read; then (position, frame index)
 of the frame byte 0 went to and of each frame that begins in it; `last`: ns
-since t0 of its last byte (per-byte sources only).  A late viewer gets the
+since t0 of its last byte (per-byte sources only); `unseen`: ns the port went
+unseen before the read, when the live reader stalled (Chunk.unseen_ns; the
+elements before it are then all there).  A late viewer gets the
 last RING_READS reads after the frame backlog; a viewer that falls behind
 loses reads before frames.  Viewers that do not know the line skip it (as any
 control line of an unknown kind), so it needed no new STREAM_VERSION.
@@ -83,10 +86,12 @@ def control(kind: str, **fields) -> bytes:
 def read_item(r: Read, t0_ns: int) -> bytes:
     """One read as the array of a reads line (see the module doc)."""
     item = [r.t_ns - t0_ns, r.offset, r.data.hex(), int(r.cont), [x for m in r.marks for x in m]]
-    if r.last_ns is not None or r.channel or r.link:
+    if r.last_ns is not None or r.channel or r.link or r.unseen_ns is not None:
         item += [None if r.last_ns is None else r.last_ns - t0_ns, r.channel]
-    if r.link:
+    if r.link or r.unseen_ns is not None:
         item.append(r.link)
+    if r.unseen_ns is not None:
+        item.append(r.unseen_ns)
     return dumps(item)
 
 
@@ -101,7 +106,9 @@ def parse_reads(msg: dict, t0_ns: int) -> list[Read]:
     for item in msg.get("r") or ():
         t, off, data, cont, flat = item[:5]
         last, channel, link = (item[5:8] + [None, "", ""][len(item[5:8]):]) if len(item) > 5 else (None, "", "")
+        unseen = item[8] if len(item) > 8 else None
         marks = tuple((int(flat[k]), int(flat[k + 1])) for k in range(0, len(flat) - 1, 2))
         out.append(Read(t0_ns + int(t), int(off), bytes.fromhex(data), marks, bool(cont),
-                        None if last is None else t0_ns + int(last), str(channel or ""), str(link or "")))
+                        None if last is None else t0_ns + int(last), str(channel or ""), str(link or ""),
+                        None if unseen is None else int(unseen)))
     return out

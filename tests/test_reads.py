@@ -101,3 +101,18 @@ def test_the_ring_keeps_the_last_reads_and_finds_a_frames_first_byte():
     index = ring.get(seq).marks[-1][1]
     nxt = ring.frames_between(seq, index, True)
     assert nxt == index + 1 and ring.frames_between(seq, nxt, False) == index
+
+
+def test_a_read_after_a_stall_says_so_on_its_way_to_every_viewer():
+    """A live reader that stalled (Chunk.unseen_ns) marks its read: through the marker, and through the
+    viewers' stream whatever else the read carries (per read or per byte, one link or several)."""
+    marker = ReadMarker()
+    reads = marker.chunk(Chunk(10_000, b"\x01\x03", unseen_ns=None))
+    reads += marker.chunk(Chunk(95_000_000, b"\x00\x00", unseen_ns=84_000_000))
+    reads += marker.frame(0, 4)
+    assert [r.unseen_ns for r in reads] == [None, 84_000_000]
+    t0 = 5_000
+    variants = [reads[1], Read(90_000_000, 4, b"\x02", ((0, 1),), True, None, "", "B", 30_000_000),
+                Read(90_000_000, 5, b"\x03", ((0, 2),), False, 91_000_000, "tx", "", 21_000_000)]
+    line = reads_line([read_item(r, t0) for r in [*variants, reads[0]]])
+    assert parse_reads(loads(line), t0) == [*variants, reads[0]]

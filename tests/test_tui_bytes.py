@@ -13,11 +13,13 @@ from sniffer.attach import Attachment, attach_feed
 from sniffer.events import Chunk
 from sniffer.line import LineSettings
 from sniffer.pipeline import Pipeline
+from sniffer.reads import Read
 from sniffer.session import CaptureSpec, Session
 from sniffer.sinks.publish import PublishSink
 from sniffer.sources.replay import FileSource, open_replay
 from sniffer.stream_format import CONTROL_PREFIX, parse_reads
 from sniffer.tui.app import SnifferApp
+from sniffer.tui.byteview import PREFIX, header
 from sniffer.tui.run import session_app
 from sniffer.tui.sink import TuiSink
 
@@ -202,6 +204,27 @@ def test_reads_a_viewer_never_got_are_said_lost_not_a_gap():
             lost = len(reads[10].data) + len(reads[11].data)
             assert f"{lost}B lost" in line_text(app, 10) and "ms" not in line_text(app, 10).split("B lost")[0]
             assert "ms" in line_text(app, 9) and "ms" in line_text(app, 11)
+    asyncio.run(go())
+
+
+def test_a_read_after_the_reader_stalled_is_marked_in_the_gap_columns():
+    async def go():
+        sink = filled_sink()
+        reads = sink.drain_reads()
+        r = reads[10]
+        reads[10] = Read(r.t_ns, r.offset, r.data, r.marks, r.cont, r.last_ns, r.channel, r.link, 60_000_000)
+        sink.reads(reads)
+        app = SnifferApp(sink, None, clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            app.poll()
+            await pilot.press("6")
+            chars = slice(27, 35)  # "   time(12) gap(10) chars(8) len(4)  bytes"
+            stalled, normal = line_text(app, 10), line_text(app, 11)
+            assert stalled[chars].strip() == "stall" and stalled[17:27].strip().endswith("ms")
+            assert normal[chars].strip().endswith("ch") and line_text(app, 9)[chars].strip().endswith("ch")
+            assert header(app.byte_view._layout[1]).index("bytes") == PREFIX  # the columns line up, stall or not
+            for seq in (9, 10, 11):
+                assert int(line_text(app, seq)[PREFIX + 1:PREFIX + 3], 16) == reads[seq].data[0]
     asyncio.run(go())
 
 

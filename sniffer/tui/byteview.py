@@ -10,7 +10,10 @@ highlighted.  The gap: per read (a USB adapter), from the previous read's
 return to this one's; per byte (a logic analyzer), the silence from the end
 of the previous read's last byte to this read's first.  Where reads never
 came (a viewer that fell behind has reads dropped) the gap says how many
-bytes are missing ("34B lost") instead of a time.
+bytes are missing ("34B lost") instead of a time.  A read the live reader made
+after it stalled (its CPU or the interpreter taken for more than 20 ms:
+Chunk.unseen_ns) says `stall` in the chars column: its bytes came at some time
+within the stall, so its gap is not a silence the line kept.
 
 Keys: ↑ ↓ PgUp PgDn Home End/G move between reads (End follows the newest);
 ← → the previous / next frame; Enter goes to the selected frame in the
@@ -41,10 +44,11 @@ from .model import ROLES, FrameStore
 from .readring import ReadRing
 from .vlist import MOVE_KEYS
 
-PREFIX = 41  # "   time  gap  chars  len  " before the bytes
+PREFIX = 42  # "   time  gap  chars  len  " before the bytes
 LINK_LOOKBACK = 64  # reads looked back for the last one of the same link (the gap column, several links)
 S_SELECTED = Style(color="black", bgcolor="yellow", bold=True)
 S_BEGIN = Style(color="bright_white", bold=True)
+S_STALL = Style(color="black", bgcolor="dark_orange", bold=True)
 
 
 def char_ns(info) -> int | None:
@@ -59,7 +63,7 @@ def char_ns(info) -> int | None:
 
 def header(bpl: int) -> str:
     """The column names above reads of `bpl` bytes a line."""
-    return (f"   {'time (s)':>12} {'gap':>10} {'chars':>7} {'len':>4}  "
+    return (f"   {'time (s)':>12} {'gap':>10} {'chars':>8} {'len':>4}  "
             f"{'bytes (│ a frame begins; colour: its frame)':<{3 * bpl + 2}}→ the frames they went to")
 
 
@@ -264,7 +268,12 @@ class ByteView(ScrollView, can_focus=True):
         text = Text(no_wrap=True, overflow="crop")
         if part == 0:
             gap, chars = self._gap(seq, r)
-            text.append(f"   {(r.t_ns - self.store.t0_ns) / 1e9:12.6f} {gap:>10} {chars:>7} {len(r.data):4d}  ")
+            text.append(f"   {(r.t_ns - self.store.t0_ns) / 1e9:12.6f} {gap:>10} ")
+            if r.unseen_ns is not None:  # the reader stalled: the gap is not the line's silence
+                text.append(f"{'stall':>8}", S_STALL)
+            else:
+                text.append(f"{chars:>8}")
+            text.append(f" {len(r.data):4d}  ")
         else:
             text.append(" " * PREFIX)
         begins = r.starts()
