@@ -151,7 +151,7 @@ class Attachment:
 def attach_feed(att: Attachment, pause: Callable[[], object] | None = None):
     """A feed(sink, stop) for tui.run.run_tui: the published frames into the TuiSink.  `pause()` is called
     between two lines (tui/giveway.py: a capture on this machine gets the CPU back in between)."""
-    from .tui.model import frame_from_record
+    from .records import frame_from_record
 
     def feed(sink, stop: threading.Event):
         sink.start(att.info)
@@ -205,7 +205,7 @@ def run_headless(att: Attachment, fmt: str) -> int:
         text = None
     else:
         from .sinks.text import TextSink
-        from .tui.model import frame_from_record
+        from .records import frame_from_record
 
         out = sys.stdout
         text = TextSink(out)

@@ -25,8 +25,9 @@ from __future__ import annotations
 
 import msgspec
 
+from .codes import Annotation
 from .frame import Frame
-from .protocols import NAMES, TABLES
+from .protocols import NAMES, TABLES, of_frame
 
 
 class _Record(msgspec.Struct, gc=False, omit_defaults=True):
@@ -190,3 +191,23 @@ FRAME_SCHEMA = {
         "model", "points", "annotations", "latency_ms", "pair",
     ],
 }
+
+
+def frame_from_record(rec: dict, t0_ns: int = 0) -> Frame:
+    """A Frame back from its JSON record (the inverse of records.frame_record, as far as it goes)."""
+    raw = bytes.fromhex(rec["raw"])
+    f = Frame(rec.get("index", 0), t0_ns + round(rec["t"] * 1e9), t0_ns + round(rec.get("t_end", rec["t"]) * 1e9),
+              raw, rec["protocol"], rec.get("unit"), rec.get("function"), crc_ok=rec.get("crc_ok"),
+              crc_expected=None if rec.get("crc_expected") is None else int(rec["crc_expected"], 16),
+              time_source=rec.get("time_source", "byte"), noise_reason=rec.get("noise_reason"),
+              channel=rec.get("channel", ""))
+    f.link = rec.get("link", "")
+    f.role = rec.get("role", f.role)
+    proto = of_frame(f.protocol)
+    f.adu = proto.adu_of(raw) if proto is not None else b""  # what the request's fields name (reg:)
+    f.pair, f.latency_ms, f.model = rec.get("pair"), rec.get("latency_ms"), rec.get("model")
+    f.points, f.exception, f.summary = rec.get("points") or [], rec.get("exception"), rec.get("summary", "")
+    f.writes = rec.get("writes") or []  # records written before `writes` existed: the watch stays empty
+    f.annotations = [Annotation(a["code"], a["severity"], a["detail"], a["span"][0], a["span"][1])
+                     for a in rec.get("annotations") or []]
+    return f

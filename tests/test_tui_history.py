@@ -9,7 +9,8 @@ from tui_helpers import replay_frames
 
 from sniffer.tui.history import BUDGET, CAP, CHANGE, GAP, Series, cap_for
 from sniffer.tui.model import FrameStore
-from sniffer.tui.plotmodel import PlotSet, TimeWindow, Trace, column_ranges, nice_step, render, tick_text
+from sniffer.tui.plotaxis import nice_step, tick_text
+from sniffer.tui.plotmodel import PlotSet, TimeWindow, Trace, column_ranges, render
 from sniffer.tui.timebase import TimeBase
 
 FREQ_OUT, FREQ_CMD, CURRENT = 0x2524, 0x2502, 0x2527  # A510: output frequency, frequency command, current

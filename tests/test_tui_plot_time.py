@@ -13,7 +13,7 @@ from tui_helpers import replay_frames
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.changelog import ChangeLog
 from sniffer.tui.plot import PlotView
-from sniffer.tui.plotmodel import time_ticks
+from sniffer.tui.plotaxis import time_ticks
 from sniffer.tui.sink import TuiSink
 from sniffer.tui.timebase import REF, REL, WALL, TimeBase
 

@@ -29,7 +29,7 @@ from typing import NamedTuple
 import orjson
 
 from ..frameflags import FAULT_CODES, frame_flags
-from ..tui.model import UnitStats
+from ..unitstats import UnitStats
 from .ha import discovery, health_discovery, slug
 from .options import MqttSpec
 

@@ -19,53 +19,29 @@ text, `peek` for the frames), so it is answered from the columns first.
 from __future__ import annotations
 
 import bisect
-import statistics
 from array import array
-from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from ..codes import Annotation
 from ..filterlang import Query, matches_text, register_cell, registers_of
 from ..frame import Frame, unit_key
 from ..frameflags import (  # the store's flag column (re-exported for the views)
     F_CRC, F_ERROR, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN, frame_flags,
 )
-from ..protocols import of_frame
 from .filters import filter_query
 from .framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, RowIndex
 from .history import CAP
 from .shadow import RegisterBook, RegisterValue
+from ..records import frame_from_record
+from ..unitstats import UnitStats
 from .timebase import TimeBase
 from .transactions import Transactions
 
 ROLES = ("request", "response", "unknown", "noise")
 ROLE_CODE = {r: i for i, r in enumerate(ROLES)}
 _NO_ROLE = 255  # a role outside ROLES (none today)
-_LAT_KEEP = 2048  # latencies kept per unit for the median
-_RATE_WINDOW_NS = 10_000_000_000  # poll rate over the last 10 s of capture time
 
 __all__ = ["F_CRC", "F_ERROR", "F_EXC", "F_FAULT", "F_NOISE", "F_PROBLEM", "F_TIMEOUT", "F_WARN", "Filter",
            "FrameStore", "RegisterValue", "RowIndex", "UnitStats", "frame_flags", "frame_from_record"]
-
-
-def frame_from_record(rec: dict, t0_ns: int = 0) -> Frame:
-    """A Frame back from its JSON record (the inverse of records.frame_record, as far as it goes)."""
-    raw = bytes.fromhex(rec["raw"])
-    f = Frame(rec.get("index", 0), t0_ns + round(rec["t"] * 1e9), t0_ns + round(rec.get("t_end", rec["t"]) * 1e9),
-              raw, rec["protocol"], rec.get("unit"), rec.get("function"), crc_ok=rec.get("crc_ok"),
-              crc_expected=None if rec.get("crc_expected") is None else int(rec["crc_expected"], 16),
-              time_source=rec.get("time_source", "byte"), noise_reason=rec.get("noise_reason"),
-              channel=rec.get("channel", ""))
-    f.link = rec.get("link", "")
-    f.role = rec.get("role", f.role)
-    proto = of_frame(f.protocol)
-    f.adu = proto.adu_of(raw) if proto is not None else b""  # what the request's fields name (reg:)
-    f.pair, f.latency_ms, f.model = rec.get("pair"), rec.get("latency_ms"), rec.get("model")
-    f.points, f.exception, f.summary = rec.get("points") or [], rec.get("exception"), rec.get("summary", "")
-    f.writes = rec.get("writes") or []  # records written before `writes` existed: the watch stays empty
-    f.annotations = [Annotation(a["code"], a["severity"], a["detail"], a["span"][0], a["span"][1])
-                     for a in rec.get("annotations") or []]
-    return f
 
 
 @dataclass
@@ -98,66 +74,6 @@ class Filter:
         if self.text:
             parts.append(f"/{self.text}")
         return " ".join(parts) or "none"
-
-
-@dataclass
-class UnitStats:
-    unit: object  # frame.unit_key: the number, or (link, number) in a capture of several links
-    model: str | None = None
-    requests: int = 0
-    responses: int = 0
-    crc_errors: int = 0
-    exceptions: int = 0
-    timeouts: int = 0
-    faults: int = 0  # answers reporting a fault or alarm (model.fault / model.alarm)
-    good: int = 0  # CRC-good frames: a unit seen only in damaged frames may be a ghost (a corrupted address)
-    lat_min: float | None = None
-    lat_max: float | None = None
-    latencies: deque = field(default_factory=lambda: deque(maxlen=_LAT_KEEP))
-    recent_requests: deque = field(default_factory=deque)  # t_ns of requests in the rate window
-    last_seen_ns: int = 0
-
-    @property
-    def lat_median(self) -> float | None:
-        return statistics.median(self.latencies) if self.latencies else None
-
-    @property
-    def poll_rate(self) -> float:
-        """Requests per second over the last window of capture time."""
-        r = self.recent_requests
-        if len(r) < 2:
-            return 0.0
-        span = (r[-1] - r[0]) / 1e9
-        return (len(r) - 1) / span if span > 0 else 0.0
-
-    def count(self, f: Frame, fl: int) -> None:
-        """Count frame `f` of this unit (`fl`: its frame_flags)."""
-        if f.model:
-            self.model = f.model
-        self.last_seen_ns = f.t_ns
-        if f.role == "request":
-            self.requests += 1
-            r = self.recent_requests
-            r.append(f.t_ns)
-            while r and f.t_ns - r[0] > _RATE_WINDOW_NS:
-                r.popleft()
-        elif f.role == "response":
-            self.responses += 1
-        if f.crc_ok is False:
-            self.crc_errors += 1
-        elif f.crc_ok:
-            self.good += 1
-        if fl & F_EXC:
-            self.exceptions += 1
-        if fl & F_TIMEOUT:
-            self.timeouts += 1
-        if fl & F_FAULT:
-            self.faults += 1
-        lat = f.latency_ms
-        if lat is not None and f.role == "response":
-            self.latencies.append(lat)
-            self.lat_min = lat if self.lat_min is None else min(self.lat_min, lat)
-            self.lat_max = lat if self.lat_max is None else max(self.lat_max, lat)
 
 
 class FrameStore:

@@ -9,7 +9,7 @@ the value carried in from the left, so drawing costs the same for 100 samples or
 Units: the series are grouped by engineering unit in the order they were added.
 The first unit has the left y axis, the second the right one; a series of any
 further unit is scaled to the plot's height on its own and the legend gives its
-real minimum and maximum.  The time axis is capture-relative seconds.
+real minimum and maximum.  The axes' steps and labels are plotaxis.py's.
 """
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ import bisect
 import math
 from dataclasses import dataclass
 
-from .timebase import REL, WALL, TimeBase
+from .plotaxis import nice_step, tick_text, ticks, time_ticks
+from .timebase import TimeBase
 
 PALETTE = ("bright_cyan", "yellow", "bright_magenta", "bright_green", "dark_orange", "bright_blue", "bright_red",
            "white")
@@ -128,30 +129,6 @@ class TimeWindow:
         lo, hi = self.range(lo_all, hi_all)
         end = min(max(hi + fraction * self.span, lo_all + self.span), hi_all)
         self.end = None if end >= hi_all else end
-
-
-def nice_step(span: float, count: int) -> float:
-    """A 1-2-5 step giving about `count` intervals over `span`."""
-    raw = span / max(count, 1)
-    if raw <= 0 or not math.isfinite(raw):
-        return 1.0
-    mag = 10.0 ** math.floor(math.log10(raw))
-    return next(m * mag for m in (1, 2, 5, 10) if m * mag >= raw * 0.999)
-
-
-def ticks(lo: float, hi: float, step: float) -> list[float]:
-    first = math.ceil(lo / step - 1e-9) * step
-    n = int((hi - first) / step + 1e-9) + 1
-    return [first + i * step for i in range(max(n, 0))]
-
-
-def tick_text(x: float, step: float, width: int = 8) -> str:
-    """A tick label: as many decimals as the step needs, exponent form when it would not fit."""
-    decimals = max(0, -math.floor(math.log10(step) + 1e-9)) if step > 0 else 0
-    s = f"{x:.{decimals}f}"
-    if s.startswith("-") and float(s) == 0:
-        s = s[1:]
-    return s if len(s) <= width else f"{x:.2g}"
 
 
 def column_ranges(series, lo: float, hi: float, columns: int) -> list[tuple[float, float] | None]:
@@ -348,42 +325,6 @@ def _y_labels(ax: Axis | None, rows: int) -> dict[int, str]:
         r = round((ax.hi - v) * (py - 1) / (ax.hi - ax.lo)) // 4
         out.setdefault(r, tick_text(v, ax.step))
     return out
-
-
-WALL_STEPS_S = (1, 2, 5, 10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 10800, 21600, 43200, 86400)
-
-
-def time_ticks(base: TimeBase, lo: float, hi: float, count: int) -> tuple[list[tuple[float, str]], str]:
-    """([(capture time ns, label)], unit after the labels) of about `count` ticks over [lo, hi), in the time
-    base the frame list shows: seconds since the start, seconds from the reference frame (signed), or the
-    wall clock (ticks on whole seconds, minutes, hours of the viewer's zone)."""
-    if base.mode == WALL:  # in integer ns: Unix times in ns are beyond a float's exactness
-        lo_ns, hi_ns = int(lo), int(hi)
-        raw = (hi - lo) / 1e9 / max(count, 1)
-        step = (nice_step((hi - lo) / 1e9, count) if raw < 1 else
-                next((s for s in WALL_STEPS_S if s >= raw * 0.999), math.ceil(raw / 86400) * 86400))
-        step_ns = max(round(step * 1e9), 1)
-        local = base.wall_ns(0) + int(base.wall_datetime(lo_ns).utcoffset().total_seconds()) * 1_000_000_000
-        out = []
-        t = -(-(lo_ns + local) // step_ns) * step_ns - local  # whole local steps: minutes, hours in the zone
-        while t <= hi_ns:
-            when = base.wall_datetime(t)
-            label = (f"{when:%H:%M:%S}" if step >= 1 else f"{when:%M:%S}.{when.microsecond // 1000:03d}"
-                     if step >= 0.001 else f"{when:%S}.{when.microsecond:06d}")
-            out.append((t, label))
-            t += step_ns
-        return out, time_unit(base, lo_ns)
-    origin = base.origin_ns()
-    step = nice_step((hi - lo) / 1e9, count)
-    seconds = ticks((lo - origin) / 1e9, (hi - origin) / 1e9, step)
-    return [(origin + s * 1e9, tick_text(s, step, 12)) for s in seconds], time_unit(base, int(lo))
-
-
-def time_unit(base: TimeBase, t_ns: int) -> str:
-    """What a time of the base is counted in: seconds, seconds from the reference, the wall clock's zone."""
-    if base.mode == WALL:
-        return base.wall_datetime(t_ns).tzname() or ""
-    return "s" if base.mode == REL else f"s from #{base.ref_index}"
 
 
 def _time_axis(image: PlotImage, base: TimeBase, right: bool) -> list[list[tuple[str, str]]]:
