@@ -168,6 +168,20 @@ def test_a_reader_refused_a_realtime_priority_records_all_the_same(tmp_path):
     assert reader == {"policy": "normal", "why": "Operation not permitted"}, reader
 
 
+def test_the_realtime_priority_can_be_declined(tmp_path):
+    """SNIFFER_REALTIME=off: the reader stays a normal thread even where the system would grant it (root
+    here), says so in the capture's metadata, and the TUI's capture process inherits the setting."""
+    sc, frames = _feed("a510", 3.0)
+    for name, tui in (("declined-headless", False), ("declined-tui", True)):
+        out, written_back, _, holders, policies = _run_live(tmp_path, name, frames, sc.line, tui=tui,
+                                                            prefix=("env", "SNIFFER_REALTIME=off"))
+        assert written_back == 0
+        assert [r["raw"] for r in read_frames(str(out))] == [f.raw.hex() for f in frames]
+        assert holders and all(p[0] == SCHED_OTHER for h in holders for p in policies[h].values()), policies
+        reader = open_mcap(str(out))[0].extra["reader"]
+        assert reader == {"policy": "normal", "why": "declined (SNIFFER_REALTIME=off)"}, reader
+
+
 def test_tui_on_a_missing_port_says_one_line(tmp_path):
     """The capture process fails before the UI starts: its one line on the terminal, its exit status."""
     term = Terminal([sys.executable, "-m", "sniffer", "live", str(tmp_path / "ttyNONE"), "--baud", "9600",

@@ -13,7 +13,9 @@ The lowest real-time priority (1) is enough: it only has to come before normal w
 work per wake is small (a read, a timestamp, a queue push); Linux's real-time throttling still keeps
 5 % of every second for normal work should it ever spin.  Granted to root, to a process with
 CAP_SYS_NICE, or where RLIMIT_RTPRIO allows it (`ulimit -r`, /etc/security/limits.conf); elsewhere the
-reader stays a normal thread and the capture's metadata says why (`extra.reader`).
+reader stays a normal thread and the capture's metadata says why (`extra.reader`).  SNIFFER_REALTIME=off
+in the environment declines it (root included, whom `ulimit -r 0` does not bind); the capture processes the
+TUI and `serve` start inherit it.
 """
 
 from __future__ import annotations
@@ -21,11 +23,14 @@ from __future__ import annotations
 import os
 
 READER_RT_PRIORITY = 1  # SCHED_FIFO's lowest: ahead of every normal thread, behind the kernel's own
+DECLINE_ENV = "SNIFFER_REALTIME"  # "off" (or 0, no, false): the reader stays a normal thread
 
 
 def raise_reader(tid: int) -> dict:
     """Thread `tid` (a reader's native id) to SCHED_FIFO at READER_RT_PRIORITY; what it got, for the
     capture's metadata."""
+    if os.environ.get(DECLINE_ENV, "").strip().lower() in ("off", "0", "no", "false"):
+        return {"policy": "normal", "why": f"declined ({DECLINE_ENV}=off)"}
     if not hasattr(os, "sched_setscheduler"):  # not Linux
         return {"policy": "normal", "why": "no sched_setscheduler on this system"}
     try:
