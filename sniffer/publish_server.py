@@ -5,7 +5,7 @@ which hands it the listening socket (bound, not listening yet) and a pipe.
 The capture sends, over that pipe, length-prefixed pickles (pipe_message):
 
     ("start", info dict, label, capture path, t0_ns)   then it listens
-    ("batch", frames, reads, dropped)   frames: (index, size, link, noise, JSON record); reads: Chunk's fields
+    ("batch", frames, reads)            frames: (index, size, link, noise, JSON record); reads: Chunk's fields
     ("end",)                            the end of the capture (EOF says the same)
 
 Why a process: the asyncio loop, the read marking and the socket I/O held the
@@ -37,6 +37,8 @@ from .reads import RING_READS, ReadMarker
 from .stream_format import STREAM_VERSION, control, read_item, reads_line
 
 _LEN = struct.Struct("<I")
+# below the capture (it only loses what viewers see when it is behind), above the viewers (nice 19)
+PUBLISHER_NICE = 10
 
 
 def pipe_message(msg: tuple) -> bytes:
@@ -136,7 +138,6 @@ class PublishServer:
         self._t0 = 0
         self._new: deque[tuple] = deque()  # the pipe thread appends, the loop pops
         self._chunks: deque[Chunk] = deque()
-        self._dropped: deque[int] = deque()  # frames the capture could not hand over (this process was behind)
         self._marker = ReadMarker()
         self._backlog: deque[bytes] = deque(maxlen=max(backlog, 0))
         self._read_backlog: deque[bytes] = deque(maxlen=RING_READS)  # read_item()s
@@ -164,11 +165,9 @@ class PublishServer:
         try:
             for msg in self._messages:
                 if msg[0] == "batch":
-                    _, frames, reads, dropped = msg
+                    _, frames, reads = msg
                     self._chunks.extend(Chunk(*r) for r in reads)
                     self._new.extend(frames)
-                    if dropped:
-                        self._dropped.append(dropped)
                 elif msg[0] == "end":
                     break
         finally:
@@ -222,10 +221,6 @@ class PublishServer:
 
     def _distribute(self, end: bool = False) -> None:
         chunks, frames = _take(self._chunks), _take(self._new)  # what is there now; the pipe thread keeps appending
-        for n in _take(self._dropped):
-            self.frames += n
-            for v in self._viewers:
-                v.skipped += n
         reads = self._marked_reads(chunks, frames, end)
         if frames:
             lines = []
@@ -329,9 +324,6 @@ def main(argv: list[str]) -> int:
         server._unlink()
     return 0
 
-
-# below the capture (it only loses what viewers see when it is behind), above the viewers (nice 19)
-PUBLISHER_NICE = 10
 
 if __name__ == "__main__":
     sys.exit(main(sys.argv[1:]))

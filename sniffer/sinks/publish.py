@@ -119,6 +119,8 @@ class PublishSink(Sink):
                 stdout=subprocess.DEVNULL, env=_child_env())
         except OSError as e:
             os.close(self._pipe)
+            with contextlib.suppress(AttributeError, OSError):
+                os.close(self._ready)
             self._proc = None
             self._unlink()
             raise PublishError(f"{self.address}: cannot start the publisher process: {e.strerror or e}") from None
@@ -133,7 +135,6 @@ class PublishSink(Sink):
         self.info: CaptureInfo | None = None
         self.bytes_in = 0  # capture thread
         self.frames = 0  # flusher thread: frames handed to the publisher so far
-        self._dropped = 0  # frames left out since the last batch (cut off)
         self._cut = False  # the publisher is gone or too far behind: frames are no longer kept for it
         self._closing = threading.Event()
         self._thread: threading.Thread | None = None
@@ -205,14 +206,13 @@ class PublishSink(Sink):
 
     def _flush(self) -> None:
         chunks, frames = _take(self._chunks), _take(self._new)
-        if self._cut or not (chunks or frames or self._dropped):
+        if self._cut or not (chunks or frames):
             return
         t0 = self._t0
         batch = [(f.index, len(f.raw), f.link, f.protocol == "noise", frame_json(f, t0)) for f in frames]
         self.frames += len(batch)
         reads = [(c.t_ns, c.data, c.byte_t_ns, c.flags, c.channel, c.link, c.unseen_ns) for c in chunks]
-        dropped, self._dropped = self._dropped, 0
-        self._send(pipe_message(("batch", batch, reads, dropped)))
+        self._send(pipe_message(("batch", batch, reads)))
 
     def _send(self, data: bytes) -> None:
         try:
