@@ -136,7 +136,7 @@ def test_tui_capture_runs_in_its_own_process_and_records_as_headless(tmp_path):
             assert sum(p == (SCHED_OTHER, 19) for p in viewer.values()) >= 3, viewer  # the App's, the feed's
             # the capture at this test's own priority, but for its reader: real-time where allowed
             capture = sorted(p for h in holders for p in policies[h].values())
-            rt = [(SCHED_FIFO, 0)] if _realtime_allowed() else []
+            rt = [(SCHED_FIFO, own)] if _realtime_allowed() else []  # its nice: the process's, as inherited
             assert capture == [(SCHED_OTHER, own)] * (len(capture) - len(rt)) + rt, policies
             assert b"frames" in term.screen and f"{len(frames)} frames".encode() in term.screen  # the summary
         else:
