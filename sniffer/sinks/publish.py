@@ -23,7 +23,7 @@ from collections import deque
 
 from ..events import CaptureInfo, Chunk
 from ..frame import Frame
-from ..publish_server import pipe_message
+from ..publish_server import pipe_message, read_fields, take_now
 from ..records import frame_json
 from ..stderr import say
 from ..stream_format import Address, PublishError, parse_address
@@ -64,12 +64,6 @@ def _bind(addr: Address) -> socket.socket:
         s.close()
         raise PublishError(f"{path}: cannot create socket: {e.strerror or e}") from None
     return s
-
-
-def _take(queue: deque) -> list:
-    """Pop what a deque holds now (another thread may go on appending)."""
-    popleft = queue.popleft
-    return [popleft() for _ in range(len(queue))]
 
 
 def _pipe_size(fd: int, size: int) -> None:
@@ -132,8 +126,6 @@ class PublishSink(Sink):
         self._new: deque[Frame] = deque()  # capture thread appends, flusher thread pops
         self._chunks: deque[Chunk] = deque()  # likewise: the reads (the publisher marks them with their frames)
         self._t0 = 0
-        self.info: CaptureInfo | None = None
-        self.bytes_in = 0  # capture thread
         self.frames = 0  # flusher thread: frames handed to the publisher so far
         self._cut = False  # the publisher is gone or too far behind: frames are no longer kept for it
         self._closing = threading.Event()
@@ -142,7 +134,6 @@ class PublishSink(Sink):
 
     # ---------------------------------------------------------------- Sink protocol (capture thread)
     def start(self, info: CaptureInfo) -> None:
-        self.info = info
         self._t0 = info.t0_ns
         self._send(pipe_message(("start", info.to_dict(), self.label, self.capture_path, info.t0_ns)))
         ready, _, _ = select.select([self._ready], [], [], READY_S)
@@ -154,10 +145,8 @@ class PublishSink(Sink):
         self._thread.start()
 
     def raw(self, event) -> None:
-        if type(event) is Chunk:
-            self.bytes_in += len(event.data)
-            if not self._cut:
-                self._chunks.append(event)
+        if type(event) is Chunk and not self._cut:
+            self._chunks.append(event)
 
     def frame(self, frame: Frame) -> None:
         if self._cut:
@@ -205,13 +194,13 @@ class PublishSink(Sink):
         self._close_pipe()
 
     def _flush(self) -> None:
-        chunks, frames = _take(self._chunks), _take(self._new)
+        chunks, frames = take_now(self._chunks), take_now(self._new)
         if self._cut or not (chunks or frames):
             return
         t0 = self._t0
         batch = [(f.index, len(f.raw), f.link, f.protocol == "noise", frame_json(f, t0)) for f in frames]
         self.frames += len(batch)
-        reads = [(c.t_ns, c.data, c.byte_t_ns, c.flags, c.channel, c.link, c.unseen_ns) for c in chunks]
+        reads = [read_fields(c) for c in chunks]
         self._send(pipe_message(("batch", batch, reads)))
 
     def _send(self, data: bytes) -> None:
