@@ -320,7 +320,6 @@ def main(argv: list[str]) -> int:
                            status_interval_s=status_s, linger_s=linger_s)
     try:
         if not server.wait_start():  # the capture never started (its port did not open): nobody to serve
-            server._unlink()
             return 0
         sock.listen(100)
         os.write(ready_fd, b"r")
