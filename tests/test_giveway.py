@@ -120,18 +120,39 @@ def test_gives_way_while_the_apps_loop_works_not_while_it_waits():
     got = {"waiting": set()}
 
     async def main():
+        loop = asyncio.get_running_loop()
+        inner = loop._selector.select
+        waits = {"n": 0, "in": False}  # selector calls begun; this thread inside the selector's own select
+
+        def select(timeout=None):  # under watch_loop's wrapper: its disarm comes before, its arm after
+            waits["n"] += 1
+            waits["in"] = True
+            try:
+                return inner(timeout)
+            finally:
+                waits["in"] = False
+
+        loop._selector.select = select
         with GiveWay(lambda: feed.n) as gw:
-            gw.watch_loop(asyncio.get_running_loop())
+            gw.watch_loop(loop)
             deadline = time.monotonic() + HANG_S
             while not gw.line_busy:
                 assert time.monotonic() < deadline
                 await asyncio.sleep(0.05)
             seen, stop = got["waiting"], threading.Event()
-            watcher = threading.Thread(target=lambda: [seen.add(_timer()) for _ in iter(lambda: stop.wait(0.01),
-                                                                                          True)])
-            await asyncio.sleep(0.05)  # a callback's end: the loop goes to wait
+
+            def watch() -> None:  # the timer read only while the loop surely sat in its selector throughout
+                while not stop.wait(0.01):
+                    n, inside = waits["n"], waits["in"]
+                    timer = _timer()
+                    if inside and waits["in"] and waits["n"] == n:
+                        seen.add(timer)
+
+            watcher = threading.Thread(target=watch)
             watcher.start()
-            await asyncio.sleep(0.5)  # the loop waits in its selector the whole time
+            while len(seen) < 1 or waits["n"] < 3:  # the loop waits in its selector most of the time
+                assert time.monotonic() < deadline, "the loop never seen waiting"
+                await asyncio.sleep(0.2)
             stop.set()
             watcher.join(HANG_S)
             _work(0.3)  # a callback that works (a redraw), right after the loop woke
