@@ -6,12 +6,16 @@ A simulated line (PtyBus) is played from a feeder process of its own onto a pty;
 other end, exactly as it reads an adapter, in these configurations (each `--repeat` times, interleaved so
 the machine's load falls on all alike):
 
-* headless            `sniffer live PORT --headless --out F.mcap`
+* headless            `sniffer live PORT --headless --out F.mcap` (the port read by a process of its own:
+                      sources/reader_process.py)
 * tui                 `sniffer live PORT --out F.mcap` on a terminal (a pty): the TUI attached to the
                       capture process it started, at nice 19, giving way (sniffer/tui/giveway.py)
-* tui-no-give-way     the peer: the same TUI without giving way (as before it, nice 19 kept)
-* headless-5ms        the capture as before issue 11, its reader waiting up to CPython's default switch
-                      interval for the interpreter (READER_SWITCH_S patched back to 5 ms)
+* headless-thread     the peer: headless, the port read by a thread of the capture's process
+                      (SNIFFER_READER=thread), as before the reader process
+* tui-thread          the same for the TUI's capture
+* tui-no-give-way     the TUI without giving way (as before it, nice 19 kept)
+* headless-5ms        the capture as before issue 11, its reader thread waiting up to CPython's default
+                      switch interval for the interpreter (READER_SWITCH_S patched back to 5 ms)
 
 and, with --kinds, where a TUI's harm comes from:
 
@@ -21,13 +25,15 @@ and, with --kinds, where a TUI's harm comes from:
 * attached-idle       the same viewer under SCHED_IDLE (`chrt -i 0`)
 * burst               headless, and a plain process at nice 19 busy 1.3 ms every 10 ms (a redraw's pattern)
 * burst-yield         the same process with the TUI's give-way: SIGALRM every 0.2 ms, handled by sched_yield
+* burst28-yield       the same, busy 2.8 ms every 10 ms (as much CPU as the TUI under live stress)
+* tui-no-output       the TUI drawing as ever, what it draws thrown away instead of written to its terminal
 
 For each: responses, responses with no latency (their request came in the same read: glued), split into
 "line" (the feeder wrote request and answer less than LINE_GLUED_MS apart: the simulated line itself was
 late, the capture could not tell them apart) and "capture" (the capture's reads came late); responses timed
 before their request ended, and the read lateness (time of the read holding a frame's last byte minus the
 end of the feeder's write; both the host's monotonic clock) p50 / p90 / p99 / max.  Also the load average,
-and the capture process's own CPU seconds (its threads; not its children, the publisher process among them).
+and the capture's CPU seconds (its process's threads and its reader process; not the publisher process).
 
 The feeder runs SCHED_FIFO where permitted (--feeder normal: not): a real PLC and drive are not delayed by
 this machine's load, a feeder process at the normal policy is, and a late feeder writes a request and its
@@ -92,6 +98,11 @@ OLD_SWITCH = ("import sys, sniffer.sources.serial_live as s; s.READER_SWITCH_S =
 LINE_GLUED_MS = 0.1  # a request and its answer written closer than this: the feeder's own lateness glued them
 NO_GIVE_WAY = ("import sys, sniffer.tui.giveway as g; g._LIBC = g._SCHED_YIELD = None; "
                "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
+# the peer: the port read by a thread of the capture's own process, as before sources/reader_process.py
+THREAD_READER = ["env", "SNIFFER_READER=thread", sys.executable, "-m", "sniffer"]
+# the TUI drawing as ever, its output thrown away once drawn (not written to the terminal)
+NO_OUTPUT = ("import sys, textual.drivers.linux_driver as d; d.LinuxDriver.write = lambda self, data: None; "
+             "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 # a process busy 1.3 ms every 10 ms at nice 19 (13 % of a core, in bursts like a redraw's); with "yield", its
 # SIGALRM every 0.2 ms handled by sched_yield, as the TUI's give-way does (sniffer/tui/giveway.py)
 BURST = r"""
@@ -103,9 +114,9 @@ if sys.argv[1] == "yield":
 end = time.monotonic() + float(sys.argv[2])
 while time.monotonic() < end:
     t = time.monotonic()
-    while time.monotonic() - t < 0.0013:
+    while time.monotonic() - t < float(sys.argv[3]):
         pass
-    time.sleep(0.0087)
+    time.sleep(0.01 - float(sys.argv[3]))
 """
 
 
@@ -116,28 +127,34 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy:
     feeder = subprocess.Popen([sys.executable, "-c", FEEDER, scenario, str(seconds), str(times_path), feeder_policy],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     port, baud, parity, stop, policy = feeder.stdout.readline().split()
-    head = {"headless-5ms": [sys.executable, "-c", OLD_SWITCH],
-            "tui-no-give-way": [sys.executable, "-c", NO_GIVE_WAY]}.get(kind, [sys.executable, "-m", "sniffer"])
+    head = {"headless-5ms": ["env", "SNIFFER_READER=thread", sys.executable, "-c", OLD_SWITCH],
+            "tui-no-give-way": [sys.executable, "-c", NO_GIVE_WAY],
+            "tui-no-output": [sys.executable, "-c", NO_OUTPUT],
+            }.get(kind, THREAD_READER if kind.endswith("-thread") else [sys.executable, "-m", "sniffer"])
+    kind_as = kind.removesuffix("-thread")  # the same run, its port read by a thread of the capture
     argv = [*head, "live", port, "--baud", baud, "--parity", parity, "--stopbits", stop, "--out", str(out)]
     sock = str(work / f"{kind}.sock")
-    extra = {"tui": [], "tui-no-give-way": [], "publish": ["--headless", "--quiet", "--publish", sock],
+    extra = {"tui": [], "tui-no-give-way": [], "tui-no-output": [],
+             "publish": ["--headless", "--quiet", "--publish", sock],
              "attached": ["--headless", "--quiet", "--publish", sock],
              "attached3": ["--headless", "--quiet", "--publish", sock],
-             "attached-idle": ["--headless", "--quiet", "--publish", sock]}.get(kind, ["--headless", "--quiet"])
+             "attached-idle": ["--headless", "--quiet", "--publish", sock]}.get(kind_as, ["--headless", "--quiet"])
     term = Terminal(argv + extra)
     viewers = []
     cpu0 = os.times()
     try:
-        if not term.wait_for(port):
+        if kind_as == "tui-no-output":  # nothing on its screen to wait for
+            time.sleep(5.0)
+        elif not term.wait_for(port):
             raise SystemExit(f"{kind}: the capture did not start: {term.screen[-500:]!r}")
-        if kind.startswith("attached"):  # a viewer without a UI: the frames as text, to /dev/null
-            idle = ["chrt", "-i", "0"] if kind == "attached-idle" else []
+        if kind_as.startswith("attached"):  # a viewer without a UI: the frames as text, to /dev/null
+            idle = ["chrt", "-i", "0"] if kind_as == "attached-idle" else []
             viewers = [subprocess.Popen([*idle, sys.executable, "-m", "sniffer", "attach", sock],
                                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-                       for _ in range(3 if kind == "attached3" else 1)]
-        elif kind.startswith("burst"):  # no viewer: a plain process busy in bursts
-            viewers = [subprocess.Popen([sys.executable, "-c", BURST, "yield" if kind == "burst-yield" else "plain",
-                                         str(seconds + 1.5)])]
+                       for _ in range(3 if kind_as == "attached3" else 1)]
+        elif kind_as.startswith("burst"):  # no viewer: a plain process busy in bursts
+            viewers = [subprocess.Popen([sys.executable, "-c", BURST, "plain" if kind_as == "burst" else "yield",
+                                         str(seconds + 1.5), "0.0028" if kind_as == "burst28-yield" else "0.0013"])]
         time.sleep(1.0)
         feeder.stdin.write("go\n")
         feeder.stdin.flush()
@@ -147,8 +164,9 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy:
             if line.startswith("done"):
                 written_back = int(line.split()[1])
                 break
-        capture_cpu = process_cpu_s(capture_pid(term.proc.pid, kind))
-        if kind.startswith("tui"):
+        cpid = capture_pid(term.proc.pid, kind)
+        capture_cpu = process_cpu_s(cpid) + sum(process_cpu_s(p) for p in reader_pids(cpid))
+        if kind_as.startswith("tui"):
             term.type("q")
             term.wait_for("Stop the live capture", 10)
             term.type("y")
@@ -177,6 +195,16 @@ def capture_pid(pid: int, kind: str) -> int:
             if b"--publish" in Path(f"/proc/{child}/cmdline").read_bytes():
                 return int(child)
     raise SystemExit(f"{kind}: no capture process under {pid}")
+
+
+def reader_pids(pid: int) -> list[int]:
+    """The capture's port reader process (sources/reader_process.py), if it has one."""
+    out = []
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        for child in Path(f"/proc/{pid}/task/{tid}/children").read_text().split():
+            if b"reader_process" in Path(f"/proc/{child}/cmdline").read_bytes():
+                out.append(int(child))
+    return out
 
 
 def process_cpu_s(pid: int) -> float:

@@ -2,7 +2,7 @@
 
 Run as `python -m sniffer.publish_server` by PublishSink (sinks/publish.py),
 which hands it the listening socket (bound, not listening yet) and a pipe.
-The capture sends, over that pipe, length-prefixed pickles (pipe_message):
+The capture sends, over that pipe, length-prefixed pickles (childpipe.pipe_message):
 
     ("start", info dict, label, capture path, t0_ns)   then it listens
     ("batch", frames, reads)            frames: (index, size, link, noise, JSON record); reads: Chunk's fields
@@ -22,51 +22,21 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
-import pickle
 import signal
 import socket
-import struct
 import sys
 import threading
 from collections import deque
 
 from . import __version__
+from .childpipe import read_messages
 from .events import Chunk
 from .outputs import readable
 from .reads import RING_READS, ReadMarker
 from .stream_format import STREAM_VERSION, control, read_item, reads_line
 
-_LEN = struct.Struct("<I")
 # below the capture (it only loses what viewers see when it is behind), above the viewers (nice 19)
 PUBLISHER_NICE = 10
-
-
-def pipe_message(msg: tuple) -> bytes:
-    """One message of the capture's pipe: its length, then its pickle."""
-    data = pickle.dumps(msg, protocol=pickle.HIGHEST_PROTOCOL)
-    return _LEN.pack(len(data)) + data
-
-
-def _read_exact(fd: int, n: int) -> bytes | None:
-    out = bytearray()
-    while len(out) < n:
-        got = os.read(fd, n - len(out))
-        if not got:
-            return None
-        out += got
-    return bytes(out)
-
-
-def read_messages(fd: int):
-    """The messages of the capture's pipe, until EOF (or a message cut by it)."""
-    while True:
-        head = _read_exact(fd, _LEN.size)
-        if head is None:
-            return
-        body = _read_exact(fd, _LEN.unpack(head)[0])
-        if body is None:
-            return
-        yield pickle.loads(body)
 
 
 def take_now(queue: deque) -> list:

@@ -76,3 +76,13 @@ def children(pid: int) -> list[int]:
             except (OSError, ValueError, IndexError):  # gone meanwhile
                 pass
     return out
+
+
+def descendants(pid: int) -> list[int]:
+    """Every process under `pid`: its children, theirs, and so on (a TUI's capture child, its reader process)."""
+    out, todo = [], [pid]
+    while todo:
+        kids = children(todo.pop())
+        out += kids
+        todo += kids
+    return out

@@ -16,7 +16,7 @@ import sys
 import threading
 import time
 
-from terminal import Terminal, children
+from terminal import Terminal, children, descendants
 
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
@@ -69,17 +69,21 @@ def _run_live(tmp_path, name: str, frames, line, *, tui: bool, prefix: tuple = (
             # the port is open once the capture publishes (TUI: the App shows its label) or says so
             assert term.wait_for(bus.port), term.screen[-2000:]
             deadline = time.monotonic() + HANG_S
-            while not any(_fds_on(p, bus.port) for p in [term.proc.pid, *children(term.proc.pid)]):
+            while not any(_fds_on(p, bus.port) for p in [term.proc.pid, *descendants(term.proc.pid)]):
                 assert time.monotonic() < deadline, "the port was never opened"
                 time.sleep(0.05)
-            holders = [p for p in [term.proc.pid, *children(term.proc.pid)] if _fds_on(p, bus.port)]
+            tree = [term.proc.pid, *descendants(term.proc.pid)]
+            holders = [p for p in tree if _fds_on(p, bus.port)]
+            # the capture's process: the command itself (headless), or the TUI's child that runs live
+            capture = term.proc.pid if not tui else next(p for p in children(term.proc.pid) if p not in holders)
+            readers = children(capture)
             stats = {}
             player = threading.Thread(target=lambda: stats.update(s=bus.play(frames)))
             player.start()
             while player.is_alive():
                 term.read()
             time.sleep(0.5)  # the last answer reaches the capture
-            policies = {p: _policies(p) for p in [term.proc.pid, *children(term.proc.pid)]}
+            policies = {p: _policies(p) for p in tree}
             if tui:
                 term.type("q")
                 assert term.wait_for("Stop the live capture"), "quitting a live capture did not ask"
@@ -91,6 +95,9 @@ def _run_live(tmp_path, name: str, frames, line, *, tui: bool, prefix: tuple = (
         bus.drain()
         assert rc == 0, term.screen[-3000:]
         assert stats["s"].frames == len(frames)
+        # the port is read by a process of the capture's own (sources/reader_process.py), never by the capture's
+        # process, whose decoding thread would hold the interpreter the reader waits for
+        assert capture not in holders and holders and all(h in readers for h in holders), (capture, holders)
         return out, bus.bytes_received_from_sniffer, term, holders, policies
 
 
@@ -140,7 +147,7 @@ def test_tui_capture_runs_in_its_own_process_and_records_as_headless(tmp_path):
             assert capture == [(SCHED_OTHER, own)] * (len(capture) - len(rt)) + rt, policies
             assert b"frames" in term.screen and f"{len(frames)} frames".encode() in term.screen  # the summary
         else:
-            assert holders == [term.proc.pid]
+            assert len(holders) == 1 and term.proc.pid not in holders
         reader = open_mcap(str(out))[0].extra["reader"]  # what the reader got, in the capture's metadata
         if _realtime_allowed():
             assert reader == {"policy": "SCHED_FIFO", "priority": READER_RT_PRIORITY}, reader

@@ -18,7 +18,7 @@ from .common import (
 
 
 def cmd_live(spec: CaptureSpec, args) -> int:
-    from ..sources.serial_live import SerialSource
+    from ..sources.reader_process import live_source
 
     if not spec.port:
         raise UsageError("live: give a PORT (several for several links), --tap PORT_A PORT_B, "
@@ -27,8 +27,6 @@ def cmd_live(spec: CaptureSpec, args) -> int:
         name = default_capture_name()
         spec = spec.with_(out=name[:-5] if spec.rotate is not None else name)
     if spec.links:  # several links, or a tapped one: each resolved now, before a port opens
-        from ..sources.serial_links import LinksSource
-
         plans = [(plan, spec.resolve_link(plan.name, need_baud=False).line) for plan in spec.links]
         label = " ".join(plan.name for plan in spec.links)
         ports = [p for plan in spec.links for p in plan.ports]
@@ -36,7 +34,7 @@ def cmd_live(spec: CaptureSpec, args) -> int:
             from ..tui.run import run_capture_tui
 
             return run_capture_tui(spec, "live", label)
-        return _capture(spec, LinksSource(plans), label, inputs=ports,
+        return _capture(spec, live_source("links", plans), label, inputs=ports,
                         what=lambda: f"capturing {len(plans)} links: " + "; ".join(
                             f"{p.name} ({' + '.join(p.ports)}{', tapped' if p.tap else ''})" for p, _ in plans))
     line = spec.resolve(None, need_baud=False).line  # flags > bus file > defaults: the port's settings
@@ -44,7 +42,7 @@ def cmd_live(spec: CaptureSpec, args) -> int:
         from ..tui.run import run_capture_tui
 
         return run_capture_tui(spec, "live", spec.port)
-    source = SerialSource(spec.port, line)
+    source = live_source("serial", spec.port, line)
     return _capture(spec, source, spec.port, inputs=[spec.port], status_label=f"live {spec.port}")
 
 

@@ -23,7 +23,8 @@ from collections import deque
 
 from ..events import CaptureInfo, Chunk
 from ..frame import Frame
-from ..publish_server import pipe_message, read_fields, take_now
+from ..childpipe import child_env, pipe_message, pipe_size
+from ..publish_server import read_fields, take_now
 from ..records import frame_json
 from ..stderr import say
 from ..stream_format import Address, PublishError, parse_address
@@ -66,14 +67,6 @@ def _bind(addr: Address) -> socket.socket:
     return s
 
 
-def _pipe_size(fd: int, size: int) -> None:
-    """Grow a pipe (Linux: F_SETPIPE_SZ) so a publisher that is a moment behind does not block the flusher."""
-    import fcntl
-
-    with contextlib.suppress(AttributeError, OSError):
-        fcntl.fcntl(fd, fcntl.F_SETPIPE_SZ, size)
-
-
 class PublishSink(Sink):
     """A pipeline sink that serves the capture's frames to viewers on a socket, from a process of its own.
 
@@ -105,12 +98,12 @@ class PublishSink(Sink):
         ready_w = -1
         try:
             self._ready, ready_w = os.pipe()
-            _pipe_size(self._pipe, PIPE_BYTES)
+            pipe_size(self._pipe, PIPE_BYTES)
             argv = [sys.executable, "-m", "sniffer.publish_server", str(sock.fileno()), str(pipe_r), str(ready_w),
                     str(max(backlog, 0)), str(viewer_queue), str(tick_s), str(status_interval_s), str(linger_s)]
             self._proc: subprocess.Popen | None = subprocess.Popen(
                 argv, pass_fds=(sock.fileno(), pipe_r, ready_w), stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL, env=_child_env())
+                stdout=subprocess.DEVNULL, env=child_env())
         except OSError as e:
             os.close(self._pipe)
             with contextlib.suppress(AttributeError, OSError):
@@ -230,11 +223,3 @@ class PublishSink(Sink):
             with contextlib.suppress(OSError):
                 if stat.S_ISSOCK(os.lstat(self.address.path).st_mode):
                     os.unlink(self.address.path)
-
-
-def _child_env() -> dict:
-    """The environment of the publisher process: this sniffer package first on its path."""
-    env = dict(os.environ)
-    here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    env["PYTHONPATH"] = here + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    return env

@@ -3,7 +3,8 @@
 Each port is a `SerialSource` (opened O_RDONLY, raw, nothing ever written:
 serial_live.py) with its own reader thread; all of them hand their events to
 one `Hub`, stamped under one lock, so `events()` is one stream in time order
-on one clock.  Every event carries its link's name; a tapped link's two ports
+on one clock.  `sniffer live` runs them all in one reader process
+(reader_process.py), whose pipe keeps that order.  Every event carries its link's name; a tapped link's two ports
 carry their wire too (Chunk.channel: "master" for the master's pair, "slaves"
 for the slaves' pair).
 
@@ -25,10 +26,10 @@ from .serial_live import Hub, SerialSource
 class LinksSource:
     """The ports of several links (`plans`, each with the LineSettings it runs at) as one source."""
 
-    def __init__(self, plans: list[tuple[LinkPlan, LineSettings]], **serial_kw) -> None:
+    def __init__(self, plans: list[tuple[LinkPlan, LineSettings]], hub: Hub | None = None, **serial_kw) -> None:
         self.plans = plans
         self.serial_kw = serial_kw
-        self.hub = Hub()
+        self.hub = hub or Hub()
         self.readers: list[SerialSource] = []
         self.info: CaptureInfo | None = None
 

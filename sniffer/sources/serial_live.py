@@ -44,6 +44,8 @@ to viewers (the publisher thread's 0.2-0.3 ms of work every 50 ms) took the stre
 line from 0.8-1.0 % to 1.1-1.6 % at 0.5 ms, and 0.1 ms brought both to 0.2-1.0 %
 (benchmarks/README.md, 2026-11-27), the capture's CPU unchanged.  Viewers are now served by a
 process of its own (sinks/publish.py), so all the capture holds for them is a 16 us batch every 50 ms.
+And `sniffer live` runs its readers in a process of their own (reader_process.py), where no decoding
+thread shares their interpreter: one preempted while holding it can no longer keep a read waiting.
 
 A read can also come late because the reader stalled (its CPU or the interpreter taken for longer than
 the framer's read slack of 50 ms): then the time it takes is not when the bytes came, and a frame whose
@@ -113,6 +115,10 @@ class Hub:
             else:
                 q.append(item)
             self._cond.notify()
+
+    def lost(self, reader: "SerialSource") -> None:
+        """`reader`'s port went away (its lost_since_ns set) or came back (None): nothing here (a reader
+        process tells its capture, reader_process.py)."""
 
     def events(self, readers: int) -> Iterator[Chunk | Tick | Gap]:
         """Every queued event until `readers` readers have ended; a reader's error is raised."""
@@ -271,6 +277,7 @@ class SerialSource:
             raise PortLostError(f"{self.port}: port lost ({reason})")
         self.lost_since_ns = time.monotonic_ns()
         self.lost_reason = reason
+        self.hub.lost(self)
 
     def _wait_for_port(self) -> None:
         """Poll for the port to come back; one Gap covers the whole outage."""
@@ -285,6 +292,7 @@ class SerialSource:
                 request_low_latency(fd, self.port, self.sysfs)
             self._fd = fd
             self.lost_since_ns = None
+            self.hub.lost(self)
             with self.hub.clock:
                 self.hub.push(Gap(lost, back, f"port lost ({reason}), reopened", self.link))
             return
