@@ -68,6 +68,11 @@ from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
 from sniffer.simulator.scenario import get_scenario
 sc = get_scenario(sys.argv[1])
+if sys.argv[5]:  # --turnaround-ms: every unit answers that long after its request
+    import dataclasses
+    char_ms = 1000 * (1 + sc.line.databits + (sc.line.parity != "N") + sc.line.stopbits) / sc.line.baud
+    lo, hi = (float(x) / char_ms for x in sys.argv[5].split(","))
+    sc = dataclasses.replace(sc, units=tuple(dataclasses.replace(u, turnaround_chars=(lo, hi)) for u in sc.units))
 frames = list(simulate(sc, sc.line, float(sys.argv[2]), 3))
 policy = "normal"
 if sys.argv[4] == "fifo":  # the line is hardware: nothing on this machine delays a real PLC or drive
@@ -98,6 +103,9 @@ OLD_SWITCH = ("import sys, sniffer.sources.serial_live as s; s.READER_SWITCH_S =
 LINE_GLUED_MS = 0.1  # a request and its answer written closer than this: the feeder's own lateness glued them
 NO_GIVE_WAY = ("import sys, sniffer.tui.giveway as g; g._LIBC = g._SCHED_YIELD = None; "
                "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
+# the TUI giving way every 0.1 ms, not every GIVE_WAY_S (0.2 ms)
+FAST_GIVE_WAY = ("import sys, sniffer.tui.giveway as g; g.GiveWay.__init__.__defaults__ = (0.0001,); "
+                 "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 # the peer: the port read by a thread of the capture's own process, as before sources/reader_process.py
 THREAD_READER = ["env", "SNIFFER_READER=thread", sys.executable, "-m", "sniffer"]
 # the TUI drawing as ever, its output thrown away once drawn (not written to the terminal)
@@ -120,21 +128,24 @@ while time.monotonic() < end:
 """
 
 
-def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy: str = "fifo") -> dict:
+def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy: str = "fifo",
+            turnaround_ms: str = "") -> dict:
     times_path, out = work / f"{kind}.times.json", work / f"{kind}.mcap"
     for p in (times_path, out):
         p.unlink(missing_ok=True)
-    feeder = subprocess.Popen([sys.executable, "-c", FEEDER, scenario, str(seconds), str(times_path), feeder_policy],
+    feeder = subprocess.Popen([sys.executable, "-c", FEEDER, scenario, str(seconds), str(times_path), feeder_policy,
+                               turnaround_ms],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     port, baud, parity, stop, policy = feeder.stdout.readline().split()
     head = {"headless-5ms": ["env", "SNIFFER_READER=thread", sys.executable, "-c", OLD_SWITCH],
             "tui-no-give-way": [sys.executable, "-c", NO_GIVE_WAY],
             "tui-no-output": [sys.executable, "-c", NO_OUTPUT],
+            "tui-100us": [sys.executable, "-c", FAST_GIVE_WAY],
             }.get(kind, THREAD_READER if kind.endswith("-thread") else [sys.executable, "-m", "sniffer"])
     kind_as = kind.removesuffix("-thread")  # the same run, its port read by a thread of the capture
     argv = [*head, "live", port, "--baud", baud, "--parity", parity, "--stopbits", stop, "--out", str(out)]
     sock = str(work / f"{kind}.sock")
-    extra = {"tui": [], "tui-no-give-way": [], "tui-no-output": [],
+    extra = {"tui": [], "tui-no-give-way": [], "tui-no-output": [], "tui-100us": [],
              "publish": ["--headless", "--quiet", "--publish", sock],
              "attached": ["--headless", "--quiet", "--publish", sock],
              "attached3": ["--headless", "--quiet", "--publish", sock],
@@ -257,8 +268,11 @@ def main() -> None:
     ap.add_argument("--feeder", choices=("fifo", "normal"), default="fifo",
                     help="the feeder's scheduling: SCHED_FIFO (default, where permitted: the line is hardware, "
                     "this machine's load does not delay it) or normal (it competes with the sniffer)")
+    ap.add_argument("--turnaround-ms", default="", metavar="LO,HI",
+                    help="every unit answers LO to HI ms after its request (the stress line: 0.17-0.26 ms)")
     a = ap.parse_args()
-    print(f"{a.scenario}, {a.seconds:.0f} s per run, {os.cpu_count()} CPUs; load average at start "
+    print(f"{a.scenario}{', answers ' + a.turnaround_ms + ' ms after' if a.turnaround_ms else ''}, "
+          f"{a.seconds:.0f} s per run, {os.cpu_count()} CPUs; load average at start "
           f"{os.getloadavg()[0]:.2f}")
     print(f"{'run':<16} {'responses':>9} {'no latency':>14} {'line':>5} {'capture':>14} {'before req':>10} "
           f"{'read late ms p50':>16} {'p90':>6} {'p99':>7} {'max':>7} {'load':>5} {'cap CPU s':>9}")
@@ -268,7 +282,7 @@ def main() -> None:
         d = a.keep or tmp
         for _ in range(a.repeat):
             for kind in a.kinds.split(","):
-                r = run_one(kind, a.scenario, a.seconds, Path(d), a.feeder)
+                r = run_one(kind, a.scenario, a.seconds, Path(d), a.feeder, a.turnaround_ms)
                 n, nolat, line = r["responses"], r["no_latency"], r["line_glued"]
                 print(f"{kind:<16} {n:>9} {nolat:>6} ({100 * nolat / max(n, 1):4.1f} %) {line:>5} "
                       f"{nolat - line:>6} ({100 * (nolat - line) / max(n, 1):4.1f} %) "
