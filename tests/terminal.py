@@ -86,3 +86,14 @@ def descendants(pid: int) -> list[int]:
         out += kids
         todo += kids
     return out
+
+
+def fds_on(pid: int, path: str) -> int:
+    """How many descriptors process `pid` holds on `path` (who holds a port)."""
+    n = 0
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            n += os.readlink(f"/proc/{pid}/fd/{fd}") == path
+        except OSError:  # closed meanwhile
+            pass
+    return n

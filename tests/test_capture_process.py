@@ -16,7 +16,7 @@ import sys
 import threading
 import time
 
-from terminal import Terminal, children, descendants
+from terminal import Terminal, children, descendants, fds_on
 
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
@@ -25,16 +25,6 @@ from sniffer.sources.mcapsrc import open_mcap, read_frames
 from sniffer.sources.reader_priority import READER_RT_PRIORITY
 
 HANG_S = 60.0
-
-
-def _fds_on(pid: int, path: str) -> int:
-    n = 0
-    for fd in os.listdir(f"/proc/{pid}/fd"):
-        try:
-            n += os.readlink(f"/proc/{pid}/fd/{fd}") == path
-        except OSError:
-            pass
-    return n
 
 
 def _timing(path) -> tuple[int, int, int]:
@@ -69,11 +59,11 @@ def _run_live(tmp_path, name: str, frames, line, *, tui: bool, prefix: tuple = (
             # the port is open once the capture publishes (TUI: the App shows its label) or says so
             assert term.wait_for(bus.port), term.screen[-2000:]
             deadline = time.monotonic() + HANG_S
-            while not any(_fds_on(p, bus.port) for p in [term.proc.pid, *descendants(term.proc.pid)]):
+            while not any(fds_on(p, bus.port) for p in [term.proc.pid, *descendants(term.proc.pid)]):
                 assert time.monotonic() < deadline, "the port was never opened"
                 time.sleep(0.05)
             tree = [term.proc.pid, *descendants(term.proc.pid)]
-            holders = [p for p in tree if _fds_on(p, bus.port)]
+            holders = [p for p in tree if fds_on(p, bus.port)]
             # the capture's process: the command itself (headless), or the TUI's child that runs live
             capture = term.proc.pid if not tui else next(p for p in children(term.proc.pid) if p not in holders)
             readers = children(capture)

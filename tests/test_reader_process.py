@@ -15,7 +15,7 @@ import threading
 import time
 
 import pytest
-from terminal import Terminal, children
+from terminal import Terminal, children, fds_on
 
 from sniffer.childpipe import read_messages
 from sniffer.events import Chunk, Gap, Tick
@@ -30,17 +30,6 @@ from sniffer.sources.serial_live import SerialSource
 
 LINE = LineSettings(19200, "E", 1)
 HANG_S = 60.0
-
-
-def _holds(pid: int, path: str) -> int:
-    """How many descriptors process `pid` holds on `path`."""
-    n = 0
-    for fd in os.listdir(f"/proc/{pid}/fd"):
-        try:
-            n += os.readlink(f"/proc/{pid}/fd/{fd}") == path
-        except OSError:
-            pass
-    return n
 
 
 def _gone(pid: int) -> bool:
@@ -72,8 +61,8 @@ def test_the_port_is_read_by_a_process_of_its_own_and_nothing_is_written(tmp_pat
         src = ReaderProcess("serial", bus.port, LINE, low_latency=False, reconnect=False)
         info = src.open()
         child = src._proc.pid
-        assert _holds(child, bus.port)
-        assert _holds(os.getpid(), bus.port) == 1  # the bus's own end of the line; the capture's process opened none
+        assert fds_on(child, bus.port)
+        assert fds_on(os.getpid(), bus.port) == 1  # the bus's own end of the line; the capture's process opened none
         assert info.port == bus.port and info.baud == LINE.baud and info.time_source == "read"
         assert "reader" in info.extra  # the reader's priority, as the child's thread got it
         got: list = []
@@ -157,7 +146,7 @@ def _live(port: str, out) -> Terminal:
 def _reader_of(term: Terminal, port: str) -> int:
     deadline = time.monotonic() + HANG_S
     while True:
-        found = [p for p in children(term.proc.pid) if _holds(p, port)]
+        found = [p for p in children(term.proc.pid) if fds_on(p, port)]
         if found:
             return found[0]
         assert time.monotonic() < deadline, term.screen[-2000:]
@@ -172,7 +161,7 @@ def test_ctrl_c_on_the_terminal_stops_the_capture_not_its_reader(tmp_path):
     with PtyBus() as bus:
         term = _live(bus.port, out)
         reader = _reader_of(term, bus.port)
-        assert not _holds(term.proc.pid, bus.port)
+        assert not fds_on(term.proc.pid, bus.port)
         bus.play(sent, speed=4.0)
         time.sleep(0.3)
         os.killpg(term.proc.pid, signal.SIGINT)  # as the terminal's Ctrl-C does
@@ -230,4 +219,4 @@ def test_several_links_one_port_missing_fails_on_that_port(tmp_path):
         with pytest.raises(CaptureError) as e:
             src.open()
         assert missing in str(e.value) and src._proc.returncode is not None
-        assert _holds(os.getpid(), bus.port) == 1
+        assert fds_on(os.getpid(), bus.port) == 1
