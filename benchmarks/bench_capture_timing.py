@@ -9,7 +9,7 @@ the machine's load falls on all alike):
 * headless            `sniffer live PORT --headless --out F.mcap` (the port read by a process of its own:
                       sources/reader_process.py)
 * tui                 `sniffer live PORT --out F.mcap` on a terminal (a pty): the TUI attached to the
-                      capture process it started, at nice 19, giving way (sniffer/tui/giveway.py)
+                      capture process it started, at nice 19, giving way (sniffer/giveway.py)
 * headless-thread     the peer: headless, the port read by a thread of the capture's process
                       (SNIFFER_READER=thread), as before the reader process
 * tui-thread          the same for the TUI's capture
@@ -27,6 +27,8 @@ and, with --kinds, where a TUI's harm comes from:
 * burst-yield         the same process with the TUI's give-way: SIGALRM every 0.2 ms, handled by sched_yield
 * burst28-yield       the same, busy 2.8 ms every 10 ms (as much CPU as the TUI under live stress)
 * tui-no-output       the TUI drawing as ever, what it draws thrown away instead of written to its terminal
+* KIND-peer           any kind, run by the sniffer of the tree given with --peer DIR (a worktree of an older
+                      commit): a change measured against its before in the same rounds
 
 For each: responses, responses with no latency (their request came in the same read: glued), split into
 "line" (the feeder wrote request and answer less than LINE_GLUED_MS apart: the simulated line itself was
@@ -101,10 +103,10 @@ with Timed() as bus:
 OLD_SWITCH = ("import sys, sniffer.sources.serial_live as s; s.READER_SWITCH_S = 0.005; "
               "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 LINE_GLUED_MS = 0.1  # a request and its answer written closer than this: the feeder's own lateness glued them
-NO_GIVE_WAY = ("import sys, sniffer.tui.giveway as g; g._LIBC = g._SCHED_YIELD = None; "
+NO_GIVE_WAY = ("import sys, sniffer.giveway as g; g._LIBC = g._SCHED_YIELD = None; "
                "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 # the TUI giving way every 0.1 ms, not every GIVE_WAY_S (0.2 ms)
-FAST_GIVE_WAY = ("import sys, sniffer.tui.giveway as g; g.GiveWay.__init__.__defaults__ = (0.0001,); "
+FAST_GIVE_WAY = ("import sys, sniffer.giveway as g; g.GiveWay.__init__.__defaults__ = (0.0001,); "
                  "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 # the peer: the port read by a thread of the capture's own process, as before sources/reader_process.py
 THREAD_READER = ["env", "SNIFFER_READER=thread", sys.executable, "-m", "sniffer"]
@@ -112,12 +114,12 @@ THREAD_READER = ["env", "SNIFFER_READER=thread", sys.executable, "-m", "sniffer"
 NO_OUTPUT = ("import sys, textual.drivers.linux_driver as d; d.LinuxDriver.write = lambda self, data: None; "
              "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 # a process busy 1.3 ms every 10 ms at nice 19 (13 % of a core, in bursts like a redraw's); with "yield", its
-# SIGALRM every 0.2 ms handled by sched_yield, as the TUI's give-way does (sniffer/tui/giveway.py)
+# SIGALRM every 0.2 ms handled by sched_yield, as the TUI's give-way does (sniffer/giveway.py)
 BURST = r"""
 import os, signal, sys, time
 os.nice(19)
 if sys.argv[1] == "yield":
-    from sniffer.tui.giveway import GiveWay
+    from sniffer.giveway import GiveWay
     GiveWay(lambda: time.monotonic_ns()).start()
 end = time.monotonic() + float(sys.argv[2])
 while time.monotonic() < end:
@@ -129,7 +131,7 @@ while time.monotonic() < end:
 
 
 def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy: str = "fifo",
-            turnaround_ms: str = "") -> dict:
+            turnaround_ms: str = "", peer: str = "") -> dict:
     times_path, out = work / f"{kind}.times.json", work / f"{kind}.mcap"
     for p in (times_path, out):
         p.unlink(missing_ok=True)
@@ -137,11 +139,16 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy:
                                turnaround_ms],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     port, baud, parity, stop, policy = feeder.stdout.readline().split()
+    label = kind
     head = {"headless-5ms": ["env", "SNIFFER_READER=thread", sys.executable, "-c", OLD_SWITCH],
             "tui-no-give-way": [sys.executable, "-c", NO_GIVE_WAY],
             "tui-no-output": [sys.executable, "-c", NO_OUTPUT],
             "tui-100us": [sys.executable, "-c", FAST_GIVE_WAY],
-            }.get(kind, THREAD_READER if kind.endswith("-thread") else [sys.executable, "-m", "sniffer"])
+            }.get(kind.removesuffix("-peer"), THREAD_READER if kind.removesuffix("-peer").endswith("-thread")
+                  else [sys.executable, "-m", "sniffer"])
+    if kind.endswith("-peer"):  # the same run, the sniffer of another tree (--peer)
+        kind = kind.removesuffix("-peer")
+        head = ["env", f"PYTHONPATH={peer}", *(head if head[0] != "env" else head[1:])] if peer else head
     kind_as = kind.removesuffix("-thread")  # the same run, its port read by a thread of the capture
     argv = [*head, "live", port, "--baud", baud, "--parity", parity, "--stopbits", stop, "--out", str(out)]
     sock = str(work / f"{kind}.sock")
@@ -191,7 +198,7 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy:
         feeder.stdin.close()
         feeder.wait()
     cpu1 = os.times()
-    return {"kind": kind, "rc": rc, "written_back": written_back, "feeder": policy, "capture_cpu_s": capture_cpu,
+    return {"kind": label, "rc": rc, "written_back": written_back, "feeder": policy, "capture_cpu_s": capture_cpu,
             "children_cpu_s":
             (cpu1.children_user + cpu1.children_system) - (cpu0.children_user + cpu0.children_system),
             **figures(out, json.loads(times_path.read_text()))}
@@ -270,6 +277,9 @@ def main() -> None:
                     "this machine's load does not delay it) or normal (it competes with the sniffer)")
     ap.add_argument("--turnaround-ms", default="", metavar="LO,HI",
                     help="every unit answers LO to HI ms after its request (the stress line: 0.17-0.26 ms)")
+    ap.add_argument("--peer", default="", metavar="DIR",
+                    help="a kind ending in -peer runs the sniffer of the tree DIR (e.g. a git worktree of an "
+                    "older commit, on PYTHONPATH): before and after a change, in the same rounds")
     a = ap.parse_args()
     print(f"{a.scenario}{', answers ' + a.turnaround_ms + ' ms after' if a.turnaround_ms else ''}, "
           f"{a.seconds:.0f} s per run, {os.cpu_count()} CPUs; load average at start "
@@ -282,7 +292,7 @@ def main() -> None:
         d = a.keep or tmp
         for _ in range(a.repeat):
             for kind in a.kinds.split(","):
-                r = run_one(kind, a.scenario, a.seconds, Path(d), a.feeder, a.turnaround_ms)
+                r = run_one(kind, a.scenario, a.seconds, Path(d), a.feeder, a.turnaround_ms, a.peer)
                 n, nolat, line = r["responses"], r["no_latency"], r["line_glued"]
                 print(f"{kind:<16} {n:>9} {nolat:>6} ({100 * nolat / max(n, 1):4.1f} %) {line:>5} "
                       f"{nolat - line:>6} ({100 * (nolat - line) / max(n, 1):4.1f} %) "

@@ -150,7 +150,7 @@ class Attachment:
 
 def attach_feed(att: Attachment, pause: Callable[[], object] | None = None):
     """A feed(sink, stop) for tui.run.run_tui: the published frames into the TuiSink.  `pause()` is called
-    between two lines (tui/giveway.py: a capture on this machine gets the CPU back in between)."""
+    between two lines (giveway.py: a capture on this machine gets the CPU back in between)."""
     from .records import frame_from_record
 
     def feed(sink, stop: threading.Event):
@@ -186,7 +186,7 @@ def attach_feed(att: Attachment, pause: Callable[[], object] | None = None):
 
 def attach_tui(att: Attachment) -> int:
     """The App over the capture; a capture on this machine gets the CPU first, as under the TUI of `sniffer
-    live` (tui/run.py yield_to_capture, tui/giveway.py)."""
+    live` (tui/run.py yield_to_capture, giveway.py)."""
     from .tui.run import local_capture_feed, run_tui
 
     here = att.on_this_machine

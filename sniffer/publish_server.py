@@ -31,6 +31,7 @@ from collections import deque
 from . import __version__
 from .childpipe import read_messages
 from .events import Chunk
+from .giveway import GiveWay, give_cpu
 from .outputs import readable
 from .reads import RING_READS, ReadMarker
 from .stream_format import STREAM_VERSION, control, read_item, reads_line
@@ -121,6 +122,8 @@ class PublishServer:
         self._tasks: set[asyncio.Task] = set()
         self.bytes_in = 0
         self.frames = 0
+        self.frames_in = 0  # frames the pipe brought (the give-way's "frames come in")
+        self._give_way: GiveWay | None = None
         self.noise_bytes = 0
         self._end: bytes | None = None
         self._ended = threading.Event()  # the capture ended (its end message or EOF)
@@ -144,14 +147,20 @@ class PublishServer:
                     _, frames, reads = msg
                     self._chunks.extend(Chunk(*r) for r in reads)
                     self._new.extend(frames)
+                    self.frames_in += len(frames)
+                    give_cpu()  # this thread gets no SIGALRM (the main thread does): it gives way itself
                 elif msg[0] == "end":
                     break
         finally:
             self._ended.set()
 
     def run(self) -> None:
+        """Serve until the capture's end.  Like a viewer, this process gives way while frames come in
+        (giveway.py): its loop's bursts (the reads marked and encoded, the viewers' writes) would otherwise
+        keep the tty's flush work, and so the capture's reads, waiting on a kernel that preempts nothing."""
         threading.Thread(target=self._pipe, name="capture-pipe", daemon=True).start()
-        asyncio.run(self._main())
+        with GiveWay(lambda: self.frames_in) as self._give_way:
+            asyncio.run(self._main())
 
     async def _main(self) -> None:
         if self.unix_path is not None:
@@ -159,6 +168,8 @@ class PublishServer:
         else:
             server = await asyncio.start_server(self._on_viewer, sock=self.sock)
         loop = asyncio.get_running_loop()
+        if self._give_way is not None:
+            self._give_way.watch_loop(loop)
         next_status = loop.time() + self.status_interval_s
         while not self._ended.is_set():
             await asyncio.sleep(self.tick_s)

@@ -473,6 +473,13 @@ def _sockets(pid: str) -> set[str]:
     return out
 
 
+def _catches(pid: str, sig: int) -> bool:
+    """Whether process `pid` has a handler installed for `sig` (SigCgt of /proc/PID/status)."""
+    with open(f"/proc/{pid}/status") as f:
+        mask = next(int(line.split()[1], 16) for line in f if line.startswith("SigCgt:"))
+    return bool(mask >> (sig - 1) & 1)
+
+
 def test_viewers_are_served_by_a_process_of_their_own(tmp_path):
     """The capture's process only hands records over: the listening socket and the viewers' connections
     are held by the publisher process."""
@@ -485,6 +492,11 @@ def test_viewers_are_served_by_a_process_of_their_own(tmp_path):
     child = str(pub._proc.pid)
     theirs = _sockets(child)
     assert len(theirs) >= 2 and not theirs & _sockets("self")  # listening + the viewer's: in the child only
+    # serving, it gives way as a viewer does (sniffer/giveway.py): its SIGALRM handled (by sched_yield)
+    deadline = time.monotonic() + HANG_S
+    while not _catches(child, signal.SIGALRM):
+        assert time.monotonic() < deadline, "the publisher never installed its give-way"
+        time.sleep(0.02)
     for ev in events:
         p.feed(ev)
     p.finish()

@@ -179,7 +179,7 @@ class SnifferApp(App):
                  clock: Callable[[], float] = time.monotonic, live: bool = False) -> None:
         super().__init__()
         self.live = live  # quitting stops a capture running here: ask first
-        self.give_way = None  # a GiveWay (giveway.py) when the App views a capture running now on this machine
+        self.give_way = None  # a GiveWay (sniffer/giveway.py) when the App views a capture running now on this machine
         self._terminal = TerminalWatch(None)  # on_mount: the terminal it reads keys from (hangup.py)
         self.sink = sink
         self.feed = feed

@@ -22,7 +22,7 @@ import threading
 from collections.abc import Callable
 
 from .app import SnifferApp
-from .giveway import GiveWay, give_cpu
+from ..giveway import GiveWay, give_cpu
 from .sink import TuiSink
 
 VIEWER_NICE = 19  # the viewer of a capture on this machine: the lowest priority (yield_to_capture)
@@ -101,7 +101,7 @@ def run_session_tui(session, sink: TuiSink, *, source_label: str, capture_path: 
 
 def give_way(app: SnifferApp) -> GiveWay:
     """The App's process hands its CPU back every GIVE_WAY_S while the capture it views records frames
-    (giveway.py: how a redraw's burst delays the capture's reads although the viewer runs at nice 19)."""
+    (sniffer/giveway.py: how a redraw's burst delays the capture's reads although the viewer runs at nice 19)."""
     app.give_way = GiveWay(lambda: app.sink.frames_in)
     return app.give_way
 
@@ -109,7 +109,7 @@ def give_way(app: SnifferApp) -> GiveWay:
 def local_capture_feed(att):
     """The feed of a viewer of a capture on this machine (`sniffer live|demo`'s TUI, `attach --tui` to a local
     socket): this process leaves the CPU to the capture (yield_to_capture, now: the App's threads inherit it)
-    and the feed gives way between two records (giveway.py).  Run the App with give_way as well."""
+    and the feed gives way between two records (sniffer/giveway.py).  Run the App with give_way as well."""
     from ..attach import attach_feed
 
     yield_to_capture()

@@ -1,4 +1,5 @@
-"""The viewer of a live capture hands its CPU back every GIVE_WAY_S while frames come in.
+"""The viewer of a live capture, and the publisher serving it, hand their CPU back every GIVE_WAY_S while
+frames come in.
 
 Why (issue 11, traced with ftrace on a 2-CPU VM, kernel 6.18, HZ=250, preempt none): a byte written to a
 tty (the USB-RS485 adapter's driver, or a pty) reaches the reader through the tty's flush work, a kworker of
