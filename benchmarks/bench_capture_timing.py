@@ -139,16 +139,14 @@ def run_one(kind: str, scenario: str, seconds: float, work: Path, feeder_policy:
                                turnaround_ms],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     port, baud, parity, stop, policy = feeder.stdout.readline().split()
-    label = kind
+    label, kind = kind, kind.removesuffix("-peer")  # -peer: the same run, the sniffer of another tree (--peer)
     head = {"headless-5ms": ["env", "SNIFFER_READER=thread", sys.executable, "-c", OLD_SWITCH],
             "tui-no-give-way": [sys.executable, "-c", NO_GIVE_WAY],
             "tui-no-output": [sys.executable, "-c", NO_OUTPUT],
             "tui-100us": [sys.executable, "-c", FAST_GIVE_WAY],
-            }.get(kind.removesuffix("-peer"), THREAD_READER if kind.removesuffix("-peer").endswith("-thread")
-                  else [sys.executable, "-m", "sniffer"])
-    if kind.endswith("-peer"):  # the same run, the sniffer of another tree (--peer)
-        kind = kind.removesuffix("-peer")
-        head = ["env", f"PYTHONPATH={peer}", *(head if head[0] != "env" else head[1:])] if peer else head
+            }.get(kind, THREAD_READER if kind.endswith("-thread") else [sys.executable, "-m", "sniffer"])
+    if label != kind:
+        head = ["env", f"PYTHONPATH={peer}", *(head[1:] if head[0] == "env" else head)]
     kind_as = kind.removesuffix("-thread")  # the same run, its port read by a thread of the capture
     argv = [*head, "live", port, "--baud", baud, "--parity", parity, "--stopbits", stop, "--out", str(out)]
     sock = str(work / f"{kind}.sock")
@@ -208,21 +206,21 @@ def capture_pid(pid: int, kind: str) -> int:
     """The capture process: the one started (headless), or the one the TUI started (its child running live)."""
     if not kind.startswith("tui"):
         return pid
-    for tid in os.listdir(f"/proc/{pid}/task"):
-        for child in Path(f"/proc/{pid}/task/{tid}/children").read_text().split():
-            if b"--publish" in Path(f"/proc/{child}/cmdline").read_bytes():
-                return int(child)
+    for child in children_with(pid, b"--publish"):
+        return child
     raise SystemExit(f"{kind}: no capture process under {pid}")
 
 
 def reader_pids(pid: int) -> list[int]:
     """The capture's port reader process (sources/reader_process.py), if it has one."""
-    out = []
-    for tid in os.listdir(f"/proc/{pid}/task"):
-        for child in Path(f"/proc/{pid}/task/{tid}/children").read_text().split():
-            if b"reader_process" in Path(f"/proc/{child}/cmdline").read_bytes():
-                out.append(int(child))
-    return out
+    return children_with(pid, b"reader_process")
+
+
+def children_with(pid: int, needle: bytes) -> list[int]:
+    """The children of process `pid` whose command line holds `needle`."""
+    return [int(child) for tid in os.listdir(f"/proc/{pid}/task")
+            for child in Path(f"/proc/{pid}/task/{tid}/children").read_text().split()
+            if needle in Path(f"/proc/{child}/cmdline").read_bytes()]
 
 
 def process_cpu_s(pid: int) -> float:
@@ -281,6 +279,8 @@ def main() -> None:
                     help="a kind ending in -peer runs the sniffer of the tree DIR (e.g. a git worktree of an "
                     "older commit, on PYTHONPATH): before and after a change, in the same rounds")
     a = ap.parse_args()
+    if not a.peer and any(k.endswith("-peer") for k in a.kinds.split(",")):
+        ap.error("a kind ending in -peer needs --peer DIR (the tree it runs)")
     print(f"{a.scenario}{', answers ' + a.turnaround_ms + ' ms after' if a.turnaround_ms else ''}, "
           f"{a.seconds:.0f} s per run, {os.cpu_count()} CPUs; load average at start "
           f"{os.getloadavg()[0]:.2f}")

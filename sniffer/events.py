@@ -39,6 +39,12 @@ class Chunk:
         return self.byte_t_ns is not None
 
 
+def read_fields(c: Chunk) -> tuple:
+    """A read as it crosses a pipe to a helper process: the Chunk's fields in order (Chunk(*read_fields(c)) ==
+    c), since pickling the dataclass itself costs ten times as much."""
+    return (c.t_ns, c.data, c.byte_t_ns, c.flags, c.channel, c.link, c.unseen_ns)
+
+
 @dataclass(slots=True, frozen=True)
 class Tick:
     """The source saw no byte up to `t_ns`: lets the framer close frames on silence.

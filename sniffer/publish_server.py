@@ -46,12 +46,6 @@ def take_now(queue: deque) -> list:
     return [popleft() for _ in range(len(queue))]
 
 
-def read_fields(c: Chunk) -> tuple:
-    """A read as it crosses the pipe: the Chunk's fields in order (Chunk(*read_fields(c)) == c), since
-    pickling the dataclass itself costs ten times as much."""
-    return (c.t_ns, c.data, c.byte_t_ns, c.flags, c.channel, c.link, c.unseen_ns)
-
-
 class _Viewer:
     """One connected viewer: lines waiting to be written, at most `limit` of them."""
 

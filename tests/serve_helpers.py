@@ -12,6 +12,8 @@ import sys
 import time
 from pathlib import Path
 
+from terminal import stat_fields
+
 HANG_S = 60  # a bound on waiting for something that should happen, never an assertion on speed
 
 
@@ -70,12 +72,11 @@ def _live_processes():
         try:
             with open(f"/proc/{pid}/cmdline", "rb") as f:
                 cmd = f.read().replace(b"\0", b" ").decode(errors="replace")
-            with open(f"/proc/{pid}/stat") as f:
-                state, _ppid, _pgrp, session = f.read().rpartition(")")[2].split()[:4]
         except OSError:
             continue
-        if state != "Z":
-            yield int(pid), cmd, int(session)
+        fields = stat_fields(pid)
+        if fields is not None and fields[0] != "Z":
+            yield int(pid), cmd, int(fields[3])
 
 
 def processes_with(needle: str) -> list[int]:

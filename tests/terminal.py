@@ -64,17 +64,25 @@ class Terminal:
         return rc
 
 
+def stat_fields(pid: int | str, tid: int | str | None = None) -> list[str] | None:
+    """The fields of /proc/PID/stat (of thread TID: /proc/PID/task/TID/stat) after the command's name: [0] the
+    state, [1] the parent, [3] the session, [16] the nice level; None once the process is gone."""
+    path = f"/proc/{pid}/stat" if tid is None else f"/proc/{pid}/task/{tid}/stat"
+    try:
+        with open(path) as f:
+            return f.read().rpartition(")")[2].split()
+    except OSError:
+        return None
+
+
 def children(pid: int) -> list[int]:
     """The processes whose parent is `pid` (a TUI's capture child)."""
     out = []
     for p in os.listdir("/proc"):
         if p.isdigit():
-            try:
-                with open(f"/proc/{p}/stat") as f:
-                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
-                        out.append(int(p))
-            except (OSError, ValueError, IndexError):  # gone meanwhile
-                pass
+            fields = stat_fields(p)
+            if fields is not None and int(fields[1]) == pid:
+                out.append(int(p))
     return out
 
 

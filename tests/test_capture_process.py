@@ -16,7 +16,7 @@ import sys
 import threading
 import time
 
-from terminal import Terminal, children, descendants, fds_on
+from terminal import Terminal, children, descendants, fds_on, stat_fields
 
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
@@ -107,10 +107,11 @@ def _policies(pid: int) -> dict[str, tuple[int, int]]:
             name = open(f"/proc/{pid}/task/{tid}/comm").read().strip()
             policy = next(int(line.split()[-1]) for line in open(f"/proc/{pid}/task/{tid}/sched")
                           if line.startswith("policy"))
-            stat = open(f"/proc/{pid}/task/{tid}/stat").read()
-            out[f"{name}/{tid}"] = (policy, int(stat.rsplit(")", 1)[1].split()[16]))  # field 19: nice
+            fields = stat_fields(pid, tid)
         except (OSError, StopIteration):  # a thread that ended meanwhile
-            pass
+            continue
+        if fields is not None:
+            out[f"{name}/{tid}"] = (policy, int(fields[16]))  # field 19 of stat: nice
     return out
 
 

@@ -15,7 +15,7 @@ import threading
 import time
 
 import pytest
-from terminal import Terminal, children, fds_on
+from terminal import Terminal, children, fds_on, stat_fields
 
 from sniffer.childpipe import read_messages
 from sniffer.events import Chunk, Gap, Tick
@@ -33,11 +33,8 @@ HANG_S = 60.0
 
 
 def _gone(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] == "Z"
-    except FileNotFoundError:
-        return True
+    fields = stat_fields(pid)
+    return fields is None or fields[0] == "Z"
 
 
 def _collect(source, until, into: list) -> None:

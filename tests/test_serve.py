@@ -22,6 +22,7 @@ import pytest
 from helpers import ListSink
 from serve_helpers import HANG_S, processes_with, published, start_serve
 from serve_helpers import wait as _wait
+from terminal import stat_fields
 from tui_helpers import SIM, demo_viewer, replay_frames
 
 from decoders.registry import default_registry
@@ -348,11 +349,8 @@ def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
 
 
 def _parent(pid: int) -> int | None:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return int(f.read().rpartition(")")[2].split()[1])
-    except OSError:
-        return None
+    fields = stat_fields(pid)
+    return int(fields[1]) if fields is not None else None
 
 
 def test_serve_usage_errors(capsys):

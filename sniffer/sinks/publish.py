@@ -21,10 +21,10 @@ import sys
 import threading
 from collections import deque
 
-from ..events import CaptureInfo, Chunk
+from ..events import CaptureInfo, Chunk, read_fields
 from ..frame import Frame
 from ..childpipe import child_env, pipe_message, pipe_size
-from ..publish_server import read_fields, take_now
+from ..publish_server import take_now
 from ..records import frame_json
 from ..stderr import say
 from ..stream_format import Address, PublishError, parse_address

@@ -35,7 +35,7 @@ import threading
 from collections.abc import Iterator
 
 from ..childpipe import child_env, pipe_message, pipe_size, read_messages, write_all
-from ..events import CaptureInfo, Chunk, Gap, Tick
+from ..events import CaptureInfo, Chunk, Gap, Tick, read_fields
 from . import CaptureError
 from .serial_live import Hub, _End
 
@@ -261,8 +261,7 @@ class PipeHub(Hub):
     def push(self, item) -> None:
         t = type(item)
         if t is Chunk:
-            self.send(("c", (item.t_ns, item.data, item.byte_t_ns, item.flags, item.channel, item.link,
-                             item.unseen_ns)))
+            self.send(("c", read_fields(item)))
         elif t is Tick:
             self.send(("t", item.t_ns, item.link))
         elif t is Gap:
