@@ -14,9 +14,13 @@ class UnitState:
     The shadow (holding, input, coils, discrete) is written only through
     `commit`, which records the same write on the frame (`Frame.writes`):
     what a viewer reads there is what the decoder keeps here.
+
+    `version` counts the changes of what a decoder carries over into the next part of a
+    capture (decoders/carry.py): a register that scales others (TDS-V8 Cn-02), a setting the
+    traffic showed (`remember`).  A part cut now (a segment, a trigger window) starts with it.
     """
 
-    __slots__ = ("unit", "holding", "input", "coils", "discrete", "extra", "tables")
+    __slots__ = ("unit", "holding", "input", "coils", "discrete", "extra", "tables", "version")
 
     def __init__(self, unit: int) -> None:
         self.unit = unit
@@ -25,6 +29,7 @@ class UnitState:
         self.coils: dict[int, int] = {}
         self.discrete: dict[int, int] = {}
         self.extra: dict = {}
+        self.version = 0
         # the protocol's table words (sniffer.protocols.TABLES) -> the shadow dict
         self.tables: dict[str, dict[int, int]] = {
             "holding": self.holding, "input": self.input, "coil": self.coils, "discrete": self.discrete,
@@ -42,6 +47,12 @@ class UnitState:
         else:
             d.update(zip(range(start, start + len(values)), values))
         f.writes.append([table, start, values])
+
+    def remember(self, key: str, value) -> None:
+        """extra[key] = value, counted in `version` when it changes (a setting carried over)."""
+        if self.extra.get(key) != value:
+            self.extra[key] = value
+            self.version += 1
 
     def snapshot(self) -> dict[tuple[str, int], int]:
         """{(table, address): raw} of the whole shadow (tests compare it with what frames recorded)."""

@@ -216,6 +216,20 @@ class Identifier:
         ev = self.units.get(unit)
         return ev is not None and ev.seen >= SETTLED
 
+    def seed(self, unit: int, model: str, confidence: float) -> None:
+        """Start a unit named `model` (carried over from the part of the capture before this one): the
+        traffic here may still withdraw it, or name it otherwise on evidence of its own."""
+        ev = self.units.get(unit)
+        if ev is None:
+            ev = self.units[unit] = UnitEvidence()
+            self._check_unit(ev, unit)
+        if model in ev.ruled_out:
+            return
+        ev.guess, ev.confidence, ev.via = model, confidence, None
+        if self.direct.get(unit) != model:
+            self.direct[unit] = model
+            self._direct_version += 1
+
     def ruled_out(self, unit: int, model: str) -> str | None:
         ev = self.units.get(unit)
         return ev.ruled_out.get(model) if ev else None

@@ -4,8 +4,11 @@
 package adds only what a table cannot say (subclass hooks `check_request`,
 `value_of`).  Values scaled through another register (TDS-V8 frequency =
 raw / 30000 * Cn-02) use the per-unit register shadow: until the reference
-register has been seen on the bus the value is shown in % with an
-annotation saying why.
+register is known (seen on the bus, given in the bus file, or carried over from
+the part of the capture before: decoders/carry.py) the value is *provisional*:
+in % of that register, under a name of its own ("Output frequency (% of Cn-02)",
+`provisional: true`), so no view compares it with the Hz values that share the
+register (docs/values.md).
 
 A value of several registers (u32, s32, f32, u64, s64, f64, str; decoders/regtypes.py) is one point
 when a frame carries all its registers: named by its row, at its first address, its span over all
@@ -78,6 +81,38 @@ class TableDecoder(GenericModbus):
                       **{a: (FAULT, "fault") for a in regmap.model.get("fault_registers", [])}}
         # (address, raw) -> the marker's meaning: a raw value that is no measurement
         self.markers = {(m["addr"], m["raw"]): m for m in regmap.model.get("not_available", [])}
+        # the holding registers other rows are scaled through (TDS-V8 Cn-02): carried over (carried())
+        self.scale_refs = tuple(sorted({r.scale_by["addr"] for m in (regmap, self._imap)
+                                        for r in m.registers.values() if r.scale_by}))
+
+    # ---- what a part of a capture carries over (decoders/carry.py) ----------------------
+    carried_extra: tuple[str, ...] = ()  # the UnitState.extra keys a model carries over (settings it saw)
+
+    def carried(self, state: UnitState) -> dict:
+        """What a unit's next part starts with: its scaling registers' raw values, its carried settings."""
+        out = {}
+        held = {str(a): state.holding[a] for a in self.scale_refs if a in state.holding}
+        if held:
+            out["holding"] = held
+        extra = {k: state.extra[k] for k in self.carried_extra if state.extra.get(k) is not None}
+        if extra:
+            out["extra"] = extra
+        return out
+
+    def preset(self, state: UnitState, params: dict) -> None:
+        """Parameters a bus file states for the unit (`{"Cn-02": 60}`: the manual's id, the value in the
+        register's unit, or "60 Hz") into its shadow, as if read on the bus; ValueError (one line) for an
+        id the map does not have or a value that does not fit."""
+        from .carry import param_raw
+
+        for pid, value in params.items():
+            r = self.map.by_id.get(pid) or next((x for k, x in self.map.by_id.items() if k.lower() == pid.lower()),
+                                                None)
+            if r is None or r.table == "input" or r.words != 1:
+                what = "has no holding register" if r is not None else "has no parameter"
+                raise ValueError(f"{self.model} {what} {pid!r}")
+            state.holding[r.addr] = param_raw(r, value, self.model)
+            state.version += 1
 
     # ---- values ------------------------------------------------------------
     def value_of(self, r: Register, raw: int, state: UnitState):
@@ -148,7 +183,8 @@ class TableDecoder(GenericModbus):
             return {"name": r.name, "address": address, "raw": raw, "value": None, "unit": None, "id": r.id,
                     "text": f"not available ({raw:04X}H)", "not_available": marker["text"]}
         value, unit, pending = self.value_of(r, raw, state)
-        pt = {"name": r.name, "address": address, "raw": raw, "value": value, "unit": unit, "id": r.id}
+        pt = {"name": self.provisional_name(r) if pending else r.name, "address": address, "raw": raw,
+              "value": value, "unit": unit, "id": r.id}
         if r.enum:
             text = self.map.enum_text(r.enum, raw)
             pt["text"] = text if text is not None else f"unknown code {raw}"
@@ -157,8 +193,14 @@ class TableDecoder(GenericModbus):
         elif type(value) is float and not math.isfinite(value):
             pt["text"] = str(value)  # JSON writes NaN and infinity as null: the text keeps them
         if pending:
-            pt["pending"] = True
+            pt["provisional"] = True
         return pt
+
+    def provisional_name(self, r: Register) -> str:
+        """The name of a row's value while the register it is scaled through is not known: what it is
+        then ("Output frequency (% of Cn-02)"), never the name of its scaled value."""
+        ref = self.map.registers.get(r.scale_by["addr"]) if r.scale_by else None
+        return f"{r.name} (% of {ref.id or ref.name if ref is not None else 'its reference'})"
 
     @staticmethod
     def part_point(r: Register, k: int, raw: int) -> dict:
@@ -195,7 +237,15 @@ class TableDecoder(GenericModbus):
 
     # ---- frames --------------------------------------------------------------
     def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
-        super().decode(f, request, state)
+        refs = self.scale_refs
+        if refs:
+            held = state.holding
+            before = [held.get(a) for a in refs]
+            super().decode(f, request, state)
+            if f.writes and before != [held.get(a) for a in refs]:
+                state.version += 1  # a register that scales others changed: carried over from here on
+        else:
+            super().decode(f, request, state)
         if f.role == REQUEST and f.crc_ok:
             self.check_request(f, state)
         if self.map.parts or self._imap.parts:
@@ -210,13 +260,15 @@ class TableDecoder(GenericModbus):
                 if "not_available" in p:
                     f.annotations.append(note(NOT_AVAILABLE, f"{p['name']} raw {p['raw']:04X}H: {p['not_available']}",
                                               *p["span"]))
-        if any(p.get("pending") for p in f.points):
-            ref = next(p for p in f.points if p.get("pending"))
+        if any(p.get("provisional") for p in f.points):
+            ref = next(p for p in f.points if p.get("provisional"))
             r = self.view(MODBUS_TABLES.get(f.function)).registers[ref["address"]]
             ref_reg = self.map.registers.get(r.scale_by["addr"])
             who = f"{ref_reg.id or ref_reg.name} (0x{ref_reg.addr:04X})" if ref_reg else "the reference register"
             f.annotations.append(note(SCALE_PENDING,
-                                      f"{who} not seen yet: {r.name} shown as % of it", 0, len(f.raw)))
+                                      f"{who} not known yet: {r.name} shown as {ref['name']!r}, in % "
+                                      "(read it on the bus, or give it in the bus file's [parameters])",
+                                      0, len(f.raw)))
 
     def _trips(self, f: Frame) -> None:
         """A read answer whose fault / alarm register is not 0: the drive tripped or warns (the text as

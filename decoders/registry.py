@@ -2,6 +2,9 @@
 
 A registry is an explicit instance: built from the decoders it may use and
 the device map, then passed to the pipeline.  Nothing is registered at import.
+It also holds what a part of a capture carries into the next (decoders/carry.py):
+`carried()` says it, `carry_in()` and `preset()` (a bus file's [parameters]) start
+a registry with it, `version()` says when it changed.
 """
 
 from __future__ import annotations
@@ -20,6 +23,10 @@ from .base import Decoder, UnitState
 
 class DeviceMapError(ValueError):
     pass
+
+
+class ParameterError(DeviceMapError):
+    """A unit's known parameter (a bus file's [parameters]) that its model cannot take."""
 
 
 def _same_family(a: str, b: str) -> bool:
@@ -44,6 +51,7 @@ class DecoderRegistry:
         self._routes: dict[int, tuple] = {}
         self.guesses: dict[int, tuple[str, float, str]] = {}  # unit -> (model, confidence, evidence)
         self._contradicted: set[int] = set()
+        self._version = 0  # changes of the guesses (UnitState.version counts the rest: version())
         self.identifier = None
         if identify:
             from .identify import Identifier
@@ -85,6 +93,7 @@ class DecoderRegistry:
             return
         model, conf, evidence = got
         given = self.devices.get(f.unit)
+        self._version += 1
         if model is None:  # an earlier guess withdrawn
             was = self.guesses.pop(f.unit, None)
             if was is not None and given is None:
@@ -98,6 +107,70 @@ class DecoderRegistry:
             f.annotations.append(note(core_codes.MODEL_MISMATCH,
                                       f"unit {f.unit} is mapped to {given} but looks like {model}: {evidence}"
                                       + (f"; and {why}" if why else ""), 0, len(f.raw)))
+
+    # ---- what a part of a capture carries into the next (decoders/carry.py) ------------------
+    def version(self) -> int:
+        """A number that changes whenever `carried()` may have (cheap: asked after every frame)."""
+        return self._version + sum(st.version for st in self.states.values())
+
+    def carried(self) -> dict:
+        """{unit: {"model", "confidence", "holding", "extra"}} of the units with something to carry."""
+        out: dict[str, dict] = {}
+        for unit in sorted(set(self.states) | set(self.guesses)):
+            d: dict = {}
+            g = self.guesses.get(unit)
+            if g is not None and unit not in self.devices:
+                d["model"], d["confidence"] = g[0], g[1]
+            st = self.states.get(unit)
+            dec = self.decoders.get(self.model_for(unit))
+            if st is not None and hasattr(dec, "carried"):
+                d.update(dec.carried(st))
+            if d:
+                out[str(unit)] = d
+        return out
+
+    def carry_in(self, units: dict) -> None:
+        """Start from what a part of the capture before knew (`carried()` of that registry); a model the
+        user's map gives for a unit wins over the one carried.  Bad entries are skipped: metadata is input."""
+        for key, d in (units or {}).items():
+            try:
+                unit = int(key)
+            except (TypeError, ValueError):
+                continue
+            if not isinstance(d, dict) or not 0 <= unit <= 255:
+                continue
+            model = d.get("model")
+            if isinstance(model, str) and model in self.decoders and unit not in self.devices:
+                conf = d.get("confidence")
+                conf = float(conf) if isinstance(conf, (int, float)) and not isinstance(conf, bool) else 0.5
+                self.guesses[unit] = (model, conf, "carried over from the part of the capture before")
+                if self.identifier is not None:
+                    self.identifier.seed(unit, model, conf)
+                self._version += 1
+            st = self.state(unit)
+            for addr, raw in (d.get("holding") or {}).items():
+                if str(addr).isdigit() and isinstance(raw, int) and not isinstance(raw, bool) and 0 <= raw <= 0xFFFF:
+                    st.holding[int(addr)] = raw
+                    st.version += 1
+            for k, v in (d.get("extra") or {}).items():
+                if isinstance(v, (str, int, float, bool)):
+                    st.remember(str(k), v)
+            self._routes.pop(unit, None)
+
+    def preset(self, params: dict[int, dict]) -> None:
+        """A bus file's [parameters]: per unit, values the bus may never show (`{1: {"Cn-02": 60}}`), put in
+        the unit's shadow through its model (the one the user's map gives); DeviceMapError (one line)."""
+        for unit, values in sorted((params or {}).items()):
+            model = self.devices.get(unit)
+            dec = self.decoders.get(model) if model is not None else None
+            if dec is None or not hasattr(dec, "preset"):
+                why = (f"give its model (--device {unit}=MODEL, or the bus file's [units]): its parameters are "
+                       f"named by that model's manual" if dec is None else f"model {model} has no register map")
+                raise ParameterError(f"parameters of unit {unit}: {why}")
+            try:
+                dec.preset(self.state(unit), dict(values))
+            except ValueError as e:
+                raise ParameterError(f"parameters of unit {unit}: {e}") from None
 
     def state(self, unit: int) -> UnitState:
         st = self.states.get(unit)

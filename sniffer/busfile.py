@@ -14,6 +14,10 @@
     [timeouts_ms]    # optional, per unit: a finite number >= 0
     1 = 250
 
+    [parameters]     # optional, per unit: settings the bus may never show, by the manual's id,
+    2 = { "Cn-02" = 60 }   # in the register's unit (or "60 Hz"): the unit's values are scaled by
+                           # them from the first frame (docs/values.md); the unit needs its model
+
     broadcast = "tds-v8"   # optional, before the first table: the model whose manual
                            # rules unit 0 (broadcast) frames; same as [units] 0 = "tds-v8".
                            # Without it a broadcast takes the model all units share, if one.
@@ -28,8 +32,9 @@ units; [serial] and [units] above them are every link's defaults.
     port = "/dev/ttyUSB0"
     baud = 19200
     parity = "E"
-    units = { 1 = "a510", 2 = "a510" }
+    units = { 1 = "a510", 2 = "tds-v8" }
     timeouts_ms = { 1 = 250 }
+    parameters = { 2 = { "Cn-02" = 50 } }
 
     [[links]]
     name = "pumps"
@@ -52,10 +57,10 @@ from dataclasses import dataclass, field
 from .tomlfile import read_toml
 
 BAUD_RANGE = (50, 4_000_000)
-TABLES = ("serial", "units", "timeouts_ms", "links")
+TABLES = ("serial", "units", "timeouts_ms", "parameters", "links")
 TOP_KEYS = ("broadcast",)
 SERIAL_KEYS = ("baud", "parity", "stopbits", "databits", "protocol")
-LINK_KEYS = ("name", "port", "tap", *SERIAL_KEYS, "units", "timeouts_ms")
+LINK_KEYS = ("name", "port", "tap", *SERIAL_KEYS, "units", "timeouts_ms", "parameters")
 MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo
 
 
@@ -72,6 +77,7 @@ class BusFile:
     databits: int | None = None
     devices: dict[int, str] = field(default_factory=dict)
     timeouts_ms: dict[int, float] = field(default_factory=dict)
+    params: dict[int, dict[str, float | str]] = field(default_factory=dict)  # [parameters]: unit -> id -> value
     path: str = ""
     links: list[BusFile] = field(default_factory=list)  # [[links]]: each a BusFile with a name and ports
     name: str = ""
@@ -200,6 +206,18 @@ def _units(path: str, doc: dict, bus: BusFile, where: str) -> None:
             raise BusFileError(f"{path}: {where}[timeouts_ms] {key} must be a number of milliseconds "
                                f"0..{MAX_TIMEOUT_MS:.0f}, not {_show(ms)}")
         bus.timeouts_ms[unit] = float(ms)
+    for key, values in _table(path, doc, "parameters").items():
+        unit = _unit(path, "parameters", key)
+        if not isinstance(values, dict) or not values:
+            raise BusFileError(f"{path}: {where}[parameters] {key} must be a table of the manual's ids and values "
+                               f"(e.g. {key} = {{ \"Cn-02\" = 60 }}), not {_show(values)}")
+        for pid, v in values.items():
+            ok = (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)) or (
+                isinstance(v, str) and v.strip())
+            if not pid.strip() or not ok:
+                raise BusFileError(f"{path}: {where}[parameters] {key}.{_show(pid)} must be a number in the "
+                                   f"register's unit (or a string such as \"60 Hz\"), not {_show(v)}")
+        bus.params[unit] = {pid.strip(): v for pid, v in values.items()}
 
 
 def format_bus_file(bus: BusFile, comments: list[str] = (), trailer: list[str] = ()) -> str:
@@ -212,6 +230,10 @@ def format_bus_file(bus: BusFile, comments: list[str] = (), trailer: list[str] =
     for title, table in (("units", bus.devices), ("timeouts_ms", bus.timeouts_ms)):
         if table:
             out += ["", f"[{title}]"] + [f"{unit} = {_toml(v)}" for unit, v in sorted(table.items())]
+    if bus.params:
+        out += ["", "[parameters]"] + [
+            f"{unit} = {{ {', '.join(f'{_toml(k)} = {_toml(v)}' for k, v in values.items())} }}"
+            for unit, values in sorted(bus.params.items())]
     if trailer:
         out += [""] + [f"# {c}" if c else "#" for c in trailer]
     return "\n".join(out) + "\n"

@@ -151,7 +151,8 @@ MODEL_TOO_MANY = Code(
     "model.request.too_many", ERROR, "more registers in one request than the manual allows"
 )
 MODEL_SCALE_PENDING = Code(
-    "model.scale.pending", INFO, "scaled through a register not yet seen on the bus: shown in %"
+    "model.scale.pending", INFO,
+    "scaled through a register not known yet: a provisional value, in %, under a name of its own"
 )
 MODEL_VENDOR_EXCEPTION = Code("model.exception.vendor", WARNING, "vendor exception code")
 MODEL_SPLIT = Code(

@@ -59,12 +59,17 @@ class Tick:
 
 @dataclass(slots=True, frozen=True)
 class Gap:
-    """The source was interrupted (adapter unplugged, port lost) from t_ns to t_end_ns."""
+    """The source was interrupted (adapter unplugged, port lost) from t_ns to t_end_ns.
+
+    `state`: what the decoders knew where the input goes on (a replayed folder's segment after a
+    missing one: its recorded decoder state, decoders/carry.py), {link: {unit: ...}}; None: nothing.
+    """
 
     t_ns: int
     t_end_ns: int
     reason: str
     link: str = ""
+    state: dict | None = field(default=None, compare=False)
 
 
 Event = Chunk | Tick | Gap

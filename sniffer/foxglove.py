@@ -16,11 +16,13 @@ Beside /capture, /raw and /frames (sniffer.mcap_format), McapSink writes (docs/f
   response carried, and those of a write request once a CRC-good response (no exception)
   acknowledged it; never a broadcast write, which nobody answers.  NAME is the register's name up
   to its first " (", letters and digits with "_" between; a name two registers of one unit share
-  gets the address (``_2524H``).  The channel's metadata holds the full name, id, address, unit,
-  link and model.  A register's samples are thinned without changing its plot (`_sample`): a
-  change, the sample before it, one every KEEP_NS while nothing changes, the last at the end
-  (`finish`); every poll's value stays in /frames.  A message leaves out what it has no value for
-  (Foxglove's JSON Schema reader takes one type per field, no null);
+  gets the address (``_2524H``).  A provisional value (scaled through a register not known yet,
+  docs/values.md) is a register of its own name: its whole name is the topic
+  (``Output_frequency_pct_of_Cn_02``), never the scaled value's.  The channel's metadata holds
+  the full name, id, address, unit, link and model.  A register's samples are thinned without
+  changing its plot (`_sample`): a change, the sample before it, one every KEEP_NS while nothing
+  changes, the last at the end (`finish`); every poll's value stays in /frames.  A message leaves
+  out what it has no value for (Foxglove's JSON Schema reader takes one type per field, no null);
 * one attachment per model seen: its register map (decoders.mapfile).
 
 Why a topic per register and not one `/values` topic: a drive model has hundreds of registers,
@@ -94,7 +96,7 @@ VALUE_SCHEMA = {
         "raw": {"type": "integer", "description": "as on the wire (absent for a string's registers)"},
         "unit": {"type": "string"},
         "text": {"type": "string", "description": "the value in words: an enum, bits, a string"},
-        "pending": {"type": "boolean", "description": "scaled by a register not seen yet: value in %"},
+        "provisional": {"type": "boolean", "description": "scaled through a register not known yet: in % of it"},
         "frame": {"type": "integer", "minimum": 0, "description": "the frame that carried (or acknowledged) it"},
     },
     "required": ["frame"],
@@ -104,8 +106,9 @@ _NOT_NAME = re.compile(r"[^0-9A-Za-z]+")
 
 
 def topic_part(text: str) -> str:
-    """Letters and digits of `text` with "_" between (a topic path element Foxglove's paths take bare)."""
-    return _NOT_NAME.sub("_", text).strip("_")
+    """Letters and digits of `text` with "_" between, "%" as "pct" (a topic path element Foxglove's paths
+    take bare)."""
+    return _NOT_NAME.sub("_", text.replace("%", " pct ")).strip("_")
 
 
 def device_name(info: CaptureInfo) -> str:
@@ -134,7 +137,7 @@ def metadata(info: CaptureInfo) -> dict[str, str]:
 
 def _value_json(key: tuple, frame: int) -> bytes:
     """A sample's message: the fields it has (VALUE_SCHEMA)."""
-    value, raw, unit, text, pending = key
+    value, raw, unit, text, provisional = key
     d = {} if value is None else {"value": value}
     if type(raw) is int:
         d["raw"] = raw
@@ -142,8 +145,8 @@ def _value_json(key: tuple, frame: int) -> bytes:
         d["unit"] = unit
     if text is not None:
         d["text"] = text
-    if pending:
-        d["pending"] = True
+    if provisional:
+        d["provisional"] = True
     d["frame"] = frame
     return msgspec.json.encode(d)
 
@@ -237,7 +240,7 @@ class Foxglove:
             elif type(value) not in (int, float) or (type(value) is float and not math.isfinite(value)):
                 value = None
             self._sample(f, link, t_ns, p.get("name") or "", address,
-                         (value, p.get("raw"), p.get("unit"), text, p.get("pending") is True), p.get("id"), out)
+                         (value, p.get("raw"), p.get("unit"), text, p.get("provisional") is True), p.get("id"), out)
 
     def _block(self, f, link: str, t_ns: int, block, out: list) -> None:
         """A block of unnamed registers (frame.PointBlock): raw numbers, read without building dicts."""
@@ -247,7 +250,7 @@ class Foxglove:
     def _sample(self, f, link: str, t_ns: int, name: str, address: int, key: tuple, pid, out: list) -> None:
         """One register's sample, thinned without changing its plot: a change, the sample before it, and
         one every KEEP_NS while nothing changes (a polyline loses only points between equal ones)."""
-        topic = self.topics.get((link, f.unit, name, address)) or self._topic(f, link, name, address, pid)
+        topic = self.topics.get((link, f.unit, name, address)) or self._topic(f, link, name, address, pid, key[4])
         st = self.last.get(topic)
         if st is not None:
             if st[0] == key and t_ns - st[1] < KEEP_NS:
@@ -259,10 +262,10 @@ class Foxglove:
         out.append((topic, t_ns, _value_json(key, f.index)))
         self.last[topic] = [key, t_ns, None]
 
-    def _topic(self, f, link: str, name: str, address: int, pid) -> str:
+    def _topic(self, f, link: str, name: str, address: int, pid, provisional: bool = False) -> str:
         key = (link, f.unit, name, address)
         base = VALUES_PREFIX + (f"{topic_part(link)}/" if link else "") + f"u{f.unit}/"
-        short = topic_part(name.split(" (")[0]) or topic_part(name) or "register"
+        short = (topic_part(name) if provisional else topic_part(name.split(" (")[0])) or topic_part(name) or "register"
         topic = base + short
         if topic in self.taken:
             topic = f"{base}{short}_{address:04X}H"

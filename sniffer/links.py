@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import itertools
 
+from decoders.carry import of_info, record
+
 from .events import CaptureInfo, Chunk
 from .frame import CAN_REQ, CAN_RSP, Frame
 from .pipeline import Pipeline
@@ -59,11 +61,12 @@ class LinkPipelines:
         for entry in info.links:
             name = str(entry["name"])
             res = self.resolved[name]
-            registry = self.registries[name] = res.registry()
+            registry = self.registries[name] = res.registry(of_info(info, name))
             self.pipelines[name] = Pipeline(
                 info, res.line, registry, self.sinks, protocol=res.protocol.name, timeout_ms=res.timeout_ms,
                 unit_timeouts=res.unit_timeouts or None, link=name, numbering=numbering,
                 directions=TAP_ROLES if entry.get("tap") else None, start=False)
+        record(info, self.decoder_state())  # what the capture starts with (its first part, every copy)
         for s in self.sinks:
             s.start(info)
 
@@ -93,6 +96,13 @@ class LinkPipelines:
         for p in self.pipelines.values():
             out += p.feed(ev, record=False)
         return out
+
+    def decoder_state(self) -> dict:
+        """Every link's carried decoder state (Pipeline.decoder_state)."""
+        return {name: reg.carried() for name, reg in self.registries.items()}
+
+    def state_version(self) -> int:
+        return sum(reg.version() for reg in self.registries.values())
 
     def settled(self, link: str | None = None) -> int:
         """Pipeline.settled of `link`, or of the least settled link (2: nothing pending on any link)."""

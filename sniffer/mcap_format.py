@@ -130,6 +130,8 @@ def encode_event(ev: Chunk | Tick | Gap) -> bytes:
         d = {"kind": "tick", "t_ns": ev.t_ns}
     elif type(ev) is Gap:
         d = {"kind": "gap", "t_ns": ev.t_ns, "t_end_ns": ev.t_end_ns, "reason": ev.reason}
+        if ev.state:
+            d["state"] = ev.state
     else:
         raise TypeError(f"not a source event: {ev!r}")
     if ev.link:
@@ -158,7 +160,8 @@ def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
     if kind == "tick":
         return Tick(t, link)
     if kind == "gap":
-        return Gap(t, int(d["t_end_ns"]), str(d["reason"]), link)
+        state = d.get("state")
+        return Gap(t, int(d["t_end_ns"]), str(d["reason"]), link, state if isinstance(state, dict) else None)
     return None
 
 

@@ -13,6 +13,11 @@ capture-wide frame counter the links share (a frame is numbered as it leaves
 its framer, before pairing, so pairs and notes name capture-wide numbers), and
 `directions` maps a wire (Chunk.channel) to the one role its frames can have
 (--tap: the master's pair carries requests, the slaves' pair responses).
+
+What the decoders know that scales or names values (decoders/carry.py) is
+`decoder_state()`; `state_version()` changes when it may have.  A Gap that
+carries a `state` (the next segment's, after a hole in a replayed folder)
+starts the decoders from it once the frames before the gap are out.
 """
 
 from __future__ import annotations
@@ -85,8 +90,17 @@ class Pipeline:
                     s.raw(ev)
             self._gap_pending = ev
             out = self._settle(self.framer.flush())
+            if ev.state:
+                self.registry.carry_in(ev.state.get(self.link) or {})
             return out
         raise TypeError(f"unknown event {ev!r}")
+
+    def decoder_state(self) -> dict:
+        """{link: the registry's carried state} (decoders/carry.py): what a part cut now starts with."""
+        return {self.link: self.registry.carried()}
+
+    def state_version(self) -> int:
+        return self.registry.version()
 
     def settled(self) -> int:
         """Between events: 2 nothing is pending, 1 a request waits for its answer, 0 bytes wait in the framer.

@@ -138,7 +138,11 @@ class Session:
             # the station that captured it (Foxglove's deviceName: sniffer.foxglove): kept by a replay or export
             info.extra["device_name"] = (self.spec.foxglove_device or info.extra.get("device_name")
                                          or socket.gethostname())
-            self.registry = self.resolved.registry()
+            from decoders.carry import of_info, record
+
+            self.registry = self.resolved.registry(of_info(info))
+            if not links:  # what the capture starts with, in its metadata (LinkPipelines records every link's)
+                record(info, {"": self.registry.carried()})
             for s in self.planned:
                 self.sinks.append(s.open() if isinstance(s, (FileSink, SegmentPlan)) else s)
             triggers = None
@@ -172,6 +176,11 @@ class Session:
                 self.pipeline = self.resolved.pipeline(info, self.sinks, self.registry)
             if triggers is not None:
                 triggers.settled = self.pipeline.settled
+            for s in self.sinks:  # parts cut later (segments, windows, dataset files) start with what it knows then
+                if hasattr(s, "decoder_state"):
+                    s.decoder_state = self.pipeline.decoder_state
+                if hasattr(s, "state_version"):
+                    s.state_version = self.pipeline.state_version
         except BaseException as e:
             self._abandon()
             if isinstance(e, (CaptureStorageError, OSError)):  # e.g. the disk is full already

@@ -7,8 +7,10 @@ holds the flags and the bus file (built once, in cli.py, by `from_args`; the
 inverse, `to_argv`, gives `serve` the command line of its capture process);
 `resolve(info)` adds what the capture says and the defaults and checks the
 result (baud known, a protocol we speak, models that speak it), giving
-`Resolved`: line settings, protocol, device map, timeouts, and a fresh decoder
-registry.  sniffer.session runs a capture with it.
+`Resolved`: line settings, protocol, device map, timeouts, the units' known
+parameters (a bus file's [parameters]), and a fresh decoder registry that
+starts with what the capture's part before knew (decoders/carry.py).
+sniffer.session runs a capture with it.
 
 Several links (`live P1 P2 ...`, `--tap A B`, a bus file's [[links]]): each is
 a `LinkPlan` (name, ports, its own table of the bus file) and resolves on its
@@ -60,6 +62,7 @@ class LineChoice:
     devices: Mapping[int, str] = field(default_factory=dict)
     timeout_ms: float | None = None
     unit_timeouts: Mapping[int, float] = field(default_factory=dict)
+    params: Mapping[int, Mapping[str, object]] = field(default_factory=dict)  # unit -> {"Cn-02": 60}
 
     @classmethod
     def from_info(cls, info: CaptureInfo | None) -> LineChoice:
@@ -81,24 +84,28 @@ class LineChoice:
         if bus is None:
             return cls()
         return cls(bus.baud, bus.parity, bus.stopbits, bus.databits, bus.protocol, dict(bus.devices),
-                   None, dict(bus.timeouts_ms))
+                   None, dict(bus.timeouts_ms), {u: dict(p) for u, p in bus.params.items()})
 
 
 DEFAULTS = LineChoice(parity="N", stopbits=1, databits=8, protocol=protocols.DEFAULT, timeout_ms=DEFAULT_TIMEOUT_MS)
 
 
 def layered(*layers: LineChoice) -> LineChoice:
-    """The one precedence rule: the first layer that says a thing wins; maps merge unit by unit."""
+    """The one precedence rule: the first layer that says a thing wins; maps merge unit by unit (a unit's
+    parameters one by one)."""
     def first(name):
         return next((getattr(x, name) for x in layers if getattr(x, name) is not None), None)
 
     devices: dict[int, str] = {}
     timeouts: dict[int, float] = {}
+    params: dict[int, dict] = {}
     for x in reversed(layers):
         devices.update(x.devices)
         timeouts.update(x.unit_timeouts)
+        for unit, values in x.params.items():
+            params.setdefault(unit, {}).update(values)
     return LineChoice(first("baud"), first("parity"), first("stopbits"), first("databits"), first("protocol"),
-                      devices, first("timeout_ms"), timeouts)
+                      devices, first("timeout_ms"), timeouts, params)
 
 
 @dataclass(frozen=True)
@@ -112,16 +119,24 @@ class Resolved:
     timeout_ms: float
     unit_timeouts: dict[int, float]
     map_base: str | None = None  # --map-base: how CSV model files count their addresses
+    params: dict[int, dict] = field(default_factory=dict)  # the units' known parameters (bus file [parameters])
 
-    def registry(self):
-        """A fresh decoder registry (decoders keep per-unit state: one per pipeline)."""
+    def registry(self, carried: dict | None = None):
+        """A fresh decoder registry (decoders keep per-unit state: one per pipeline), starting with what
+        `carried` says the part of the capture before knew (decoders/carry.py), then the known parameters."""
         from decoders.registry import default_registry
 
-        return default_registry(self.devices, list(self.model_files) or None, default=self.protocol.default_model,
-                                map_base=self.map_base)
+        registry = default_registry(self.devices, list(self.model_files) or None,
+                                    default=self.protocol.default_model, map_base=self.map_base)
+        if carried:
+            registry.carry_in(carried)
+        registry.preset(self.params)
+        return registry
 
     def pipeline(self, info: CaptureInfo, sinks, registry=None) -> Pipeline:
-        return Pipeline(info, self.line, registry or self.registry(), sinks, protocol=self.protocol.name,
+        from decoders.carry import of_info
+
+        return Pipeline(info, self.line, registry or self.registry(of_info(info)), sinks, protocol=self.protocol.name,
                         timeout_ms=self.timeout_ms, unit_timeouts=self.unit_timeouts or None)
 
     def record_in(self, info: CaptureInfo) -> None:
@@ -325,8 +340,14 @@ class CaptureSpec:
         timeouts = {int(u): finite(ms, f"timeout of unit {u}", upper=MAX_TIMEOUT_MS)
                     for u, ms in c.unit_timeouts.items()}
         resolved = Resolved(line, protocol, dict(c.devices), self.model_files,
-                            finite(c.timeout_ms, "response timeout", upper=MAX_TIMEOUT_MS), timeouts, self.map_base)
-        registry = resolved.registry()  # unknown models and bad model files fail here, before anything opens
+                            finite(c.timeout_ms, "response timeout", upper=MAX_TIMEOUT_MS), timeouts, self.map_base,
+                            {int(u): dict(p) for u, p in c.params.items() if p})
+        from decoders.registry import ParameterError
+
+        try:  # unknown models, bad model files and parameters fail here, before anything opens
+            registry = resolved.registry()
+        except ParameterError as e:
+            raise ParameterError(f"{self.bus_file}: {e}" if self.bus_file else str(e)) from None
         for unit, model in sorted(resolved.devices.items()):
             fam = getattr(registry.decoders[model], "family", "pd" if model == "pd-series" else "modbus")
             if fam != protocol.family:

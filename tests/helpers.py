@@ -82,6 +82,22 @@ def simulate_and_decode(name: str, seconds: float, adapter: str = "wire", seed: 
     return _SIMULATED[key]
 
 
+_FILES: dict = {}
+
+
+def simulated(factory, name: str, *flags: str):
+    """`sniffer simulate FLAGS --out DIR/NAME` (a folder with --rotate), made once per test session; its path.
+    `factory` is pytest's tmp_path_factory."""
+    from sniffer.cli import main
+
+    key = (name, flags)
+    if key not in _FILES:
+        path = factory.mktemp("sim") / name
+        assert main(["simulate", *flags, "--out", str(path)]) == 0
+        _FILES[key] = path
+    return _FILES[key]
+
+
 def run_sniffer(*args, timeout=120) -> subprocess.CompletedProcess:
     """`python -m sniffer ARGS` as a user runs it, output captured."""
     return subprocess.run([sys.executable, "-m", "sniffer", *args], capture_output=True, text=True, timeout=timeout)

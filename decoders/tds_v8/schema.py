@@ -4,7 +4,7 @@ The drive's mode is tracked per unit from what crosses the bus: 0020H bit 4
 in read responses (1 = DRV, 0 = PRG, zh-2021 7(2)) and the mode bits a write
 to 0000H carries (bit 8 -> DRV, bit 9 -> PRG, zh-2021 7(1); they clear
 themselves).  Until one of them is seen the mode is unknown and no write is
-judged.
+judged.  The mode is carried over into the next part of a capture (decoders/carry.py).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ def load():
 
 class TdsV8Decoder(TableDecoder):
     extra_codes = (PRG_ONLY,)
+    carried_extra = ("mode",)
 
     def __init__(self, regmap) -> None:
         super().__init__(regmap)
@@ -42,12 +43,12 @@ class TdsV8Decoder(TableDecoder):
         for pt in f.points:
             a = pt["address"]
             if a == self.mode_addr and f.role == RESPONSE and f.function in (0x03, 0x04):
-                state.extra["mode"] = "DRV" if (pt["raw"] >> self.mode_bit) & 1 else "PRG"
+                state.remember("mode", "DRV" if (pt["raw"] >> self.mode_bit) & 1 else "PRG")
             elif a == self.cmd_addr and f.function in (0x06, 0x10) and f.crc_ok:
                 if (pt["raw"] >> self.drv_bit) & 1:
-                    state.extra["mode"] = "DRV"
+                    state.remember("mode", "DRV")
                 elif (pt["raw"] >> self.prg_bit) & 1:
-                    state.extra["mode"] = "PRG"
+                    state.remember("mode", "PRG")
 
     def check_request(self, f, state) -> None:
         super().check_request(f, state)

@@ -293,7 +293,9 @@ class Compare(Node):
     holding[300]).  A number compares with the point's scaled value (a unit after it, 50Hz, must be the
     point's); text compares with the point's text (an enum's or its mnemonic: "OV — Over voltage" = OV)
     or its value, `~` when it contains it.  A frame passes when one of its points does; with != when it
-    has the point and none of them equals the value."""
+    has the point and none of them equals the value.  A provisional point (scaled through a register not
+    known yet: "Output frequency (% of Cn-02)", docs/values.md) is picked only by its own name, or with a
+    number in its unit (`0025H > 50%`): never as the value it will be once scaled."""
 
     src: str
     name: str | None  # lower case, or None when picked by register
@@ -313,10 +315,15 @@ class Compare(Node):
             table = fx.table
             if self.table is not None and table != self.table:
                 return []
-            return [p for p in f.points if p.get("address") == self.address]
+            return [p for p in f.points if p.get("address") == self.address and self._takes(p)]
         n, k = self.name, len(self.name)
         return [p for p in f.points if (len(p["name"]) == k and p["name"].lower() == n)
-                or (p.get("id") or "").lower() == n]
+                or ((p.get("id") or "").lower() == n and self._takes(p))]
+
+    def _takes(self, p: dict) -> bool:
+        """A point picked by its register or parameter id: a provisional one only with a number in its unit."""
+        return not p.get("provisional") or (self.number is not None and bool(self.unit)
+                                            and (p.get("unit") or "").lower() == self.unit)
 
     def _equal_or_passes(self, p: dict) -> bool:
         if self.number is not None:

@@ -8,7 +8,8 @@
 Topics under PREFIX (the URL's path), LINK the frame's link name ("default" on one line):
 
     PREFIX/status                   online / offline (retained; the client's last will)
-    PREFIX/LINK/UNIT/NAME           a register's latest confirmed value (retained), NAME slugged
+    PREFIX/LINK/UNIT/NAME           a register's latest confirmed value (retained), NAME slugged (a
+                                    provisional value has a name of its own: docs/values.md)
     PREFIX/LINK/UNIT/health         the unit's counts and latency (retained, at most once a second)
     PREFIX/LINK/events              warning and error annotations (not retained)
 
@@ -242,6 +243,8 @@ def _payload(p: dict, common: dict) -> bytes:
         d["text"] = p["text"]
     if p.get("id"):
         d["id"] = p["id"]
+    if p.get("provisional"):
+        d["provisional"] = True  # scaled through a register not known yet: in %, on a topic of its own
     d.update(common)
     return orjson.dumps(d)
 

@@ -35,8 +35,9 @@ _SLUG = re.compile(r"[^a-z0-9]+")
 
 
 def slug(text: str) -> str:
-    """`Output frequency` -> `output_frequency`, `holding[8448]` -> `holding_8448` (a topic level, an id)."""
-    return _SLUG.sub("_", str(text).lower()).strip("_") or "_"
+    """`Output frequency` -> `output_frequency`, `holding[8448]` -> `holding_8448` (a topic level, an id);
+    "%" is "pct" (`Output frequency (% of Cn-02)` -> `output_frequency_pct_of_cn_02`)."""
+    return _SLUG.sub("_", str(text).lower().replace("%", " pct ")).strip("_") or "_"
 
 
 def node_id(prefix: str, link: str, unit: int) -> str:

@@ -16,7 +16,9 @@ Every figure is bounded whatever the capture's length: counts over time in at mo
 1,024 buckets (buckets.py), per unit a latency histogram, percentiles and a thinned
 series (units.py), per request type the poll period (polls.py), the register shadow's
 history through the TUI's RegisterBook (tui/shadow.py: the same values, names and
-units the Registers tab shows, at most REGISTER_POINTS samples a register), the
+units the Registers tab shows, at most REGISTER_POINTS samples a register; a register
+whose values changed model, name or unit is one series per each, never one line
+across units), the
 writes and faults (timeline.py), and with `compare` the semantic summary `sniffer
 diff` makes (semdiff.Summary).
 """
@@ -44,6 +46,7 @@ CODE_COLUMN = {"pair.timeout": "timeouts", "pair.no_response": "timeouts", "pair
                "model.fault": "faults", "model.alarm": "faults"}
 PLOTTED_UNITS = 16  # units in the latency and turnaround plots (the most answers); all are in the units table
 REGISTER_POINTS = 1024  # history kept per register (tui.history thins beyond)
+REGISTER_RETIRED = 64  # earlier series of registers kept (a value named or scaled otherwise before)
 REGISTER_PLOTS = 40  # (unit, engineering unit) groups plotted; the rest are in the table
 SERIES_PER_PLOT = 8
 
@@ -89,7 +92,7 @@ class Collector:
         self.buckets = TimeBuckets(COLUMNS)
         self.units: dict[int, UnitAgg] = {}
         self.polls = Polls()
-        self.book = RegisterBook(history_cap=REGISTER_POINTS)
+        self.book = RegisterBook(history_cap=REGISTER_POINTS, retired=REGISTER_RETIRED)
         self.timeline = Timeline()
         self.codes: Counter = Counter()
         self.time_sources: Counter = Counter()  # responses with a latency, by how their times were taken
@@ -282,7 +285,7 @@ class Collector:
 
     def _registers(self) -> dict:
         """The registers whose decoded value changed: a table, and plots grouped by unit and engineering unit."""
-        changed = sorted((rv for rv in self.book.values.values() if rv.history.changes > 0),
+        changed = sorted((rv for rv in (*self.book.retired, *self.book.values.values()) if rv.history.changes > 0),
                          key=lambda rv: (*_split(rv.unit), rv.table, rv.address))
         rows = []
         for rv in changed:

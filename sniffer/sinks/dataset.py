@@ -8,12 +8,18 @@ file per table, `TABLE/link=L/date=D/CAPTURE.parquet` under the staging folder; 
 moves the files into the dataset when the capture was read whole (sniffer.dataset.ingest).
 Rows are those of the export (rows.py, the batches of tables.py), row groups those of the
 Parquet export (parquet.RowGroupFile): memory is a few thousand rows per open partition,
-however long the capture.  Every file's metadata says the schema version and the capture.
+however long the capture.  Every file's metadata says the schema version and the capture, and
+`sniffer.decoder_state` what the decoders knew when its partition began (decoders/carry.py: the
+state a replay of the capture from there needs to scale and name its values as here).
 """
 
 from __future__ import annotations
 
 import os
+
+import msgspec
+
+from decoders.carry import KEY
 
 from ..events import CaptureInfo
 from ..frame import Frame
@@ -46,10 +52,11 @@ def encodings(schema) -> dict:
 class _Partition:
     """One (link, date): rows waiting per table, and the table's file once it has rows."""
 
-    __slots__ = ("key", "rows", "files", "paths")
+    __slots__ = ("key", "rows", "files", "paths", "state")
 
-    def __init__(self, key: tuple[str, str]) -> None:
+    def __init__(self, key: tuple[str, str], state: dict) -> None:
         self.key = key
+        self.state = state  # what the decoders knew when its first frame came
         self.rows: tuple[list, list, list] = ([], [], [])
         self.files: list[RowGroupFile | None] = [None, None, None]
         self.paths: list[str] = ["", "", ""]  # relative to the staging (and the dataset) folder
@@ -80,6 +87,10 @@ class DatasetSink(TableSink):
         self.counts = dict.fromkeys(DATASET_TABLES, 0)
         self.first_ns: int | None = None
         self.last_ns: int | None = None
+        self.decoder_state = None  # the session binds its pipeline's (Pipeline.decoder_state, state_version)
+        self.state_version = None
+        self._state: dict = {}
+        self._version = None
 
     def start(self, info: CaptureInfo) -> None:
         from ..dataset.layout import link_name
@@ -90,6 +101,7 @@ class DatasetSink(TableSink):
         self._meta = {b"sniffer.schema_version": str(SCHEMA_VERSION).encode(),
                       b"sniffer.capture": self.capture.encode(), b"sniffer.source": self.source.encode(),
                       b"sniffer.time_source": info.time_source.encode()}
+        self._state = info.extra.get(KEY) or {}
 
     def frame(self, f: Frame) -> None:
         link = getattr(f, "link", "") or self.link
@@ -105,6 +117,10 @@ class DatasetSink(TableSink):
         if f.annotations:
             ra.extend(annotation_rows(f, self._t0))
         self.frames += 1
+        if self.state_version is not None:  # what a partition that begins with the next frame starts with
+            v = self.state_version()
+            if v != self._version:
+                self._version, self._state = v, self.decoder_state()
         if len(rf) >= CONVERT:
             self._write(part, 0)
         if len(rp) >= CONVERT:
@@ -134,7 +150,7 @@ class DatasetSink(TableSink):
         self._link = link
         part = self._parts.get(key)
         if part is None:
-            part = self._parts[key] = _Partition(key)
+            part = self._parts[key] = _Partition(key, self._state)
         self._cur = part
         return part
 
@@ -167,7 +183,8 @@ class DatasetSink(TableSink):
             rel = os.path.join(partition(name, *part.key), self.capture + ".parquet")
             path = os.path.join(self.staging, rel)
             os.makedirs(os.path.dirname(path), exist_ok=True)
-            f = part.files[table] = RowGroupFile(path, schema.with_metadata(self._meta), self._pool, self.batch,
+            meta = {**self._meta, b"sniffer.decoder_state": msgspec.json.encode(part.state)}
+            f = part.files[table] = RowGroupFile(path, schema.with_metadata(meta), self._pool, self.batch,
                                                   encodings(schema))
             part.paths[table] = rel
         f.put(batch)

@@ -13,6 +13,10 @@ the frames the capture had; on a line that is never quiet it waits at most
 FORCE_AFTER_NS of capture time.  After each segment closes the index is
 rewritten and --keep applied: the oldest closed segments go first, never the
 open one.  One capture writes a folder at a time (a lock file says which).
+Each segment's metadata holds what the decoders knew when it opened
+(`decoder_state`, decoders/carry.py; the session binds `decoder_state` to its
+pipeline's), so a segment replayed alone scales and names its values as the
+capture did.
 """
 
 from __future__ import annotations
@@ -21,6 +25,8 @@ import errno
 import os
 import shutil
 import uuid
+
+from decoders.carry import record
 
 from ..events import CaptureInfo, Gap
 from ..frame import Frame
@@ -117,6 +123,7 @@ class SegmentSink(Sink):
         self._boundary = 0
         self._first_seq = 1
         self._closed = False
+        self.decoder_state = None  # the session binds its pipeline's (Pipeline.decoder_state)
 
     # ------------------------------------------------------------ the sink
     def start(self, info: CaptureInfo) -> None:
@@ -207,6 +214,8 @@ class SegmentSink(Sink):
         self._out = Output(os.path.join(self.folder, name), what="segment")
         seg_info = CaptureInfo.from_dict(info.to_dict())
         seg_info.extra = {**info.extra, "segment": seq, "segment_t_ns": t_ns}
+        if self.decoder_state is not None:
+            record(seg_info, self.decoder_state())
         self._cur = McapSink(self._out.part, flush_interval_s=self.flush_interval_s, packing=self._packing)
         self._cur.start(seg_info)
         span = self.rotate.span_ns

@@ -8,7 +8,11 @@ The files are replayed in time order (the segments of one capture share its
 clock; files of different captures are put on the first one's clock by their
 wall-clock anchors, or one after another when they have none).  Between two
 captures (a restart) and where a segment of one capture is missing (deleted by
---keep, lost) a Gap marks the hole, so the first frame after it says so.  A
+--keep, lost) a Gap marks the hole, so the first frame after it says so; the Gap
+carries what the decoders knew where the next file starts (its recorded
+`decoder_state`, decoders/carry.py), so its values are scaled and named as the
+capture had them.  Across segments that follow each other the decoders go on as
+they are (one pipeline).  A
 segment that cannot be read at all is skipped and listed in `damage`; damage
 inside a file is listed as its reader says.
 """
@@ -19,6 +23,8 @@ import os
 import threading
 from collections.abc import Iterator
 from dataclasses import replace
+
+from decoders.carry import KEY
 
 from ..events import CaptureInfo, Chunk, Gap, Tick
 from ..segments import INDEX_NAME, set_files
@@ -143,7 +149,9 @@ class SetSource:
                     if first:
                         first = False
                         if hole and last_t is not None:
-                            yield gap_before(last_t, ev, hole)
+                            gap = gap_before(last_t, ev, hole)
+                            state = info.extra.get(KEY)
+                            yield replace(gap, state=state) if isinstance(state, dict) and state else gap
                     last_t = ev.t_end_ns if type(ev) is Gap else ev.t_ns
                     yield ev
             except CaptureError as e:

@@ -8,13 +8,18 @@ its windows).  Each raw event and frame goes into the ring (ring.py) and into th
 hold its time; each frame is tested against every rule (one filterlang Query each, so `rate()`
 counts every frame); plan.py says when a window opens, grows and is complete.  A window's raw
 events start at an event before which the framer had nothing pending (its replay frames as
-the capture did) at or up to ALIGN_NS before `t - pre`, else at the first one after.
+the capture did) at or up to ALIGN_NS before `t - pre`, else at the first one after.  Its
+metadata holds what the decoders knew at that start (`decoder_state`, decoders/carry.py: the
+sink keeps each change with its time, the session binds `decoder_state` and `state_version`
+to its pipeline's), so the window replayed alone scales and names its values as the capture did.
 """
 
 from __future__ import annotations
 
 import os
 import time
+
+from decoders.carry import KEY
 
 from ..events import Chunk, Gap
 from ..filterlang import Context, Query
@@ -64,6 +69,11 @@ class TriggerSink(Sink):
         self.t0 = 0
         self._ctx = Context()
         self._first_n = 1
+        self.decoder_state = None  # the session binds its pipeline's (Pipeline.decoder_state, state_version)
+        self.state_version = None
+        self._states: list[tuple[int, dict]] = []  # (ring time, decoder state from then on), oldest first
+        self._version = None
+        self._state_moved = False
 
     # ------------------------------------------------------------ the sink
     def start(self, info) -> None:
@@ -71,6 +81,7 @@ class TriggerSink(Sink):
         self.t0 = info.t0_ns
         self._ctx = Context(info.t0_ns, self.ids)
         self._first_n = next_number(self.folder, self.stem)
+        self._states = [(-(1 << 62), info.extra.get(KEY) or {})]
 
     def raw(self, event) -> None:
         data = encode_event(event)
@@ -81,6 +92,9 @@ class TriggerSink(Sink):
             kind = RAW_CLEAN if (self.settled(event.link) if event.link else self.settled()) == 2 else RAW
         else:
             t, kind = event.t_ns, RAW
+        if self._state_moved:  # what the frames before this event taught the decoders: from here on
+            self._state_moved = False
+            self._keep_state(t)
         self.advance(event.t_end_ns if type(event) is Gap else event.t_ns)
         self.ring.add(kind, t, event.t_ns, data)
         for w in self.plan.active:
@@ -102,6 +116,10 @@ class TriggerSink(Sink):
                     f.frame(t, data)
                 except Exception as e:  # noqa: BLE001
                     self._drop(w, f, e)
+        if self.state_version is not None:
+            v = self.state_version()
+            if v != self._version:
+                self._version, self._state_moved = v, True
         flags = None
         for i, q in enumerate(self.queries):
             if flags is None:
@@ -135,6 +153,26 @@ class TriggerSink(Sink):
             st["on_trigger"] = self.runner.status()
         return {"triggers": st}
 
+    # ------------------------------------------------------------ decoder state
+    def _keep_state(self, t: int) -> None:
+        state = self.decoder_state() if self.decoder_state is not None else {}
+        if state != self._states[-1][1]:
+            self._states.append((t, state))
+        first = self.ring.first_ns
+        while len(self._states) > 1 and first is not None and self._states[1][0] <= first:
+            del self._states[0]  # older than anything a window can start with
+
+    def _state_at(self, starts: dict[str, int]) -> dict:
+        """The decoder state a window starts with: each link's, as it was at that link's first record."""
+        out = {}
+        for link, t in starts.items():
+            state = next((st for ts, st in reversed(self._states) if ts <= t), self._states[0][1])
+            if link is None:
+                return dict(state)
+            if state.get(link):
+                out[link] = state[link]
+        return out
+
     # ------------------------------------------------------------ windows
     def _matched(self, rule: int, frame) -> None:
         w, firing = self.plan.match(rule, frame.t_ns)
@@ -161,13 +199,15 @@ class TriggerSink(Sink):
 
     def _open(self, w: Window, first: dict) -> None:
         try:
-            f = WindowFile(self._path(w), self.info, {k: first[k] for k in ("rule", "t", "time", "frame")})
+            start = self._start(w)
+            f = WindowFile(self._path(w), self.info, {k: first[k] for k in ("rule", "t", "time", "frame")},
+                           self._state_at(start[-1]))
         except Exception as e:  # noqa: BLE001 - a window that cannot be written never stops the capture
             self._lost(w, e)
             return
         self.files[w.n] = f
         try:
-            self._dump(w, f)
+            self._dump(w, f, start)
         except Exception as e:  # noqa: BLE001
             self._drop(w, f, e)
 
@@ -175,17 +215,19 @@ class TriggerSink(Sink):
         f.discard()
         self._lost(w, e)
 
-    def _dump(self, w: Window, f: WindowFile) -> None:
-        """The ring's records from the window's start (see the module doc) up to now into its file."""
+    def _start(self, w: Window) -> tuple:
+        """Where the window's raw events start (see the module doc): (the ring's first index to write, or per
+        link with several, and {link: that record's time}; link None on one line)."""
         asked, ring = w.start_ns, self.ring
         since = asked - ALIGN_NS
         if self.info is not None and self.info.links:
-            self._dump_links(w, f, asked, since)
-            return
+            return self._start_links(asked, since)
         clean = after = None
+        times: dict[int, int] = {}
         for i, (kind, t, _log, _data) in enumerate(ring.records(since)):
             if kind == FRAME:
                 continue
+            times.setdefault(i, t)
             if t > asked:
                 after = i
                 break
@@ -194,35 +236,44 @@ class TriggerSink(Sink):
         if clean is None:
             first = ring.first_ns
             clean = 0 if first is None or first > asked else (after if after is not None else 1 << 62)
-        for i, (kind, t, log, data) in enumerate(ring.records(since)):
-            if i < clean:
-                continue
-            if kind == FRAME:
-                if f.first_ns is not None and f.first_ns <= t <= w.end_ns:
-                    f.frame(t, data)
-            elif t <= w.end_ns:
-                f.raw(t, log, data)
+        t0 = times.get(clean, ring.first_ns if clean == 0 and ring.first_ns is not None else asked)
+        return since, clean, {None: t0}
 
-    def _dump_links(self, w: Window, f: WindowFile, asked: int, since: int) -> None:
-        """`_dump` for a capture of several links: each link starts at its own last quiet point before the
+    def _start_links(self, asked: int, since: int) -> tuple:
+        """`_start` for a capture of several links: each link starts at its own last quiet point before the
         window's start (the links are seldom all quiet at once), or at its first read after it."""
-        start: dict[str, int] = {}  # link -> index of its first record in the window
-        after: dict[str, int] = {}
+        start: dict[str, tuple[int, int]] = {}  # link -> (index, time) of its first record in the window
+        after: dict[str, tuple[int, int]] = {}
         for i, (kind, t, _log, data) in enumerate(self.ring.records(since)):
             if kind == FRAME:
                 continue
             link = decode_event(data).link
             if t <= asked:
                 if kind == RAW_CLEAN and t >= since:
-                    start[link] = i
+                    start[link] = (i, t)
             elif link not in after:
-                after[link] = i
-        first = {link: start.get(link, after.get(link, 1 << 62)) for link in start.keys() | after.keys()}
+                after[link] = (i, t)
+        first = {link: start.get(link, after.get(link)) for link in start.keys() | after.keys()}
+        return since, {link: i for link, (i, _) in first.items()}, {link: t for link, (_, t) in first.items()}
+
+    def _dump(self, w: Window, f: WindowFile, start: tuple) -> None:
+        """The ring's records from the window's start (`_start`) up to now into its file."""
+        since, first, _times = start
+        if isinstance(first, dict):  # several links: each from its own start
+            for i, (kind, t, log, data) in enumerate(self.ring.records(since)):
+                if kind == FRAME:
+                    if f.first_ns is not None and f.first_ns <= t <= w.end_ns:
+                        f.frame(t, data)
+                elif t <= w.end_ns and i >= first.get(decode_event(data).link, 1 << 62):
+                    f.raw(t, log, data)
+            return
         for i, (kind, t, log, data) in enumerate(self.ring.records(since)):
+            if i < first:
+                continue
             if kind == FRAME:
                 if f.first_ns is not None and f.first_ns <= t <= w.end_ns:
                     f.frame(t, data)
-            elif t <= w.end_ns and i >= first.get(decode_event(data).link, 1 << 62):
+            elif t <= w.end_ns:
                 f.raw(t, log, data)
 
     def _lost(self, w: Window, e: Exception) -> None:

@@ -1,7 +1,8 @@
 """One trigger window as a capture file: an MCAP like any other (replayable alone), plus its trigger.
 
 The file holds the capture's metadata (`/capture`, `sniffer.capture`, with `extra.trigger` naming
-the first rule and frame: known even in a file cut short), the /raw events and /frames records of
+the first rule and frame: known even in a file cut short; `extra.decoder_state` what the decoders
+knew where it starts, decoders/carry.py), the /raw events and /frames records of
 the window, and, once complete, a `sniffer.trigger` metadata record (`read_trigger`): every rule
 that fired in it with its frame (time, wall clock, index, one-line summary, JSON record), how many
 frames matched each rule, the spans asked for and kept.  Written as NAME.part, renamed when done.
@@ -13,6 +14,8 @@ import os
 import re
 
 import msgspec
+
+from decoders.carry import record
 
 from ..events import CaptureInfo
 from ..outputs import Output
@@ -42,11 +45,13 @@ def window_path(folder: str, stem: str, n: int) -> str:
 
 
 class WindowFile:
-    def __init__(self, path: str, info: CaptureInfo, first: dict) -> None:
+    def __init__(self, path: str, info: CaptureInfo, first: dict, decoder_state: dict | None = None) -> None:
         self.output = Output(path, what="--windows")
         self.path = path
         copy = CaptureInfo.from_dict(info.to_dict())
         copy.extra = {**copy.extra, "trigger": first}
+        if decoder_state is not None:
+            record(copy, decoder_state)
         self.sink = McapSink(self.output.part)
         self.sink.start(copy)
         self.raw_events = self.frames = 0

@@ -21,10 +21,20 @@ register of such a value (`part`: a read or write of half a u32) never
 overwrites the value's row nor enters its plot: while the row exists it is
 marked stale ("word 2/2 now 0007H: value as of the last whole read") until a
 whole read or write sets it again; without a row, the register shows raw.
+
+A row's history is one series: the values of one model, name and engineering unit
+(the point's, as the decoder gave it: docs/values.md).  A value decoded otherwise (a
+unit identified after its first answers were decoded as generic registers, an
+A510 found to run at 0.1 Hz per count, a TDS-V8 frequency that was provisional,
+in % of Cn-02, until Cn-02 was read) starts the row's history again; with
+`retired` > 0 the book keeps that many of the earlier series (`retired_rows`: the
+report draws them under their own name and unit), else they are dropped.  No plot
+draws one series' values in another's unit.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 from decoders.generic.block import RegisterBlock, names
@@ -58,6 +68,7 @@ class RegisterValue:
     history: Series = field(default_factory=Series)  # every numeric value shown: (t, value, frame index)
     id: str = ""
     words: int = 1  # registers the value takes (address .. address + words - 1)
+    model: str | None = None  # the model the value was decoded as (with name and eng_unit: its series)
 
     @property
     def address_text(self) -> str:
@@ -77,8 +88,10 @@ _NUMBER = (int, float)  # not bool: a bit is plotted from its raw value
 class RegisterBook:
     """The latest value of every register per unit, changes, history: the frames' `writes` applied."""
 
-    def __init__(self, history_cap: int = CAP) -> None:
-        self.history_cap = history_cap  # samples kept per register at most (history.py thins beyond)
+    def __init__(self, history_cap: int = CAP, retired: int = 0) -> None:
+        self.history_cap = history_cap
+        self.retired_cap = retired  # earlier series kept (see the module doc)
+        self.retired: list[RegisterValue] = []  # samples kept per register at most (history.py thins beyond)
         self._cap = history_cap  # what each keeps now: less as registers share the budget (history.cap_for)
         self.values: dict[tuple[int, str, int], RegisterValue] = {}
         # the latest point per register of a frame that wrote nothing itself (a write request, whose
@@ -113,7 +126,7 @@ class RegisterBook:
                         seen[(unit, table, a)] = p
             return
         own = {p.get("address"): p for p in pts} if table is not None else {}
-        seen, values, t_ns = self.points, self.values, f.t_ns
+        seen, values, t_ns, model = self.points, self.values, f.t_ns, f.model
         for wtable, start, raws in writes:
             mine = own if wtable == table else {}
             n, i = len(raws), 0
@@ -139,14 +152,16 @@ class RegisterBook:
                             self._drop(unit, wtable, a + 1, a + step)
                     rv = values.get(key)
                     if rv is not None and rv.raw == raw:  # polled again, unchanged (most writes): set() inline
-                        v = p.get("value", raw)
-                        rv.name, rv.id = p.get("name") or rv.name, p.get("id") or ""
-                        rv.value, rv.eng_unit, rv.text, rv.t_ns = v, p.get("unit"), p.get("text") or "", t_ns
+                        v, name, eng = p.get("value", raw), p.get("name") or rv.name, p.get("unit")
+                        if name != rv.name or eng != rv.eng_unit or model != rv.model:
+                            self._series(rv, model, name, eng)
+                        rv.id = p.get("id") or ""
+                        rv.value, rv.text, rv.t_ns = v, p.get("text") or "", t_ns
                         if type(v) in _NUMBER:
                             rv.history.add(t_ns, v, f.index)
                         i += step
                         continue
-                self.set(key, raw, p, t_ns, step, f.index)
+                self.set(key, raw, p, t_ns, step, f.index, model)
                 i += step
         self.version += 1
 
@@ -161,16 +176,18 @@ class RegisterBook:
         wtable, start, raws = writes[0]
         if start != sh.addr or raws != blk.values or wtable != table_of(f) or f.crc_ok is False:
             return False
-        unit, t_ns, index, values = unit_key(f), f.t_ns, f.index, self.values
+        unit, t_ns, index, values, model = unit_key(f), f.t_ns, f.index, self.values, f.model
         for a, nm, raw in zip(range(start, start + len(raws)), names(sh.space, start, len(raws)), raws):
             key = (unit, wtable, a)
             rv = values.get(key)
             if rv is not None and rv.raw == raw:  # polled again, unchanged: as in `frame`
-                rv.name, rv.id, rv.value, rv.eng_unit, rv.text, rv.t_ns = nm, "", raw, None, "", t_ns
+                if nm != rv.name or rv.eng_unit is not None or model != rv.model:
+                    self._series(rv, model, nm, None)
+                rv.id, rv.value, rv.text, rv.t_ns = "", raw, "", t_ns
                 if type(raw) in _NUMBER:
                     rv.history.add(t_ns, raw, index)
             else:
-                self.set(key, raw, {"name": nm, "raw": raw, "value": raw, "unit": None}, t_ns, 1, index)
+                self.set(key, raw, {"name": nm, "raw": raw, "value": raw, "unit": None}, t_ns, 1, index, model)
         self.version += 1
         return True
 
@@ -199,9 +216,10 @@ class RegisterBook:
                 self.dropped += 1
 
     def set(self, key: tuple[int, str, int], raw, p: dict | None, t_ns: int, words: int = 1,
-            index: int = -1) -> None:
+            index: int = -1, model: str | None = None) -> None:
         """Register `key` now holds `raw` (with `words` > 1: the value of that many registers from it);
-        `p` is a point decoding that raw value, if there is one; `index` the frame that brought it."""
+        `p` is a point decoding that raw value, if there is one, as `model` decoded it; `index` the frame
+        that brought it."""
         rv = self.values.get(key)
         if rv is None:
             unit, table, addr = key
@@ -217,14 +235,30 @@ class RegisterBook:
             rv.changes += 1
         rv.words = words
         if p is not None:
-            rv.name = p.get("name") or rv.name
+            name, eng = p.get("name") or rv.name, p.get("unit")
+            if name != rv.name or eng != rv.eng_unit or model != rv.model:
+                self._series(rv, model, name, eng)
             rv.id = p.get("id") or ""
-            rv.value, rv.eng_unit, rv.text = p.get("value", raw), p.get("unit"), p.get("text") or ""
-        elif rv.raw != raw:  # no decoded point for this new value: show the number the shadow holds
-            rv.value, rv.eng_unit, rv.text = raw, None, ""
+            rv.value, rv.text = p.get("value", raw), p.get("text") or ""
+        elif rv.raw != raw:  # no decoded point for this new value: the number the shadow holds, as a register
+            name = f"{rv.table}[{rv.address}]"
+            if name != rv.name or rv.eng_unit is not None:
+                self._series(rv, rv.model, name, None)
+            rv.id, rv.value, rv.text = "", raw, ""
         if type(rv.value) in _NUMBER:
             rv.history.add(t_ns, rv.value, index)
         rv.raw, rv.t_ns = raw, t_ns
+
+    def _series(self, rv: RegisterValue, model: str | None, name: str, eng_unit: str | None) -> None:
+        """The row's values are now another series (model, name, unit): its history starts again; the
+        earlier one is kept in `retired` (up to `retired_cap`) or dropped."""
+        if rv.history.seen:
+            if self.retired_cap:
+                self.retired.append(dataclasses.replace(rv))  # shares the old history
+                if len(self.retired) > self.retired_cap:
+                    del self.retired[0]
+            rv.history = Series(rv.history.cap, self.thin_queue)
+        rv.model, rv.name, rv.eng_unit = model, name, eng_unit
 
     def rows(self, unit: int | None = None) -> list[RegisterValue]:
         """The rows in (unit, table, address) order."""
