@@ -341,14 +341,16 @@ def test_the_watch_applies_writes_named_by_a_point_with_that_raw():
     rv = s.registers[(1, "holding", 8192)]
     assert (rv.name, rv.value, rv.eng_unit, rv.raw, rv.changes) == ("Frequency command", 0.07, "Hz", 7, 0)
     s.add([_modbus(2, 10, "response", function=0x16, writes=[["holding", 8192, [9]]])])  # no point says 9
+    # the raw number is the register's, not a frequency: a series of its own (never 9 Hz after 0.07 Hz)
     assert (rv.name, rv.value, rv.eng_unit, rv.raw, rv.changes, rv.changed_ns) == \
-           ("Frequency command", 9, None, 9, 1, 10_000_000)
+           ("holding[8192]", 9, None, 9, 1, 10_000_000)
     s.add([_modbus(3, 15, "request", points=[dict(pt, raw=9, value=0.09)], crc_ok=False),  # a mangled frame
            _modbus(4, 20, "response", function=0x16, writes=[["holding", 8192, [9]]])])  # names nothing
-    assert (rv.value, rv.raw, rv.changes, list(rv.history)) == (9, 9, 1, [0.07, 9, 9])
+    assert (rv.value, rv.raw, rv.changes, list(rv.history)) == (9, 9, 1, [9, 9])
     s.add([_modbus(5, 25, "response", function=0x03, points=[dict(pt, raw=9, value=0.09)],
                    writes=[["holding", 8192, [9]], ["coil", 3, [1, 0]]])])
-    assert (rv.value, rv.raw, rv.changes) == (0.09, 9, 1)
+    assert (rv.name, rv.value, rv.eng_unit, rv.raw, rv.changes, list(rv.history)) == \
+           ("Frequency command", 0.09, "Hz", 9, 1, [0.09])
     assert {k: v.raw for k, v in s.registers.items() if k[1] == "coil"} == {(1, "coil", 3): 1, (1, "coil", 4): 0}
 
 
