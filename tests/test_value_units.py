@@ -64,6 +64,25 @@ def test_a_value_scaled_by_a_register_not_known_yet_is_provisional_and_named_apa
     assert {k: v for k, v in units_by_name(frames).items() if len(v) > 1} == {}
 
 
+def test_the_register_watch_and_the_report_draw_percent_and_hz_as_two_series(late):
+    from sniffer.report.collect import Collector
+    from sniffer.tui.model import FrameStore
+
+    info, frames, first = late
+    store = FrameStore(info.t0_ns)
+    store.add(frames)
+    rv = store.registers[(1, "holding", 0x0025)]
+    assert (rv.name, rv.eng_unit) == ("Output frequency", "Hz")
+    assert min(rv.history.t) > first[1] and max(rv.history.v) <= 60.0  # no % sample in the Hz trace
+    c = Collector()
+    for f in frames:
+        c.frame(f)
+    rows = {(r["unit"], r["name"]): r for r in c.to_data()["registers"]["rows"] if r["address"] == "0025H"}
+    assert rows[("1", "Un-02 Output frequency (% of Cn-02)")]["eng_unit"] == "%"  # the report keeps both
+    hz = rows[("1", "Un-02 Output frequency")]
+    assert hz["eng_unit"] == "Hz" and hz["max"] <= 60.0
+
+
 def test_filters_and_triggers_never_compare_a_provisional_value_with_the_scaled_one(late):
     info, frames, first = late
     ctx = Context(info.t0_ns, register_ids(default_registry()))
