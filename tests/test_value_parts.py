@@ -71,6 +71,23 @@ def test_each_segment_replayed_alone_scales_and_names_its_values_as_the_capture_
         [False, False, False, True, True, True]
 
 
+def test_a_segment_starts_with_the_models_the_capture_had_identified(tmp_path, tmp_path_factory, capsys):
+    """A byte capture says nothing of its units' models: they are identified from their answers.  Written
+    again as segments, each later segment names them from its first frame, as the capture did there."""
+    csv = simulated(tmp_path_factory, "a510.csv", "--scenario", "a510", "--duration", "8", "--seed", "2")
+    folder = tmp_path / "cab"
+    assert main(["replay", str(csv), "--baud", "19200", "--quiet", "--out", str(folder), "--rotate", "2s"]) == 0
+    segs = sorted(folder.glob("*.mcap"))
+    assert len(segs) >= 4
+    _, together = decoded(folder)
+    alone = [decoded(seg)[1] for seg in segs]
+    assert points([f for frames in alone for f in frames]) == points(together)
+    assert "generic" in {f.model for f in alone[0]}  # before the units were identified
+    for frames in alone[1:]:
+        assert {f.model for f in frames if f.unit} == {"a510"}
+    assert {u: d["model"] for u, d in state_of(segs[-1])[""].items()} == {"1": "a510", "2": "a510"}
+
+
 def test_a_folder_replayed_with_a_segment_missing_takes_up_the_next_ones_state(folder, tmp_path):
     kept = tmp_path / "kept"
     kept.mkdir()
