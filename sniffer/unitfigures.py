@@ -61,7 +61,7 @@ class Latencies:
         self._counts: dict[int, int] = {}  # microseconds (or a bucket's middle) -> how many
         self.exact = True
         self._min = self._max = 0
-        self._sorted: list | None = None  # [(us, cumulative count)], until the next add
+        self._sorted: tuple | None = None  # (keys ascending, cumulative counts), until the next add
 
     def add(self, ms: float) -> None:
         us = round(ms * 1000)
@@ -90,14 +90,15 @@ class Latencies:
     def max(self) -> float | None:
         return self._max / 1000 if self.n else None
 
-    def _cumulative(self) -> list:
+    def _cumulative(self) -> tuple:
         s = self._sorted
         if s is None:
-            s, seen = [], 0
-            for k in sorted(self._counts):
-                seen += self._counts[k]
-                s.append((k, seen))
-            self._sorted = s
+            keys = sorted(self._counts)
+            cum, seen, c = [], 0, self._counts
+            for k in keys:
+                seen += c[k]
+                cum.append(seen)
+            s = self._sorted = (keys, cum)
         return s
 
     def quantile(self, q: float) -> float | None:
@@ -107,10 +108,9 @@ class Latencies:
         rank = max(1, -(-Fraction(str(q)) * self.n // 1))  # ceil(q * n), exactly
         if rank >= self.n:
             return self._max / 1000
-        for k, seen in self._cumulative():
-            if seen >= rank:
-                return min(max(k, self._min), self._max) / 1000
-        return self._max / 1000
+        keys, cum = self._cumulative()
+        k = keys[bisect.bisect_left(cum, rank)]  # the first value with `rank` values at or below it
+        return min(max(k, self._min), self._max) / 1000
 
     @property
     def median(self) -> float | None:
@@ -229,8 +229,9 @@ class UnitFigures:
             return None
         return (self.requests - 1) / ((self.last_request_ns - self.first_request_ns) / 1e9)
 
-    def count(self, f: Frame) -> None:
-        """Count frame `f`, which names this unit (see the class doc for what each figure takes)."""
+    def count(self, f: Frame) -> float | None:
+        """Count frame `f`, which names this unit (see the class doc for what each figure takes); the latency
+        it added, if any."""
         m = f.model
         if m and (m != "generic" or self.model is None):
             self.model = m
@@ -239,6 +240,7 @@ class UnitFigures:
             self.first_ns = t
         self.last_ns = t
         seen = 0
+        added = None
         for a in f.annotations:
             seen |= _BIT.get(a.code, 0)
         role = f.role
@@ -270,6 +272,7 @@ class UnitFigures:
                     self.unmeasured += 1
                 else:
                     self.latency.add(lat)
+                    added = lat
         if seen & _FAULT:
             self.faults += 1
         if seen & _ALARM:
@@ -279,6 +282,7 @@ class UnitFigures:
             self.crc_errors += 1
         elif ok:
             self.good += 1
+        return added
 
     def counts(self) -> dict:
         return {name: getattr(self, name) for name in self.COUNTS}
@@ -309,10 +313,9 @@ class UnitBook:
         u = self.units.get(key)
         if u is None:
             u = self.units[key] = UnitFigures(key)
-        n = u.latency.n
-        u.count(f)
-        if u.latency.n != n:
-            self.latency.add(f.latency_ms)
+        lat = u.count(f)
+        if lat is not None:
+            self.latency.add(lat)
         return u
 
     def __contains__(self, key) -> bool:
