@@ -2,7 +2,7 @@
 
 The TUI's Units tab and latency histogram, the HTML report, the status file (`sniffer status`),
 `sniffer diff`, the MQTT health topics all count through `UnitBook`; the dataset's `units` query
-preset (`unit_sql`) says the same in SQL.  Textual-free and sans-I/O: O(1) a frame, memory flat
+preset (`sniffer.dataset.query.UNITS_SQL`) says the same in SQL.  Textual-free and sans-I/O: O(1) a frame, memory flat
 whatever the capture's length.
 
     book = UnitBook()
@@ -45,7 +45,7 @@ class Latencies:
     order: the median of an even count is the lower middle one (DuckDB's `quantile_disc` is the
     same).  A latency is counted per microsecond (Frame.latency_ms is to the microsecond), so the
     quantiles are exact while at most EXACT_VALUES distinct latencies came; beyond, a latency
-    over 1.024 ms is counted in a bucket 1/512 of an octave wide (1,024 us and under stay exact)
+    of 1.024 ms or more is counted in a bucket 1/512 of an octave wide (shorter ones stay exact)
     and a quantile is its bucket's middle: within 1/1024 (0.1 %) of the exact figure (`exact`
     says which).  The least and the most are always exact.  At most about 10,000 buckets
     (1 ms .. 100 s), however many latencies.

@@ -40,7 +40,7 @@ def cmd_status(spec: CaptureSpec, args) -> int:
         return EXIT_OK
     running, state = _state(d)
     for label, text in lines(d, state):
-        print(f"{label:<10}{text}")
+        print(f"{label:<9} {text}")  # a long label (a unit of a link) still gets its space
     return EXIT_OK if running else EXIT_FAILED
 
 

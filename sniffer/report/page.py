@@ -296,7 +296,7 @@ def _compare(c: dict) -> str:
     la, lb = d["latency_ms"]["a"], d["latency_ms"]["b"]
     out.append(_table(["latency", "before", "after"], [["median ms", _n(la["median"]), _n(lb["median"])],
                                                        ["p95 ms", _n(la["p95"]), _n(lb["p95"])],
-                                                       ["responses", _n(la["n"]), _n(lb["n"])]]))
+                                                       ["latencies measured", _n(la["n"]), _n(lb["n"])]]))
     u = d["units"]
     if u["added"] or u["removed"]:
         out.append(f"<h3>Units</h3><p>{_e(' '.join(u['a']))} → {_e(' '.join(u['b']))}: added "
