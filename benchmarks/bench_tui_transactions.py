@@ -4,8 +4,9 @@
 
 Frames are bench_tui.synthetic's (decoded frames of errors.mcap and a510.mcap, renumbered, pairs
 kept).  Prints: Transactions.add per frame (what every frame costs the store on top), the view
-synced with the store's after each filter, the latency figures (first sort, then after one more
-value), formatting a screen of lines, and under Pilot (120x40) opening tab 4 and keys in it.
+synced with the store's after each filter, the latency figures (first, then after one more
+value: unitfigures.Latencies sorts its distinct values), formatting a screen of lines, and under
+Pilot (120x40) opening tab 4 and keys in it.
 Figures are printed, nothing is asserted.
 """
 
@@ -55,12 +56,13 @@ def model(frames) -> FrameStore:
         t = time.perf_counter()
         txs.sync(s.view)
         print(f"  sync, filter {label:15s} {_ms(t):7.1f} ms -> {len(txs.view):,} transactions")
+    lat = s.units.latency  # every unit's (unitfigures.Latencies: counts per microsecond)
     t = time.perf_counter()
-    fig = txs.all_units.figures()
-    print(f"latency figures, first: {_ms(t):.1f} ms ({fig['n']:,} latencies)")
-    txs.all_units.add(3.0)
+    fig = lat.figures()
+    print(f"latency figures, first: {_ms(t):.1f} ms ({fig['lat_n']:,} latencies)")
+    lat.add(3.0)
     t = time.perf_counter()
-    txs.all_units.figures()
+    lat.figures()
     print(f"latency figures after one more value: {_ms(t):.1f} ms")
     mid = len(txs) // 2
     t = time.perf_counter()

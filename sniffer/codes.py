@@ -18,11 +18,32 @@ ERROR = "error"
 SEVERITIES = (INFO, WARNING, ERROR)
 
 
+# What a code counts as in the per-unit figures (sniffer.unitfigures), the status file's error counts,
+# the report's error series, the frame flags the TUI colours and filters by, and the dataset's query
+# presets: each code says it here, beside its declaration, so no module keeps a list of codes.
+TIMEOUT_CAT = "timeout"  # the request got no response (whatever ended the wait, but the capture's end)
+END_OF_CAPTURE_CAT = "end_of_capture"  # the capture ended while the request waited: not a timeout
+LATE_CAT = "late"  # answered after the unit's response timeout: a response, not a timeout
+RETRY_CAT = "retry"  # the master repeated an unanswered request
+ORPHAN_CAT = "orphan"  # a response no pending request explains
+EXCEPTION_CAT = "exception"  # an exception response (once per frame: its code's detail notes have none)
+FAULT_CAT = "fault"  # the drive reports a fault (trip)
+ALARM_CAT = "alarm"  # the drive reports an alarm (warning)
+NOISE_CAT = "noise"
+UART_CAT = "uart"  # a byte received with a framing or parity error
+GAP_CAT = "gap"  # the capture itself was interrupted
+T15_CAT = "t15"
+T35_CAT = "t35"
+CATEGORIES = (TIMEOUT_CAT, END_OF_CAPTURE_CAT, LATE_CAT, RETRY_CAT, ORPHAN_CAT, EXCEPTION_CAT, FAULT_CAT, ALARM_CAT,
+              NOISE_CAT, UART_CAT, GAP_CAT, T15_CAT, T35_CAT)
+
+
 @dataclass(slots=True, frozen=True)
 class Code:
     code: str
     severity: str
     text: str
+    category: str | None = None  # one of CATEGORIES: what the code counts as (None: only itself)
 
 
 class Annotation(NamedTuple):
@@ -70,22 +91,22 @@ STRUCTURE_MISMATCH = Code(
     "modbus.structure.mismatch", WARNING, "the frame's bytes contradict the structure its function code defines"
 )
 T15_VIOLATION = Code(
-    "modbus.timing.t15", WARNING, "silence inside the frame longer than 1.5 character times"
+    "modbus.timing.t15", WARNING, "silence inside the frame longer than 1.5 character times", T15_CAT
 )
 T35_SHORT = Code(
-    "modbus.timing.t35", INFO, "frame started less than 3.5 character times after the previous one"
+    "modbus.timing.t35", INFO, "frame started less than 3.5 character times after the previous one", T35_CAT
 )
-UART_FRAMING = Code("uart.framing_error", ERROR, "byte received with a framing error (bad stop bit)")
-UART_PARITY = Code("uart.parity_error", ERROR, "byte received with a parity error")
-NOISE = Code("noise.bytes", WARNING, "bytes that form no frame")
-SOURCE_GAP = Code("source.gap", WARNING, "capture interrupted (adapter lost); bytes may be missing")
+UART_FRAMING = Code("uart.framing_error", ERROR, "byte received with a framing error (bad stop bit)", UART_CAT)
+UART_PARITY = Code("uart.parity_error", ERROR, "byte received with a parity error", UART_CAT)
+NOISE = Code("noise.bytes", WARNING, "bytes that form no frame", NOISE_CAT)
+SOURCE_GAP = Code("source.gap", WARNING, "capture interrupted (adapter lost); bytes may be missing", GAP_CAT)
 
 # --- pairing -----------------------------------------------------------------
-NO_RESPONSE = Code("pair.no_response", WARNING, "request got no response")
-TIMEOUT = Code("pair.timeout", WARNING, "no response within the unit's response timeout")
-LATE_RESPONSE = Code("pair.late_response", WARNING, "response arrived after the response timeout")
-ORPHAN_RESPONSE = Code("pair.orphan_response", WARNING, "response with no matching request")
-RETRY = Code("pair.retry", WARNING, "request repeats an unanswered request (master retry)")
+NO_RESPONSE = Code("pair.no_response", WARNING, "request got no response", TIMEOUT_CAT)
+TIMEOUT = Code("pair.timeout", WARNING, "no response within the unit's response timeout", TIMEOUT_CAT)
+LATE_RESPONSE = Code("pair.late_response", WARNING, "response arrived after the response timeout", LATE_CAT)
+ORPHAN_RESPONSE = Code("pair.orphan_response", WARNING, "response with no matching request", ORPHAN_CAT)
+RETRY = Code("pair.retry", WARNING, "request repeats an unanswered request (master retry)", RETRY_CAT)
 BROADCAST_RESPONSE = Code(
     "pair.broadcast_response", ERROR, "a unit answered a broadcast request (unit 0)"
 )
@@ -99,10 +120,10 @@ ROLE_AMBIGUOUS = Code(
 PAIR_MISMATCH = Code(
     "pair.mismatch", ERROR, "response does not match its request (echo, address, count)"
 )
-END_OF_CAPTURE = Code("pair.end_of_capture", INFO, "capture ended before a response could arrive")
+END_OF_CAPTURE = Code("pair.end_of_capture", INFO, "capture ended before a response could arrive", END_OF_CAPTURE_CAT)
 
 # --- decoding ----------------------------------------------------------------
-EXCEPTION = Code("modbus.exception", WARNING, "exception response")
+EXCEPTION = Code("modbus.exception", WARNING, "exception response", EXCEPTION_CAT)
 EXCEPTION_UNLISTED = Code(
     "modbus.exception.unlisted", WARNING,
     "exception code not in the unit's table (its manual's, or the Modbus standard's for a generic unit)",
@@ -159,8 +180,10 @@ MODEL_SPLIT = Code(
     "model.register.split", WARNING, "a read or write covers only some registers of a multi-register value"
 )
 MODEL_FRAME_LONG = Code("model.frame.too_long", WARNING, "frame longer than the manual's maximum frame length")
-MODEL_FAULT = Code("model.fault", ERROR, "the drive reports a fault (trip): its fault code or fault bits")
-MODEL_ALARM = Code("model.alarm", WARNING, "the drive reports an alarm (warning): its alarm code or alarm bits")
+MODEL_FAULT = Code("model.fault", ERROR, "the drive reports a fault (trip): its fault code or fault bits", FAULT_CAT)
+MODEL_ALARM = Code(
+    "model.alarm", WARNING, "the drive reports an alarm (warning): its alarm code or alarm bits", ALARM_CAT
+)
 MODEL_FUNCTION = Code(
     "model.function.unsupported", WARNING, "function code the manual does not list for this model"
 )
@@ -186,7 +209,7 @@ PD_DATA_EXTRA = Code("pd.data.extra", WARNING, "more DATA bytes than the functio
 PD_DATA_LONG = Code("pd.data.long", WARNING, "more than 25 DATA bytes (l.183: fifty ASCII characters at most)")
 PD_UNIT_RANGE = Code("pd.unit.range", WARNING, "address outside 0-250 (l.71-73)")
 PD_BROADCAST_READ = Code("pd.broadcast.read", WARNING, "broadcast read: the manual says no inverter answers")
-PD_ERROR_REPLY = Code("pd.error.reply", WARNING, "error reply (81H/83H)")
+PD_ERROR_REPLY = Code("pd.error.reply", WARNING, "error reply (81H/83H)", EXCEPTION_CAT)
 PD_STATUS_CFG = Code("pd.status.cfg", WARNING, "status selector CFG outside 0-7 (l.165)")
 PD_NO_REQUEST = Code("pd.decode.no_request", INFO, "reply decoded without its request")
 PD_PARAM_UNKNOWN = Code("pd.param.unknown", INFO, "parameter not described in the manual: raw value")
@@ -196,6 +219,14 @@ PD_RUNNING = Code("pd.write.running", WARNING, "parameter without ** written whi
 PD_LOOP_ECHO = Code("pd.loop.echo", WARNING, "loop test reply is not an echo of its request")
 
 ALL_CODES: tuple[Code, ...] = tuple(v for v in list(globals().values()) if isinstance(v, Code))
+CATEGORY: dict[str, str] = {c.code: c.category for c in ALL_CODES if c.category}  # code -> its category
+
+
+def in_category(*categories: str) -> frozenset[str]:
+    """The codes that count as any of `categories`."""
+    return frozenset(code for code, cat in CATEGORY.items() if cat in categories)
+
+
 # what the stages outside framers and decoders emit (pipeline, pairer, registry); framers and
 # decoders declare their own in `codes` (protocols.py collects the framers')
 CORE_CODES: tuple[Code, ...] = (

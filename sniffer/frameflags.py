@@ -7,18 +7,21 @@ the frame list colours rows by them, and `sniffer.filterlang` tests them (`err`,
 
 from __future__ import annotations
 
+from .codes import ALARM_CAT, CATEGORY, FAULT_CAT, TIMEOUT_CAT, in_category
 from .frame import Frame
 
 F_ERROR = 1  # an error annotation or bad CRC
 F_WARN = 2  # a warning annotation
 F_EXC = 4  # exception response
-F_TIMEOUT = 8  # request without (timely) response
+F_TIMEOUT = 8  # a request that got no response (category timeout: the unit figures' `timeouts`)
 F_NOISE = 16
-F_FAULT = 32  # the drive reports a fault or alarm (model.fault / model.alarm): a problem of the machine
+F_FAULT = 32  # the drive reports a fault or an alarm (categories fault, alarm): a problem of the machine
 F_CRC = 64  # the CRC / LRC does not match (also F_ERROR)
 F_PROBLEM = F_ERROR | F_WARN | F_EXC | F_TIMEOUT | F_NOISE | F_FAULT
-FAULT_CODES = frozenset({"model.fault", "model.alarm"})
-TIMEOUT_CODES = frozenset({"pair.timeout", "pair.no_response"})
+FAULT_CODES = in_category(FAULT_CAT, ALARM_CAT)
+TIMEOUT_CODES = in_category(TIMEOUT_CAT)
+_FLAG = {code: F_FAULT if cat in (FAULT_CAT, ALARM_CAT) else F_TIMEOUT for code, cat in CATEGORY.items()
+         if cat in (FAULT_CAT, ALARM_CAT, TIMEOUT_CAT)}
 
 
 def frame_flags(f: Frame) -> int:
@@ -30,12 +33,13 @@ def frame_flags(f: Frame) -> int:
     if f.exception:
         fl |= F_EXC
     for a in f.annotations:
-        if a.code in FAULT_CODES:  # the drive's own trip, not a fault of the line: its own colour
+        flag = _FLAG.get(a.code, 0)
+        if flag == F_FAULT:  # the drive's own trip, not a fault of the line: its own colour
             fl |= F_FAULT
-        elif a.severity == "error":
+            continue
+        fl |= flag
+        if a.severity == "error":
             fl |= F_ERROR
         elif a.severity == "warning":
             fl |= F_WARN
-        if a.code in TIMEOUT_CODES:
-            fl |= F_TIMEOUT
     return fl

@@ -1,5 +1,5 @@
 """`sniffer diff`: what two captures *say*, compared: units, request sets and poll periods,
-register values, new/vanished annotation codes, latency shift.
+register values, new/vanished annotation codes, the units' figures, latency shift.
 
 Each capture is summarised incrementally as it decodes (`Summary.add(frame)`),
 so memory does not grow with its length: per request key and per register a
@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 from .frame import Frame
 from .protocols import MODBUS_TABLES
+from .unitfigures import UnitBook, UnitFigures
 
 FIRST_VALUES = 8  # distinct values listed per register
 MAX_DISTINCT = 1024  # distinct values counted per register (beyond: "1024+")
@@ -114,12 +115,10 @@ class Summary:
 
     def __init__(self) -> None:
         self.frames = 0
-        self.units: dict[tuple, dict] = {}  # (link, unit) -> counts
+        self.figures = UnitBook()  # every unit's figures and latencies (unitfigures: as every view counts them)
         self.requests: dict[tuple, list] = {}  # key -> [count, last t_ns, Quantiles of gaps in ms]
         self.values: dict[tuple, dict] = {}
         self.codes: Counter = Counter()
-        self.lat_all = Quantiles()
-        self.lat_unit: dict[tuple, Quantiles] = {}
 
     def add(self, f: Frame) -> None:
         self.frames += 1
@@ -127,20 +126,14 @@ class Summary:
         for a in f.annotations:
             if a.severity != "info":
                 codes[a.code] += 1
+        self.figures.frame(f)
         if f.crc_ok is False:  # damaged on the line: its unit, function and values are not what was sent
             return
         if f.exception:
             codes[f"exception.{int(f.exception.get('code') or 0):02x}"] += 1
         if f.is_noise or f.unit is None:
             return
-        uk = (f.link, f.unit)
-        u = self.units.get(uk)
-        if u is None:
-            u = self.units[uk] = {"model": f.model, "requests": 0, "responses": 0}
-        elif u["model"] in (None, "generic"):
-            u["model"] = f.model
         if f.role == "request":
-            u["requests"] += 1
             key = (f.link, f.unit, *request_key(f))
             r = self.requests.get(key)
             if r is None:
@@ -149,15 +142,6 @@ class Summary:
                 r[0] += 1
                 r[2].add((f.t_ns - r[1]) / 1e6)
                 r[1] = f.t_ns
-        elif f.role == "response" and f.latency_ms is not None:
-            u["responses"] += 1
-            self.lat_all.add(f.latency_ms)
-            q = self.lat_unit.get(uk)
-            if q is None:
-                q = self.lat_unit[uk] = Quantiles()
-            q.add(f.latency_ms)
-        elif f.role == "response":
-            u["responses"] += 1
         for pt in f.points:
             self._value((f.link, f.unit, pt.get("address"), pt.get("name") or ""), pt.get("value"))
 
@@ -195,15 +179,17 @@ class Summary:
             regs[key] = {"unit": unit, "address": addr, "name": name, "values": list(r["first"]),
                          "n_values": n, "n_values_capped": r["more"], "last": r["last"],
                          "range": [r["lo"], r["hi"]] if r["lo"] is not None else None}
+        units = {name: fig for name, fig in self.figures.to_dict().items() if not fig["ghost"]}
+        lat = self.figures.latency
         return {
             "frames": self.frames,
-            "units": {_on(k[0]) + str(k[1]): v for k, v in sorted(self.units.items())},
+            "units": units,
             "requests": requests,
             "registers": regs,
             "codes": dict(sorted(self.codes.items())),
-            "latency_ms": {"n": self.lat_all.n, "median": self.lat_all.pct(0.5), "p95": self.lat_all.pct(0.95),
-                           "per_unit": {_on(u[0]) + str(u[1]): {"n": q.n, "median": q.pct(0.5), "p95": q.pct(0.95)}
-                                        for u, q in sorted(self.lat_unit.items())}},
+            "latency_ms": {"n": lat.n, "median": lat.median, "p95": lat.quantile(0.95),
+                           "per_unit": {name: {"n": u["lat_n"], "median": u["lat_median"], "p95": u["lat_p95"]}
+                                        for name, u in units.items() if u["lat_n"]}},
         }
 
 
@@ -281,6 +267,11 @@ class DiffReport:
             out += [f"  + {k} x{n}" for k, n in c["new"].items()]
             out += [f"  - {k} x{n}" for k, n in c["vanished"].items()]
             out += [f"  ~ {k} x{n[0]} -> x{n[1]}" for k, n in c["count_changed"].items()]
+        changed = d.get("figures", {}).get("changed") or {}
+        if changed:
+            out.append("unit figures:")
+            out += [f"  ~ unit {u}: " + ", ".join(f"{k.replace('_', ' ')} {a} -> {b}" for k, (a, b) in ch.items())
+                    for u, ch in changed.items()]
         la, lb = d["latency_ms"]["a"], d["latency_ms"]["b"]
         out.append(f"latency: median {la['median']} -> {lb['median']} ms, p95 {la['p95']} -> {lb['p95']} ms "
                    f"(n {la['n']} -> {lb['n']})")
@@ -330,5 +321,10 @@ def compare(sa: dict, sb: dict, a: str, b: str) -> DiffReport:
                   "count_changed": {k: [ca[k], cb[k]] for k in ca if k in cb and ca[k] != cb[k]}},
         "latency_ms": {"a": sa["latency_ms"], "b": sb["latency_ms"]},
         "frames": {"a": sa["frames"], "b": sb["frames"]},
+        # every unit's figures (unitfigures), and per unit in both the counts that differ
+        "figures": {"a": ua, "b": ub,
+                    "changed": {u: ch for u in ua if u in ub
+                                and (ch := {k: [ua[u][k], ub[u][k]] for k in UnitFigures.COUNTS
+                                            if ua[u].get(k) != ub[u].get(k)})}},
     }
     return DiffReport(a, b, data)

@@ -3,7 +3,9 @@
     {"format": "sniffer.status/1", "state": "running", "pid": 4242, "command": "live /dev/ttyUSB0",
      "line": "19200 8E1 modbus-rtu", "started": "2026-11-25T10:41:00Z", "updated": "...", "uptime_s": 3600.2,
      "frames": 81234, "bytes": 1620000,
-     "errors": {"crc": 2, "exceptions": 1, "timeouts": 4, "faults": 0, "noise": 0, "uart": 0, "gaps": 1},
+     "errors": {"crc": 2, "exceptions": 1, "timeouts": 4, "retries": 0, "faults": 0, "alarms": 0, "noise": 0,
+                "uart": 0, "gaps": 1},
+     "units": {"1": {"requests": 40210, "responses": 40205, "timeouts": 4, ..., "lat_median": 4.77}, ...},
      "last_frame": {"t": 3599.98, "wall": "2026-11-25T11:40:59Z"},
      "port": {"state": "ok"},
      "segments": {...}}                  <- a sink's status() (sinks/segments.py), merged in
@@ -13,9 +15,11 @@ the session adds it when the capture has a status file (`--status FILE`, or
 `status.json` in the folder of a --rotate capture).  Any other sink with a
 `status()` method contributes its dict (one top-level key of its own, e.g.
 `{"triggers": {...}}`); `sniffer status` shows sections it does not know
-generically.  The file is written atomically (a temporary file renamed over
-it) from the capture loop every STATUS_EVERY_S, and by a watchdog thread
-when the loop is waiting (a lost adapter: `port` then says since when), and
+generically.  `units` is every unit's figures (sniffer.unitfigures, as
+every view counts them), and `errors` adds them up, with what names no
+unit (noise, UART errors, gaps).  The file is written atomically (a
+temporary file renamed over it) from the capture loop every STATUS_EVERY_S,
+and by a watchdog thread when the loop is waiting (a lost adapter: `port` then says since when), and
 once more at the end (`state` "ended", with why).
 """
 
@@ -30,12 +34,15 @@ from . import codes
 from .events import Gap
 from .outputs import write_json_atomic
 from .stderr import say
+from .unitfigures import UnitBook
 
 STATUS_FORMAT = "sniffer.status/1"
 STATUS_EVERY_S = 2.0
 _NS = 1_000_000_000
-_CODES = {codes.NO_RESPONSE.code: "timeouts", codes.TIMEOUT.code: "timeouts", codes.MODEL_FAULT.code: "faults",
-          codes.UART_FRAMING.code: "uart", codes.UART_PARITY.code: "uart"}
+_UART = codes.in_category(codes.UART_CAT)
+# the status file's error counts that are the units' figures added up (sniffer.unitfigures), by name
+_FROM_UNITS = {"crc": "crc_errors", "exceptions": "exceptions", "timeouts": "timeouts", "retries": "retries",
+               "faults": "faults", "alarms": "alarms"}
 
 
 def iso(wall_ns: int | None) -> str | None:
@@ -59,7 +66,8 @@ class StatusSink:
         self.every_ns = int(every_s * _NS)
         self.announce = announce or say
         self.frames = 0
-        self.errors = dict.fromkeys(("crc", "exceptions", "timeouts", "faults", "noise", "uart", "gaps"), 0)
+        self.units = UnitBook()
+        self.errors = dict.fromkeys(("noise", "uart", "gaps"), 0)  # what names no unit (the rest: `units`)
         self.last_frame_t: int | None = None
         self.info = None
         self.started_mono = time.monotonic_ns()
@@ -85,17 +93,21 @@ class StatusSink:
     def frame(self, f) -> None:
         self.frames += 1
         self.last_frame_t = f.t_ns
+        self.units.frame(f)
         e = self.errors
-        if f.crc_ok is False:
-            e["crc"] += 1
-        if f.exception:
-            e["exceptions"] += 1
         if f.protocol == "noise":
             e["noise"] += 1
         for a in f.annotations:
-            kind = _CODES.get(a.code)
-            if kind is not None:
-                e[kind] += 1
+            if a.code in _UART:
+                e["uart"] += 1
+
+    def error_counts(self) -> dict:
+        """crc, exceptions, timeouts, retries, faults, alarms: every unit's figures added up; noise (frames), uart
+        (bytes with a framing or parity error), gaps (the capture interrupted)."""
+        total = self.units.total()
+        e = {name: getattr(total, fig) for name, fig in _FROM_UNITS.items()}
+        e.update(self.errors)
+        return e
 
     def maybe_flush(self) -> None:
         if time.monotonic_ns() - self._written >= self.every_ns:
@@ -122,7 +134,8 @@ class StatusSink:
             "started": iso(self.started_wall), "updated": iso(time.time_ns()),
             "updated_ns": time.time_ns(), "every_s": self.every_ns / _NS,
             "uptime_s": round((now_mono - self.started_mono) / _NS, 1),
-            "frames": self.frames, "bytes": s.bytes_in, "errors": dict(self.errors),
+            "frames": self.frames, "bytes": s.bytes_in, "errors": self.error_counts(),
+            "units": self.units.to_dict(),
         }
         if self.last_frame_t is not None and info is not None:
             t = self.last_frame_t

@@ -183,7 +183,7 @@ def test_query_formats_and_presets(tmp_path, truth, capsys):
     assert {"model.fault", "modbus.exception", "modbus.crc.mismatch"} <= {r["code"] for r in faults}
     assert main(["query", str(ds), "--preset", "latency"]) == 0
     table = capsys.readouterr().out.splitlines()
-    assert table[0].split() == ["link", "unit", "responses", "median_ms", "p95_ms", "p99_ms", "max_ms"]
+    assert table[0].split() == ["link", "unit", "measured", "median_ms", "p95_ms", "p99_ms", "max_ms"]
     assert table[-1].endswith("rows)")
     assert main(["query", str(ds), "--preset", "writes", "--format", "json"]) == 0
     writes = json.loads(capsys.readouterr().out)

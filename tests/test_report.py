@@ -156,7 +156,8 @@ def test_collector_latency_turnaround_and_counts():
     c.end(session_of(info))
     d = c.to_data()
     (u,) = d["units"]
-    assert (u["requests"], u["responses"], u["crc"], u["timeouts"], u["retries"]) == (5, 4, 1, 1, 1)
+    # the CRC-bad request is a request too, and a CRC error (unitfigures: every view counts so)
+    assert (u["requests"], u["responses"], u["crc_errors"], u["timeouts"], u["retries"]) == (6, 4, 1, 1, 1)
     assert u["lat_n"] == 4 and u["lat_min"] == pytest.approx(lat[0], abs=1e-3)
     assert (u["below15"], u["below35"]) == (1, 2)  # 1 char is under t1.5, 1 and 3 under t3.5
     t = d["turnaround"]
@@ -243,10 +244,10 @@ def test_report_of_a_capture_counts_what_replay_decodes(tmp_path, capsys):
     units = {u["unit"]: u for u in d["units"]}
     for unit in {f.unit for f in frames if f.unit is not None and not f.is_noise}:
         mine = [f for f in frames if f.unit == unit and not f.is_noise]
-        assert units[str(unit)]["crc"] == sum(f.crc_ok is False for f in mine)
-        good = [f for f in mine if f.crc_ok is not False]
-        assert units[str(unit)]["requests"] == sum(f.role == "request" for f in good)
-        assert units[str(unit)]["exceptions"] == sum(bool(f.exception) for f in good)
+        assert units[str(unit)]["crc_errors"] == sum(f.crc_ok is False for f in mine)
+        assert units[str(unit)]["requests"] == sum(f.role == "request" for f in mine)
+        assert units[str(unit)]["exceptions"] == sum(bool(f.exception) for f in mine if f.role == "response")
+        assert units[str(unit)]["ghost"] == all(f.crc_ok is False for f in mine)
     assert sum(d["buckets"]["crc"]) == sum(f.crc_ok is False for f in frames)
     assert d["totals"]["codes"]["pair.retry"] == sum(a.code == "pair.retry" for f in frames for a in f.annotations)
     html = out.read_text()

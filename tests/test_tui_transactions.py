@@ -17,10 +17,11 @@ from sniffer.line import LineSettings
 from sniffer.pipeline import Pipeline
 from sniffer.sources.replay import open_replay
 from sniffer.tui.app import SnifferApp
-from sniffer.tui.latency import EDGES_MS, LatencyStats, histogram_text
+from sniffer.tui.latency import EDGES_MS, histogram_text
 from sniffer.tui.model import F_PROBLEM, FrameStore
 from sniffer.tui.sink import TuiSink
 from sniffer.tui.transactions import BROADCAST, END_OF_CAPTURE, EXCEPTION, NO_RESPONSE, OK, ORPHAN, TIMEOUT
+from sniffer.unitfigures import Latencies, UnitFigures
 
 SIZE = (140, 45)
 SCENARIOS = ["a510.mcap", "errors.mcap", "pd-series.mcap", "pd-series-ascii.mcap"]
@@ -108,8 +109,9 @@ def test_scenarios_give_every_kind():
 
 
 def test_errors_with_a_short_timeout_count_timeouts_per_unit():
-    """errors.mcap decoded with a 20 ms response timeout: the requests left waiting past it are timeouts,
-    counted per unit apart from the latencies, and the exceptions are transactions of their own kind."""
+    """errors.mcap decoded with a 20 ms response timeout: every request left unanswered is a timeout, once
+    (whether the next request or the timeout ended the wait), counted per unit apart from the latencies,
+    and the exceptions are transactions of their own kind."""
     info, frames = frames_of("errors.mcap", 20.0)
     s = store_with(frames, info.t0_ns)
     assert built(s) == expected_transactions(frames)
@@ -117,11 +119,13 @@ def test_errors_with_a_short_timeout_count_timeouts_per_unit():
     timeouts = 0
     for u in units:
         reqs = [f for f in frames if f.role == "request" and f.unit == u and f.pair is None]
-        st = s.transactions.stats(u)
-        assert st.timeouts == sum("pair.timeout" in codes(f) for f in reqs)
-        assert st.no_response == sum("pair.no_response" in codes(f) and "pair.timeout" not in codes(f) for f in reqs)
+        st = s.units[u]
+        assert st.timeouts == sum(bool(codes(f) & {"pair.timeout", "pair.no_response"}) for f in reqs)
+        assert st.unanswered_at_end == sum("pair.end_of_capture" in codes(f) for f in reqs)
         timeouts += st.timeouts
-    assert timeouts > 0 and s.transactions.all_units.timeouts == timeouts
+    assert timeouts > 0 and s.units.total().timeouts == timeouts
+    both = [f for f in frames if {"pair.timeout", "pair.no_response"} <= codes(f)]
+    assert both  # a request that waited past its timeout carries both codes: still one timeout
     exc = [f for f in frames if f.role == "response" and f.exception and f.pair is not None]
     assert sum(k == EXCEPTION for k in s.transactions.kind) == len(exc) > 0
 
@@ -152,25 +156,32 @@ def test_latency_per_unit_matches_the_frames(name):
     for u in {f.unit for f in frames if f.role == "response"} | {None}:
         lat = [f.latency_ms for f in frames if f.role == "response" and f.pair is not None
                and f.latency_ms is not None and (u is None or f.unit == u)]
-        st = s.transactions.all_units if u is None else s.transactions.stats(u)
-        assert st.bins == independent_bins(lat)
-        assert st.figures() == (independent_figures(lat) if lat else None)
+        st = s.units.total() if u is None else s.units[u]
+        assert st.latency.bins(EDGES_MS) == independent_bins(lat)
+        assert figures_of(st.latency) == (independent_figures(lat) if lat else None)
         assert st.unmeasured == sum(1 for f in frames if f.role == "response" and f.pair is not None
                                     and f.latency_ms is None and (u is None or f.unit == u))
 
 
-def test_percentiles_by_nearest_rank_and_lazy_merge():
-    st = LatencyStats()
+def figures_of(lat: Latencies) -> dict | None:
+    if not lat.n:
+        return None
+    return {"n": lat.n, "median": lat.median, "p95": lat.quantile(0.95), "p99": lat.quantile(0.99), "max": lat.max}
+
+
+def test_percentiles_by_nearest_rank_and_added_after_a_look():
+    fig = UnitFigures(1)
+    st = fig.latency
     for v in (5.0, 1.0, 3.0, 2.0):
         st.add(v)
-    assert st.figures() == {"n": 4, "median": 2.0, "p95": 5.0, "p99": 5.0, "max": 5.0}
-    for v in range(100, 0, -1):  # added after the first figures: merged into the sorted values
+    assert figures_of(st) == {"n": 4, "median": 2.0, "p95": 5.0, "p99": 5.0, "max": 5.0}
+    for v in range(100, 0, -1):  # added after the first figures were read
         st.add(float(v))
     values = [5.0, 1.0, 3.0, 2.0] + [float(v) for v in range(1, 101)]
-    assert st.figures() == independent_figures(values)
-    assert st.bins == independent_bins(values)
-    text = histogram_text(st, "unit 1").plain
-    assert "n 104" in text and "max 100.0 ms" in text and "timeouts 0" in text
+    assert figures_of(st) == independent_figures(values)
+    assert st.bins(EDGES_MS) == independent_bins(values)
+    text = histogram_text(fig, "unit 1").plain
+    assert "n 104" in text and "max 100.000 ms" in text and "timeouts 0" in text
 
 
 def test_view_follows_the_store_incrementally_and_with_a_filter():
@@ -299,8 +310,8 @@ def test_histogram_figures_are_the_frames_latencies():
                 fig = independent_figures(lat)
                 text = str(app.tx_pane.query_one("#histogram").render())
                 assert ("latency, all units" if u is None else f"latency, unit {u} (a510)") in text
-                assert f"n {fig['n']}  median {fig['median']:.2f}  p95 {fig['p95']:.1f}" in text, text
-                assert f"max {fig['max']:.1f} ms" in text
+                assert f"n {fig['n']}  median {fig['median']:.3f}  p95 {fig['p95']:.3f}" in text, text
+                assert f"max {fig['max']:.3f} ms" in text
                 counts = text.splitlines()[-1].split()
                 assert counts[0] == "n" and [int(c) for c in counts[1:]] == independent_bins(lat)
     run(go())

@@ -20,9 +20,10 @@ from ..settings import CaptureSpec
 from .common import EXIT_FAILED, EXIT_OK, UsageError
 
 _KNOWN = {"format", "state", "pid", "command", "source", "line", "started", "updated", "updated_ns", "every_s",
-          "uptime_s", "frames", "bytes", "errors", "last_frame", "port", "segments", "ended"}
+          "uptime_s", "frames", "bytes", "errors", "last_frame", "port", "segments", "ended", "units"}
 STALE_AFTER = 3  # status intervals without a write: the capture is not running
 GENERIC_WIDTH = 300
+UNITS_SHOWN = 32  # unit lines (`--json` has them all)
 
 
 def cmd_status(spec: CaptureSpec, args) -> int:
@@ -39,7 +40,7 @@ def cmd_status(spec: CaptureSpec, args) -> int:
         return EXIT_OK
     running, state = _state(d)
     for label, text in lines(d, state):
-        print(f"{label:<10}{text}")
+        print(f"{label:<9} {text}")  # a long label (a unit of a link) still gets its space
     return EXIT_OK if running else EXIT_FAILED
 
 
@@ -117,6 +118,9 @@ def lines(d: dict, state: str) -> list[tuple[str, str]]:
     if isinstance(errors, dict):
         out.append(("errors", ", ".join(f"{k} {v:,}" if isinstance(v, int) else f"{k} {v}"
                                         for k, v in errors.items())))
+    units = d.get("units")
+    if isinstance(units, dict):
+        out += _unit_lines(units)
     port = d.get("port")
     if isinstance(port, dict) and port.get("state") not in (None, "ok"):
         ports = port.get("ports") or ()
@@ -138,6 +142,27 @@ def lines(d: dict, state: str) -> list[tuple[str, str]]:
     for key, value in d.items():
         if key not in _KNOWN:
             out.append((key, _generic(value)))
+    return out
+
+
+def _unit_lines(units: dict) -> list[tuple[str, str]]:
+    """A line per unit: its figures (sniffer.unitfigures), the latency's to the microsecond."""
+    out = []
+    for name, u in list(units.items())[:UNITS_SHOWN]:
+        if not isinstance(u, dict):
+            continue
+        counts = [f"req {u.get('requests')}", f"rsp {u.get('responses')}", f"CRC err {u.get('crc_errors')}",
+                  f"exc {u.get('exceptions')}", f"timeouts {u.get('timeouts')}", f"retries {u.get('retries')}"]
+        counts += [f"{label} {u[key]}" for key, label in (("faults", "faults"), ("alarms", "alarms"), ("late", "late"),
+                                                          ("unanswered_at_end", "unanswered at end")) if u.get(key)]
+        if u.get("lat_n"):
+            approx = "" if u.get("lat_exact", True) else " (within 0.1 %)"
+            counts.append(f"latency median {u.get('lat_median'):.3f} p95 {u.get('lat_p95'):.3f} "
+                          f"max {u.get('lat_max'):.3f} ms{approx}")
+        ghost = " (CRC-bad frames only: a damaged address?)" if u.get("ghost") else ""
+        out.append((f"unit {name}", ", ".join(counts) + ghost))
+    if len(units) > UNITS_SHOWN:
+        out.append(("", f"and {len(units) - UNITS_SHOWN} more units (--json)"))
     return out
 
 

@@ -18,7 +18,9 @@ import glob
 import os
 from dataclasses import dataclass
 
+from .. import codes as C
 from ..sinks.schemas import DATASET_TABLES, PARTITIONS, dataset_schemas
+from ..unitfigures import QUANTILES
 from .layout import Dataset
 
 
@@ -28,25 +30,78 @@ class Preset:
     sql: str
 
 
+def _literal(text: str) -> str:
+    return "'" + text.replace("'", "''") + "'"
+
+
+def _codes(*categories: str) -> str:
+    """The codes of `categories` (sniffer.codes: each code declares its own) as an SQL list."""
+    return "(" + ", ".join(_literal(c) for c in sorted(C.in_category(*categories))) + ")"
+
+
+# what a frame's annotations make it, one row a frame (the categories sniffer.unitfigures counts)
+_FRAME_CATEGORIES = f"""SELECT capture, frame,
+         bool_or(code IN {_codes(C.TIMEOUT_CAT)}) AS timeout, bool_or(code IN {_codes(C.END_OF_CAPTURE_CAT)}) AS at_end,
+         bool_or(code IN {_codes(C.LATE_CAT)}) AS late, bool_or(code IN {_codes(C.RETRY_CAT)}) AS retry,
+         bool_or(code IN {_codes(C.EXCEPTION_CAT)}) AS exception, bool_or(code IN {_codes(C.FAULT_CAT)}) AS fault,
+         bool_or(code IN {_codes(C.ALARM_CAT)}) AS alarm
+  FROM annotations GROUP BY capture, frame"""
+_QUANTILES = ",\n       ".join(f"quantile_disc(latency_ms, {q}) FILTER (WHERE paired) AS {name}"
+                               for name, q in QUANTILES)
+
+# sniffer.unitfigures.UnitFigures, figure by figure (its docstring defines each; the README says what they mean);
+# an aggregate leaves out NULL: a latency counts where the response is paired and has one
+UNITS_SQL = f"""WITH a AS (
+  {_FRAME_CATEGORIES}
+), u AS (
+  SELECT f.link, f.unit, f.role, f.crc_ok, f.latency_ms, f.role = 'response' AND f.pair IS NOT NULL AS paired,
+         a.timeout, a.at_end, a.late, a.retry, a.exception, a.fault, a.alarm
+  FROM frames f LEFT JOIN a ON a.capture = f.capture AND a.frame = f.index
+  WHERE f.unit IS NOT NULL AND f.protocol <> 'noise'
+)
+SELECT link, unit, count(*) FILTER (WHERE crc_ok) = 0 AS ghost,
+       count(*) FILTER (WHERE role = 'request') AS requests,
+       count(*) FILTER (WHERE role = 'response') AS responses,
+       count(*) FILTER (WHERE NOT crc_ok) AS crc_errors,
+       count(*) FILTER (WHERE role = 'response' AND exception) AS exceptions,
+       count(*) FILTER (WHERE role = 'request' AND timeout) AS timeouts,
+       count(*) FILTER (WHERE role = 'request' AND retry) AS retries,
+       count(*) FILTER (WHERE fault) AS faults,
+       count(*) FILTER (WHERE alarm) AS alarms,
+       count(*) FILTER (WHERE role = 'response' AND late) AS late,
+       count(*) FILTER (WHERE role = 'request' AND at_end) AS unanswered_at_end,
+       count(*) FILTER (WHERE paired AND latency_ms IS NULL) AS unmeasured,
+       count(latency_ms) FILTER (WHERE paired) AS lat_n,
+       min(latency_ms) FILTER (WHERE paired) AS lat_min,
+       {_QUANTILES},
+       max(latency_ms) FILTER (WHERE paired) AS lat_max
+FROM u
+GROUP BY link, unit
+ORDER BY link, unit"""
+
 PRESETS = {
+    "units": Preset(
+        "every unit's figures, as the TUI, the report, status, diff and MQTT count them: requests, responses, "
+        "CRC errors, exceptions, timeouts, retries, faults, alarms, late, unanswered at the end, latency "
+        "(ms; quantiles by the nearest rank)", UNITS_SQL),
     "faults": Preset(
         "problems by link, unit and code: CRC errors, exceptions, timeouts, drive faults and alarms, "
         "how often, first and last seen",
-        """SELECT link, unit, code, severity, count(*) AS n, min(time) AS first, max(time) AS last,
+        f"""SELECT link, unit, code, severity, count(*) AS n, min(time) AS first, max(time) AS last,
        count(DISTINCT capture) AS captures, any_value(detail) AS example
 FROM annotations
 WHERE severity = 'error'
-   OR code IN ('modbus.exception', 'model.exception.vendor', 'model.fault', 'model.alarm', 'pair.timeout',
-               'pair.no_response', 'source.gap')
+   OR code IN {_codes(C.EXCEPTION_CAT, C.FAULT_CAT, C.ALARM_CAT, C.TIMEOUT_CAT, C.GAP_CAT)}
 GROUP BY link, unit, code, severity
 ORDER BY n DESC, link, unit, code"""),
     "latency": Preset(
-        "response latency per link and unit: responses, median, p95, p99 and max (ms)",
-        """SELECT link, unit, count(*) AS responses,
-       round(quantile_cont(latency_ms, 0.5), 3) AS median_ms, round(quantile_cont(latency_ms, 0.95), 3) AS p95_ms,
-       round(quantile_cont(latency_ms, 0.99), 3) AS p99_ms, max(latency_ms) AS max_ms
+        "response latency per link and unit: responses with a latency, median, p95, p99 and max (ms; quantiles "
+        "by the nearest rank, as every view has them)",
+        """SELECT link, unit, count(*) AS measured,
+       quantile_disc(latency_ms, 0.5) AS median_ms, quantile_disc(latency_ms, 0.95) AS p95_ms,
+       quantile_disc(latency_ms, 0.99) AS p99_ms, max(latency_ms) AS max_ms
 FROM frames
-WHERE role = 'response' AND latency_ms IS NOT NULL
+WHERE unit IS NOT NULL AND protocol <> 'noise' AND role = 'response' AND pair IS NOT NULL AND latency_ms IS NOT NULL
 GROUP BY link, unit
 ORDER BY link, unit"""),
     "writes": Preset(
@@ -65,10 +120,6 @@ LEFT JOIN frames r ON r.capture = q.capture AND r.index = q.pair AND r.role = 'r
 WHERE q.role = 'request' AND q.function IN (5, 6, 15, 16, 22, 23)
 ORDER BY q.time, q.capture, q.index"""),
 }
-
-
-def _literal(text: str) -> str:
-    return "'" + text.replace("'", "''") + "'"
 
 
 def _partitioned(schema):

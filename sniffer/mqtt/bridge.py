@@ -10,7 +10,7 @@ Topics under PREFIX (the URL's path), LINK the frame's link name ("default" on o
     PREFIX/status                   online / offline (retained; the client's last will)
     PREFIX/LINK/UNIT/NAME           a register's latest confirmed value (retained), NAME slugged (a
                                     provisional value has a name of its own: docs/values.md)
-    PREFIX/LINK/UNIT/health         the unit's counts and latency (retained, at most once a second)
+    PREFIX/LINK/UNIT/health         the unit's figures (sniffer.unitfigures; retained, at most once a second)
     PREFIX/LINK/events              warning and error annotations (not retained)
 
 Only confirmed values: a read response's values with a good CRC, and a write request's values
@@ -29,8 +29,8 @@ from typing import NamedTuple
 
 import orjson
 
-from ..frameflags import FAULT_CODES, frame_flags
-from ..unitstats import UnitStats
+from ..frameflags import FAULT_CODES
+from ..unitfigures import UnitBook, UnitFigures
 from .ha import discovery, health_discovery, slug
 from .options import MqttSpec
 
@@ -65,7 +65,8 @@ class Bridge:
         self.sent: dict[str, tuple] = {}  # topic -> (t_ns, value key) of the last value sent
         self.held: dict[str, tuple] = {}  # topic -> (due t_ns, point, common part, value key)
         self.next_due = _NEVER  # the earliest due time of the held values
-        self.units: dict[tuple, UnitStats] = {}
+        self.book = UnitBook()  # every unit's figures, counted as every view counts them
+        self.units: dict[tuple, UnitFigures] = {}  # (link, unit) -> its figures in the book
         self.health_due: dict[tuple, int] = {}  # (link, unit) -> capture time its health is next sent
         self.dirty: set[tuple] = set()
         self.health_announced: set[tuple] = set()
@@ -79,14 +80,12 @@ class Bridge:
         self.now = max(self.now, f.t_ns)
         link = getattr(f, "link", "") or "default"
         out: list[Message] = []
-        fl = frame_flags(f)
-        if f.unit is not None and f.protocol != "noise":
+        fig = self.book.frame(f)
+        if fig is not None:
             key = (link, f.unit)
-            st = self.units.get(key)
-            if st is None:
-                st = self.units[key] = UnitStats(f.unit)
-            st.count(f, fl)
-            self.dirty.add(key)
+            self.units[key] = fig
+            if not fig.ghost:  # a unit named only by CRC-bad frames (a damaged address) gets no health topic
+                self.dirty.add(key)
         self._events(f, link, out)
         for points, source, written in self._confirmed(f):
             common = self._common(f, source, written)  # what every value of this group says alike
@@ -224,11 +223,12 @@ class Bridge:
             self.health_announced.add(key)
             model = st.model or "generic"
             out.append(Message(*health_discovery(self.spec, link, unit, model, self.model_name(model), topic), True))
-        lat = st.lat_median
-        d = {"unit": unit, "model": st.model, "requests": st.requests, "responses": st.responses,
-             "crc_errors": st.crc_errors, "exceptions": st.exceptions, "timeouts": st.timeouts, "faults": st.faults,
+        lat = st.latency.figures()
+        d = {"unit": unit, "model": st.model, **st.counts(),
              "errors": st.crc_errors + st.exceptions + st.timeouts,
-             "latency_ms": {"median": None if lat is None else round(lat, 3), "min": st.lat_min, "max": st.lat_max},
+             "latency_ms": {"n": lat["lat_n"], "min": lat["lat_min"], "median": lat["lat_median"],
+                            "p95": lat["lat_p95"], "p99": lat["lat_p99"], "max": lat["lat_max"],
+                            "exact": lat["lat_exact"]},
              "poll_rate": round(st.poll_rate, 3)}
         d.update(self._when(st.last_seen_ns or self.now))
         out.append(Message(topic, orjson.dumps(d), True))

@@ -13,8 +13,9 @@ clock (a capture that would overlap the one before is put after it, and says so)
 otherwise each capture follows the one before.
 
 Every figure is bounded whatever the capture's length: counts over time in at most
-1,024 buckets (buckets.py), per unit a latency histogram, percentiles and a thinned
-series (units.py), per request type the poll period (polls.py), the register shadow's
+1,024 buckets (buckets.py), per unit its figures (unitfigures.py: the counts and the latency
+quantiles every view shows), a latency histogram and a thinned series (units.py), per
+request type the poll period (polls.py), the register shadow's
 history through the TUI's RegisterBook (tui/shadow.py: the same values, names and
 units the Registers tab shows, at most REGISTER_POINTS samples a register; a register
 whose values changed model, name or unit is one series per each, never one line
@@ -31,19 +32,25 @@ import math
 import os
 from collections import Counter
 
-from ..frame import LinkUnit, unit_key
+from .. import codes as C
+from ..frame import LinkUnit
 from ..semdiff import Summary
 from ..tui.shadow import RegisterBook
 from .buckets import TimeBuckets
 from .polls import Polls
 from .timeline import Timeline
+from ..unitfigures import UnitBook, unit_name
 from .units import UnitAgg, latency_edges, series_points, turnaround_edges
 
 COLUMNS = ("frames", "busy_ns", "crc", "exceptions", "timeouts", "retries", "noise", "gaps", "t15", "t35", "writes",
            "faults", "fast35", "fast15")  # fast35/15: responses under 3.5 / 1.5 characters after their request
-CODE_COLUMN = {"pair.timeout": "timeouts", "pair.no_response": "timeouts", "pair.retry": "retries",
-               "noise.bytes": "noise", "source.gap": "gaps", "modbus.timing.t15": "t15", "modbus.timing.t35": "t35",
-               "model.fault": "faults", "model.alarm": "faults"}
+# the series a code's category counts in: a frame once in timeouts, retries, faults and exceptions (the unit
+# figures' counts, over time); every annotation in the others
+_COLUMN_OF = {C.TIMEOUT_CAT: "timeouts", C.RETRY_CAT: "retries", C.FAULT_CAT: "faults", C.ALARM_CAT: "faults",
+              C.EXCEPTION_CAT: "exceptions", C.NOISE_CAT: "noise", C.GAP_CAT: "gaps", C.T15_CAT: "t15",
+              C.T35_CAT: "t35"}
+CODE_COLUMN = {code: _COLUMN_OF[cat] for code, cat in C.CATEGORY.items() if cat in _COLUMN_OF}
+_ONCE = frozenset({"timeouts", "retries", "faults", "exceptions"})
 PLOTTED_UNITS = 16  # units in the latency and turnaround plots (the most answers); all are in the units table
 REGISTER_POINTS = 1024  # history kept per register (tui.history thins beyond)
 REGISTER_RETIRED = 64  # earlier series of registers kept (a value named or scaled otherwise before)
@@ -90,7 +97,8 @@ class Collector:
     def __init__(self, compare: bool = False) -> None:
         self.captures: list[dict] = []
         self.buckets = TimeBuckets(COLUMNS)
-        self.units: dict[int, UnitAgg] = {}
+        self.figures = UnitBook()  # every unit's figures (unitfigures: as every view counts them)
+        self.units: dict[tuple, UnitAgg] = {}  # (link, unit) -> the figures and what the report draws besides
         self.polls = Polls()
         self.book = RegisterBook(history_cap=REGISTER_POINTS, retired=REGISTER_RETIRED)
         self.timeline = Timeline()
@@ -182,20 +190,21 @@ class Collector:
         cols["busy_ns"][b] += len(f.raw) * (self._lines[f.link][0] if f.link else self._char_ns)
         if f.crc_ok is False:
             cols["crc"][b] += 1
-        if f.exception:
-            cols["exceptions"][b] += 1
         codes = self.codes
-        fault = False
+        once = None
         for a in f.annotations:
             codes[a.code] += 1
             col = CODE_COLUMN.get(a.code)
             if col is not None:
-                if col == "faults":
-                    fault = True
-                    continue
+                if col in _ONCE:
+                    once = {col} if once is None else once | {col}
+                else:
+                    cols[col][b] += 1
+        if once:
+            if "exceptions" in once and f.role != "response":
+                once.discard("exceptions")
+            for col in once:
                 cols[col][b] += 1
-        if fault:
-            cols["faults"][b] += 1
         if self.summary is not None:
             self.summary.add(f)
         if f.unit is None or f.is_noise:
@@ -213,50 +222,26 @@ class Collector:
     def _unit(self, f, write: bool) -> int:
         """The unit's figures (a unit of its link, with several); 1 for a response under t3.5, 2 under t1.5,
         else 0."""
+        fig = self.figures.frame(f)
         key = (f.link, f.unit)
         u = self.units.get(key)
         if u is None:
-            u = self.units[key] = UnitAgg(str(unit_key(f)))
-        if u.first_ns is None:
-            u.first_ns = f.t_ns
-        u.last_ns = f.t_ns
-        if f.model and (u.model is None or u.model == "generic"):
-            u.model = f.model
-        if f.crc_ok is False:
-            u.crc += 1
-            return 0  # its unit byte may be the damage: nothing more is said of that unit
-        u.good += 1
-        if f.exception:
-            u.exceptions += 1
-        for a in f.annotations:
-            code = a.code
-            if code in ("pair.timeout", "pair.no_response"):
-                u.timeouts += 1
-            elif code == "pair.retry":
-                u.retries += 1
-            elif code == "model.fault":
-                u.faults += 1
-            elif code == "model.alarm":
-                u.alarms += 1
+            u = self.units[key] = UnitAgg(unit_name(fig.unit), fig)
         if f.role == "request":
-            u.requests += 1
-            self.polls.request(f)
             u.writes += write
-        elif f.role == "response":
-            u.responses += 1
-            if f.latency_ms is not None:
-                self.time_sources[f.time_source] += 1
-                char_ns, t15, t35 = self._lines[f.link] if f.link else (self._char_ns, self._t15, self._t35)
-                return u.latency(f.t_ns, f.latency_ms, char_ns, f.index, t15, t35)
-            if f.pair is not None:
-                u.unmeasured += 1
+            if f.crc_ok is not False:  # a damaged request's address and function are not what was sent
+                self.polls.request(f)
+        elif f.role == "response" and f.pair is not None and f.latency_ms is not None:
+            self.time_sources[f.time_source] += 1
+            char_ns, t15, t35 = self._lines[f.link] if f.link else (self._char_ns, self._t15, self._t35)
+            return u.latency(f.t_ns, f.latency_ms, char_ns, f.index, t15, t35)
         return 0
 
     # ------------------------------------------------------------ the result
     def to_data(self) -> dict:
         """Everything the page draws, JSON-ready; times in seconds from the report's start."""
         units = [self.units[k] for k in sorted(self.units)]
-        top = set(sorted((u for u in units if u.lat.n), key=lambda u: -u.lat.n)[:PLOTTED_UNITS])
+        top = set(sorted((u for u in units if u.fig.latency.n), key=lambda u: -u.fig.latency.n)[:PLOTTED_UNITS])
         timed = [u for u in units if u in top]
         return {
             "axis": {"clock": self.clock and self.origin_wall > 0, "origin_wall_s": self.origin_wall / 1e9,
@@ -268,12 +253,12 @@ class Collector:
             "units": [u.row() for u in units],
             "latency": {"edges": latency_edges(), "bins": {str(u.unit): u.lat_bins for u in timed},
                         "series": {str(u.unit): series_points(u.lat_series) for u in timed},
-                        "units_timed": sum(1 for u in units if u.lat.n)},
+                        "units_timed": sum(1 for u in units if u.fig.latency.n)},
             "turnaround": {"edges": turnaround_edges(), "bins": {str(u.unit): u.turn_bins for u in timed},
                            "time_sources": dict(self.time_sources),
                            "capture_time_sources": sorted({c["time_source"] for c in self.captures}),
                            "limits": [list(x) for x in sorted({tuple(x) for c in self.captures for x in c["limits"]})],
-                           "t15": self.codes.get("modbus.timing.t15", 0), "t35": self.codes.get("modbus.timing.t35", 0),
+                           "t15": self.codes.get(C.T15_VIOLATION.code, 0), "t35": self.codes.get(C.T35_SHORT.code, 0),
                            "below15": sum(u.below15 for u in units), "below35": sum(u.below35 for u in units)},
             "polls": self.polls.to_dict(),
             "registers": self._registers(),

@@ -94,10 +94,11 @@ def _glance(d: dict) -> str:
     units, t = d["units"], d["totals"]
     tl = d["timeline"]["counts"]
     cards = [("frames", _n(t["frames"])), ("duration", _dur(d["axis"]["end_s"])), ("units", _n(len(units))),
-             ("CRC errors", _n(sum(u["crc"] for u in units))), ("exceptions", _n(sum(u["exceptions"] for u in units))),
+             ("CRC errors", _n(sum(u["crc_errors"] for u in units))),
+             ("exceptions", _n(sum(u["exceptions"] for u in units))),
              ("timeouts", _n(sum(u["timeouts"] for u in units))), ("retries", _n(sum(u["retries"] for u in units))),
-             ("faults", _n(tl.get("fault", 0))), ("writes", _n(tl.get("write", 0)))]
-    bad = {"CRC errors", "exceptions", "timeouts", "retries", "faults"}
+             ("fault episodes", _n(tl.get("fault", 0))), ("writes", _n(tl.get("write", 0)))]
+    bad = {"CRC errors", "exceptions", "timeouts", "retries", "fault episodes"}
     html = "".join(f'<div class="card{" bad" if k in bad and v not in ("0", "–") else ""}"><b>{v}</b>{escape(k)}</div>'
                    for k, v in cards)
     return f'<section id="glance" class="cards">{html}</section>'
@@ -161,14 +162,20 @@ def _settings(c: dict) -> str:
 
 def _units(d: dict) -> str:
     rows = [[f"{u['unit']}", _e(u["model"]) + (' <span class="warn">CRC-bad frames only</span>' if u["ghost"] else ""),
-             _n(u["requests"]), _n(u["responses"]), _n(u["crc"]), _n(u["exceptions"]), _n(u["timeouts"]),
-             _n(u["retries"]), _n(u["faults"]), _n(u["alarms"]), _n(u["writes"]), _n(u["lat_min"]),
-             _n(u["lat_median"]), _n(u["lat_p95"]), _n(u["lat_p99"]), _n(u["lat_max"]), _n(u["unmeasured"]),
-             _n(u["polls_per_s"]), _n(u["first_s"]), _n(u["last_s"])] for u in d["units"]]
-    head = ["unit", "model", "requests", "responses", "CRC err", "exceptions", "timeouts", "retries", "fault reports",
-            "alarm reports", "writes", "lat min ms", "lat median", "lat p95", "lat p99", "lat max",
-            "answered, no latency", "polls/s", "first seen s", "last seen s"]
-    return _section("units", "Units", _table(head, rows, "wide") if rows else "<p>No unit on the line.</p>")
+             _n(u["requests"]), _n(u["responses"]), _n(u["crc_errors"]), _n(u["exceptions"]), _n(u["timeouts"]),
+             _n(u["retries"]), _n(u["late"]), _n(u["unanswered_at_end"]), _n(u["faults"]), _n(u["alarms"]),
+             _n(u["writes"]), _n(u["lat_min"]), _n(u["lat_median"]), _n(u["lat_p95"]), _n(u["lat_p99"]),
+             _n(u["lat_max"]), _n(u["unmeasured"]), _n(u["polls_per_s"]), _n(u["first_s"]), _n(u["last_s"])]
+            for u in d["units"]]
+    head = ["unit", "model", "requests", "responses", "CRC err", "exceptions", "timeouts", "retries", "late",
+            "unanswered at end", "fault reports", "alarm reports", "writes", "lat min ms", "lat median", "lat p95",
+            "lat p99", "lat max", "answered, no latency", "polls/s (mean)", "first seen s", "last seen s"]
+    approx = [u["unit"] for u in d["units"] if not u["lat_exact"]]
+    note = ('<p class="note">A timeout is a request that got no response (not a late one, not one the capture '
+            'ended on); latency runs from the end of a request to the start of its response; quantiles by the '
+            'nearest rank' + (f", within 0.1 % for unit(s) {_e(', '.join(approx))}" if approx else ", exact")
+            + ' (the README\'s "What the figures mean").</p>')
+    return _section("units", "Units", _table(head, rows, "wide") + note if rows else "<p>No unit on the line.</p>")
 
 
 def _latency(d: dict) -> str:
@@ -289,7 +296,7 @@ def _compare(c: dict) -> str:
     la, lb = d["latency_ms"]["a"], d["latency_ms"]["b"]
     out.append(_table(["latency", "before", "after"], [["median ms", _n(la["median"]), _n(lb["median"])],
                                                        ["p95 ms", _n(la["p95"]), _n(lb["p95"])],
-                                                       ["responses", _n(la["n"]), _n(lb["n"])]]))
+                                                       ["latencies measured", _n(la["n"]), _n(lb["n"])]]))
     u = d["units"]
     if u["added"] or u["removed"]:
         out.append(f"<h3>Units</h3><p>{_e(' '.join(u['a']))} → {_e(' '.join(u['b']))}: added "

@@ -160,7 +160,7 @@
     ], "% busy", {scales: {x: {time: clock}, "%": {range: [0, 100]}},
       axes: [timeXAxis(), {scale: "%", label: "% busy", size: 60}, {scale: "fps", side: 1, label: "frames/s", size: 60,
         grid: {show: false}}]}), [xs, end(util), end(fps)], "time");
-    const kinds = [["crc", "CRC errors"], ["exceptions", "exceptions"], ["timeouts", "timeouts / no response"],
+    const kinds = [["crc", "CRC errors"], ["exceptions", "exceptions"], ["timeouts", "timeouts (no response)"],
                    ["retries", "retries"], ["noise", "noise"], ["gaps", "capture gaps"]];
     const shown = kinds.filter(([k], i) => i < 4 || B[k].some((v) => v));
     make("plot-errors", timeOpts(shown.map(([k, label], i) => ({label: label, stroke: color(i + 1), paths: stepped,

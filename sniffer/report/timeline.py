@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections import Counter, deque
 
+from ..codes import CATEGORY
 from ..frame import unit_key
 from ..frameflags import FAULT_CODES
 from ..protocols import of_frame
@@ -114,7 +115,7 @@ class Timeline:
                 reported.add(k)
                 ev = self._open.get(k)
                 if ev is None:
-                    kind = "fault" if a.code == "model.fault" else "alarm"
+                    kind = CATEGORY[a.code]  # "fault" or "alarm" (sniffer.codes' categories)
                     ev = self._open[k] = {"kind": kind, "unit": str(unit_key(f)), "t": f.t_ns, "t_end": f.t_ns,
                                           "n": 1, "text": a.detail[:TEXT], "frame": f.index, "capture": capture,
                                           "_key": key}

@@ -1,4 +1,7 @@
-"""Per unit, as the frames pass: counts, response latency (histogram, percentiles, over time) and turnaround.
+"""Per unit, as the frames pass: its figures, response latency (histogram, over time) and turnaround.
+
+The counts and the latency quantiles are the unit's `sniffer.unitfigures.UnitFigures` (one definition
+for every view); what only the report draws is kept here beside them.
 
 Turnaround is the silence between a request's last byte and its response's first,
 in character times of the capture's line (a response's `latency_ms` over the
@@ -10,18 +13,17 @@ trust it depends on how the timestamps were taken (`Frame.time_source`): per byt
 (a logic analyzer, the simulator) it is measured; per USB read it is estimated
 from the read times and the baud rate.
 
-Memory per unit is bounded: log-spaced latency bins, `semdiff.Quantiles` for the
-percentiles (exact up to 10,000 responses, 0.1 % beyond), and the latency over time
-as a `tui.history.Series` (thinned into time buckets, keeping each bucket's first,
-minimum, maximum and last: the spikes stay).
+Memory per unit is bounded: log-spaced latency bins, `unitfigures.Latencies` for the
+quantiles, and the latency over time as a `tui.history.Series` (thinned into time
+buckets, keeping each bucket's first, minimum, maximum and last: the spikes stay).
 """
 
 from __future__ import annotations
 
 import math
 
-from ..semdiff import Quantiles
 from ..tui.history import Series
+from ..unitfigures import UnitFigures
 
 LAT_BINS_PER_DECADE = 10
 LAT_LO_MS = 0.01  # first bin edge; faster answers count in the first bin
@@ -40,22 +42,15 @@ def turnaround_edges() -> list[float]:
 
 
 class UnitAgg:
-    """One unit's figures (see the module doc)."""
+    """One unit's figures (`fig`) and what the report draws of it besides (see the module doc)."""
 
-    __slots__ = ("unit", "model", "requests", "responses", "crc", "exceptions", "timeouts", "retries", "faults",
-                 "alarms", "good", "first_ns", "last_ns", "lat", "lat_min", "lat_max", "lat_bins", "lat_series",
-                 "unmeasured", "turn_bins", "below15", "below35", "writes")
+    __slots__ = ("fig", "unit", "model", "lat_bins", "lat_series", "turn_bins", "below15", "below35", "writes")
 
-    def __init__(self, unit: str) -> None:
+    def __init__(self, unit: str, fig: UnitFigures) -> None:
+        self.fig = fig
         self.unit = unit  # "3", or "LINK:3" with several links
-        self.model: str | None = None
-        self.requests = self.responses = self.crc = self.exceptions = self.timeouts = self.retries = 0
-        self.faults = self.alarms = self.good = self.unmeasured = self.below15 = self.below35 = self.writes = 0
-        self.first_ns: int | None = None
-        self.last_ns = 0
-        self.lat = Quantiles()
-        self.lat_min: float | None = None
-        self.lat_max: float | None = None
+        self.model: str | None = None  # what the registry settled on ("a510 (given)"); else the frames' model
+        self.below15 = self.below35 = self.writes = 0
         self.lat_bins = [0] * LAT_BINS
         self.lat_series = Series(LATENCY_POINTS)
         self.turn_bins = [0] * (TURN_BINS + 1)
@@ -63,11 +58,6 @@ class UnitAgg:
     def latency(self, t_ns: int, ms: float, char_ns: int, index: int, t15: float = 1.5, t35: float = 3.5) -> int:
         """A response `ms` after its request ended (turnaround in characters of `char_ns`): 1 if that is under
         t3.5, 2 under t1.5 (both in characters), else 0."""
-        self.lat.add(ms)
-        if self.lat_min is None or ms < self.lat_min:
-            self.lat_min = ms
-        if self.lat_max is None or ms > self.lat_max:
-            self.lat_max = ms
         b = int(math.floor(math.log10(ms / LAT_LO_MS) * LAT_BINS_PER_DECADE)) if ms > LAT_LO_MS else 0
         self.lat_bins[min(b, LAT_BINS - 1)] += 1
         self.lat_series.add(t_ns, ms, index)
@@ -83,18 +73,17 @@ class UnitAgg:
         return 0
 
     def row(self, origin_ns: int = 0) -> dict:
-        span = ((self.last_ns - self.first_ns) / 1e9) if self.first_ns is not None else 0.0
-        return {
-            "unit": self.unit, "model": self.model, "ghost": not self.good,
-            "requests": self.requests, "responses": self.responses, "crc": self.crc,
-            "exceptions": self.exceptions, "timeouts": self.timeouts, "retries": self.retries,
-            "faults": self.faults, "alarms": self.alarms, "writes": self.writes, "unmeasured": self.unmeasured,
-            "lat_n": self.lat.n, "lat_min": _r(self.lat_min), "lat_median": _r(self.lat.median()),
-            "lat_p95": self.lat.pct(0.95), "lat_p99": self.lat.pct(0.99), "lat_max": _r(self.lat_max),
-            "polls_per_s": round((self.requests - 1) / span, 2) if span > 0 and self.requests > 1 else None,
-            "first_s": _r(((self.first_ns or 0) - origin_ns) / 1e9), "last_s": _r((self.last_ns - origin_ns) / 1e9),
-            "below15": self.below15, "below35": self.below35,
-        }
+        """The units table's row: the unit's figures (unitfigures.UnitFigures.to_dict), then the report's own."""
+        fig = self.fig
+        d = fig.to_dict()
+        d["unit"] = self.unit
+        d["model"] = self.model or fig.model
+        first = fig.first_ns if fig.first_ns is not None else origin_ns
+        rate = fig.polls_per_s
+        d.update(writes=self.writes, polls_per_s=None if rate is None else round(rate, 2),
+                 first_s=_r((first - origin_ns) / 1e9), last_s=_r((fig.last_ns - origin_ns) / 1e9),
+                 below15=self.below15, below35=self.below35)
+        return d
 
 
 def _r(v: float | None, nd: int = 3) -> float | None:

@@ -23,7 +23,7 @@ from array import array
 from dataclasses import dataclass
 
 from ..filterlang import Query, matches_text, register_cell, registers_of
-from ..frame import Frame, unit_key
+from ..frame import Frame
 from ..frameflags import (  # the store's flag column (re-exported for the views)
     F_CRC, F_ERROR, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN, frame_flags,
 )
@@ -32,7 +32,7 @@ from .framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, RowIndex
 from .history import CAP
 from .shadow import RegisterBook, RegisterValue
 from ..records import frame_from_record
-from ..unitstats import UnitStats
+from ..unitfigures import UnitBook, UnitFigures
 from .timebase import TimeBase
 from .transactions import Transactions
 
@@ -41,7 +41,7 @@ ROLE_CODE = {r: i for i, r in enumerate(ROLES)}
 _NO_ROLE = 255  # a role outside ROLES (none today)
 
 __all__ = ["F_CRC", "F_ERROR", "F_EXC", "F_FAULT", "F_NOISE", "F_PROBLEM", "F_TIMEOUT", "F_WARN", "Filter",
-           "FrameStore", "RegisterValue", "RowIndex", "UnitStats", "frame_flags", "frame_from_record"]
+           "FrameStore", "RegisterValue", "RowIndex", "UnitFigures", "frame_flags", "frame_from_record"]
 
 
 @dataclass
@@ -107,7 +107,7 @@ class FrameStore:
         self.filter = Filter()
         self.view = array("q")  # rows passing the filter (up to the pause point)
         self.problems = array("q")  # rows with any problem flag (unfiltered)
-        self.units: dict = {}  # frame.unit_key -> UnitStats (a unit of its link, with several links)
+        self.units = UnitBook()  # per unit (frame.unit_key: a unit of its link, with several links) its figures
         self.book = RegisterBook(history_cap)  # the frames' `writes` applied: the decoders' register shadow
         self.registers = self.book.values  # (unit, table, address) -> RegisterValue
         self.transactions = Transactions()  # request + response as one entry, per-unit latency
@@ -200,16 +200,8 @@ class FrameStore:
         self.transactions.add(row, f, fl)
         if self.paused_at is None and (not self._query or self._query.matches(f, self, fl, regs)):
             self.view.append(row)
-        if f.unit is not None and f.protocol != "noise":
-            self._unit_stats(f, fl)
+        if self.units.frame(f) is not None:
             self.book.frame(f)
-
-    def _unit_stats(self, f: Frame, fl: int) -> None:
-        uk = unit_key(f)
-        st = self.units.get(uk)
-        if st is None:
-            st = self.units[uk] = UnitStats(uk)
-        st.count(f, fl)
 
     # ------------------------------------------------------------- filters
     def set_filter(self, flt: Filter) -> None:
@@ -340,8 +332,8 @@ class FrameStore:
         i = bisect.bisect_left(marks, row) - 1
         return marks[i] if i >= 0 else None
 
-    def unit_rows(self) -> list[UnitStats]:
-        return [self.units[u] for u in sorted(self.units)]
+    def unit_rows(self) -> list[UnitFigures]:
+        return self.units.rows()
 
     def register_rows(self, unit: int | None = None) -> list[RegisterValue]:
         """Latest value per (unit, table, address): the register shadow with names and units."""

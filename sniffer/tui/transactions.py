@@ -18,8 +18,8 @@ from __future__ import annotations
 import bisect
 from array import array
 
-from ..frame import REQUEST, RESPONSE, Frame, unit_key
-from .latency import LatencyStats
+from .. import codes
+from ..frame import REQUEST, RESPONSE, Frame
 
 OK, EXCEPTION, PENDING, TIMEOUT, NO_RESPONSE, END_OF_CAPTURE, BROADCAST, ORPHAN = range(8)
 KIND_TEXT = {OK: "ok", EXCEPTION: "exception", PENDING: "awaiting its response", TIMEOUT: "timeout",
@@ -30,10 +30,10 @@ UNANSWERED = (TIMEOUT, NO_RESPONSE, END_OF_CAPTURE)
 
 def _unanswered_kind(f: Frame) -> int:
     """Why a request has no response, from what the pairer annotated."""
-    codes = {a.code for a in f.annotations}
-    if "pair.timeout" in codes:
+    said = {a.code for a in f.annotations}
+    if codes.TIMEOUT.code in said:
         return TIMEOUT
-    if "pair.end_of_capture" in codes:
+    if codes.END_OF_CAPTURE.code in said:
         return END_OF_CAPTURE
     return NO_RESPONSE
 
@@ -46,8 +46,6 @@ class Transactions:
         self.flags = array("B")  # the store's frame flags of both frames, OR-ed
         self.tx_of_row = array("i")  # per store row: its transaction, -1: none (noise, unknown role)
         self._open: dict[int, int] = {}  # a request's Frame.index -> its transaction, until its response comes
-        self.latency: dict = {}  # per unit (frame.unit_key: per link and unit with several links)
-        self.all_units = LatencyStats()
         # the transactions shown: those with a frame in the store's view (ascending)
         self.view = array("q")
         self.view_of: object = None  # the store view object `view` was made from, and how much of it
@@ -67,9 +65,7 @@ class Transactions:
             elif f.unit == 0:
                 self.kind.append(BROADCAST)
             else:
-                kind = _unanswered_kind(f)
-                self.kind.append(kind)
-                self._unanswered(unit_key(f), kind)
+                self.kind.append(_unanswered_kind(f))
         elif f.role == RESPONSE and f.unit is not None:
             tx = self._open.pop(f.pair, None) if f.pair is not None else None
             if tx is None:  # nothing pending, or its request came before this viewer joined
@@ -79,7 +75,6 @@ class Transactions:
                 self.rsp[tx] = row
                 self.flags[tx] |= fl
                 self.kind[tx] = EXCEPTION if f.exception else OK
-                self._latency(f)
         else:
             tx = -1
         self.tx_of_row.append(tx)
@@ -89,28 +84,6 @@ class Transactions:
         self.rsp.append(rsp)
         self.flags.append(fl)
         return len(self.req) - 1
-
-    def stats(self, unit: int) -> LatencyStats:
-        st = self.latency.get(unit)
-        if st is None:
-            st = self.latency[unit] = LatencyStats()
-        return st
-
-    def _latency(self, f: Frame) -> None:
-        for st in (self.stats(unit_key(f)), self.all_units):
-            if f.latency_ms is None:
-                st.unmeasured += 1
-            else:
-                st.add(f.latency_ms)
-
-    def _unanswered(self, unit: int, kind: int) -> None:
-        for st in (self.stats(unit), self.all_units):
-            if kind == TIMEOUT:
-                st.timeouts += 1
-            elif kind == NO_RESPONSE:
-                st.no_response += 1
-            else:
-                st.end_of_capture += 1
 
     # ------------------------------------------------------------- lookup
     def rows(self, tx: int) -> tuple[int, int]:

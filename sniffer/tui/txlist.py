@@ -20,6 +20,7 @@ from textual.containers import Vertical
 from textual.message import Message
 from textual.widgets import Static
 
+from .. import codes
 from ..frame import Frame, unit_key
 from .framelist import S_CURSOR, row_mark, row_style
 from .latency import BAR_ROWS, histogram_text
@@ -59,7 +60,7 @@ def header(time_title: str, cols: Columns) -> str:
     return (f"   {time_title:>{cols.time}} {link}{'unit':4} {model}{'fc':4} {'latency':>9} {'asked':<{cols.asked}}   "
             f"{'answer':<{cols.answer}}  [problems]")
 # what the answer column already says
-_SAID = frozenset({"pair.no_response", "pair.timeout", "pair.end_of_capture", "pair.orphan_response"})
+_SAID = codes.in_category(codes.TIMEOUT_CAT, codes.END_OF_CAPTURE_CAT, codes.ORPHAN_CAT)
 
 
 def _clip(s: str, n: int) -> str:
@@ -266,17 +267,21 @@ class TransactionsPane(Vertical):
         # following the tail, the selection changes every tick: all units then, not a unit jumping about
         whole = tx is None or self.list.all_units or self.list.follow
         unit = None if whole else unit_key(self.store.frame(txs.first_row(tx)))
-        st = txs.all_units if unit is None else txs.stats(unit)
+        units = self.store.units
+        fig = units.total() if unit is None else units.get(unit)
+        if fig is None:  # a transaction of no unit's (cannot be: every request and response names one)
+            fig = units.total()
+            unit = None
         rows = BAR_ROWS if self.app.size.height >= 36 else 2  # 80x24: the list keeps 10 lines
-        key = (unit, rows, st.count, st.timeouts, st.no_response, st.end_of_capture, st.unmeasured)
+        key = (unit, rows, fig.latency.n, fig.timeouts, fig.late, fig.unanswered_at_end, fig.unmeasured)
         if key == self._hist:
             return
         self._hist = key
-        model = self.store.units[unit].model if unit in self.store.units else None
+        model = fig.model if unit is not None else None
         title = "latency, all units" if unit is None else f"latency, unit {unit}" + (f" ({model})" if model else "")
         hist = self.query_one("#histogram", Static)
         hist.styles.height = rows + 5  # its border, the figures (2), the bars, the bins (2)
-        hist.update(histogram_text(st, title, rows))
+        hist.update(histogram_text(fig, title, rows))
 
     def on_resize(self, event) -> None:
         self.refresh_view()  # the columns fit the width, the histogram the height

@@ -1,4 +1,5 @@
-"""Units table: one row per unit seen on the bus."""
+"""Units table: one row per unit seen on the bus, its figures (sniffer.unitfigures: one definition each,
+the same the report, the status file, `diff`, MQTT and the dataset's `units` query show)."""
 
 from __future__ import annotations
 
@@ -6,12 +7,13 @@ from textual.widgets import DataTable
 
 from .model import FrameStore
 
-COLUMNS = ("unit", "model", "req", "rsp", "CRC err", "exc", "timeouts", "faults", "lat min", "lat med", "lat max",
-           "poll/s", "last seen")
+# latencies in ms to the microsecond, as the frames have them; poll/s is the recent rate (the report's is the mean)
+COLUMNS = ("unit", "model", "req", "rsp", "CRC err", "exc", "timeouts", "retries", "faults", "alarms", "lat min",
+           "lat median", "lat p95", "lat max", "poll/s 10s", "last seen")
 
 
 def _ms(v: float | None) -> str:
-    return "-" if v is None else f"{v:.1f}"
+    return "-" if v is None else f"{v:.3f}"
 
 
 def unit_cells(st, t0_ns: int, guesses: dict | None = None, given: dict | None = None) -> tuple:
@@ -27,10 +29,11 @@ def unit_cells(st, t0_ns: int, guesses: dict | None = None, given: dict | None =
     elif guesses and st.unit in guesses:
         g = guesses[st.unit]
         model = f"{g[0]} (guess {g[1]:.0%})"
+    lat = st.latency
     return (str(st.unit), model, str(st.requests), str(st.responses), str(st.crc_errors), str(st.exceptions),
-            str(st.timeouts), str(st.faults),
-            _ms(st.lat_min), _ms(st.lat_median), _ms(st.lat_max), f"{st.poll_rate:.1f}",
-            f"{(st.last_seen_ns - t0_ns) / 1e9:.3f}s")
+            str(st.timeouts), str(st.retries), str(st.faults), str(st.alarms),
+            _ms(lat.min), _ms(lat.median), _ms(lat.quantile(0.95)), _ms(lat.max), f"{st.poll_rate:.1f}",
+            f"{(st.last_ns - t0_ns) / 1e9:.3f}s")
 
 
 class UnitsTable(DataTable):
