@@ -355,7 +355,9 @@ def build_parser() -> argparse.ArgumentParser:
         "detect", formatter_class=argparse.RawDescriptionHelpFormatter,
         help="find an unknown line's baud rate, parity, stop bits and protocol by listening (read-only)",
         description=_DETECT_HELP, epilog=_DETECT_EPILOG)
-    s.add_argument("port", help="serial device, e.g. /dev/ttyUSB0")
+    s.add_argument("port", help="serial device, e.g. /dev/ttyUSB0; or a logic capture: a sigrok .sr file, or a live "
+                                "analyzer sigrok:DRIVER (bit widths from the samples: tells 8E1 from 8E2)")
+    logic_flags(s, live=True)
     s.add_argument("--bauds", action="append", metavar="RATES",
                    help="more baud rates to try, first: 250000,31250 (repeatable)")
     s.add_argument("--write-bus", metavar="FILE.toml", help="write the line's settings as a bus file for live --bus")
