@@ -11,6 +11,7 @@ from helpers import fr, run_events
 from sniffer.events import FLAG_FRAMING, FLAG_PARITY, Chunk, Tick
 from sniffer.line import LineSettings
 from sniffer.pipeline import roles_of
+from sniffer.sinks.text import frame_line
 from sniffer.sources.logic_options import LogicSpec
 from sniffer.sources.sigrok_uart import HOLD_BYTES, SigrokUart, decoder_args
 
@@ -174,6 +175,7 @@ def test_roles_and_de_times_reach_the_frames():
     assert frames[0].de_on_ns == ns(t_rsp - 120) - ns(t_rsp)
     assert frames[0].de_off_ns == ns(end + 25) - (ns(t_rsp + 7 * CHAR) + LINE.char_ns)
     assert frames[1].de_on_ns is None and frames[1].de_off_ns is None
+    assert " DE -120.0/+25.0us " in frame_line(frames[0], 0) and " DE " not in frame_line(frames[1], 0)
 
 
 def test_decoder_options_name_the_channels_the_user_gave():
