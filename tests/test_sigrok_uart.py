@@ -95,9 +95,10 @@ def test_bytes_in_a_de_window_wait_for_its_fall_and_carry_both_edges():
     u = SigrokUart(logic, LINE, RATE)
     for line in lines:
         u.feed(line)
+    u.watermark(20_000 + 3 * CHAR + 10)  # sigrok's block ended just after the response
     request, = chunks(u.take())  # the response waits: its DE window's fall is not known yet
     assert request.de is None and request.channel == "BUS"
-    u.feed(fall(20_000 + 3 * CHAR + 40))
+    u.feed(fall(20_000 + 3 * CHAR + 40))  # in the next block
     u.watermark(20_000 + 3 * CHAR + 40 + CHAR)  # the UART read past the fall: no byte of the window is to come
     response, *_ = chunks(u.take())
     assert response.channel == "BUS+DE" and response.data == b"\x01\x83\x02"
@@ -139,6 +140,7 @@ def test_de_stuck_high_does_not_hold_bytes_without_bound():
     u.feed(rise(900))
     for line in burst("rx", 1000, bytes(HOLD_BYTES + 10)):
         u.feed(line)
+    u.watermark(1000 + (HOLD_BYTES + 10) * CHAR)
     out = chunks(u.take())
     assert sum(len(c.data) for c in out) >= HOLD_BYTES  # released before the end, fall unknown
     assert all(c.de == (ns(900), None) for c in out)
@@ -149,6 +151,33 @@ def test_a_watermark_becomes_a_tick_after_the_last_byte():
     out = run([*burst("rx", 1000, b"\x01\x03"), 50_000], logic, finish=False)
     assert [type(e) for e in out] == [Chunk, Tick]
     assert out[1].t_ns == ns(50_000 - CHAR - 1)  # a character that began before this would have been printed
+
+
+def test_lines_are_read_up_to_the_watermark_whenever_stdout_was_read():
+    """The next block's lines may be read before stderr says the last one is done: they wait for their own."""
+    logic = LogicSpec("BUS", de="DE", baud=BAUD, parity="E")
+    block1 = [*burst("rx", 1000, b"\x01\x03")]
+    block2 = [rise(20_000 - 50), fall(20_000 + 2 * CHAR + 30), *burst("rx", 20_000, b"\x01\x83")]
+    early, late = SigrokUart(logic, LINE, RATE), SigrokUart(logic, LINE, RATE)
+    out_early, out_late = [], []
+    for line in block1 + block2:  # stdout read ahead, then the watermark of block 1
+        early.feed(line)
+    early.watermark(15_000)
+    out_early += early.take()
+    for line in block1:
+        late.feed(line)
+    late.watermark(15_000)
+    out_late += late.take()
+    request = Chunk(ns(1000), b"\x01\x03", (ns(1000), ns(1000 + CHAR)), channel="BUS")
+    assert out_early == out_late == [request, Tick(ns(15_000 - CHAR - 1))]
+    for u, out in ((early, out_early), (late, out_late)):
+        if u is late:
+            for line in block2:
+                u.feed(line)
+        u.watermark(40_000)
+        u.finish()
+        out += u.take()
+    assert out_early == out_late and out_early[2].de == (ns(19_950), ns(20_000 + 2 * CHAR + 30))
 
 
 def test_no_tick_jumps_ahead_of_held_bytes():

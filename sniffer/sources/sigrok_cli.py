@@ -139,7 +139,7 @@ class SigrokSource:
         self._closed = False
         self._err_buf = b""
         self._last_instance = b""
-        self._pending_wm: int | None = None
+        self._pending_wm: list[int] = []  # the UART's "done up to" samples read from stderr, not yet applied
         self._started_decoding = False
         self.finalize_crash = False
 
@@ -158,8 +158,10 @@ class SigrokSource:
         exe = sigrok_cli()
         self.uart = SigrokUart(self.logic, line, self.samplerate, self.de_initial)
         wall = time.time_ns()
+        # a session of its own: the terminal's Ctrl-C reaches the capture, which stops sigrok-cli with its key (a
+        # sigrok-cli killed by the signal would end without what it had decoded)
         self.proc = subprocess.Popen([exe, *self.argv], stdin=subprocess.PIPE if self.live else subprocess.DEVNULL,
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
         for fd in (self.proc.stdout.fileno(), self.proc.stderr.fileno()):
             os.set_blocking(fd, False)
         try:
@@ -172,7 +174,8 @@ class SigrokSource:
                            t0_ns=0, wall_anchor_ns=wall if self.live else 0)
         info.extra["samplerate"] = self.samplerate
         info.extra["logic"] = self.logic.to_dict()
-        info.extra["channels"] = sorted({self.logic.rx, self.logic.tx or self.logic.rx})
+        info.extra["channels"] = [c for c in (self.logic.rx, self.logic.tx,
+                                              self.logic.de_channel if self.logic.de else None) if c]
         roles = self.logic.roles()
         if roles:
             info.extra["channel_roles"] = roles
@@ -221,7 +224,7 @@ class SigrokSource:
             m = _DONE.match(line)
             if m:
                 if self._last_instance == UART.encode():
-                    self._pending_wm = int(m.group(1))
+                    self._pending_wm.append(int(m.group(1)))
                 return
             m = _RATE_LINE.match(line)
             if m:
@@ -255,7 +258,7 @@ class SigrokSource:
                 ready, _, _ = select.select(fds, [], [], 0.2)
                 if err_fd in ready and not self._read_stderr():
                     fds.remove(err_fd)
-                if out_fd in ready or self._pending_wm is not None:
+                if out_fd in ready or self._pending_wm:
                     while True:  # drain: everything sigrok printed before its last stderr line is here
                         try:
                             data = os.read(out_fd, 1 << 16)
@@ -268,10 +271,10 @@ class SigrokSource:
                         buf = lines.pop()
                         for line in lines:
                             uart.feed(line)
-                if self._pending_wm is not None:
-                    self.watermark = self._pending_wm
-                    self._pending_wm = None
-                    uart.watermark(self.watermark)
+                for wm in self._pending_wm:  # every one, in order: each is a tick in its place
+                    self.watermark = wm
+                    uart.watermark(wm)
+                self._pending_wm.clear()
                 yield from uart.take()
             if buf:
                 uart.feed(buf)

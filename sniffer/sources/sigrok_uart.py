@@ -32,13 +32,19 @@ HOLD_BYTES or HOLD_S goes out without its fall (a DE stuck high).
 
 `watermark(sample)`: the decoders have read every sample below it (sigrok's
 "handled all samples" line, in sigrok_cli.py): every byte starting a character
-before it has arrived, so a Tick says the line was silent until then.
+before it has arrived, so a Tick says the line was silent until then.  The
+lines are read up to the watermark's sample (each at the sample its decoder
+printed it at: the lines of sigrok's next block wait), so the events are the
+same however far stdout had been read when stderr's line came.  A Chunk
+ends at a tick, a change of wire or DE window, or PER_BYTE_CHUNK bytes: where
+sigrok's blocks of samples end, not when its lines happened to be read.
 """
 
 from __future__ import annotations
 
 import bisect
 import re
+from collections import deque
 from math import ceil, floor
 
 from ..events import FLAG_FRAMING, FLAG_PARITY, Chunk, Tick
@@ -51,6 +57,7 @@ UART = "uart-1"
 DE = b"counter-1"
 HOLD_BYTES = PER_BYTE_CHUNK
 HOLD_S = 1
+MAX_PENDING = 200_000  # annotation lines waiting for a watermark (a sigrok-cli that prints none: read anyway)
 
 
 def decoder_args(logic: LogicSpec, line: LineSettings) -> list[str]:
@@ -92,6 +99,9 @@ class SigrokUart:
         self.start_shift = floor(bw / 2.0) - ceil((bw - 1) / 2.0)
         self.stop_offset = ceil((bw - 1) / 2.0 + (1 + line.databits + (line.parity != "N")) * bw)
         self.char_samples = ceil(line.bits_per_char * bw)
+        self.char_ns = line.char_ns
+        self.half_bit = ceil(bw / 2.0)  # a UART annotation ends this far past the sample it was printed at
+        self.pending: deque = deque()  # (sample printed at, annotation) not read yet
         self.names = {"rx": logic.rx, "tx": logic.tx}
         self.de_line = logic.tx or logic.rx  # the slave's line: DE windows apply to its bytes
         self.de_channel = logic.de_channel if logic.de else None
@@ -111,13 +121,23 @@ class SigrokUart:
         self._data = bytearray()
         self._flags: list[tuple[int, str]] = []
         self.last_t = -1  # ns of the last byte handed out (ticks come after it)
-        self.tick_t = -1
+        self.tick_t = -1  # the last tick time noted
+        self.ticks: deque[int] = deque()  # tick times waiting for their place
 
     # ------------------------------------------------------------------ input
     def feed(self, line: bytes) -> None:
+        """One line of sigrok-cli's stdout.  It is read when a watermark passes the sample the decoder printed it
+        at (or at the end, or when MAX_PENDING lines wait): the events never depend on how far stdout had been
+        read when sigrok's stderr said a block was done."""
         m = _ANN.match(line)
         if m is None:
             return
+        at = int(m.group(2)) - (self.half_bit if m.group(3) == b"uart-1" else 0)
+        self.pending.append((at, m))
+        if len(self.pending) > MAX_PENDING:
+            self._read(self.pending.popleft()[1])
+
+    def _read(self, m) -> None:
         inst, cls = m.group(3), m.group(4)
         if inst == b"uart-1":
             side = cls[:2].decode()
@@ -144,6 +164,9 @@ class SigrokUart:
 
     def watermark(self, sample: int) -> None:
         """Every sample below `sample` has been decoded."""
+        pending = self.pending
+        while pending and pending[0][0] < sample:
+            self._read(pending.popleft()[1])
         w = self.window
         if w is not None:
             if w.fall is None:
@@ -152,17 +175,18 @@ class SigrokUart:
                 self._close_window(w.fall)
             elif self._held_too_long(sample):
                 self._release_held(partial=True)
-        if self.window is not None:
-            return  # held bytes come first: a tick now would be out of order
-        self._fold(sample - self.char_samples - 1)  # no byte to come starts before that
-        self._flush_chunk()
-        t = self.ns(max(0, sample - self.char_samples - 1))
-        if t > self.last_t and t > self.tick_t:
-            self.out.append(Tick(t))
+        t = self.ns(max(0, sample - self.char_samples - 1))  # no character to come starts before this
+        if t > self.tick_t:
+            self.ticks.append(t)
             self.tick_t = t
+        if self.window is None:  # else held bytes come first: the ticks wait for their place between them
+            self._fold(sample - self.char_samples - 1)
+            self._ticks_before(None)
 
     def finish(self) -> None:
         """The end of the decode: held bytes go out (their window's fall, if it came)."""
+        while self.pending:
+            self._read(self.pending.popleft()[1])
         for side in ("rx", "tx"):
             cur = self.open[side]
             self.open[side] = None
@@ -171,6 +195,7 @@ class SigrokUart:
         w = self.window
         if w is not None:
             self._close_window(w.fall if w.fall is not None else self._fall_after(w.rise))
+        self._ticks_before(None)
         self._flush_chunk()
 
     def take(self) -> list:
@@ -269,7 +294,21 @@ class SigrokUart:
         if partial:
             self._flush_chunk()
 
+    def _ticks_before(self, t: int | None) -> None:
+        """The waiting ticks before time `t` (all: None) go out, each in its place in time: after the bytes before
+        it (their chunk ends there), and only if the line was silent since the last byte.  A tick's place never
+        depends on when sigrok's stderr line was read, so a file decodes to the same events however loaded the
+        machine."""
+        ticks = self.ticks
+        while ticks and (t is None or ticks[0] < t):
+            tick = ticks.popleft()
+            if tick >= self.last_t + self.char_ns:  # the line was silent there (not inside a character)
+                self._flush_chunk()
+                self.out.append(Tick(tick))
+
     def _add(self, channel: str, t: int, value: int, flags: list[str], de) -> None:
+        if self.ticks:
+            self._ticks_before(t)
         if self._data and (channel != self._ch or de != self._de or len(self._data) >= PER_BYTE_CHUNK):
             self._flush_chunk()
         if not self._data:
