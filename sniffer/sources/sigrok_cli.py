@@ -11,8 +11,9 @@ One code path for both: only the acquisition options differ (`-i FILE` or
 its "press any key" to stop).  sigrok-cli runs as a subprocess at log level 4;
 its stdout (the annotations, sources/sigrok_uart.py) is read as it comes, never
 whole; its stderr says when the decoders have read a block of samples ("Done,
-handled all samples"), which becomes a Tick once stdout is drained up to it, and
-gives the error line when sigrok-cli fails.  Nothing is sent to any device: the
+handled all samples": a watermark, applied once stdout is drained, up to which
+the annotations are read: SigrokUart.watermark), and gives the error line when
+sigrok-cli fails.  Nothing is sent to any device: the
 only options are the sample rate and the channels to read.
 
 The capture's metadata (CaptureInfo.extra): `samplerate` (Hz), `logic` (the
