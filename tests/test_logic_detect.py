@@ -26,20 +26,21 @@ RATE = 1_000_000
 
 
 def modbus_trace(fmt: str, baud: int = 19200, inverted: bool = False, polls: int = 6, seed: int = 1) -> Trace:
-    """Requests and responses of random registers on one line, back-to-back characters."""
+    """Requests and responses of random registers on one line, back-to-back characters (7 data bits: each
+    byte's low 7 bits)."""
     rnd = random.Random(seed)
-    parity, stop = fmt[1], int(fmt[2])
+    databits, parity, stop = int(fmt[0]), fmt[1], int(fmt[2])
     t = Trace(RATE, ["L"], idle={"L": 0 if inverted else 1})
     s = 1000
     for _ in range(polls):
         s = t.uart("L", s, bytes.fromhex(fr(f"0103{rnd.randrange(65536):04x}0002")), baud, parity, stop,
-                   invert=inverted) + 4000
+                   invert=inverted, databits=databits) + 4000
         s = t.uart("L", s, bytes.fromhex(fr(f"010304{rnd.randrange(2**32):08x}")), baud, parity, stop,
-                   invert=inverted) + 30_000
+                   invert=inverted, databits=databits) + 30_000
     return t
 
 
-@pytest.mark.parametrize("fmt", ["8N1", "8E1", "8O1", "8N2", "8E2", "8O2"])
+@pytest.mark.parametrize("fmt", ["8N1", "8E1", "8O1", "8N2", "8E2", "8O2", "7E1", "7O1"])
 @pytest.mark.parametrize("inverted", [False, True])
 def test_the_format_is_measured_from_the_edges(fmt, inverted):
     baud = 19200 if fmt != "8O2" else 38400
@@ -107,3 +108,24 @@ def test_no_uart_on_the_channel_exits_1(tmp_path):
     p = subprocess.run([sys.executable, "-m", "sniffer", "detect", t.write(tmp_path / "quiet.sr")],
                        capture_output=True, text=True, timeout=300)
     assert p.returncode == 1 and "no channel carries a UART line" in p.stderr
+
+
+def test_a_modbus_ascii_line_is_7e1_and_its_bus_file_says_so(tmp_path):
+    """7 data bits and parity: no flag says 7 data bits, so the bus file carries them (and the protocol)."""
+    need_sigrok_cli()
+    t = Trace(RATE, ["L"])
+    s = 1000
+    for _ in range(5):
+        s = t.uart("L", s, b":010300000001FB\r\n", 9600, "E", 1, databits=7) + 5000
+        s = t.uart("L", s, b":0103020000FA\r\n", 9600, "E", 1, databits=7) + 50_000
+    path = t.write(tmp_path / "ascii.sr")
+    bus = tmp_path / "ascii.toml"
+    p = subprocess.run([sys.executable, "-m", "sniffer", "detect", path, "--write-bus", bus], capture_output=True,
+                       text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert "line: 9600 7E1 on L" in p.stdout and "10 of 10 frames with a good CRC/LRC" in p.stdout
+    text = bus.read_text()
+    assert "databits = 7" in text and 'protocol = "modbus-ascii"' in text
+    replay = subprocess.run([sys.executable, "-m", "sniffer", "replay", path, "--rx", "L", "--bus", bus,
+                             "--format", "jsonl"], capture_output=True, text=True, timeout=300)
+    assert replay.returncode == 0 and replay.stdout.count('"crc_ok":true') == 10

@@ -131,10 +131,17 @@ def _detect_logic(spec: CaptureSpec, args) -> int:
     line, flags, serial = found
     print(f"\nline: {line}")
     command = "live" if is_device(where) else "replay"
-    print(f"decode it: sniffer {command} {where} {' '.join(flags + serial)}")
+    settled = next(c.measurement for c in verdicts if c.verdict == "settled")
+    if settled.databits == 8:
+        print(f"decode it: sniffer {command} {where} {' '.join(flags + serial)}")
+    else:  # no flag says 7 data bits: a bus file does
+        print(f"decode it: sniffer {command} {where} {' '.join(flags)} --bus FILE (--write-bus FILE writes it: "
+              f"{settled.databits} data bits)")
     if out is not None:
         m = next(c.measurement for c in verdicts if c.verdict == "settled")
-        bus = BusFile(m.baud, m.parity, m.stopbits, "modbus-rtu")
+        from ..detect.logic import protocol_of
+
+        bus = BusFile(m.baud, m.parity, m.stopbits, protocol_of(m).name, m.databits if m.databits != 8 else None)
         text = format_bus_file(bus, [f"written by `sniffer detect {where}`: {line}",
                                      f"logic channels: {' '.join(flags)}"])
         try:

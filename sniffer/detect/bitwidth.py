@@ -12,7 +12,9 @@ blame on noise).  A logic analyzer sees the waveform itself:
   `inverted`, the RS-232 side or an inverting probe);
 * character format: each character is read at its bit centres (as a UART
   does, from its start edge); bit 9 (after 8 data bits) that always matches the
-  data's even (odd) parity is a parity bit; the shortest distance from one start
+  data's even (odd) parity is a parity bit (no such bit 9, but a bit 8 that
+  always matches bits 1-7: 7 data bits and parity, Modbus ASCII's 7E1); the
+  shortest distance from one start
   edge to the next inside a burst (`pitch`) is start + data + parity + stop
   bits, so it tells 1 stop bit from 2 (a sender that always idles a bit between
   characters reads as 2: on the wire they are the same).
@@ -52,10 +54,11 @@ class Measurement:
     stopbits: int | None = None
     parity_votes: dict = field(default_factory=dict)
     framing_errors: int = 0  # characters whose stop bit was low (at the format found)
+    databits: int = 8
 
     @property
     def fmt(self) -> str:
-        return f"8{self.parity or '?'}{self.stopbits or '?'}"
+        return f"{self.databits}{self.parity or '?'}{self.stopbits or '?'}"
 
     @property
     def settled(self) -> bool:
@@ -174,7 +177,14 @@ def _characters(m: Measurement, edges: list[tuple[int, int]], bw: float) -> None
         return
     m.pitch_bits = min(p for p in pitches if p >= 10) if any(p >= 10 for p in pitches) else min(pitches)
     total = m.chars
-    if ones == total and (even == total or odd == total):
+    even7 = sum(1 for _, bits in starts if (sum(bits[1:8]) + bits[8]) % 2 == 0)
+    bit8 = {bits[8] for _, bits in starts}
+    most = 0.98 * total  # a few damaged characters (the capture cut one) do not hide the rule
+    if ones >= most and (even7 >= most or total - even7 >= most) and len(bit8) == 2:
+        # bit 9 a stop bit, bit 8 (both values seen) always the parity of bits 1-7: 7 data bits
+        m.databits, m.parity = 7, "E" if even7 >= most else "O"
+        m.parity_votes["bit 8 as the parity of 7 bits: even"] = even7
+    elif ones == total and (even == total or odd == total):
         pass  # every character's data has one parity and bit 9 is high: a parity bit or a stop bit, not told
     elif even == total:
         m.parity = "E"
@@ -186,7 +196,7 @@ def _characters(m: Measurement, edges: list[tuple[int, int]], bw: float) -> None
         m.parity = "E" if even >= max(odd, ones) else "O" if odd >= ones else "N"
     if m.parity is None:
         return
-    used = 1 + 8 + (m.parity != "N")
+    used = 1 + m.databits + (m.parity != "N")
     stop = m.pitch_bits - used
     m.stopbits = 2 if stop >= 2 else 1 if stop == 1 else None
     stop_at = used  # the first stop bit's index

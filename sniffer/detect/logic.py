@@ -45,7 +45,7 @@ class Verified:
 
     def describe(self) -> str:
         return (f"{self.bytes} bytes decoded: {self.uart_errors} UART errors, {self.crc_ok} of {self.frames} frames "
-                f"with a good CRC, {self.pairs} request/response pairs")
+                f"with a good CRC/LRC, {self.pairs} request/response pairs")
 
 
 def edge_args(channels: list[str]) -> list[str]:
@@ -105,12 +105,13 @@ def verify(source_of, m: Measurement) -> Verified:
 
     from ..pipeline import Pipeline
 
-    logic = LogicSpec(m.channel, invert=m.inverted, baud=m.baud, parity=m.parity, stopbits=m.stopbits)
-    line = LineSettings(m.baud, m.parity, m.stopbits)
+    logic = LogicSpec(m.channel, invert=m.inverted, baud=m.baud, parity=m.parity, stopbits=m.stopbits,
+                      databits=m.databits)
+    line = LineSettings(m.baud, m.parity, m.stopbits, m.databits)
     src = source_of(logic)
     info = src.open()
     v = Verified()
-    p = Pipeline(info, line, default_registry())
+    p = Pipeline(info, line, default_registry(default=protocol_of(m).default_model), protocol=protocol_of(m).name)
     frames = []
     try:
         for ev in src.events():
@@ -129,6 +130,13 @@ def verify(source_of, m: Measurement) -> Verified:
     v.responses = sum(1 for f in frames if f.crc_ok and f.can == CAN_RSP)
     v.pairs = sum(1 for f in frames if f.role == "response" and f.pair is not None)
     return v
+
+
+def protocol_of(m: Measurement):
+    """The protocol a line of this format is read with: Modbus ASCII on 7 data bits, else RTU."""
+    from ..protocols import get
+
+    return get("modbus-ascii" if m.databits == 7 else "modbus-rtu")
 
 
 def judge(m: Measurement | None, v: Verified | None) -> str:
@@ -194,6 +202,8 @@ def summary(verdicts: list[ChannelVerdict], where: str) -> tuple[str, list[str],
     same = [c for c in ok if (c.measurement.baud, c.measurement.fmt, c.measurement.inverted) == (m.baud, m.fmt,
                                                                                                   m.inverted)]
     serial = ["--baud", str(m.baud), "--parity", m.parity, "--stopbits", str(m.stopbits)]
+    if m.databits != 8:
+        serial += ["--protocol", protocol_of(m).name]
     if len(same) >= 2:
         # the slave receives requests: the channel with more frames that can only be requests is --rx
         rx = max(same, key=lambda c: c.verified.requests - c.verified.responses)
@@ -206,4 +216,4 @@ def summary(verdicts: list[ChannelVerdict], where: str) -> tuple[str, list[str],
     if m.inverted:
         flags.append("--invert")
     inv = ", idle low (inverted)" if m.inverted else ""
-    return f"{m.baud} 8{m.parity}{m.stopbits}{inv} {on}", flags, serial
+    return f"{m.baud} {m.fmt}{inv} {on}", flags, serial
