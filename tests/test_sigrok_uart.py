@@ -114,6 +114,14 @@ def test_a_driver_enabled_after_the_start_bit_still_owns_the_byte():
     assert c.de == (ns(20_300), ns(20_000 + 2 * CHAR - 30))
 
 
+def test_a_request_byte_inside_the_window_does_not_lose_its_rise():
+    """4 wires: the master still sends on RX after the slave's DE rose; its TX answer starts later."""
+    logic = LogicSpec("RX", "TX", "DE", baud=BAUD, parity="E")
+    out = chunks(run([rise(10_000), *byte("rx", 10_100, 0x0A), *byte("tx", 10_500, 0x01),
+                      fall(10_500 + CHAR + 20)], logic))
+    assert [(c.channel, c.de) for c in out] == [("RX", None), ("TX+DE", (ns(10_000), ns(10_500 + CHAR + 20)))]
+
+
 def test_windows_keep_their_own_edges_when_all_edges_come_first():
     """A block of samples holding three transactions: every DE edge is printed before any byte."""
     logic = LogicSpec("BUS", de="DE", baud=BAUD, parity="E")

@@ -112,6 +112,7 @@ class SigrokUart:
         # driver enable
         self.edges: list[tuple[int, int]] = []  # (sample, 1 rise / 0 fall), sorted, not yet folded in
         self.level0 = de_initial  # DE level before edges[0]
+        self.rise0: int | None = None  # and the rise that set it, when it is high (None: high from the start)
         self.window: _Window | None = None
         self.held: list[tuple] = []  # (channel, start, value, flags, window) from the window's first byte on
         # the chunk being built
@@ -199,8 +200,8 @@ class SigrokUart:
         self._flush_chunk()
 
     def take(self) -> list:
-        """The events decided so far (the chunk being built waits for the next watermark, a change of wire or the
-        end: sigrok prints a line at a time, and a Chunk per byte would cost every stage a call per byte)."""
+        """The events decided so far.  The chunk being built waits for a tick, a change of wire or DE window, or
+        the end: sigrok prints a line at a time, and a Chunk per byte would cost every stage a call per byte."""
         out, self.out = self.out, []
         return out
 
@@ -237,7 +238,7 @@ class SigrokUart:
         """The DE window the byte [start, stop] was sent in (the open one if it is that), or None (DE low all
         through it)."""
         level = self.level0
-        rise = None
+        rise = self.rise0 if level else None
         i = 0
         edges = self.edges
         while i < len(edges) and edges[i][0] <= start:
@@ -253,11 +254,13 @@ class SigrokUart:
         return w if w is not None and w.rise == rise else _Window(rise)
 
     def _fold(self, upto: int) -> None:
-        """Edges at or before `upto` are history: fold them into the level before the rest."""
+        """Edges before `upto` are history: fold them into the level (and the rise) before the rest."""
         edges = self.edges
         n = 0
-        while n < len(edges) and edges[n][0] <= upto - 1:
+        while n < len(edges) and edges[n][0] < upto:
             self.level0 = edges[n][1]
+            if edges[n][1]:
+                self.rise0 = edges[n][0]
             n += 1
         if n:
             del edges[:n]
