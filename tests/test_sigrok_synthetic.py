@@ -21,6 +21,7 @@ from srgen import Trace
 from helpers import fr
 from sniffer.events import Chunk, Tick
 from sniffer.line import LineSettings
+from sniffer.sources import CaptureError
 from sniffer.sources.logic_options import LogicSpec
 from sniffer.sources.sigrok_cli import SigrokSource, file_source
 
@@ -185,6 +186,20 @@ def test_the_live_source_streams_what_the_file_source_reads(tmp_path):
     assert got == expected
     assert running, "the first event came only after sigrok-cli had ended"
     assert sum(type(e) is Tick for e in got) > 5
+
+
+def test_an_analyzer_that_stops_sending_ends_the_capture_with_a_reason(tmp_path):
+    """A continuous acquisition ends only when asked to: if sigrok-cli ends by itself (an analyzer unplugged), the
+    capture says so, after every byte it got (here sigrok-cli reads a file "continuously": it ends at its end)."""
+    path, _ = two_wire(tmp_path / "gone.sr", polls=2)
+    logic = LogicSpec("RX", "TX", "DE", baud=BAUD, parity="E")
+    src = SigrokSource(logic, "sigrok:test", ["-i", str(path), "--continuous"], RATE, ["RX", "TX", "DE"], live=True)
+    src.open()
+    got = []
+    with pytest.raises(CaptureError, match="the analyzer stopped sending"):
+        for ev in src.events():
+            got.append(ev)
+    assert sum(len(c.data) for c in got if type(c) is Chunk) == 2 * (len(REQ) + len(RSP))
 
 
 def test_export_to_mcap_replays_to_the_same_frames(tmp_path):

@@ -287,8 +287,12 @@ class SigrokSource:
 
                 say(f"note: {self.where}: {uart.glitches} start bit(s) that were not (a glitch or noise shorter than "
                     "half a bit): no byte")
-            if rc != 0 and stop_sent is None and not self._closed and not self.finalize_crash:
-                raise CaptureError(f"{self.where}: sigrok-cli failed (exit {rc}){self._why()}")
+            if stop_sent is None and not self._closed:
+                if "--continuous" in self.acquire:  # an analyzer read continuously ends only when asked to
+                    raise CaptureError(f"{self.where}: the analyzer stopped sending (sigrok-cli exit {rc}){self._why()}"
+                                       "; the capture so far is kept")
+                if rc != 0 and not self.finalize_crash:
+                    raise CaptureError(f"{self.where}: sigrok-cli failed (exit {rc}){self._why()}")
         finally:
             self.close()
 
