@@ -6,9 +6,12 @@
 #                        (tests/test_report_chromium.py; the report itself needs no system package);
 #   fonts-dejavu-core  - a monospace font for the page's terminal;
 #   mosquitto          - the MQTT broker the --mqtt tests start on a free port (tests/broker.py);
-#   openssl            - the tests' CA and server certificate for the broker's TLS listener.
-# Without them those tests skip with a reason, except the Chromium test on CI (CI set), which fails,
-# and the MQTT tests, which always fail without mosquitto (they need a real broker).
+#   openssl            - the tests' CA and server certificate for the broker's TLS listener;
+#   sigrok-cli         - decodes logic-analyzer captures (.sr files, live analyzers: `replay FILE.sr --rx`,
+#                        `live sigrok:DRIVER`, `detect FILE.sr`); its UART decoder is what the sniffer reads
+#                        (tests/test_sigrok_*.py, test_logic_detect.py).  Debian 12: sigrok-cli 0.7.2.
+# Without them those tests skip with a reason, except the Chromium and sigrok-cli tests on CI (CI set),
+# which fail, and the MQTT tests, which always fail without mosquitto (they need a real broker).
 # Idempotent and non-interactive: installs only what is missing; does nothing (and succeeds) without
 # root or passwordless sudo.
 set -uo pipefail
@@ -19,6 +22,7 @@ command -v chromium >/dev/null 2>&1 || missing+=(chromium)
 [ -e /usr/share/fonts/truetype/dejavu/DejaVuSansMono.ttf ] || missing+=(fonts-dejavu-core)
 command -v mosquitto >/dev/null 2>&1 || [ -x /usr/sbin/mosquitto ] || missing+=(mosquitto)
 command -v openssl >/dev/null 2>&1 || missing+=(openssl)
+command -v sigrok-cli >/dev/null 2>&1 || missing+=(sigrok-cli)
 if [ "${#missing[@]}" = 0 ]; then
   exit 0
 fi

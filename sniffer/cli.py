@@ -83,6 +83,20 @@ def serial_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--stopbits", type=int, choices=[1, 2], help="stop bits (default 1)")
 
 
+def logic_flags(p: argparse.ArgumentParser, live: bool = False) -> None:
+    g = p.add_argument_group("logic analyzer (a sigrok .sr capture, or live sigrok:DRIVER; docs/logic-analyzer.md)")
+    g.add_argument("--rx", metavar="CHANNEL", help="the channel the line is on: what the probed slave receives "
+                   "(alone: the half-duplex bus, both directions); e.g. D0")
+    g.add_argument("--tx", metavar="CHANNEL", help="the slave's transmit line (4-wire, or both sides of a "
+                   "transceiver): its bytes are responses, --rx's requests")
+    g.add_argument("--de", metavar="CHANNEL", help="the slave's driver-enable: bytes sent while it is high are "
+                   "responses; its turn-on/turn-off times go on the frames (de_on_ns, de_off_ns)")
+    g.add_argument("--invert", action="store_true", help="the UART lines idle low (RS-232 side, inverting probe)")
+    if live:
+        g.add_argument("--samplerate", metavar="RATE", help="the analyzer's sample rate for live sigrok:DRIVER "
+                       "(default 1M; at least 4 samples a bit): 1M, 4MHz, 24M")
+
+
 def decode_flags(p: argparse.ArgumentParser, bus: bool = True) -> None:
     g = p.add_argument_group("decoding")
     g.add_argument("--device", action="append", metavar="UNIT=MODEL",
@@ -101,9 +115,11 @@ def decode_flags(p: argparse.ArgumentParser, bus: bool = True) -> None:
 
 
 def input_flags(p: argparse.ArgumentParser) -> None:
-    p.add_argument("file", nargs="+", help="capture file: MCAP, byte CSV, Saleae CSV, pcap/pcapng; several files, "
-                                          "a rotated capture's folder or its index.json are read as one capture")
+    p.add_argument("file", nargs="+", help="capture file: MCAP, byte CSV, Saleae CSV, pcap/pcapng, a sigrok .sr "
+                                          "(with --rx); several files, a rotated capture's folder or its "
+                                          "index.json are read as one capture")
     p.add_argument("--input-format", choices=INPUT_FORMATS, default="auto")
+    logic_flags(p)
 
 
 def stream_flags(p: argparse.ArgumentParser, quiet: bool = False) -> None:
@@ -234,9 +250,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="cmd", metavar="COMMAND", parser_class=_Parser)
 
     s = sub.add_parser("live", help="capture a serial port (read-only) and decode live; several ports: "
-                                    "several links on one timeline")
+                                    "several links on one timeline; sigrok:DRIVER: a logic analyzer")
     port_flags(s)
     serial_flags(s)
+    logic_flags(s, live=True)
     decode_flags(s)
     stream_flags(s, quiet=True)
     capture_out_flags(s, None, 0)
@@ -247,7 +264,7 @@ def build_parser() -> argparse.ArgumentParser:
     foxglove_flags(s)
     mqtt_flags(s)
 
-    s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap)")
+    s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap, sigrok .sr)")
     input_flags(s)
     s.add_argument("--progress", action="store_true", help="progress bar on stderr (frames/s, ETA)")
     s.add_argument("--tui", action="store_true", help="browse the capture in the terminal UI")
@@ -338,7 +355,9 @@ def build_parser() -> argparse.ArgumentParser:
         "detect", formatter_class=argparse.RawDescriptionHelpFormatter,
         help="find an unknown line's baud rate, parity, stop bits and protocol by listening (read-only)",
         description=_DETECT_HELP, epilog=_DETECT_EPILOG)
-    s.add_argument("port", help="serial device, e.g. /dev/ttyUSB0")
+    s.add_argument("port", help="serial device, e.g. /dev/ttyUSB0; or a logic capture: a sigrok .sr file, or a live "
+                                "analyzer sigrok:DRIVER (bit widths from the samples: tells 8E1 from 8E2)")
+    logic_flags(s, live=True)
     s.add_argument("--bauds", action="append", metavar="RATES",
                    help="more baud rates to try, first: 250000,31250 (repeatable)")
     s.add_argument("--write-bus", metavar="FILE.toml", help="write the line's settings as a bus file for live --bus")
@@ -407,6 +426,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", metavar="PATH", help="output file (csv/parquet: also PATH stem.points.*); with --to "
                                                  "dataset: the dataset folder")
     dataset_flags(s, "show a progress bar on stderr")
+    logic_flags(s)
     foxglove_flags(s)
 
     s = sub.add_parser("ingest", help="take a folder of MCAP captures into a fleet dataset; already taken ones "

@@ -33,6 +33,9 @@ class Chunk:
     # gap before the read is not proven silence.  None: the reader looked every tick (or a file, an older
     # capture)
     unseen_ns: int | None = None
+    # a logic analyzer's driver-enable line (--de): the bytes were sent while the slave's driver was enabled,
+    # from `de[0]` to `de[1]` (ns; None: before the capture began / not known yet).  None: no DE window
+    de: tuple[int | None, int | None] | None = None
 
     @property
     def per_byte(self) -> bool:
@@ -42,7 +45,7 @@ class Chunk:
 def read_fields(c: Chunk) -> tuple:
     """A read as it crosses a pipe to a helper process: the Chunk's fields in order (Chunk(*read_fields(c)) ==
     c), since pickling the dataclass itself costs ten times as much."""
-    return (c.t_ns, c.data, c.byte_t_ns, c.flags, c.channel, c.link, c.unseen_ns)
+    return (c.t_ns, c.data, c.byte_t_ns, c.flags, c.channel, c.link, c.unseen_ns, c.de)
 
 
 @dataclass(slots=True, frozen=True)

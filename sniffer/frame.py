@@ -79,7 +79,7 @@ class Frame:
         "can", "role", "crc_ok", "crc_expected", "time_source", "idle_before_ns",
         "annotations", "pair", "latency_ms", "model", "_points", "exception",
         "fields", "summary", "noise_reason", "channel", "peer", "adu", "encoded", "writes",
-        "link",
+        "link", "de_on_ns", "de_off_ns",
     )
 
     def __init__(
@@ -131,6 +131,10 @@ class Frame:
         # (decoders.base.UnitState.commit writes both)
         self.writes: list[list] = []
         self.link = ""  # the link's name in a capture of several links (sniffer.links), else ""
+        # a logic capture's driver-enable line (sniffer.driver_enable): DE rise - first start bit, DE fall - end of
+        # the last stop bit (ns); None: not known (no --de, not the first / last frame of its DE window)
+        self.de_on_ns: int | None = None
+        self.de_off_ns: int | None = None
 
     @property
     def points(self) -> list[dict]:

@@ -72,6 +72,10 @@ RAW_SCHEMA = {
         "unseen_ns": {"type": "integer", "description": "chunk read live after the reader stalled: the port "
                       "was last seen empty this long before t_ns (the bytes came within it); absent: it "
                       "looked every tick, or not known"},
+        "de": {"type": "array", "items": {"type": ["integer", "null"]}, "minItems": 2, "maxItems": 2,
+               "description": "chunk of a logic analyzer's --de capture, sent while the slave's driver was "
+                              "enabled: [rise, fall] of its driver-enable line (ns; null: before the capture / "
+                              "not known); absent: not in a DE window"},
         "t_end_ns": {"type": "integer", "description": "gap: end of the interruption"},
         "reason": {"type": "string", "description": "gap: why the source was interrupted"},
     },
@@ -126,6 +130,8 @@ def encode_event(ev: Chunk | Tick | Gap) -> bytes:
         }
         if ev.unseen_ns is not None:
             d["unseen_ns"] = ev.unseen_ns
+        if ev.de is not None:
+            d["de"] = list(ev.de)
     elif type(ev) is Tick:
         d = {"kind": "tick", "t_ns": ev.t_ns}
     elif type(ev) is Gap:
@@ -156,7 +162,12 @@ def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
             raise ValueError("byte_dt_ns and data differ in length")
         flags = tuple((int(i), str(f)) for i, f in d.get("flags") or ())
         unseen = d.get("unseen_ns")
-        return Chunk(t, raw, byte_t, flags, str(d.get("channel") or ""), link, None if unseen is None else int(unseen))
+        de = d.get("de")
+        if de is not None:
+            rise, fall = de
+            de = (None if rise is None else int(rise), None if fall is None else int(fall))
+        return Chunk(t, raw, byte_t, flags, str(d.get("channel") or ""), link, None if unseen is None else int(unseen),
+                     de)
     if kind == "tick":
         return Tick(t, link)
     if kind == "gap":

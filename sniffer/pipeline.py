@@ -12,7 +12,10 @@ same sinks: `link` names the line (set on every frame), `numbering` is the
 capture-wide frame counter the links share (a frame is numbered as it leaves
 its framer, before pairing, so pairs and notes name capture-wide numbers), and
 `directions` maps a wire (Chunk.channel) to the one role its frames can have
-(--tap: the master's pair carries requests, the slaves' pair responses).
+(--tap: the master's pair carries requests, the slaves' pair responses; a
+logic capture's channels: CaptureInfo.extra["channel_roles"], see `roles_of`).
+Chunks of a logic capture's driver-enable windows (Chunk.de) put the driver's
+turn-on and turn-off times on their frames (sniffer.driver_enable).
 
 What the decoders know that scales or names values (decoders/carry.py) is
 `decoder_state()`; `state_version()` changes when it may have.  A Gap that
@@ -27,9 +30,20 @@ from collections.abc import Iterable
 from . import codes, protocols
 from .codes import note
 from .events import CaptureInfo, Chunk, Gap, Tick
-from .frame import Frame
+from .frame import CAN_REQ, CAN_RSP, Frame
 from .line import LineSettings
 from .pairer import DEFAULT_TIMEOUT_MS, Pairer
+
+
+_ROLE_BITS = {"request": CAN_REQ, "response": CAN_RSP}
+
+
+def roles_of(info: CaptureInfo) -> dict[str, int] | None:
+    """The wire -> role map a capture records (a logic capture's --rx/--tx/--de channels), as `directions`."""
+    roles = info.extra.get("channel_roles") if isinstance(info.extra, dict) else None
+    if not isinstance(roles, dict):
+        return None
+    return {str(ch): _ROLE_BITS[r] for ch, r in roles.items() if r in _ROLE_BITS} or None
 
 
 class Pipeline:
@@ -63,6 +77,7 @@ class Pipeline:
         self.link = link
         self.numbering = numbering
         self.directions = directions or None
+        self.driver_enable = None  # sniffer.driver_enable.DriverEnable, made by the first DE chunk
         if start:
             for s in self.sinks:
                 s.start(info)
@@ -74,6 +89,8 @@ class Pipeline:
                 for s in self.sinks:
                     s.raw(ev)
             self.bytes_in += len(ev.data)
+            if ev.de is not None:
+                self._note_de(ev)
             return self._settle(self.framer.feed(ev))
         if type(ev) is Tick:
             if not self.framer.would_close(ev.t_ns) and not self.pairer.would_time_out(ev.t_ns):
@@ -139,6 +156,8 @@ class Pipeline:
             return frames
         if self.numbering is not None or self.directions is not None:
             self._mark(frames)
+        if self.driver_enable is not None:
+            self.driver_enable.mark(frames)
         out: list[Frame] = []
         push = self.pairer.push
         gap = self._gap_pending
@@ -152,6 +171,13 @@ class Pipeline:
                 self._gap_pending = gap = None
             out.extend(push(f))
         return self._decode(out)
+
+    def _note_de(self, c: Chunk) -> None:
+        if self.driver_enable is None:
+            from .driver_enable import DriverEnable
+
+            self.driver_enable = DriverEnable(self.line.char_ns)
+        self.driver_enable.note(c)
 
     def _mark(self, frames: list[Frame]) -> None:
         """A multi-link capture's number and link name; a tapped wire's role."""

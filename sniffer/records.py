@@ -8,6 +8,7 @@ only ever added, never renamed.
 | `points` | `[{name, address, raw, value, unit, span, ...}]`; `span` = `[start, end)` of the value's bytes in `raw` |
 | `writes` | `[[table, start, [raw, ...]], ...]`: what the frame wrote into its unit's register shadow |
 | `link` | the link's name, in a capture of several links only (`sniffer live P1 P2`, `--tap`, `[[links]]`) |
+| `de_on_ns`, `de_off_ns` | logic capture with `--de` only: driver-enable turn-on/-off times (sniffer.driver_enable) |
 
 A point of a value of several registers (u32, f32, str ...) adds `words` (its registers as on
 the wire); one register of such a value without the others adds `part` ([index, of]); see
@@ -59,6 +60,8 @@ class _Record(msgspec.Struct, gc=False, omit_defaults=True):
     channel: str
     noise_reason: str | None
     link: str = ""  # written only in a capture of several links: a one-line record is as it was
+    de_on_ns: int | None = None  # written only when known (a logic capture's --de: sniffer.driver_enable)
+    de_off_ns: int | None = None
 
 
 _encode = msgspec.json.Encoder().encode
@@ -71,15 +74,16 @@ def _record(f: Frame, t0_ns: int, points) -> _Record:
         f.index, (f.t_ns - t0_ns) / 1e9, (f.t_end_ns - t0_ns) / 1e9, f.raw.hex(), f.protocol, f.unit,
         f.function, f.role, f.crc_ok, None if ce is None else f"{ce:04x}", f.exception, f.model, points,
         f.writes, [a.to_dict() for a in f.annotations] if f.annotations else [], f.latency_ms, f.pair,
-        f.summary, f.time_source, f.channel, f.noise_reason, f.link,
+        f.summary, f.time_source, f.channel, f.noise_reason, f.link, f.de_on_ns, f.de_off_ns,
     )
 
 
 def frame_record(f: Frame, t0_ns: int) -> dict:
     """The frame as the record's dict (points as dicts)."""
     d = msgspec.structs.asdict(_record(f, t0_ns, f.points))
-    if not d["link"]:
-        del d["link"]  # as the JSON has it
+    for key in ("link", "de_on_ns", "de_off_ns"):
+        if d[key] in ("", None):
+            del d[key]  # as the JSON has it
     return d
 
 
@@ -185,6 +189,10 @@ FRAME_SCHEMA = {
         "channel": {"type": "string"},
         "noise_reason": {"type": ["string", "null"]},
         "link": {"type": "string", "description": "the link's name; only in a capture of several links"},
+        "de_on_ns": {"type": "integer", "description": "logic capture with --de: the slave's driver-enable rise "
+                     "minus the start of the frame's first start bit (ns; > 0: enabled late); only when known"},
+        "de_off_ns": {"type": "integer", "description": "logic capture with --de: the driver-enable fall minus "
+                      "the end of the frame's last stop bit (ns; < 0: disabled early); only when known"},
     },
     "required": [
         "t", "raw", "protocol", "unit", "function", "role", "crc_ok", "exception",
@@ -202,6 +210,7 @@ def frame_from_record(rec: dict, t0_ns: int = 0) -> Frame:
               time_source=rec.get("time_source", "byte"), noise_reason=rec.get("noise_reason"),
               channel=rec.get("channel", ""))
     f.link = rec.get("link", "")
+    f.de_on_ns, f.de_off_ns = rec.get("de_on_ns"), rec.get("de_off_ns")
     f.role = rec.get("role", f.role)
     proto = of_frame(f.protocol)
     f.adu = proto.adu_of(raw) if proto is not None else b""  # what the request's fields name (reg:)

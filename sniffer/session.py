@@ -383,7 +383,7 @@ def decode_capture(path: str | os.PathLike[str], spec: CaptureSpec | None = None
 
     spec = spec or CaptureSpec()
     whole = spec.inputs if spec.inputs and spec.input == os.fspath(path) else os.fspath(path)  # check's set
-    session = Session(spec, capture_source(whole, spec.input_format), sinks, on_event=on_event)
+    session = Session(spec, capture_source(whole, spec.input_format, spec.logic), sinks, on_event=on_event)
     session.open()
     return session
 

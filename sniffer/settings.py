@@ -31,8 +31,9 @@ from .events import CaptureInfo
 from .line import LineSettings, SettingsError
 from .mqtt.options import MqttSpec
 from .pairer import DEFAULT_TIMEOUT_MS
-from .pipeline import Pipeline
+from .pipeline import Pipeline, roles_of
 from .segments import Keep, Rotate
+from .sources.logic_options import LogicSpec
 from .triggers.options import TriggerSpec
 
 MAX_TIMEOUT_MS = 86_400_000.0  # a day: anything longer is a typo, not a response timeout
@@ -137,7 +138,8 @@ class Resolved:
         from decoders.carry import of_info
 
         return Pipeline(info, self.line, registry or self.registry(of_info(info)), sinks, protocol=self.protocol.name,
-                        timeout_ms=self.timeout_ms, unit_timeouts=self.unit_timeouts or None)
+                        timeout_ms=self.timeout_ms, unit_timeouts=self.unit_timeouts or None,
+                        directions=roles_of(info))
 
     def record_in(self, info: CaptureInfo) -> None:
         """The settings used travel with the capture (an MCAP written from it replays without flags;
@@ -249,6 +251,7 @@ class CaptureSpec:
     trigger: TriggerSpec | None = None  # --trigger and its flags: windows around events (sniffer.triggers)
     foxglove_device: str | None = None  # --foxglove-device: the device an MCAP names for Foxglove (sniffer.foxglove)
     mqtt: MqttSpec | None = None  # --mqtt URL and its flags: decoded values to a broker (sniffer.mqtt)
+    logic: LogicSpec | None = None  # --rx/--tx/--de...: a logic analyzer's channels (sigrok .sr, live sigrok:DRIVER)
 
     @classmethod
     def of(cls, *, baud=None, parity=None, stopbits=None, protocol=None, devices=None, timeout_ms=None,
@@ -288,6 +291,7 @@ class CaptureSpec:
             raise SettingsError("--ring keeps only the trigger windows, --rotate the whole capture as segments: "
                                 "give one of them")
         bus_file = _bus_file(opt("bus"))
+        logic = LogicSpec.from_args(args, layered(flags, LineChoice.from_bus(bus_file)))
         ports = list(opt("ports") or ())
         links = link_plans(ports, opt("tap") or (), bus_file)
         port = opt("port") or (ports[0] if ports else None)
@@ -306,7 +310,7 @@ class CaptureSpec:
             headless=bool(opt("headless")), publish=opt("publish"),
             publish_backlog=opt("publish_backlog", 100_000), trigger=trigger, mqtt=MqttSpec.from_args(args),
             rotate=rotate, keep=keep, status=opt("status"), wait_port=bool(opt("wait_port")),
-            foxglove_device=opt("foxglove_device"),
+            foxglove_device=opt("foxglove_device"), logic=logic,
         )
 
     def with_(self, **changes) -> CaptureSpec:
@@ -395,6 +399,8 @@ class CaptureSpec:
             argv += ["--foxglove-device", self.foxglove_device]
         if self.mqtt is not None:
             argv += self.mqtt.to_argv()
+        if self.logic is not None:
+            argv += self.logic.to_argv()
         if self.headless:
             argv.append("--headless")
         if self.stream is None:

@@ -20,9 +20,15 @@ from .common import (
 def cmd_live(spec: CaptureSpec, args) -> int:
     from ..sources.reader_process import live_source
 
+    from ..sources.logic_options import is_device
+
     if not spec.port:
         raise UsageError("live: give a PORT (several for several links), --tap PORT_A PORT_B, "
                          "or a --bus file with [[links]]")
+    if any(is_device(p) for plan in spec.links for p in plan.ports):
+        raise UsageError("a logic analyzer (sigrok:DRIVER) is one capture of its own: give it alone")
+    if is_device(spec.port) or spec.logic is not None:
+        return _live_logic(spec)
     if not args.no_out and not spec.out:
         name = default_capture_name()
         spec = spec.with_(out=name[:-5] if spec.rotate is not None else name)
@@ -44,6 +50,27 @@ def cmd_live(spec: CaptureSpec, args) -> int:
         return run_capture_tui(spec, "live", spec.port)
     source = live_source("serial", spec.port, line)
     return _capture(spec, source, spec.port, inputs=[spec.port], status_label=f"live {spec.port}")
+
+
+def _live_logic(spec: CaptureSpec) -> int:
+    """`live sigrok:DRIVER --rx CH ...`: a logic analyzer read continuously by sigrok-cli (sources/sigrok_cli.py)."""
+    from ..sources.logic_options import DeviceSpec, is_device
+    from ..sources.sigrok_cli import device_source
+
+    if not is_device(spec.port):
+        raise UsageError(f"--rx/--tx/--de are for a logic analyzer: give sigrok:DRIVER (e.g. sigrok:fx2lafw), "
+                         f"not {spec.port}")
+    if spec.logic is None:
+        raise UsageError(f"{spec.port}: say which channel carries the line: --rx CHANNEL (and --baud)")
+    device = DeviceSpec.parse(spec.port)
+    if tui_wanted(spec):
+        from ..tui.run import run_capture_tui
+
+        return run_capture_tui(spec, "live", spec.port)
+    source = device_source(device, spec.logic)  # no sigrok-cli, no such driver or channel: one line, nothing made
+    wires = ", ".join(f"{k} {v}" for k, v in spec.logic.to_dict().items() if v)
+    what = f"capturing {device} at {source.rate_label}: {wires}"
+    return _capture(spec, source, str(device), what=lambda: what, status_label=f"live {device}")
 
 
 def cmd_demo(spec: CaptureSpec, args) -> int:

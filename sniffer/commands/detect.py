@@ -23,6 +23,13 @@ from .common import EXIT_FAILED, EXIT_OK, UsageError, say
 
 
 def cmd_detect(spec: CaptureSpec, args) -> int:
+    from ..sources.logic_options import is_device
+    from ..sources.srzip import sniff
+
+    if is_device(spec.port) or sniff(spec.port):
+        return _detect_logic(spec, args)
+    if spec.logic is not None:
+        raise UsageError(f"--rx is for a logic capture: a sigrok .sr file or sigrok:DRIVER, not {spec.port}")
     bauds = baud_order(parse_bauds(args.bauds))
     if not (args.max_time > 0 and args.quiet_time > 0 and args.units_time >= 0):
         raise UsageError("--max-time and --quiet-time must be more than 0 seconds, --units-time 0 or more")
@@ -66,3 +73,84 @@ def _progress(ev: Evidence) -> None:
     frames = f", {b.fit_frames} {b.protocol} frames fit, {b.pairs} pairs" if b else ""
     say(f"{ev.rx.baud} {ev.fmt} ({ev.seconds:.1f} s): {ev.chars} bytes, {ev.errors} UART errors{frames}: "
         f"{verdict_word(ev)}")
+
+
+LIVE_LISTEN_S = 10.0  # a live analyzer is read this long (less with --max-time), once to measure, once to decode
+
+
+def _detect_logic(spec: CaptureSpec, args) -> int:
+    """`detect FILE.sr` / `detect sigrok:DRIVER`: bit widths from the samples, checked by sigrok's UART decode."""
+    from ..busfile import BusFile, format_bus_file
+    from ..detect.logic import detect_logic, summary, table
+    from ..sources.logic_options import DeviceSpec, LogicSpec, is_device
+    from ..sources.sigrok_cli import DEFAULT_RATE, SigrokSource, device_channels, file_source
+    from ..sources.srzip import read_meta
+
+    where = spec.port
+    wanted = [spec.logic.rx] if spec.logic is not None else None
+    out = Output(args.write_bus, inputs=[where], what="--write-bus") if args.write_bus else None
+    if is_device(where):
+        device = DeviceSpec.parse(where)
+        channels = device_channels(device)
+        rate = (spec.logic.samplerate if spec.logic else None) or DEFAULT_RATE
+        seconds = min(args.max_time, LIVE_LISTEN_S)
+        if seconds <= 0:
+            raise UsageError("--max-time must be more than 0 seconds")
+        common = ["-d", device.arg, "-c", f"samplerate={rate}", "--samples", str(int(rate * seconds))]
+        chosen = wanted or channels[:8]
+        missing = [c for c in chosen if c not in channels]
+        if missing:
+            raise UsageError(f"{where}: no logic channel {missing[0]!r} (channels: {', '.join(channels)})")
+
+        def source_of(logic: LogicSpec):
+            return SigrokSource(logic, where, [*common, "-C", logic.rx], rate, channels)
+
+        acquire = [*common, "-C", ",".join(chosen)]
+        if not args.quiet:
+            say(f"reading {where} at {rate:,} samples/s for {seconds:g} s (nothing is sent), then decoding "
+                f"{seconds:g} s more at the settings measured")
+    else:
+        meta = read_meta(where)
+        rate, channels = meta.samplerate, list(meta.channels)
+        chosen = wanted or channels[:8]
+        for c in chosen:
+            meta.bit(c)
+        if not wanted and len(channels) > 8:
+            say(f"note: {where} has {len(channels)} channels: measuring the first 8 (--rx CHANNEL for another)")
+
+        def source_of(logic: LogicSpec):
+            return file_source(where, logic)
+
+        acquire = ["-i", where]
+    verdicts = detect_logic(where, acquire, chosen, rate, source_of)
+    print("\n".join(table(verdicts)))
+    found = summary(verdicts, where)
+    if found is None:
+        say(f"error: {where}: no channel carries a UART line this could settle (see the table)")
+        return EXIT_FAILED
+    line, flags, serial = found
+    print(f"\nline: {line}")
+    command = "live" if is_device(where) else "replay"
+    settled = next(c.measurement for c in verdicts if c.verdict == "settled")
+    if settled.databits == 8:
+        print(f"decode it: sniffer {command} {where} {' '.join(flags + serial)}")
+    else:  # no flag says 7 data bits: a bus file does
+        print(f"decode it: sniffer {command} {where} {' '.join(flags)} --bus FILE (--write-bus FILE writes it: "
+              f"{settled.databits} data bits)")
+    if out is not None:
+        m = next(c.measurement for c in verdicts if c.verdict == "settled")
+        from ..detect.logic import protocol_of
+
+        bus = BusFile(m.baud, m.parity, m.stopbits, protocol_of(m).name, m.databits if m.databits != 8 else None)
+        text = format_bus_file(bus, [f"written by `sniffer detect {where}`: {line}",
+                                     f"logic channels: {' '.join(flags)}"])
+        try:
+            with open(out.part, "w", encoding="utf-8") as f:
+                f.write(text)
+            out.commit()
+        except BaseException:
+            out.discard()
+            raise
+        say(f"wrote {out.path}: sniffer {command} {where} --bus {out.path} {' '.join(flags)}")
+    sys.stdout.flush()
+    return EXIT_OK

@@ -21,7 +21,7 @@ def file_source(spec: CaptureSpec):
     path, note = readable(spec.input)
     if note:
         say(f"note: {note}")
-    return capture_source(path, spec.input_format)
+    return capture_source(path, spec.input_format, spec.logic)
 
 
 def cmd_replay(spec: CaptureSpec, args) -> int:

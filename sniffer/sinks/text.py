@@ -34,6 +34,8 @@ def frame_line(f: Frame, t0_ns: int, link_width: int = 0) -> str:
     direction = _DIRECTION.get(f.role, "<-???")
     pair = f" #{f.pair}" if f.pair is not None else ""
     lat = f" {f.latency_ms:6.1f}ms" if f.latency_ms is not None else ""
+    if f.de_on_ns is not None or f.de_off_ns is not None:  # a logic capture's driver enable (--de)
+        lat += f" DE {_us(f.de_on_ns)}/{_us(f.de_off_ns)}us"
     fc = "--" if f.function is None else _FC[f.function] if 0 <= f.function < 256 else f"{f.function:02X}"
     unit = "?  " if f.unit is None else _UNIT[f.unit] if 0 <= f.unit < 256 else f"{f.unit:<3d}"
     crc = "" if f.crc_ok else " CRC!"
@@ -44,6 +46,10 @@ def frame_line(f: Frame, t0_ns: int, link_width: int = 0) -> str:
         f"{t} {mark} {direction} u{unit}{model} fc{fc}{crc} #{f.index}{pair}{lat}  "
         f"{f.summary}{tail}"
     )
+
+
+def _us(ns: int | None) -> str:
+    return "?" if ns is None else f"{ns / 1000:+.1f}"
 
 
 BATCH = 256  # lines joined into one write when lines need not reach the reader one by one

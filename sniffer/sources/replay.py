@@ -1,4 +1,4 @@
-"""Open any capture file for replay: MCAP, byte CSV, Saleae CSV, pcap/pcapng.
+"""Open any capture file for replay: MCAP, byte CSV, Saleae CSV, pcap/pcapng, a sigrok logic capture (.sr).
 
 `FileSource` is the one object every file capture goes through:
 
@@ -24,15 +24,17 @@ from collections.abc import Iterator
 from ..events import CaptureInfo, Chunk, Gap, Tick
 from . import CaptureError, not_regular, quote
 
-FORMATS = ("auto", "mcap", "csv", "saleae", "pcap")
+FORMATS = ("auto", "mcap", "csv", "saleae", "pcap", "sigrok")
 
 
-def _reader(path: str, fmt: str, damage: list[str]):
-    from . import bytecsv, mcapsrc, pcapsrc, saleae
+def _reader(path: str, fmt: str, damage: list[str], logic=None):
+    from . import bytecsv, mcapsrc, pcapsrc, saleae, srzip
 
     if fmt == "auto":
         if mcapsrc.sniff(path):
             fmt = "mcap"
+        elif srzip.sniff(path):
+            fmt = "sigrok"
         elif bytecsv.sniff(path):
             fmt = "csv"
         elif pcapsrc.sniff(path):
@@ -42,8 +44,12 @@ def _reader(path: str, fmt: str, damage: list[str]):
         else:
             raise CaptureError(
                 f"{path}: unknown capture format (expected MCAP from this tool, a byte CSV "
-                "t_s,channel,byte_hex,flags, a Saleae async-serial CSV export, or pcap/pcapng)"
+                "t_s,channel,byte_hex,flags, a Saleae async-serial CSV export, pcap/pcapng, or a sigrok .sr)"
             )
+    if fmt == "sigrok":
+        from .sigrok_cli import file_source
+
+        return fmt, file_source(path, logic, damage)
     makers = {"mcap": mcapsrc.McapSource, "csv": bytecsv.ByteCsvSource, "saleae": saleae.SaleaeSource,
               "pcap": pcapsrc.PcapSource}
     if fmt not in makers:
@@ -54,9 +60,10 @@ def _reader(path: str, fmt: str, damage: list[str]):
 class FileSource:
     """A capture file as a stream of events (see the module docstring)."""
 
-    def __init__(self, path: str | os.PathLike[str], fmt: str = "auto") -> None:
+    def __init__(self, path: str | os.PathLike[str], fmt: str = "auto", logic=None) -> None:
         self.path = os.fspath(path)
         self.format = fmt
+        self.logic = logic  # a sigrok .sr capture's channels (sources.logic_options.LogicSpec)
         self.damage: list[str] = []
         self._requested = fmt
         self._reader = None
@@ -82,7 +89,9 @@ class FileSource:
             raise CaptureError(why)
         if st.st_size == 0:
             raise CaptureError(f"{p}: empty file")
-        self.format, reader = _reader(p, self._requested, self.damage)
+        self.format, reader = _reader(p, self._requested, self.damage, self.logic)
+        if self.logic is not None and self.format != "sigrok":
+            raise CaptureError(f"{p}: --rx/--tx/--de are for a sigrok logic capture (.sr); this is {self.format}")
         self._info = reader.open()
         self._reader = reader
         return self._info
@@ -127,7 +136,7 @@ class FileSource:
         return None if r is None else r.position()
 
 
-def open_replay(path: str, fmt: str = "auto") -> tuple[CaptureInfo, Iterator[Chunk | Tick | Gap]]:
+def open_replay(path: str, fmt: str = "auto", logic=None) -> tuple[CaptureInfo, Iterator[Chunk | Tick | Gap]]:
     """(CaptureInfo, events iterator) or CaptureError with one clear line (FileSource.damage is not seen here)."""
-    src = FileSource(path, fmt)
+    src = FileSource(path, fmt, logic)
     return src.open(), src.events()

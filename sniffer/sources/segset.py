@@ -38,10 +38,10 @@ def is_set(paths) -> bool:
     return len(paths) > 1 or any(os.path.isdir(p) or os.path.basename(os.fspath(p)) == INDEX_NAME for p in paths)
 
 
-def capture_source(paths, fmt: str = "auto"):
-    """FileSource for one capture file, SetSource for a set (see is_set)."""
+def capture_source(paths, fmt: str = "auto", logic=None):
+    """FileSource for one capture file, SetSource for a set (see is_set); `logic`: a sigrok .sr file's channels."""
     if not is_set(paths):
-        return FileSource(paths if isinstance(paths, (str, os.PathLike)) else paths[0], fmt)
+        return FileSource(paths if isinstance(paths, (str, os.PathLike)) else paths[0], fmt, logic)
     paths = [os.fspath(p) for p in ([paths] if isinstance(paths, (str, os.PathLike)) else paths)]
     return SetSource(paths, fmt)
 
