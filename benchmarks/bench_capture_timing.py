@@ -9,7 +9,7 @@ the machine's load falls on all alike):
 * headless            `sniffer live PORT --headless --out F.mcap` (the port read by a process of its own:
                       sources/reader_process.py)
 * tui                 `sniffer live PORT --out F.mcap` on a terminal (a pty): the TUI attached to the
-                      capture process it started, at nice 19, giving way (sniffer/giveway.py)
+                      capture process it started, at nice 19, giving way (sniffer/processes/cpu_yield.py)
 * headless-thread     the peer: headless, the port read by a thread of the capture's process
                       (SNIFFER_READER=thread), as before the reader process
 * tui-thread          the same for the TUI's capture
@@ -62,7 +62,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 from terminal import Terminal
 
 from sniffer.events import Chunk
-from sniffer.sources.mcapsrc import open_mcap, read_frames
+from sniffer.formats.mcap.reader import open_mcap, read_frames
 
 FEEDER = r"""
 import json, os, sys, time
@@ -103,10 +103,10 @@ with Timed() as bus:
 OLD_SWITCH = ("import sys, sniffer.sources.serial_live as s; s.READER_SWITCH_S = 0.005; "
               "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 LINE_GLUED_MS = 0.1  # a request and its answer written closer than this: the feeder's own lateness glued them
-NO_GIVE_WAY = ("import sys, sniffer.giveway as g; g._LIBC = g._SCHED_YIELD = None; "
+NO_GIVE_WAY = ("import sys, sniffer.processes.cpu_yield as g; g._LIBC = g._SCHED_YIELD = None; "
                "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 # the TUI giving way every 0.1 ms, not every GIVE_WAY_S (0.2 ms)
-FAST_GIVE_WAY = ("import sys, sniffer.giveway as g; g.GiveWay.__init__.__defaults__ = (0.0001,); "
+FAST_GIVE_WAY = ("import sys, sniffer.processes.cpu_yield as g; g.GiveWay.__init__.__defaults__ = (0.0001,); "
                  "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 # the peer: the port read by a thread of the capture's own process, as before sources/reader_process.py
 THREAD_READER = ["env", "SNIFFER_READER=thread", sys.executable, "-m", "sniffer"]
@@ -114,12 +114,12 @@ THREAD_READER = ["env", "SNIFFER_READER=thread", sys.executable, "-m", "sniffer"
 NO_OUTPUT = ("import sys, textual.drivers.linux_driver as d; d.LinuxDriver.write = lambda self, data: None; "
              "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
 # a process busy 1.3 ms every 10 ms at nice 19 (13 % of a core, in bursts like a redraw's); with "yield", its
-# SIGALRM every 0.2 ms handled by sched_yield, as the TUI's give-way does (sniffer/giveway.py)
+# SIGALRM every 0.2 ms handled by sched_yield, as the TUI's give-way does (sniffer/processes/cpu_yield.py)
 BURST = r"""
 import os, signal, sys, time
 os.nice(19)
 if sys.argv[1] == "yield":
-    from sniffer.giveway import GiveWay
+    from sniffer.processes.cpu_yield import GiveWay
     GiveWay(lambda: time.monotonic_ns()).start()
 end = time.monotonic() + float(sys.argv[2])
 while time.monotonic() < end:

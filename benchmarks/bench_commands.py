@@ -90,8 +90,8 @@ def _tee_source(scenario, duration: float, seed: int, truth_path: Path | None):
 
 def _simulate_to(folder: Path, stem: str, duration: float, seed: int, truth: bool = False) -> dict:
     """STEM.mcap and STEM.csv of the bench scenario, written by one sniffer session."""
-    from sniffer.session import CaptureSpec, Session
-    from sniffer.sinks import FileSink
+    from sniffer.capture.session import CaptureSpec, Session
+    from sniffer.formats import FileSink
 
     src = _tee_source(bp.bench_scenario(), duration, seed, folder / "truth.bin" if truth else None)
     sinks = [FileSink("mcap", folder / f"{stem}.mcap"), FileSink("bytecsv", folder / f"{stem}.csv")]
@@ -314,7 +314,7 @@ def child_run(result: Path, argv: list[str], mem_limit_mb: int) -> int:
         lim = mem_limit_mb * 1024 * 1024
         resource.setrlimit(resource.RLIMIT_AS, (lim, lim))
     sessions: list[dict] = []
-    from sniffer import session as _session
+    from sniffer.capture import session as _session
 
     end = _session.Session._end
 
@@ -422,8 +422,8 @@ def _writer_peer(kind: str, folder: Path, n_frames: int) -> dict:
     """pyarrow / csv writing n_frames frame rows (and their point rows), pre-built, as our export does."""
     import csv as _csv
 
-    from sniffer.session import decode_capture
-    from sniffer.sinks.rows import frame_row, point_rows
+    from sniffer.capture.session import decode_capture
+    from sniffer.formats.rows import frame_row, point_rows
 
     sample = 32_768  # one batch of our parquet sink; the sample repeats to n_frames (the rows are the same objects)
     session = decode_capture(folder / "full.mcap")
@@ -444,7 +444,7 @@ def _writer_peer(kind: str, folder: Path, n_frames: int) -> dict:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        from sniffer.sinks.parquet import BATCH, schemas
+        from sniffer.formats.parquet import BATCH, schemas
 
         fs, ps = schemas()
         wf, wp = pq.ParquetWriter(out / "peer.parquet", fs), pq.ParquetWriter(out / "peer.points.parquet", ps)
@@ -474,7 +474,7 @@ def _writer_peer(kind: str, folder: Path, n_frames: int) -> dict:
         wf.close()
         wp.close()
     else:
-        from sniffer.sinks.rows import FRAME_COLUMNS, POINT_COLUMNS
+        from sniffer.formats.rows import FRAME_COLUMNS, POINT_COLUMNS
 
         with open(out / "peer.csv", "w", newline="") as ff, open(out / "peer.points.csv", "w", newline="") as fp:
             w1, w2 = _csv.writer(ff), _csv.writer(fp)
@@ -504,7 +504,7 @@ def run_peer(kind: str, folder: Path, n_rows: int = 0) -> dict:
 
 def tshark_peer(pcap: Path, out_dir: Path) -> dict:
     """tshark -r PCAP with the mbrtu dissector on DLT 147, one summary line per packet to a file."""
-    from sniffer.sinks.pcap import TSHARK_ARGS
+    from sniffer.formats.pcap.writer import TSHARK_ARGS
 
     exe = shutil.which("tshark")
     if not exe:

@@ -72,8 +72,8 @@ def generate(n: int, segments: int, folder: Path) -> dict:
 
 def _copy_with_clock(src: Path, dst: Path, wall_ns: int) -> None:
     """The capture's events into a new MCAP whose wall clock starts at `wall_ns` (raw only: replay decodes)."""
-    from sniffer.sinks.mcap import McapSink
-    from sniffer.sources.replay import FileSource
+    from sniffer.formats.mcap.sink import McapSink
+    from sniffer.sources.files import FileSource
 
     source = FileSource(str(src))
     info = source.open()

@@ -54,9 +54,9 @@ def load(path: str):
     from decoders.registry import default_registry
     from sniffer.filterlang import register_ids
     from sniffer.line import LineSettings
-    from sniffer.pipeline import Pipeline
-    from sniffer.sources.replay import open_replay
-    from sniffer.tui.model import FrameStore
+    from sniffer.capture.pipeline import Pipeline
+    from sniffer.sources.files import open_replay
+    from sniffer.tui.store import FrameStore
     from sniffer.tui.sink import TuiSink
 
     info, events = open_replay(path)

@@ -37,8 +37,8 @@ GEN_VERSION = 1
 
 
 def _session_capture(path: Path, source) -> int:
-    from sniffer.session import CaptureSpec, Session
-    from sniffer.sinks import FileSink
+    from sniffer.capture.session import CaptureSpec, Session
+    from sniffer.formats import FileSink
 
     s = Session(CaptureSpec(), source, [FileSink("mcap", path)], keep_partial=True).run()
     if s.error:
@@ -78,7 +78,7 @@ def _rate(scenario, line) -> float:
 
 def child(result: Path, plain: bool, argv: list[str]) -> int:
     if plain:  # the peer: the same export, the capture alone
-        from sniffer.sinks import mcap
+        from sniffer.formats.mcap import sink as mcap
 
         init = mcap.McapSink.__init__
 

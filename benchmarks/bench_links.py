@@ -31,7 +31,7 @@ from sniffer.events import Chunk  # noqa: E402
 from sniffer.simulator.bus import simulate  # noqa: E402
 from sniffer.simulator.ptybus import PtyBus  # noqa: E402
 from sniffer.simulator.scenario import get_scenario  # noqa: E402
-from sniffer.sources.mcapsrc import open_mcap, read_frames  # noqa: E402
+from sniffer.formats.mcap.reader import open_mcap, read_frames  # noqa: E402
 
 SETTLE_S = 2.0  # after the last frame: the capture sees the lines go quiet before --duration ends it
 

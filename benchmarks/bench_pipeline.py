@@ -185,8 +185,8 @@ def _info() -> CaptureInfo:
 
 
 def _split_once(chunks) -> tuple[int, float]:
-    from sniffer.framer import RtuFramer
-    from sniffer.pairer import Pairer
+    from sniffer.framing.rtu import RtuFramer
+    from sniffer.capture.pairer import Pairer
 
     gc.collect()
     t0 = time.perf_counter()
@@ -214,8 +214,8 @@ def child_split(folder: Path, _limit, repeat: int = 1) -> dict:
 
 def _full_once(events):
     from decoders.registry import default_registry
-    from sniffer.pipeline import Pipeline
-    from sniffer.sinks.jsonl import JsonlSink
+    from sniffer.capture.pipeline import Pipeline
+    from sniffer.formats.jsonl import JsonlSink
 
     registry = default_registry()  # built once at start-up: not part of the per-frame cost
     gc.collect()
@@ -249,8 +249,8 @@ def child_stream(folder: Path, limit, _repeat: int = 1) -> dict:
 
 def child_verify(folder: Path, _limit, _repeat: int = 1) -> dict:
     """Our frames against the truth, byte for byte, and the pairer's roles against the sender."""
-    from sniffer.framer import RtuFramer
-    from sniffer.pairer import Pairer
+    from sniffer.framing.rtu import RtuFramer
+    from sniffer.capture.pairer import Pairer
 
     truth = read_truth(folder / "truth.bin")
     want = Counter(raw for _d, _v, raw in truth)
@@ -306,7 +306,7 @@ def child_pymodbus_stream(folder: Path, _limit, _repeat: int = 1) -> dict:
     from pymodbus.framer import FramerRTU
     from pymodbus.pdu import DecodePDU
 
-    from sniffer.crc import crc_bytes
+    from sniffer.framing.crc import crc_bytes
 
     _quiet_pymodbus()
 

@@ -76,9 +76,9 @@ class Probe:
 
 def child(path: str, folder: str, flags: list[str]) -> None:
     from sniffer.cli import build_parser
-    from sniffer.session import Session
-    from sniffer.settings import CaptureSpec
-    from sniffer.sources.replay import FileSource
+    from sniffer.capture.session import Session
+    from sniffer.capture.settings import CaptureSpec
+    from sniffer.sources.files import FileSource
 
     args = build_parser().parse_args(["replay", path, "--quiet", *(["--windows", folder] if flags else []), *flags])
     spec = CaptureSpec.from_args(args)

@@ -53,7 +53,7 @@ from tui_helpers import replay_frames
 import tui_terminal
 
 from sniffer.tui.app import SnifferApp
-from sniffer.tui.model import FrameStore
+from sniffer.tui.store import FrameStore
 from sniffer.tui.sink import TuiSink
 
 
@@ -226,7 +226,7 @@ async def browser_presses(port: int, sock: str, profile: str, presses: int) -> d
         for key, marker in tabs:  # warm up: both tabs drawn once
             await browser.key_to_text(key, marker)
         who = {"viewer": processes_with(f"attach {sock} --tui"), "capture": processes_with(f"--publish {sock}"),
-               "publisher": processes_with("sniffer.publish_server"),
+               "publisher": processes_with("sniffer.processes.publisher"),
                "chromium": processes_in_session(browser.proc.pid) + processes_with(profile)}
         cpu0, t0 = {k: cpu_seconds(v) for k, v in who.items()}, time.perf_counter()
         lat = []

@@ -7,7 +7,7 @@ synthetic frames (bench_tui.synthetic), the export modal is filled and Enter
 pressed; while the worker thread writes, arrow keys are pressed and timed as in
 bench_tui.py (key posted -> the cursor moved).  Printed: the export's wall time,
 frames/s, the file size, key latency median / max during it.  Then the cost of
-marking reads with their frames (sniffer.reads.ReadMarker, on the capture
+marking reads with their frames (sniffer.analysis.reads.ReadMarker, on the capture
 thread of an in-process replay, in the publisher process of `--publish`), per
 frame and per read, over the simulated captures.  Figures are printed, nothing
 is asserted.
@@ -32,8 +32,8 @@ from bench_tui import key_latency, synthetic
 from tui_helpers import SIM, replay_frames
 
 from sniffer.events import Chunk
-from sniffer.reads import ReadMarker
-from sniffer.sources.replay import open_replay
+from sniffer.analysis.reads import ReadMarker
+from sniffer.sources.files import open_replay
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.export import FORMATS
 from sniffer.tui.sink import TuiSink

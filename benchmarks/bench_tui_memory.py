@@ -16,7 +16,7 @@
      what the store held before (frames as objects); run with M frames (default N).
    Each prints: the process's peak RSS, its RSS before the first frame (imports, registry),
    bytes per frame = (peak - before) / frames, and rates.
-3. The register history (sniffer/tui/history.py) of the app and store runs: samples seen and kept,
+3. The register history (sniffer/analysis/history.py) of the app and store runs: samples seen and kept,
    registers thinned, the bytes of its arrays and objects; the time to draw the plot of the 8
    registers with the most samples over the whole capture and over its last tenth (plotmodel.render,
    200 x 40 cells), and to list the busiest register's changes.  BENCH_MIX=stress makes the capture
@@ -122,8 +122,8 @@ def _filters(store) -> dict:
 # ------------------------------------------------------------ children
 def child_store(folder: Path, keep_frames: bool, limit_frames: int | None) -> dict:
     from decoders.registry import default_registry
-    from sniffer.pipeline import Pipeline
-    from sniffer.tui.model import FrameStore
+    from sniffer.capture.pipeline import Pipeline
+    from sniffer.tui.store import FrameStore
     from sniffer.tui.sink import TuiSink
 
     registry = default_registry()
@@ -167,7 +167,7 @@ def child_store(folder: Path, keep_frames: bool, limit_frames: int | None) -> di
 
 
 def child_app(folder: Path) -> dict:
-    from sniffer.session import CaptureSpec, EventSource, Session
+    from sniffer.capture.session import CaptureSpec, EventSource, Session
     from sniffer.tui.run import session_app
     from sniffer.tui.sink import TuiSink
 

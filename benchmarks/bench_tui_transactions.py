@@ -25,7 +25,7 @@ sys.path.insert(0, str(HERE))
 from bench_tui import synthetic
 
 from sniffer.tui.app import SnifferApp
-from sniffer.tui.model import FrameStore, frame_flags
+from sniffer.tui.store import FrameStore, frame_flags
 from sniffer.tui.sink import TuiSink
 from sniffer.tui.transactions import Transactions
 from sniffer.tui.txlist import format_tx

@@ -79,8 +79,8 @@ class Probe:
 
 
 def child(mode: str, args) -> dict:
-    from sniffer.segments import Keep, Rotate
-    from sniffer.session import CaptureSpec, Session
+    from sniffer.formats.mcap.segments import Keep, Rotate
+    from sniffer.capture.session import CaptureSpec, Session
     from sniffer.simulator.sources import SimulatedSource, scenario_named
 
     scenario = scenario_named(args.scenario)
@@ -93,13 +93,13 @@ def child(mode: str, args) -> dict:
             return _python_can(scenario, args, folder, probe)
         source = SimulatedSource(scenario, scenario.line, args.duration, 1, "usb")
         if mode == "rotated":
-            from sniffer.sinks.segments import SegmentPlan
+            from sniffer.formats.mcap.rotating import SegmentPlan
 
             keep = Keep.parse([args.keep]) if args.keep else None
             spec = CaptureSpec(out=os.path.join(folder, "day"), rotate=rotate, keep=keep)
             sinks = [SegmentPlan(spec.out, rotate, keep), probe]
         else:
-            from sniffer.sinks import FileSink
+            from sniffer.formats import FileSink
 
             spec = CaptureSpec(out=os.path.join(folder, "day.mcap"))
             sinks = [FileSink("mcap", spec.out), probe]

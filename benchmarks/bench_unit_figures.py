@@ -1,4 +1,4 @@
-"""Per-unit figures (sniffer/unitfigures.py): what counting costs a frame, and the latency quantiles'
+"""Per-unit figures (sniffer/analysis/unitfigures.py): what counting costs a frame, and the latency quantiles'
 memory, time and error on long streams, against keeping every latency (exact) and semdiff.Quantiles.
 
     .venv/bin/python benchmarks/bench_unit_figures.py [--frames 200000] [--latencies 1000000]
@@ -23,8 +23,8 @@ sys.path.insert(0, str(HERE))
 
 from bench_tui import synthetic
 
-from sniffer.semdiff import Quantiles
-from sniffer.unitfigures import Latencies, UnitBook
+from sniffer.analysis.diff import Quantiles
+from sniffer.analysis.unitfigures import Latencies, UnitBook
 
 QS = (0.5, 0.95, 0.99, 0.999)
 

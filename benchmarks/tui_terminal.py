@@ -236,7 +236,7 @@ def live_stress(seconds: float, n_keys: int, cpu_window_s: float) -> tuple[Keys,
         kids = children(scr.pid)
         pids = {"tui": scr.pid, **({"capture child": kids[0]} if kids else {})}
         grandkids = children(kids[0]) if kids else []
-        if grandkids:  # the capture's publisher process, which serves the TUI (sniffer/publish_server.py)
+        if grandkids:  # the capture's publisher process, which serves the TUI (sniffer/processes/publisher.py)
             pids["its publisher"] = grandkids[0]
         scr.pump(2.0)  # settled
         win = CpuWindow(pids)

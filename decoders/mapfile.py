@@ -16,7 +16,6 @@ error replies) are JSON.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import os
 
@@ -38,7 +37,7 @@ def model_decoder(model: str, model_files=(), map_base: str | None = None):
             continue
         for m in maps:
             if m.model_id == model:
-                from .model import TableDecoder
+                from decoders.table_decoder import TableDecoder
 
                 return TableDecoder(m)
     from .registry import builtin_decoders
@@ -101,8 +100,3 @@ def _load(path: str, base: str | None, mtime: float):
     from .mapformats import load_model_file
 
     return load_model_file(path, base)
-
-
-def dataclass_rows(rows) -> list[dict]:
-    """Table rows (dataclasses) as JSON objects, for a decoder's `tables()`."""
-    return [dataclasses.asdict(r) for r in rows]

@@ -270,7 +270,7 @@ def default_registry(devices: dict[int, str] | None = None, model_files: list[st
     decoders.mapformats; a user map wins over a built-in id).  `map_base`: --map-base, how a CSV
     map counts its addresses."""
     from .mapformats import load_model_file
-    from .model import TableDecoder
+    from decoders.table_decoder import TableDecoder
 
     decoders = builtin_decoders()
     for path in model_files or []:

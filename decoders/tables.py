@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from sniffer.tomlfile import read_toml
+from decoders.tomlfile import read_toml
 
 from . import regtypes
 from .regtypes import ORDERS, TEXT, TYPES, WIDTH

@@ -1,4 +1,4 @@
-"""Command line: parse the flags into a CaptureSpec (sniffer.session) and run a command (sniffer.commands).
+"""Command line: parse the flags into a CaptureSpec (sniffer.capture.session) and run a command (sniffer.commands).
 
 Every flag is declared once, in a group that the commands which take it share.
 Bad input gets one clear line on stderr and exit code 2 (a capture that could
@@ -11,16 +11,16 @@ import argparse
 import os
 import sys
 
-from . import __version__
-from .commands import command
-from .commands.common import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_USAGE, UsageError
-from .line import SettingsError
-from .pairer import DEFAULT_TIMEOUT_MS
-from .protocols import NAMES as PROTOCOLS
-from .dataset.query import PRESETS
-from .sinks import EXPORT_FORMATS
-from .sources import CaptureError
-from .sources.replay import FORMATS as INPUT_FORMATS
+from sniffer import __version__
+from sniffer.commands import command
+from sniffer.commands.common import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_USAGE, UsageError
+from sniffer.line import SettingsError
+from sniffer.capture.pairer import DEFAULT_TIMEOUT_MS
+from sniffer.protocols import NAMES as PROTOCOLS
+from sniffer.dataset.query import PRESETS
+from sniffer.formats import EXPORT_FORMATS
+from sniffer.events import CaptureError
+from sniffer.sources.files import FORMATS as INPUT_FORMATS
 
 MAX_BAUD = 4_000_000
 
@@ -456,7 +456,7 @@ def main(argv: list[str] | None = None) -> int:
         if not args.cmd:
             parser.print_help(sys.stderr)
             return EXIT_USAGE
-        from .settings import CaptureSpec
+        from sniffer.capture.settings import CaptureSpec
 
         spec = CaptureSpec.from_args(args)
         return command(args.cmd)(spec, args)
@@ -481,9 +481,9 @@ def _one_line(e: Exception) -> int | None:
     from decoders.registry import DeviceMapError
     from decoders.tables import MapError
 
-    from .busfile import BusFileError
-    from .simulator.overrides import OverrideError
-    from .sinks.mcap import CaptureStorageError
+    from sniffer.capture.busfile import BusFileError
+    from sniffer.simulator.overrides import OverrideError
+    from sniffer.formats.mcap.sink import CaptureStorageError
 
     if isinstance(e, (UsageError, CaptureError, SettingsError, DeviceMapError, BusFileError, MapError,
                       OverrideError)):

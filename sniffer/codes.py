@@ -18,7 +18,7 @@ ERROR = "error"
 SEVERITIES = (INFO, WARNING, ERROR)
 
 
-# What a code counts as in the per-unit figures (sniffer.unitfigures), the status file's error counts,
+# What a code counts as in the per-unit figures (sniffer.analysis.unitfigures), the status file's error counts,
 # the report's error series, the frame flags the TUI colours and filters by, and the dataset's query
 # presets: each code says it here, beside its declaration, so no module keeps a list of codes.
 TIMEOUT_CAT = "timeout"  # the request got no response (whatever ended the wait, but the capture's end)
@@ -156,7 +156,7 @@ PD_BAD_HEX = Code("pd.ascii.bad_hex", ERROR, "ASCII frame holds characters that 
 COIL_VALUE = Code("modbus.coil.value", ERROR, "write single coil value must be FF00 or 0000")
 QUANTITY = Code("modbus.quantity.range", ERROR, "quantity outside the range the Modbus spec allows")
 
-# --- drive models from register maps (decoders/model.py, decoders/registry.py) ------
+# --- drive models from register maps (decoders/table_decoder.py, decoders/registry.py) ------
 MODEL_GUESS = Code("model.guess", INFO, "unit's model guessed from its traffic (no device map entry)")
 MODEL_GUESS_WITHDRAWN = Code(
     "model.guess.withdrawn", WARNING, "an earlier model guess withdrawn: the traffic rules that model out"

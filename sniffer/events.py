@@ -96,7 +96,7 @@ class CaptureInfo:
     protocol: str = "modbus-rtu"
     sniffer_version: str = ""
     extra: dict = field(default_factory=dict)
-    # several links on one timeline (sniffer.links): one dict per link, in order: name, ports,
+    # several links on one timeline (sniffer.capture.links): one dict per link, in order: name, ports,
     # channels, and the settings it was captured with (baud ... devices); empty for one line
     links: list = field(default_factory=list)
 
@@ -134,3 +134,7 @@ class CaptureInfo:
         links = d.get("links")
         info.links = [dict(x) for x in links if isinstance(x, dict)] if isinstance(links, list) else []
         return info
+
+
+class CaptureError(Exception):
+    """A capture file that cannot be read: one clear line for the user, exit code 2."""

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Protocol
 
-from .codes import Annotation
+from sniffer.codes import Annotation
 
 REQUEST = "request"
 RESPONSE = "response"
@@ -69,14 +69,14 @@ class PointBlock(Protocol):
 
     def samples(self) -> Iterable[tuple[str, int, int]]:
         """(name, address, value) of each point: unnamed registers' values are their raw numbers, with
-        no unit or text (what sniffer.foxglove reads, without building the dicts)."""
+        no unit or text (what sniffer.formats.mcap.foxglove reads, without building the dicts)."""
         ...
 
 
 class Frame:
     __slots__ = (
         "index", "t_ns", "t_end_ns", "raw", "protocol", "unit", "function",
-        "can", "role", "crc_ok", "crc_expected", "time_source", "idle_before_ns",
+        "role_fits", "role", "crc_ok", "crc_expected", "time_source", "idle_before_ns",
         "annotations", "pair", "latency_ms", "model", "_points", "exception",
         "fields", "summary", "noise_reason", "channel", "peer", "adu", "encoded", "writes",
         "link", "de_on_ns", "de_off_ns",
@@ -91,7 +91,7 @@ class Frame:
         protocol: str,
         unit: int | None = None,
         function: int | None = None,
-        can: int = 0,
+        role_fits: int = 0,
         crc_ok: bool | None = None,
         crc_expected: int | None = None,
         time_source: str = "byte",
@@ -106,7 +106,7 @@ class Frame:
         self.protocol = protocol
         self.unit = unit
         self.function = function
-        self.can = can
+        self.role_fits = role_fits
         self.role = NOISE_ROLE if protocol == "noise" else UNKNOWN
         self.crc_ok = crc_ok
         self.crc_expected = crc_expected
@@ -130,8 +130,8 @@ class Frame:
         # what decoding this frame put into its unit's register shadow: [[table, start, [raw, ...]], ...]
         # (decoders.base.UnitState.commit writes both)
         self.writes: list[list] = []
-        self.link = ""  # the link's name in a capture of several links (sniffer.links), else ""
-        # a logic capture's driver-enable line (sniffer.driver_enable): DE rise - first start bit, DE fall - end of
+        self.link = ""  # the link's name in a capture of several links (sniffer.capture.links), else ""
+        # a logic capture's driver-enable line (sources/driver_enable.py): DE rise - first start bit, DE fall - end of
         # the last stop bit (ns); None: not known (no --de, not the first / last frame of its DE window)
         self.de_on_ns: int | None = None
         self.de_off_ns: int | None = None
@@ -142,7 +142,7 @@ class Frame:
 
         A decoder may set a PointBlock instead (a block of registers no model names, kept as its
         values): it becomes the list of dicts the first time anyone reads `points`, and the JSON
-        record is written from the block without ever building them (sniffer.records).
+        record is written from the block without ever building them (sniffer.formats.records).
         """
         pts = self._points
         if type(pts) is not list:

@@ -17,8 +17,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
-from .codes import Code
-from .line import LineSettings, SettingsError
+from sniffer.codes import Code
+from sniffer.line import LineSettings, SettingsError
 
 # the four tables of the Modbus data model (the register shadow keeps one dict per table)
 COIL, DISCRETE, HOLDING, INPUT = "coil", "discrete", "holding", "input"
@@ -86,10 +86,10 @@ class Protocol:
 
 
 PROTOCOLS: Mapping[str, Protocol] = MappingProxyType({p.name: p for p in (
-    Protocol("modbus-rtu", "modbus", False, "generic", MODBUS_TABLES, ".framer:RtuFramer"),
-    Protocol("modbus-ascii", "modbus", True, "generic", MODBUS_TABLES, ".ascii_framer:AsciiFramer"),
-    Protocol("pd-rtu", "pd", False, "pd-series", PD_TABLES, ".pd_framer:PdRtuFramer"),
-    Protocol("pd-ascii", "pd", True, "pd-series", PD_TABLES, ".pd_framer:PdAsciiFramer"),
+    Protocol("modbus-rtu", "modbus", False, "generic", MODBUS_TABLES, "sniffer.framing.rtu:RtuFramer"),
+    Protocol("modbus-ascii", "modbus", True, "generic", MODBUS_TABLES, "sniffer.framing.ascii:AsciiFramer"),
+    Protocol("pd-rtu", "pd", False, "pd-series", PD_TABLES, "sniffer.framing.pd:PdRtuFramer"),
+    Protocol("pd-ascii", "pd", True, "pd-series", PD_TABLES, "sniffer.framing.pd:PdAsciiFramer"),
 )})
 NAMES: tuple[str, ...] = tuple(PROTOCOLS)
 DEFAULT = "modbus-rtu"

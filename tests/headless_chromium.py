@@ -24,7 +24,7 @@ import signal
 import subprocess
 import time
 
-from sniffer.lifeline import die_with_parent
+from sniffer.processes.parent_death import die_with_parent
 
 FLAGS = [
     "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--no-default-browser-check",

@@ -8,12 +8,12 @@ import sys
 from decoders.registry import default_registry
 from sniffer.events import CaptureInfo, Chunk
 from sniffer.line import LineSettings
-from sniffer.pipeline import Pipeline
+from sniffer.capture.pipeline import Pipeline
 
 
 def fr(hex_body: str) -> str:
     """A frame's hex with its CRC appended."""
-    from sniffer.crc import crc_bytes
+    from sniffer.framing.crc import crc_bytes
 
     b = bytes.fromhex(hex_body)
     return (b + crc_bytes(b)).hex()
@@ -56,7 +56,7 @@ class ListSink:
         self.events.append(event)
 
     def frame(self, f) -> None:
-        from sniffer.records import frame_record
+        from sniffer.formats.records import frame_record
 
         self.records.append(frame_record(f, self.t0))
 
@@ -122,7 +122,7 @@ def demo_records(tmp_path, scenario: str, seconds: float = 2) -> tuple[list[dict
 
 def decoded(path, spec=None):
     """(info, frames) of a capture file decoded through the session (frames as a list: small captures only)."""
-    from sniffer.session import decode_capture
+    from sniffer.capture.session import decode_capture
 
     session = decode_capture(path, spec)
     frames = list(session)

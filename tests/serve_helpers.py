@@ -27,7 +27,7 @@ def wait(cond, what: str, timeout: float = HANG_S) -> None:
 def published(sock: str) -> int:
     """Frames the capture publishing at `sock` has given its viewers so far, as a viewer connecting now is told
     (its publisher process may still be taking what the capture handed over: PublishSink.frames)."""
-    from sniffer.attach import Attachment
+    from sniffer.processes.attach import Attachment
 
     att = Attachment(sock)
     try:

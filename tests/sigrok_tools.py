@@ -9,7 +9,7 @@ import pytest
 from refdata import SIGROK, sigrok_line, sigrok_meta
 
 from helpers import run_events
-from sniffer.pipeline import roles_of
+from sniffer.capture.pipeline import roles_of
 from sniffer.sources.logic_options import LogicSpec
 
 SR_NAMES = sorted(p.stem for p in SIGROK.glob("*.sr"))

@@ -14,9 +14,9 @@ import threading
 import pytest
 
 from decoders.tables import MapError, load_map
-from sniffer.busfile import BusFileError, load_bus_file
+from sniffer.capture.busfile import BusFileError, load_bus_file
 from sniffer.cli import main
-from sniffer.sources.timeparse import seconds_to_ns
+from sniffer.formats.timeparse import seconds_to_ns
 
 HEADER = "t_s,channel,byte_hex,flags\n"
 GOOD_ROW = "0.100000,RX,01,\n"

@@ -21,7 +21,7 @@ from terminal import Terminal, children, descendants, fds_on, stat_fields
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
 from sniffer.simulator.scenario import get_scenario
-from sniffer.sources.mcapsrc import open_mcap, read_frames
+from sniffer.formats.mcap.reader import open_mcap, read_frames
 from sniffer.sources.reader_priority import READER_RT_PRIORITY
 
 HANG_S = 60.0

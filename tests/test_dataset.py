@@ -20,7 +20,7 @@ CAPTURES = Path(__file__).resolve().parent.parent / "captures"
 A510 = CAPTURES / "sim" / "a510.mcap"
 ERRORS = CAPTURES / "sim" / "errors.mcap"
 
-# schema version 1, column by column: a change here is a new schema version (sniffer/sinks/schemas.py)
+# schema version 1, column by column: a change here is a new schema version (sniffer/formats/schemas.py)
 V1 = {
     "frames": "index:int64 t:double t_end:double t_wall_ns:int64 protocol:string role:string unit:int64 "
               "function:int64 crc_ok:bool exception_code:int64 model:string pair:int64 latency_ms:double "
@@ -140,9 +140,9 @@ def test_ingest_is_incremental(tmp_path, truth, capsys):
 def _clocked_capture(path: Path, anchor_ns: int, port: str) -> int:
     """An MCAP of 4 s of the errors scenario with a wall clock from `anchor_ns`, as if captured on `port`."""
     from sniffer.events import CaptureInfo
-    from sniffer.session import CaptureSpec, EventSource, Session
+    from sniffer.capture.session import CaptureSpec, EventSource, Session
     from sniffer.simulator import get_scenario, simulate, wire_chunks
-    from sniffer.sinks import FileSink
+    from sniffer.formats import FileSink
 
     sc = get_scenario("errors")
     chunks = wire_chunks(list(simulate(sc, sc.line, 4.0, 3)))
@@ -238,7 +238,7 @@ def test_corrupt_capture_is_left_out_whole(tmp_path, truth, capsys):
 def test_interrupted_capture_leaves_nothing(tmp_path):
     from sniffer.dataset.ingest import take_in
     from sniffer.dataset.layout import Known, create_dataset
-    from sniffer.session import CaptureSpec
+    from sniffer.capture.session import CaptureSpec
 
     ds = create_dataset(str(tmp_path / "fleet"))
     seen = []
@@ -257,9 +257,9 @@ def test_interrupted_capture_leaves_nothing(tmp_path):
 def test_streams_row_groups_as_frames_pass(stress_mcap, tmp_path):
     import pyarrow.parquet as pq
 
-    from sniffer.session import CaptureSpec, Session
-    from sniffer.sinks.dataset import DatasetSink
-    from sniffer.sources.replay import FileSource
+    from sniffer.capture.session import CaptureSpec, Session
+    from sniffer.dataset.sink import DatasetSink
+    from sniffer.sources.files import FileSource
 
     sink = DatasetSink(str(tmp_path), "stress-0", batch=512)
     session = Session(CaptureSpec(), FileSource(stress_mcap), [sink])

@@ -13,7 +13,7 @@ from struct import pack
 
 from decoders.base import UnitState
 from decoders.registry import builtin_decoders, default_registry
-from sniffer.crc import crc_bytes
+from sniffer.framing.crc import crc_bytes
 from sniffer.frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE, Frame
 from sniffer.protocols import TABLES
 
@@ -25,7 +25,7 @@ FCS = [1, 2, 3, 4, 5, 6, 7, 8, 0x0B, 0x0C, 0x0F, 0x10, 0x11, 0x14, 0x15, 0x16, 0
 
 def _frame(adu: bytes, role: str, index: int, crc_ok: bool = True) -> Frame:
     raw = adu + crc_bytes(adu)
-    f = Frame(index, 0, 1, raw, "modbus-rtu", unit=adu[0], function=adu[1], can=CAN_REQ | CAN_RSP, crc_ok=crc_ok)
+    f = Frame(index, 0, 1, raw, "modbus-rtu", unit=adu[0], function=adu[1], role_fits=CAN_REQ | CAN_RSP, crc_ok=crc_ok)
     f.adu = adu
     f.role = role
     return f

@@ -16,10 +16,10 @@ import time
 import pytest
 from helpers import run_sniffer
 
-from sniffer.busfile import load_bus_file
+from sniffer.capture.busfile import load_bus_file
 from sniffer.events import Chunk
 from sniffer.frame import CAN_RSP
-from sniffer.framer import RtuFramer
+from sniffer.framing.rtu import RtuFramer
 from sniffer.line import LineSettings
 from sniffer.detect.candidates import setting
 from sniffer.simulator import get_scenario
@@ -150,7 +150,7 @@ def test_simulate_pty_serves_detect_and_live_until_stopped(tmp_path):
         assert first <= 2  # the frame the start cut in two: noise, or a damaged frame and noise
         inner = again[first:]
         assert len(inner) >= 8 and all(f.crc_ok and not f.is_noise for f in inner), [f.raw.hex() for f in inner]
-        assert sum(f.can == CAN_RSP for f in inner) >= 3
+        assert sum(f.role_fits == CAN_RSP for f in inner) >= 3
         mid = [r for r in recs if 0.5 < r["t"] < 1.5]  # and live, the frames decode (see test_links_cli)
         assert sum(r["role"] == "response" and r["crc_ok"] for r in mid) >= 2
     finally:

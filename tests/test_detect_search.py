@@ -7,13 +7,13 @@ import dataclasses
 
 import pytest
 
-from sniffer.busfile import load_bus_file
+from sniffer.capture.busfile import load_bus_file
 from sniffer.detect.candidates import COMMON_BAUDS, baud_order, parse_bauds, setting
 from sniffer.detect.listen import listen
 from sniffer.detect.report import bus_file, headline, table
 from sniffer.detect.search import Search
 from sniffer.line import SettingsError
-from sniffer.settings import CaptureSpec
+from sniffer.capture.settings import CaptureSpec
 from sniffer.simulator import get_scenario
 from sniffer.simulator.simport import SimulatedPort
 

@@ -9,10 +9,10 @@ import pytest
 
 from helpers import decoded, export
 
-from sniffer.golden import golden_text
-from sniffer.session import CaptureSpec, Session
-from sniffer.sinks import make_sink
-from sniffer.sources.replay import FileSource
+from sniffer.analysis.check import golden_text
+from sniffer.capture.session import CaptureSpec, Session
+from sniffer.formats import make_sink
+from sniffer.sources.files import FileSource
 
 CAPTURES = Path(__file__).resolve().parent.parent / "captures"
 A510 = CAPTURES / "sim" / "a510.mcap"
@@ -139,7 +139,7 @@ def test_parquet_export_interrupted_leaves_valid_files(tmp_path):
 
 
 def test_progress_total_from_mcap_summary(tmp_path):
-    from sniffer.progress import estimate_events
+    from sniffer.capture.progress import estimate_events
 
     assert estimate_events(A510) == 570  # the /raw events of the MCAP summary
     assert estimate_events(CAPTURES / "refcaptures" / "sigrok" / "wizmodbus.bytes.csv") is None

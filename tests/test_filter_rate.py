@@ -9,8 +9,8 @@ from tui_helpers import replay_frames, store_of
 
 from sniffer.filterlang import Context, Query, parse
 from sniffer.filterlang.rate import Rate, parse_per
-from sniffer.frameflags import F_CRC, F_TIMEOUT, frame_flags
-from sniffer.tui.model import FrameStore
+from sniffer.analysis.flags import F_CRC, F_TIMEOUT, frame_flags
+from sniffer.tui.store import FrameStore
 
 S = 1_000_000_000
 

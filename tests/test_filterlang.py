@@ -11,7 +11,7 @@ from tui_helpers import replay_frames, touches
 from sniffer.filterlang import Context, FilterError, Query, parse, register_ids
 from sniffer.filterlang.nodes import And, Compare, Field, Flag, Models, Not, Or, Regs, Roles, Text
 from sniffer.tui.filters import filter_expr, parse_filter
-from sniffer.tui.model import Filter
+from sniffer.tui.store import Filter
 
 
 def rows(name: str, text: str, ids: bool = False) -> list[int]:
@@ -294,8 +294,8 @@ def test_free_text_searches_every_point_name_unit_and_text():
 def test_an_arriving_frame_and_a_frame_from_its_record_pass_alike(name):
     """An attached viewer rebuilds frames from their JSON records (ADU from the raw bytes, RTU or ASCII):
     the filter says the same of them."""
-    from sniffer.records import frame_record
-    from sniffer.tui.model import frame_from_record
+    from sniffer.formats.records import frame_record
+    from sniffer.tui.store import frame_from_record
 
     info, frames, registry = replay_frames(name)
     ctx = Context(info.t0_ns, register_ids(registry))

@@ -13,13 +13,13 @@ from mcap.reader import make_reader
 
 from decoders.mapfile import map_file
 from decoders.tables import load_map
-from sniffer import foxglove
+from sniffer.formats.mcap import foxglove
 from sniffer.codes import CRC_MISMATCH
 from sniffer.events import CaptureInfo, Chunk, Tick
-from sniffer.foxglove import KEEP_NS, Foxglove
+from sniffer.formats.mcap.foxglove import KEEP_NS, Foxglove
 from sniffer.line import LineSettings
-from sniffer.session import CaptureSpec, EventSource, Session
-from sniffer.sinks.mcap import McapSink
+from sniffer.capture.session import CaptureSpec, EventSource, Session
+from sniffer.formats.mcap.sink import McapSink
 
 S = 1_000_000_000
 MS = 1_000_000

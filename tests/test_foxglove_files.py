@@ -195,7 +195,7 @@ def test_frames_and_their_records_give_the_same_foxglove_messages(captures):
     """The capture's frames (generic register blocks read without building points) and their /frames
     records (a trigger window's path) give the same /values and /annotations."""
     from sniffer.events import CaptureInfo
-    from sniffer.foxglove import Foxglove
+    from sniffer.formats.mcap.foxglove import Foxglove
 
     _s, _meta, _att, msgs = read(captures["errors"])
     fox = Foxglove(CaptureInfo())  # a simulated capture: t0 and the wall clock's anchor are 0

@@ -1,23 +1,23 @@
 """The framers rule by rule: one small, hand-built byte-level case per rule of each docstring.
 
-RtuFramer (sniffer/framer.py) and PdRtuFramer (sniffer/pd_framer.py): rules A,
+RtuFramer (sniffer/framing/rtu.py) and PdRtuFramer (sniffer/framing/pd.py): rules A,
 B1..B5, the boundary classes (HARD / SOFT / none) from per-byte times and
 per-read chunks, t1.5 / t3.5 / quiet annotations, UART flags.  The ASCII
-framers (sniffer/hexline.py): ':' ... CR LF, no CR LF, bad hex, LRC
+framers (sniffer/framing/hexline.py): ':' ... CR LF, no CR LF, bad hex, LRC
 mismatch, noise in ASCII words.  Each case asserts exact frame boundaries,
 roles (`can`), CRC verdicts and annotation codes.
 """
 
 from __future__ import annotations
 
-from sniffer.ascii_framer import AsciiFramer
-from sniffer.crc import crc_bytes, lrc
+from sniffer.framing.ascii import AsciiFramer
+from sniffer.framing.crc import crc_bytes, lrc
 from sniffer.events import FLAG_FRAMING, Chunk
 from sniffer.frame import CAN_REQ, CAN_RSP
-from sniffer.framer import RtuFramer
-from sniffer.hexline import MAX_LINE
+from sniffer.framing.rtu import RtuFramer
+from sniffer.framing.hexline import MAX_LINE
 from sniffer.line import LineSettings
-from sniffer.pd_framer import QUIET_NS, PdAsciiFramer, PdRtuFramer
+from sniffer.framing.pd import QUIET_NS, PdAsciiFramer, PdRtuFramer
 
 LINE = LineSettings(19200, "E", 1)
 CHAR = LINE.char_ns
@@ -64,7 +64,7 @@ def codes(f) -> list[str]:
 
 def shape(fs) -> list[tuple]:
     """(raw, protocol, can, crc_ok) of each frame."""
-    return [(f.raw, f.protocol, f.can, f.crc_ok) for f in fs]
+    return [(f.raw, f.protocol, f.role_fits, f.crc_ok) for f in fs]
 
 
 REQ = crc("0103000a0001")  # read 1 holding register: 8 bytes, a request only
@@ -354,7 +354,7 @@ def test_ascii_waits_for_crlf_and_cuts_a_runaway_line():
 def test_pd_ascii_frame_noise_and_bad_hex():
     good, short_len = asc("01030101"), asc("0104031388")
     got = frames(PdAsciiFramer, wire(good, b"zz", short_len[:-2], b":0G\r\n", b":01FF\r\n"))
-    assert [(f.raw, f.protocol, f.can, f.crc_ok) for f in got] == [
+    assert [(f.raw, f.protocol, f.role_fits, f.crc_ok) for f in got] == [
         (good, "pd-ascii", BOTH, True), (b"zz", "noise", 0, None), (short_len[:-2], "pd-ascii", BOTH, True),
         (b":0G\r\n", "noise", 0, None), (b":01FF\r\n", "noise", 0, None)]
     assert [codes(f) for f in got] == [[], ["noise.bytes"], ["pd.len.mismatch", "pd.ascii.no_crlf"],

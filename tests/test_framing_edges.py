@@ -12,11 +12,11 @@ from __future__ import annotations
 import pytest
 from helpers import fr, run_events, run_sniffer
 
-from sniffer.ascii_framer import AsciiFramer
-from sniffer.crc import crc_ok, lrc
+from sniffer.framing.ascii import AsciiFramer
+from sniffer.framing.crc import crc_ok, lrc
 from sniffer.events import Chunk
 from sniffer.frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE
-from sniffer.framer import RtuFramer
+from sniffer.framing.rtu import RtuFramer
 from sniffer.line import LineSettings
 
 LINE = LineSettings(19200, "E", 1)
@@ -54,7 +54,7 @@ def framed(chunks, cls=RtuFramer):
 
 
 def shape(frames):
-    return [(f.raw.hex(), f.protocol, f.can, f.crc_ok) for f in frames]
+    return [(f.raw.hex(), f.protocol, f.role_fits, f.crc_ok) for f in frames]
 
 
 def codes(f):
@@ -116,7 +116,7 @@ def test_an_exception_in_ascii_is_never_a_request():
     adu = bytes.fromhex("008302")
     line = b":" + (adu + bytes([lrc(adu)])).hex().upper().encode() + b"\r\n"
     (f,) = framed([Chunk(0, line)], AsciiFramer)
-    assert f.can == CAN_RSP
+    assert f.role_fits == CAN_RSP
 
 
 @pytest.mark.parametrize("chunking", CHUNKINGS)
@@ -188,19 +188,19 @@ def test_an_unknown_length_run_between_two_good_frames_is_a_frame():
 def test_fc20_request_byte_count_is_seven_per_sub_request():
     req = h("011407060004000100 02".replace(" ", ""))
     (f,) = framed(one_read(req))
-    assert f.can == CAN_REQ and f.crc_ok
+    assert f.role_fits == CAN_REQ and f.crc_ok
 
 
 def test_fc20_response_walks_its_sub_responses():
     rsp = h("0114 0c 05 06 0dfe 0020 05 06 33cd 0040".replace(" ", ""))
     (f,) = framed(one_read(rsp))
-    assert f.can == CAN_RSP and f.crc_ok
+    assert f.role_fits == CAN_RSP and f.crc_ok
 
 
 def test_fc20_neither_shape_is_annotated():
     odd = h("0114 05 07 0001 0002".replace(" ", ""))
     (f,) = framed(one_read(odd))
-    assert f.can == BOTH and "modbus.structure.mismatch" in codes(f)
+    assert f.role_fits == BOTH and "modbus.structure.mismatch" in codes(f)
 
 
 def test_fc21_groups_that_do_not_add_up_are_annotated():
@@ -216,15 +216,15 @@ def test_an_odd_register_byte_count_is_no_response():
     """03 in 8 bytes with byte count 3 fits the length of both roles; a response needs an even count."""
     raw = h("010303000001")
     (f,) = framed(one_read(raw))
-    assert f.can == CAN_REQ
+    assert f.role_fits == CAN_REQ
     (g,) = framed(on_wire(raw))
-    assert g.can == CAN_REQ
+    assert g.role_fits == CAN_REQ
 
 
 def test_a_coil_read_of_quantity_0_is_no_request():
     raw = h("010103000000")  # as a request: 0 coils (invalid); as a response: 3 status bytes
     (f,) = framed(one_read(raw))
-    assert f.can == CAN_RSP
+    assert f.role_fits == CAN_RSP
 
 
 def test_coil_bits_set_beyond_the_requested_quantity_are_flagged():

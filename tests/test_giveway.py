@@ -1,4 +1,4 @@
-"""Issue 11: the viewer of a live capture hands its CPU back while frames come in (sniffer/giveway.py).
+"""Issue 11: the viewer of a live capture hands its CPU back while frames come in (sniffer/processes/cpu_yield.py).
 
 What the kernel does with the CPU given is measured by benchmarks/bench_capture_timing.py, not here: these
 tests check when this process gives way (the interval timer as the kernel holds it, the handler installed),
@@ -20,13 +20,13 @@ import pytest
 from tui_helpers import SIM
 
 from decoders.registry import default_registry
-from sniffer.attach import Attachment, attach_feed
+from sniffer.processes.attach import Attachment, attach_feed
 from sniffer.line import LineSettings
-from sniffer.pipeline import Pipeline
-from sniffer.sinks.publish import PublishSink
-from sniffer.sources.mcapsrc import read_frames
-from sniffer.sources.replay import open_replay
-from sniffer.giveway import _LIBC, GIVE_WAY_S, GiveWay, _SigAction
+from sniffer.capture.pipeline import Pipeline
+from sniffer.processes.publish_sink import PublishSink
+from sniffer.formats.mcap.reader import read_frames
+from sniffer.sources.files import open_replay
+from sniffer.processes.cpu_yield import _LIBC, GIVE_WAY_S, GiveWay, _SigAction
 from sniffer.tui.sink import TuiSink
 
 HANG_S = 60.0  # a bound on waiting for something that should happen, never an assertion on speed
@@ -94,7 +94,7 @@ def test_a_viewer_process_lives_through_its_signals():
     """In a process of its own: busy under the timer, then a stray SIGALRM after the end; it exits 0."""
     code = (
         "import os, signal, time\n"
-        "from sniffer.giveway import GiveWay\n"
+        "from sniffer.processes.cpu_yield import GiveWay\n"
         "n = [0]\n"
         "with GiveWay(lambda: n[0]) as gw:\n"
         "    end = time.monotonic() + 60\n"

@@ -19,9 +19,9 @@ from decoders.registry import default_registry
 from helpers import bursts, fr
 from sniffer.events import CaptureInfo
 from sniffer.line import LineSettings
-from sniffer.pipeline import Pipeline
+from sniffer.capture.pipeline import Pipeline
 from sniffer.simulator import get_scenario, simulate, wire_chunks
-from sniffer.sources.bytecsv import open_byte_csv
+from sniffer.formats.bytecsv.reader import open_byte_csv
 
 METER_LINE = LineSettings(9600, "N", 1)  # the SDM230's factory setting
 L = LineSettings(19200, "E", 1)

@@ -32,9 +32,9 @@ from helpers import export
 
 from sniffer.cli import main
 from sniffer.events import Chunk, Gap
-from sniffer.sinks.mcap import McapSink
-from sniffer.sources import CaptureError
-from sniffer.sources.replay import FileSource, open_replay
+from sniffer.formats.mcap.sink import McapSink
+from sniffer.events import CaptureError
+from sniffer.sources.files import FileSource, open_replay
 
 SEED = int(os.environ.get("SNIFFER_FUZZ_SEED", "20240611"))
 CASES_PER_FORMAT = int(os.environ.get("SNIFFER_FUZZ_CASES", "30"))

@@ -8,7 +8,7 @@ import orjson
 
 from sniffer.events import CaptureInfo
 from sniffer.frame import Frame
-from sniffer.sinks.jsonl import BATCH, JsonlSink
+from sniffer.formats.jsonl import BATCH, JsonlSink
 
 
 def _frames(n: int):
@@ -46,7 +46,7 @@ def test_flushed_sink_writes_each_line_as_its_frame_settles():
 
 
 def test_text_lines_are_batched_too_and_a_viewer_flush_writes_them():
-    from sniffer.sinks.text import TextSink, frame_line
+    from sniffer.formats.text import TextSink, frame_line
 
     buf = io.StringIO()
     sink = TextSink(buf)

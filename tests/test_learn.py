@@ -17,8 +17,8 @@ import pytest
 
 from decoders.tables import load_map
 from sniffer.cli import main
-from sniffer.crc import crc_bytes
-from sniffer.learn import Learner, RegStats, guess_pair, guess_word
+from sniffer.framing.crc import crc_bytes
+from sniffer.analysis.learn import Learner, RegStats, guess_pair, guess_word
 from tests.test_bad_input import cli, one_error
 
 SIM = "captures/sim/default.mcap"

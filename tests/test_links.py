@@ -1,20 +1,20 @@
 """Several links on one timeline, without ports: LinkPipelines on synthetic events, the MCAP's link
-field, the bus file's [[links]], the flags (sniffer.links, sniffer.settings, sniffer.busfile)."""
+field, the bus file's [[links]], the flags (capture/links.py, capture/settings.py, capture/busfile.py)."""
 
 from __future__ import annotations
 
 import pytest
 from helpers import ListSink, bursts, fr
 
-from sniffer.busfile import BusFileError, load_bus_file
+from sniffer.capture.busfile import BusFileError, load_bus_file
 from sniffer.cli import build_parser
 from sniffer.events import CaptureInfo, Chunk, Gap, Tick
 from sniffer.line import LineSettings, SettingsError
-from sniffer.mcap_format import decode_event, encode_event
-from sniffer.session import CaptureSpec, EventSource, Session
-from sniffer.settings import MASTER, SLAVES, LinkPlan
-from sniffer.sinks.text import TextSink
-from sniffer.sources.replay import FileSource
+from sniffer.formats.mcap.format import decode_event, encode_event
+from sniffer.capture.session import CaptureSpec, EventSource, Session
+from sniffer.capture.settings import MASTER, SLAVES, LinkPlan
+from sniffer.formats.text import TextSink
+from sniffer.sources.files import FileSource
 
 LINE = LineSettings(19200, "E", 1)
 READ_A = fr("010300000002")
@@ -180,7 +180,7 @@ def test_bus_file_link_errors_are_one_line(tmp_path, text, message):
 def test_trigger_windows_start_every_link_at_its_own_quiet_point(tmp_path):
     """Two links never quiet at once (a request is always waiting on one of them): a window starts each
     link where that link was quiet, so it replays without answers cut off from their requests."""
-    from sniffer.sources.mcapsrc import read_frames
+    from sniffer.formats.mcap.reader import read_frames
     from sniffer.triggers import TriggerSpec
 
     ms = 1_000_000

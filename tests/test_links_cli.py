@@ -189,8 +189,8 @@ def test_serve_captures_several_links_for_its_viewers(tmp_path):
     from serve_helpers import start_serve
     from test_serve import read_stream
 
-    from sniffer.attach import Attachment
-    from sniffer.sources.mcapsrc import read_frames
+    from sniffer.processes.attach import Attachment
+    from sniffer.formats.mcap.reader import read_frames
 
     lines = Lines(tmp_path, ("--scenario", "default", "--seed", "1"), ("--scenario", "default", "--seed", "2"))
     sock, out = tmp_path / "serve.sock", tmp_path / "served.mcap"

@@ -1,4 +1,4 @@
-"""Several links captured at once over real pseudo-terminals (sources/serial_links.py, sniffer.links).
+"""Several links captured at once over real pseudo-terminals (sources/serial_links.py, sniffer.capture.links).
 
 Three simulated lines play on three ptys at the same time, each at its own settings; one session
 captures them: every link's frames are exactly what was sent on it (no byte of one link glued onto
@@ -18,15 +18,15 @@ import pytest
 from helpers import ListSink
 
 from sniffer.line import LineSettings
-from sniffer.session import CaptureSpec, Session
-from sniffer.settings import MASTER, SLAVES, LinkPlan
+from sniffer.capture.session import CaptureSpec, Session
+from sniffer.capture.settings import MASTER, SLAVES, LinkPlan
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus, play_tap
 from sniffer.simulator.scenario import get_scenario
-from sniffer.sinks.mcap import McapSink
-from sniffer.sources import CaptureError
-from sniffer.sources.mcapsrc import open_mcap, read_frames
-from sniffer.sources.replay import FileSource
+from sniffer.formats.mcap.sink import McapSink
+from sniffer.events import CaptureError
+from sniffer.formats.mcap.reader import open_mcap, read_frames
+from sniffer.sources.files import FileSource
 from sniffer.sources.serial_links import LinksSource
 
 LINES = {"drives": LineSettings(19200, "E", 1), "pumps": LineSettings(9600, "N", 2),

@@ -13,13 +13,13 @@ from helpers import ListSink
 
 from decoders.registry import default_registry
 from sniffer.line import LineSettings
-from sniffer.pipeline import Pipeline
-from sniffer.session import CaptureSpec, Session
-from sniffer.sinks.mcap import McapSink
+from sniffer.capture.pipeline import Pipeline
+from sniffer.capture.session import CaptureSpec, Session
+from sniffer.formats.mcap.sink import McapSink
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
 from sniffer.simulator.scenario import get_scenario
-from sniffer.sources.mcapsrc import open_mcap, read_frames
+from sniffer.formats.mcap.reader import open_mcap, read_frames
 from sniffer.sources.serial_live import SerialSource
 
 LINE = LineSettings(19200, "E", 1)

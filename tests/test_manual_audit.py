@@ -13,7 +13,7 @@ from helpers import bursts, fr, run_events
 
 from decoders.registry import builtin_decoders
 from sniffer import cli
-from sniffer.crc import lrc
+from sniffer.framing.crc import lrc
 from sniffer.line import LineSettings
 
 L = LineSettings(19200, "N", 1)
@@ -81,7 +81,7 @@ def test_listed_codes_are_not_flagged():
 def test_a_user_map_with_vendor_codes_only_keeps_the_standard_ones(tmp_path):
     from decoders.registry import default_registry
     from sniffer.events import CaptureInfo
-    from sniffer.pipeline import Pipeline
+    from sniffer.capture.pipeline import Pipeline
 
     reg = default_registry({3: "acme-x1"}, model_files=["docs/examples/acme-x1.toml"])
     p = Pipeline(CaptureInfo(), L, reg)

@@ -17,14 +17,14 @@ from mcap.writer import Writer
 
 from sniffer.codes import CRC_MISMATCH, note
 from sniffer.events import FLAG_FRAMING, FLAG_PARITY, CaptureInfo, Chunk, Gap, Tick
-from sniffer.framer import RtuFramer
+from sniffer.framing.rtu import RtuFramer
 from sniffer.line import LineSettings
-from sniffer.mcap_repair import default_output, repair
-from sniffer.mcap_format import RAW_SCHEMA, info_to_metadata
-from sniffer.sinks.mcap import CaptureStorageError, McapSink
-from sniffer.records import FRAME_SCHEMA, frame_record, loads
-from sniffer.sources import CaptureError
-from sniffer.sources.mcapsrc import McapSource, open_mcap, read_frames, sniff
+from sniffer.formats.mcap.repair import default_output, repair
+from sniffer.formats.mcap.format import RAW_SCHEMA, info_to_metadata
+from sniffer.formats.mcap.sink import CaptureStorageError, McapSink
+from sniffer.formats.records import FRAME_SCHEMA, frame_record, loads
+from sniffer.events import CaptureError
+from sniffer.formats.mcap.reader import McapSource, open_mcap, read_frames, sniff
 
 TESTS = os.path.dirname(os.path.abspath(__file__))
 T0 = 7_000_000_000
@@ -302,7 +302,7 @@ KILL_CHILD = r"""
 import sys, time
 sys.path.insert(0, sys.argv[2])
 from test_mcap import INFO, make_event
-from sniffer.sinks.mcap import McapSink
+from sniffer.formats.mcap.sink import McapSink
 sink = McapSink(sys.argv[1], flush_interval_s=0.2)
 sink.start(INFO)
 i = 0
@@ -362,7 +362,7 @@ FULL_CHILD = r"""
 import json, resource, sys
 sys.path.insert(0, sys.argv[2])
 from test_mcap import INFO, make_event, real_frames
-from sniffer.sinks.mcap import CaptureStorageError, McapSink
+from sniffer.formats.mcap.sink import CaptureStorageError, McapSink
 limit = int(sys.argv[3])
 resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))  # writes past it fail with EFBIG
 sink = McapSink(sys.argv[1], flush_interval_s=0)
@@ -419,7 +419,7 @@ def test_scan_skipping_a_topic_yields_the_same_other_messages():
     """A replay reads /raw only: the scan does not build the /frames messages, and loses nothing else."""
     from mcap.records import Message
 
-    from sniffer.sources.mcapscan import Scan, open_file
+    from sniffer.formats.mcap.scan import Scan, open_file
 
     from pathlib import Path
 
@@ -444,7 +444,7 @@ def test_the_open_chunk_is_estimated_at_the_compression_so_far(tmp_path):
     import io
     import random
 
-    from sniffer.mcap_writer import McapWriter
+    from sniffer.formats.mcap.writer import McapWriter
 
     rng = random.Random(3)
 
@@ -475,10 +475,10 @@ def test_the_open_chunk_is_estimated_at_the_compression_so_far(tmp_path):
 
 
 def test_our_mcap_writer_reads_back_through_the_mcap_library_index_and_all(tmp_path):
-    """sniffer.mcap_writer is checked by the reference reader: summary, chunk indexes, message indexes, CRCs."""
+    """sniffer.formats.mcap.writer is checked by the reference reader: summary, chunk indexes, message indexes, CRCs."""
     from mcap.reader import SeekingReader, StreamReader
 
-    from sniffer.mcap_writer import McapWriter
+    from sniffer.formats.mcap.writer import McapWriter
 
     path = tmp_path / "w.mcap"
     with open(path, "wb") as fh:

@@ -117,7 +117,7 @@ def test_an_interval_over_sends_the_held_value_when_capture_time_moves_on():
 
 
 def test_home_assistant_discovery_names_and_tags_a_models_registers():
-    from sniffer.session import decode_capture
+    from sniffer.capture.session import decode_capture
 
     session = decode_capture("captures/sim/a510.mcap")
     b = Bridge(spec(ha_prefix="homeassistant"), session.info)
@@ -142,7 +142,7 @@ def test_home_assistant_discovery_names_and_tags_a_models_registers():
 
 def test_a_name_the_model_gives_several_registers_gets_the_address_in_every_topic():
     from sniffer.mqtt.sink import MqttSink
-    from sniffer.session import decode_capture
+    from sniffer.capture.session import decode_capture
 
     session = decode_capture("captures/sim/a510.mcap")
     sink = MqttSink(spec(ha_prefix="homeassistant"), registry=session.registry)
@@ -180,7 +180,7 @@ def test_url_defaults_and_the_password_from_the_environment(monkeypatch):
 
 
 class _OnLink:
-    """A frame of a capture of several links (frames carry `link` there; sniffer.links)."""
+    """A frame of a capture of several links (frames carry `link` there; sniffer.capture.links)."""
 
     def __init__(self, f, link: str) -> None:
         self._f = f

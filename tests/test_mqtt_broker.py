@@ -176,7 +176,7 @@ def test_a_broker_that_goes_away_mid_capture_loses_no_retained_state_and_no_fram
 
     from sniffer.line import LineSettings
     from sniffer.mqtt.options import parse_url
-    from sniffer.session import CaptureSpec, Session
+    from sniffer.capture.session import CaptureSpec, Session
     from sniffer.simulator.bus import simulate
     from sniffer.simulator.ptybus import PtyBus
     from sniffer.simulator.scenario import get_scenario

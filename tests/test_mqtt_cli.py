@@ -11,7 +11,7 @@ from broker import make_ca, make_server_cert, retained
 
 from sniffer.cli import build_parser
 from sniffer.mqtt.options import MqttSpec
-from sniffer.settings import CaptureSpec
+from sniffer.capture.settings import CaptureSpec
 
 
 def test_the_mqtt_flags_travel_to_a_capture_process_unchanged(tmp_path):
@@ -62,8 +62,8 @@ def test_demo_publishes_what_the_live_capture_decodes(mqtt_broker, tmp_path):
 
 
 def test_the_sinks_status_says_what_the_client_did(mqtt_broker):
-    from sniffer.session import CaptureSpec as Spec
-    from sniffer.session import decode_capture
+    from sniffer.capture.session import CaptureSpec as Spec
+    from sniffer.capture.session import decode_capture
 
     spec = Spec(mqtt=MqttSpec.from_args(build_parser().parse_args(["replay", "x", "--mqtt", mqtt_broker.url()])))
     session = decode_capture("captures/sim/a510.mcap", spec)

@@ -1,4 +1,4 @@
-"""The pairer rule by rule (sniffer/pairer.py's docstring), on Frames built directly, and fuzzed.
+"""The pairer rule by rule (sniffer/capture/pairer.py's docstring), on Frames built directly, and fuzzed.
 
 Each rule test isolates one rule with frames whose `can` bits, units and
 times are set by hand.  Two hypothesis tests: arbitrary Frames straight into
@@ -14,13 +14,13 @@ from hypothesis import strategies as st
 
 from decoders.registry import default_registry
 from sniffer import protocols
-from sniffer.crc import crc_bytes, lrc
+from sniffer.framing.crc import crc_bytes, lrc
 from sniffer.events import CaptureInfo, Chunk, Tick
 from sniffer.frame import CAN_REQ, CAN_RSP, NOISE_ROLE, REQUEST, RESPONSE, UNKNOWN, Frame
 from sniffer.line import LineSettings
-from sniffer.pairer import Pairer, response_mismatch
-from sniffer.pipeline import Pipeline
-from sniffer.records import frame_record
+from sniffer.capture.pairer import Pairer, response_mismatch
+from sniffer.capture.pipeline import Pipeline
+from sniffer.formats.records import frame_record
 
 BOTH = CAN_REQ | CAN_RSP
 MS = 1_000_000
@@ -31,7 +31,7 @@ def frame(index: int, t_ms: float, adu_hex: str, can: int, protocol: str = "modb
     """A framed ADU (CRC appended) at t_ms, 1 ms long."""
     adu = bytes.fromhex(adu_hex)
     f = Frame(index, int(t_ms * MS), int((t_ms + 1) * MS), adu + crc_bytes(adu), protocol, unit=adu[0],
-              function=adu[1], can=can, crc_ok=crc_ok, time_source=time_source)
+              function=adu[1], role_fits=can, crc_ok=crc_ok, time_source=time_source)
     f.adu = adu
     return f
 
@@ -216,7 +216,7 @@ def test_pairer_never_raises_on_any_frame(specs):
     p, pushed, out, t = Pairer(timeout_ms=500), [], [], 0
     for i, (proto, unit, fc, can, adu, crc_ok, gap_ms, tick) in enumerate(specs):
         t += gap_ms * MS
-        f = Frame(i, t, t + MS, adu + b"\0\0", proto, unit=unit, function=fc, can=can, crc_ok=crc_ok)
+        f = Frame(i, t, t + MS, adu + b"\0\0", proto, unit=unit, function=fc, role_fits=can, crc_ok=crc_ok)
         f.adu = adu
         pushed.append(f)
         out += p.push(f)
@@ -228,7 +228,7 @@ def test_pairer_never_raises_on_any_frame(specs):
     for f in out:
         if f.pair is not None:
             assert by_index[f.pair].pair == f.index and f.role in (REQUEST, RESPONSE)
-        if f.protocol == "noise" or f.function is None or f.unit is None or not f.can & BOTH:
+        if f.protocol == "noise" or f.function is None or f.unit is None or not f.role_fits & BOTH:
             assert f.pair is None and f.annotations == []
 
 
@@ -302,7 +302,7 @@ def test_every_protocol_any_bytes_conserved_and_any_chunking_same_frames(protoco
     assert [f.index for f in whole] == list(range(len(whole)))
     for f in whole:
         assert f.raw
-        assert f.is_noise or (f.unit is not None and f.function is not None and f.can & BOTH), f
+        assert f.is_noise or (f.unit is not None and f.function is not None and f.role_fits & BOTH), f
         for a in f.annotations:
             assert 0 <= a.start < a.end <= len(f.raw), (a, f)
             assert a.code in CODEBOOK, a.code
@@ -332,14 +332,14 @@ def test_every_protocol_per_read_chunks_conserved(protocol, pieces, cuts):
 
 def test_latency_is_kept_to_the_microsecond_the_record_holds():
     """A viewer rebuilding frames from records prints the same latency as the capture (no double rounding)."""
-    from sniffer.records import frame_record
-    from sniffer.sinks.text import frame_line
-    from sniffer.tui.model import frame_from_record
+    from sniffer.formats.records import frame_record
+    from sniffer.formats.text import frame_line
+    from sniffer.tui.store import frame_from_record
 
     p = Pairer()
-    req = Frame(0, 0, 1_000_000, bytes.fromhex("010300000001840a"), "modbus-rtu", 1, 3, can=CAN_REQ)
+    req = Frame(0, 0, 1_000_000, bytes.fromhex("010300000001840a"), "modbus-rtu", 1, 3, role_fits=CAN_REQ)
     rsp = Frame(1, 1_000_000 + 1_049_510, 1_000_000 + 2_000_000, bytes.fromhex("0103020001"), "modbus-rtu", 1, 3,
-                can=CAN_RSP)
+                role_fits=CAN_RSP)
     p.push(req)
     p.push(rsp)
     assert rsp.latency_ms == 1.05  # 1.049510 ms, to the microsecond

@@ -1,5 +1,5 @@
-"""In-band UART error marks (sniffer/parmrk.py), and the settings a pty notes for a simulated line
-(sniffer/pty_settings.py), on real pseudo-terminals."""
+"""In-band UART error marks (sniffer/sources/parmrk.py), and the settings a pty notes for a simulated line
+(sniffer/sources/pty_settings.py), on real pseudo-terminals."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from contextlib import contextmanager
 import pytest
 
 from sniffer.line import LineSettings
-from sniffer.parmrk import ERROR, NUL_ERROR, InputFlags, MarkReader, tty_bytes
-from sniffer.pty_settings import read_settings
-from sniffer.sources import CaptureError
+from sniffer.sources.parmrk import ERROR, NUL_ERROR, InputFlags, MarkReader, tty_bytes
+from sniffer.sources.pty_settings import read_settings
+from sniffer.events import CaptureError
 from sniffer.sources.serial_port import configure, open_read_only
 
 CHARS = [(0x01, ""), (0xFF, ""), (0x41, "parity"), (0x00, "break"), (0x7E, "framing")]

@@ -12,11 +12,11 @@ import pytest
 from helpers import decoded
 from helpers import export as _export
 
-from sniffer.crc import crc_bytes
-from sniffer.pcap_format import TSHARK_ARGS, global_header, packet
-from sniffer.session import CaptureSpec
-from sniffer.sources import CaptureError
-from sniffer.sources.pcapsrc import open_pcap, read_packets, sniff
+from sniffer.framing.crc import crc_bytes
+from sniffer.formats.pcap.format import TSHARK_ARGS, global_header, packet
+from sniffer.capture.session import CaptureSpec
+from sniffer.events import CaptureError
+from sniffer.formats.pcap.reader import open_pcap, read_packets, sniff
 
 CAPTURES = Path(__file__).resolve().parent.parent / "captures"
 WIZ = CAPTURES / "refcaptures" / "sigrok" / "wizmodbus.bytes.csv"

@@ -24,14 +24,14 @@ from decoders.pd_series import schema
 from decoders.pd_series.schema import CNST_BITS, CNTR_BITS, PARAMS, STATUS
 from decoders.registry import default_registry
 from helpers import bursts, run_events
-from sniffer.crc import crc_bytes, lrc
+from sniffer.framing.crc import crc_bytes, lrc
 from sniffer.events import CaptureInfo, Chunk, Tick
 from sniffer.frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE, UNKNOWN, Frame
 from sniffer.line import LineSettings
-from sniffer import pd_framer
-from sniffer.pd_framer import QUIET_NS, PdAsciiFramer, PdRtuFramer
-from sniffer.pipeline import Pipeline
-from sniffer.records import frame_record
+from sniffer.framing import pd as pd_framer
+from sniffer.framing.pd import QUIET_NS, PdAsciiFramer, PdRtuFramer
+from sniffer.capture.pipeline import Pipeline
+from sniffer.formats.records import frame_record
 
 LINE = LineSettings(9600, "N", 1)
 PKG = Path(__file__).resolve().parent.parent / "decoders" / "pd_series"
@@ -444,7 +444,7 @@ def test_fuzz_ascii(parts, cut):
        st.one_of(st.none(), st.binary(min_size=2, max_size=12)), st.booleans(), st.sampled_from(["pd-rtu", "pd-ascii"]))
 def test_fuzz_decoder_direct(adu, role, req_adu, crc, protocol):
     """The decoder never raises, whatever the ADU, role or request."""
-    f = Frame(0, 0, 1, adu + b"\0\0", protocol, unit=adu[0], function=adu[1], can=CAN_REQ | CAN_RSP, crc_ok=crc)
+    f = Frame(0, 0, 1, adu + b"\0\0", protocol, unit=adu[0], function=adu[1], role_fits=CAN_REQ | CAN_RSP, crc_ok=crc)
     f.adu, f.role = adu, role
     req = None
     if req_adu is not None:

@@ -10,8 +10,8 @@ from helpers import ListSink, bursts, fr, run_events
 
 from sniffer.events import Chunk, Gap, Tick
 from sniffer.line import LineSettings
-from sniffer.busfile import load_bus_file
-from sniffer.sources.saleae import open_saleae_csv
+from sniffer.capture.busfile import load_bus_file
+from sniffer.formats.saleae import open_saleae_csv
 
 L19 = LineSettings(19200, "E", 1)
 
@@ -172,7 +172,7 @@ def test_full_disk_stops_live_capture_cleanly(tmp_path):
 def test_register_shadow_keeps_only_what_crc_good_frames_said():
     """A corrupted read response is decoded for the eye, but its values do not enter the shadow."""
     from decoders.registry import default_registry
-    from sniffer.pipeline import Pipeline
+    from sniffer.capture.pipeline import Pipeline
     from sniffer.events import CaptureInfo
 
     good = fr("0103020064")  # holding[10] = 100

@@ -12,12 +12,12 @@ from hypothesis import strategies as st
 from refdata import SIGROK, SIGROK_NAMES, sigrok_line
 
 from decoders.registry import default_registry
-from sniffer.crc import crc_bytes
+from sniffer.framing.crc import crc_bytes
 from sniffer.events import CaptureInfo, Chunk
 from sniffer.line import LineSettings
-from sniffer.pipeline import Pipeline
-from sniffer.records import frame_record
-from sniffer.sources.bytecsv import open_byte_csv
+from sniffer.capture.pipeline import Pipeline
+from sniffer.formats.records import frame_record
+from sniffer.formats.bytecsv.reader import open_byte_csv
 
 LINE = LineSettings(19200, "E", 1)
 CODEBOOK = default_registry().codebook
@@ -179,7 +179,7 @@ class _SlowRtuFramer:
     """RtuFramer without its tight per-read loop: the reference the fast path must equal."""
 
     def __new__(cls, line):
-        from sniffer.framer import RtuFramer
+        from sniffer.framing.rtu import RtuFramer
 
         f = RtuFramer(line)
         f._fast = lambda out: None
@@ -191,12 +191,12 @@ def _frames_of(framer, chunks):
     for c in chunks:
         out += framer.feed(c)
     out += framer.flush()
-    return [(f.raw, f.t_ns, f.t_end_ns, f.protocol, f.can, f.crc_ok, f.idle_before_ns,
+    return [(f.raw, f.t_ns, f.t_end_ns, f.protocol, f.role_fits, f.crc_ok, f.idle_before_ns,
              tuple(a.code for a in f.annotations)) for f in out]
 
 
 def test_fast_path_equals_rule_by_rule_path_on_usb_captures():
-    from sniffer.framer import RtuFramer
+    from sniffer.framing.rtu import RtuFramer
     from sniffer.simulator.bus import simulate
     from sniffer.simulator.chunks import usb_chunks
     from sniffer.simulator.scenario import get_scenario
@@ -212,7 +212,7 @@ def test_fast_path_equals_rule_by_rule_path_on_usb_captures():
 @given(st.lists(st.one_of(_frame, st.binary(min_size=1, max_size=12)), min_size=1, max_size=30),
        st.lists(st.integers(1, 40), min_size=1, max_size=6))
 def test_fast_path_equals_rule_by_rule_path_on_random_reads(runs, cuts):
-    from sniffer.framer import RtuFramer
+    from sniffer.framing.rtu import RtuFramer
 
     data = b"".join(runs)
     chunks, t, i, k = [], 0, 0, 0

@@ -1,4 +1,4 @@
-"""A live capture's port is read by a process of its own (sniffer/sources/reader_process.py): a read's time
+"""A live capture's port is read by a process of its own (sniffer/processes/reader.py): a read's time
 never waits for the capture's interpreter.
 
 Real parts: a pty pair carries the bytes (PtyBus), the reader process is started as `sniffer live` starts it,
@@ -17,15 +17,15 @@ import time
 import pytest
 from terminal import Terminal, children, fds_on, stat_fields
 
-from sniffer.childpipe import read_messages
+from sniffer.processes.pipes import read_messages
 from sniffer.events import Chunk, Gap, Tick
 from sniffer.line import LineSettings
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.ptybus import PtyBus
 from sniffer.simulator.scenario import get_scenario
-from sniffer.sources import CaptureError
-from sniffer.sources.mcapsrc import read_frames
-from sniffer.sources.reader_process import ReaderProcess, live_source
+from sniffer.events import CaptureError
+from sniffer.formats.mcap.reader import read_frames
+from sniffer.processes.reader import ReaderProcess, live_source
 from sniffer.sources.serial_live import SerialSource
 
 LINE = LineSettings(19200, "E", 1)
@@ -103,7 +103,7 @@ def test_a_reader_process_that_dies_ends_the_readers_with_one_error():
 def test_the_events_cross_the_pipe_whole():
     """What a reader pushes is what the capture gets: a read with every field (a stalled read's unseen_ns), a
     tick, a gap, a lost port and its return (for the status), each reader's end with its error."""
-    from sniffer.sources.reader_process import PipeHub, _End
+    from sniffer.processes.reader import PipeHub, ReaderEnd
 
     r, w = os.pipe()
     hub = PipeHub(w)
@@ -115,7 +115,7 @@ def test_the_events_cross_the_pipe_whole():
     reader.lost_since_ns, reader.lost_reason = 14, "hang-up"
     hub.lost(reader)
     reader._error = CaptureError("/dev/ttyX: port lost (hang-up)")
-    hub.push(_End(reader))
+    hub.push(ReaderEnd(reader))
     os.close(w)
 
     src = ReaderProcess("serial", "/dev/ttyX", LINE)
@@ -206,7 +206,7 @@ def test_a_capture_killed_outright_ends_its_reader_process(tmp_path):
 def test_several_links_one_port_missing_fails_on_that_port(tmp_path):
     """Several links in one reader process: the first port opens (its reader starts, and stops again), the
     second is missing; the capture gets the missing port's own error, as the reader threads raised it."""
-    from sniffer.settings import LinkPlan
+    from sniffer.capture.settings import LinkPlan
 
     missing = str(tmp_path / "ttyNONE")
     with PtyBus() as bus:

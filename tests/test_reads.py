@@ -1,4 +1,4 @@
-"""Reads marked with their frames (sniffer.reads), their line on the viewers' stream, and the TUI's ring of them."""
+"""Reads marked with their frames (analysis/reads.py), their line on the viewers' stream, and the TUI's ring of them."""
 
 import random
 
@@ -6,10 +6,10 @@ import pytest
 from tui_helpers import SIM, SIM_CAPTURES, frames_from_reads, replay_frames, replay_reads
 
 from sniffer.events import Chunk
-from sniffer.reads import Read, ReadMarker
-from sniffer.records import loads
-from sniffer.sources.replay import open_replay
-from sniffer.stream_format import CONTROL_PREFIX, parse_reads, read_item, reads_line
+from sniffer.analysis.reads import Read, ReadMarker
+from sniffer.formats.records import loads
+from sniffer.sources.files import open_replay
+from sniffer.processes.stream import CONTROL_PREFIX, parse_reads, read_item, reads_line
 from sniffer.tui.readring import ReadRing
 
 

@@ -12,10 +12,10 @@ import pytest
 from decoders.base import UnitState
 from decoders.generic import GenericModbus
 from decoders.generic.block import RegisterBlock
-from decoders.generic.decoder import _points_summary
+from decoders.generic.decoder import points_summary
 from sniffer.frame import Frame
-from sniffer.records import frame_json, frame_record
-from sniffer.session import CaptureSpec, decode_capture
+from sniffer.formats.records import frame_json, frame_record
+from sniffer.capture.session import CaptureSpec, decode_capture
 from sniffer.tui.framepack import pack, unpack
 
 CAPTURES = Path(__file__).resolve().parent.parent / "captures"
@@ -41,7 +41,7 @@ def test_block_points_json_and_summary_equal_the_dicts():
         assert orjson.loads(block.json()) == want
         assert block.json() == orjson.dumps(want)  # byte for byte: the same key order and spacing
         for limit in (1, 6, 200):
-            assert block.summary(limit) == _points_summary(want, limit)
+            assert block.summary(limit) == points_summary(want, limit)
 
 
 def test_repeated_and_changed_values_never_get_stale_text():
@@ -59,7 +59,7 @@ def test_repeated_and_changed_values_never_get_stale_text():
             if call == "json":
                 assert block.json() == orjson.dumps(want)
             else:
-                assert block.summary() == _points_summary(want)
+                assert block.summary() == points_summary(want)
 
 
 def test_a_model_hook_gets_dicts_not_blocks():

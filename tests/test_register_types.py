@@ -24,8 +24,8 @@ from decoders.registry import default_registry
 from decoders.tables import MapError, Register, RegisterMap, lint, load_map
 from sniffer.events import CaptureInfo
 from sniffer.line import LineSettings
-from sniffer.pipeline import Pipeline
-from sniffer.tui.model import FrameStore
+from sniffer.capture.pipeline import Pipeline
+from sniffer.tui.store import FrameStore
 
 ROOT = Path(__file__).resolve().parent.parent
 FLOWMETER = ROOT / "captures" / "refcaptures" / "sigrok" / "flowmeter_target_15liter_per_min.bytes.csv"
@@ -274,8 +274,8 @@ def test_watch_shows_the_combined_value():
     (row,) = s.register_rows(1)
     assert row.value == 0x00020003 and row.changes == 1 and list(row.history) == [123456, 0x00020003]
     # a viewer attached over a socket rebuilds the frames from their JSON records: the same watch
-    from sniffer.records import frame_json, loads
-    from sniffer.tui.model import frame_from_record
+    from sniffer.formats.records import frame_json, loads
+    from sniffer.tui.store import frame_from_record
 
     t0 = frames[0].t_ns
     attached = FrameStore(t0)

@@ -24,7 +24,7 @@ from sniffer.report import Collector
 from sniffer.report.buckets import TimeBuckets
 from sniffer.report.polls import Polls
 from sniffer.report.timeline import Timeline
-from sniffer.settings import CaptureSpec
+from sniffer.capture.settings import CaptureSpec
 
 SIM = Path(__file__).resolve().parent.parent / "captures" / "sim"
 MS = 1_000_000
@@ -283,8 +283,8 @@ def test_units_of_several_links_are_their_links(tmp_path, capsys):
 
     from sniffer.events import Chunk
     from sniffer.line import LineSettings
-    from sniffer.session import EventSource, Session
-    from sniffer.sinks import FileSink
+    from sniffer.capture.session import EventSource, Session
+    from sniffer.formats import FileSink
 
     read, rsp = fr("010300000002"), fr("01030400010002")
 

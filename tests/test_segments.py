@@ -14,8 +14,8 @@ import pytest
 from mcap.reader import make_reader
 
 from sniffer.cli import main
-from sniffer.segments import INDEX_NAME, STATUS_NAME, Keep, Rotate, Segment, read_index
-from sniffer.session import CaptureSpec, decode_capture
+from sniffer.formats.mcap.segments import INDEX_NAME, STATUS_NAME, Keep, Rotate, Segment, read_index
+from sniffer.capture.session import CaptureSpec, decode_capture
 
 _CACHE: dict = {}
 
@@ -237,7 +237,7 @@ def test_a_restart_into_the_same_folder_continues_it(capsys, capture, tmp_path):
 
 
 def test_a_folder_is_written_by_one_capture_at_a_time(capsys, capture, tmp_path):
-    from sniffer.sinks.segments import SegmentPlan
+    from sniffer.formats.mcap.rotating import SegmentPlan
 
     plan = SegmentPlan(str(tmp_path / "busy"), Rotate(10**10))
     try:
@@ -319,7 +319,7 @@ class _Triggers:
 
 def test_a_sink_adds_its_section_and_status_shows_it(capsys, capture, tmp_path):
     from sniffer.commands.replay import file_source
-    from sniffer.session import Session
+    from sniffer.capture.session import Session
 
     path = tmp_path / "s.json"
     spec = CaptureSpec(input=str(capture), status=str(path))
@@ -372,14 +372,14 @@ def test_the_capture_process_gets_the_unattended_flags():
 
 
 def test_a_multi_link_capture_rotates_and_replays_with_its_links(tmp_path):
-    """Two links on one timeline (sniffer.links), cut into segments: every frame keeps its link, a
+    """Two links on one timeline (sniffer.capture.links), cut into segments: every frame keeps its link, a
     segment is cut only when both links are settled, and the folder replays as the whole did."""
     from helpers import ListSink, bursts, fr
 
     from sniffer.events import CaptureInfo, Chunk
     from sniffer.line import LineSettings
-    from sniffer.session import EventSource, Session
-    from sniffer.sinks.segments import SegmentPlan
+    from sniffer.capture.session import EventSource, Session
+    from sniffer.formats.mcap.rotating import SegmentPlan
 
     line = LineSettings(19200, "E", 1)
     info = CaptureInfo(baud=19200, parity="E", links=[
@@ -423,7 +423,7 @@ def test_status_names_each_lost_port_of_several_links(tmp_path):
     from types import SimpleNamespace
 
     from sniffer.commands.status import lines
-    from sniffer.status import StatusSink
+    from sniffer.capture.status import StatusSink
 
     now = time.monotonic_ns()
     readers = [SimpleNamespace(port="/dev/ttyUSB0", lost_since_ns=None),

@@ -19,8 +19,8 @@ import pytest
 
 from sniffer.events import Chunk, Gap, Tick
 from sniffer.line import LineSettings
-from sniffer.lowlatency import request_low_latency
-from sniffer.sources import CaptureError
+from sniffer.sources.lowlatency import request_low_latency
+from sniffer.events import CaptureError
 from sniffer.sources.serial_live import PortLostError, SerialSource
 
 pytestmark = pytest.mark.timeout(15)  # a hang fails fast instead of stalling the suite
@@ -153,7 +153,7 @@ def test_a_tick_never_claims_silence_the_reader_did_not_see(pty, started, monkey
     """The reader's select gives up, then the thread stalls (its CPU or the interpreter taken) while the rest
     of a frame comes: the time it takes after the stall must not become a tick, or the framer, seeing
     silence past t3.5 + the read slack, cuts the frame in two."""
-    from sniffer.framer import RtuFramer
+    from sniffer.framing.rtu import RtuFramer
     from sniffer.sources import serial_live
 
     real = select.select

@@ -26,22 +26,22 @@ from terminal import stat_fields
 from tui_helpers import SIM, demo_viewer, replay_frames
 
 from decoders.registry import default_registry
-from sniffer.attach import Attachment, attach_feed
+from sniffer.processes.attach import Attachment, attach_feed
 from sniffer.cli import main
 from sniffer.events import CaptureInfo
 from sniffer.line import LineSettings
-from sniffer.session import CaptureSpec, Session
-from sniffer.sinks.mcap import McapSink
-from sniffer.pipeline import Pipeline
-from sniffer.sinks.publish import PublishSink
-from sniffer.stream_format import CONTROL_PREFIX, PublishError
-from sniffer.records import loads
+from sniffer.capture.session import CaptureSpec, Session
+from sniffer.formats.mcap.sink import McapSink
+from sniffer.capture.pipeline import Pipeline
+from sniffer.processes.publish_sink import PublishSink
+from sniffer.processes.stream import CONTROL_PREFIX, PublishError
+from sniffer.formats.records import loads
 from sniffer.simulator import simulate, wire_chunks
 from sniffer.simulator.ptybus import PtyBus
 from sniffer.simulator.scenario import get_scenario
-from sniffer.sources import CaptureError
-from sniffer.sources.mcapsrc import read_frames
-from sniffer.sources.replay import open_replay
+from sniffer.events import CaptureError
+from sniffer.formats.mcap.reader import read_frames
+from sniffer.sources.files import open_replay
 from sniffer.sources.serial_live import SerialSource
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.sink import TuiSink
@@ -316,7 +316,7 @@ async def _visits(port: int, n: int) -> None:
 def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
     """Issue 11: browser visits that end, and a server killed outright (SIGKILL, a crash), leave no
     `sniffer attach --tui` viewer and no capture running (each viewer is exec'd, not behind a shell;
-    viewers and the capture end with the server: sniffer/lifeline.py)."""
+    viewers and the capture end with the server: sniffer/processes/parent_death.py)."""
     pytest.importorskip("textual_serve")
     pytest.importorskip("aiohttp")
     sock = tmp_path / "leak.sock"
@@ -332,7 +332,7 @@ def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
         viewers = processes_with(f"attach {sock} --tui")
         capture = processes_with(f"--publish {sock}")
         assert len(viewers) == 1 and len(capture) == 1
-        publisher = [pid for pid in processes_with("sniffer.publish_server") if _parent(pid) == capture[0]]
+        publisher = [pid for pid in processes_with("sniffer.processes.publisher") if _parent(pid) == capture[0]]
         assert len(publisher) == 1  # the capture's viewers are served by a process of its own
         assert _parent(viewers[0]) == proc.pid  # exec'd by the server's shell: no shell in between
         proc.kill()
@@ -490,7 +490,7 @@ def test_viewers_are_served_by_a_process_of_their_own(tmp_path):
     child = str(pub._proc.pid)
     theirs = _sockets(child)
     assert len(theirs) >= 2 and not theirs & _sockets("self")  # listening + the viewer's: in the child only
-    # serving, it gives way as a viewer does (sniffer/giveway.py): its SIGALRM handled (by sched_yield)
+    # serving, it gives way as a viewer does (sniffer/processes/cpu_yield.py): its SIGALRM handled (by sched_yield)
     deadline = time.monotonic() + HANG_S
     while not _catches(child, signal.SIGALRM):
         assert time.monotonic() < deadline, "the publisher never installed its give-way"

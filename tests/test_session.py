@@ -1,4 +1,4 @@
-"""sniffer.session: one precedence rule, one loop, outputs renamed into place, one line for bad input."""
+"""sniffer.capture.session: one precedence rule, one loop, outputs renamed into place, one line for bad input."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from helpers import decoded, export
 from sniffer.cli import main
 from sniffer.events import CaptureInfo
 from sniffer.line import SettingsError
-from sniffer.outputs import Output, OutputError
-from sniffer.session import DEFAULTS, CaptureSpec, LineChoice, Session, layered
-from sniffer.sources.replay import FileSource
+from sniffer.formats.outputs import Output, OutputError
+from sniffer.capture.session import DEFAULTS, CaptureSpec, LineChoice, Session, layered
+from sniffer.sources.files import FileSource
 
 CAPTURES = Path(__file__).resolve().parent.parent / "captures"
 A510 = CAPTURES / "sim" / "a510.mcap"
@@ -81,7 +81,7 @@ def test_session_frames_stream_and_settings_travel_with_the_capture():
 
 
 def test_decode_capture_is_a_stream_not_a_list():
-    from sniffer.session import decode_capture
+    from sniffer.capture.session import decode_capture
 
     session = decode_capture(A510)
     it = iter(session)
@@ -195,7 +195,7 @@ def test_a_stalled_viewer_leaves_no_traceback(tmp_path, capfd):
     import socket
 
     from sniffer.frame import Frame
-    from sniffer.sinks.publish import PublishSink
+    from sniffer.processes.publish_sink import PublishSink
 
     sock = str(tmp_path / "s.sock")
     pub = PublishSink(sock, viewer_queue=200, linger_s=0.2)

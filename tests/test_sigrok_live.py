@@ -15,7 +15,7 @@ import sys
 from sigrok_tools import need_sigrok_cli
 
 from sniffer.sources.logic_options import DeviceSpec, LogicSpec
-from sniffer.sources.replay import FileSource
+from sniffer.sources.files import FileSource
 from sniffer.sources.sigrok_cli import device_source
 
 

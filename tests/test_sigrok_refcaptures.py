@@ -12,7 +12,7 @@ import pytest
 from refdata import SIGROK, SIGROK_NAMES, sigrok_crc_correct_frames, sigrok_line
 
 from helpers import run_events
-from sniffer.sources.bytecsv import open_byte_csv
+from sniffer.formats.bytecsv.reader import open_byte_csv
 
 
 def _our_frames(name: str):

@@ -14,8 +14,8 @@ from refdata import SIGROK, sigrok_crc_correct_frames, sigrok_line
 from sigrok_tools import SR_NAMES, decode_source, need_sigrok_cli, ref_logic
 
 from helpers import run_events
-from sniffer.sources.bytecsv import open_byte_csv
-from sniffer.sources.replay import FileSource
+from sniffer.formats.bytecsv.reader import open_byte_csv
+from sniffer.sources.files import FileSource
 
 
 def _key(f):

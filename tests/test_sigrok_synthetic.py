@@ -21,7 +21,7 @@ from srgen import Trace
 from helpers import fr
 from sniffer.events import Chunk, Tick
 from sniffer.line import LineSettings
-from sniffer.sources import CaptureError
+from sniffer.events import CaptureError
 from sniffer.sources.logic_options import LogicSpec
 from sniffer.sources.sigrok_cli import SigrokSource, file_source
 
@@ -215,7 +215,7 @@ def test_export_to_mcap_replays_to_the_same_frames(tmp_path):
     records = [json.loads(x) for x in direct.stdout.splitlines()]
     assert [json.loads(x) for x in again.stdout.splitlines()] == records
     assert sum("de_on_ns" in r for r in records) == 3
-    from sniffer.sources.replay import FileSource
+    from sniffer.sources.files import FileSource
 
     info = FileSource(out).open()
     assert info.extra["samplerate"] == RATE and info.extra["channel_roles"]["TX+DE"] == "response"

@@ -10,8 +10,8 @@ from __future__ import annotations
 from helpers import fr, run_events
 from sniffer.events import FLAG_FRAMING, FLAG_PARITY, Chunk, Tick
 from sniffer.line import LineSettings
-from sniffer.pipeline import roles_of
-from sniffer.sinks.text import frame_line
+from sniffer.capture.pipeline import roles_of
+from sniffer.formats.text import frame_line
 from sniffer.sources.logic_options import LogicSpec
 from sniffer.sources.sigrok_uart import HOLD_BYTES, SigrokUart, decoder_args
 

@@ -18,7 +18,7 @@ import pytest
 from helpers import demo_records, run_sniffer, simulate_and_decode
 
 from decoders.registry import default_registry
-from sniffer.crc import lrc
+from sniffer.framing.crc import lrc
 from sniffer.simulator import (
     KIND_EXCEPTION,
     KIND_REQUEST,
@@ -217,7 +217,7 @@ def test_simulate_writes_models_and_protocol_so_replay_needs_no_flags(tmp_path):
     out = tmp_path / "spl.mcap"
     r = run_sniffer("simulate", "--scenario", "spl-ascii", "--duration", "4", "--out", str(out))
     assert r.returncode == 0, r.stderr
-    from sniffer.sources.mcapsrc import open_mcap
+    from sniffer.formats.mcap.reader import open_mcap
 
     info, _ = open_mcap(out)
     assert (info.protocol, info.devices, info.databits) == ("modbus-ascii", {1: "spl", 2: "spl"}, 7)
@@ -233,7 +233,7 @@ def test_simulate_writes_models_and_protocol_so_replay_needs_no_flags(tmp_path):
 def test_demo_plays_a_model_scenario_live(tmp_path):
     recs, out = demo_records(tmp_path, "a510-ascii")
     assert all(rec["crc_ok"] and rec["protocol"] == "modbus-ascii" and rec["model"] == "a510" for rec in recs)
-    from sniffer.sources.mcapsrc import open_mcap
+    from sniffer.formats.mcap.reader import open_mcap
 
     info, _ = open_mcap(out)
     assert info.protocol == "modbus-ascii" and info.devices == {1: "a510", 2: "a510"}

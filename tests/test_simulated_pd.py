@@ -19,7 +19,7 @@ from helpers import demo_records, simulate_and_decode
 
 from decoders.pd_series.schema import CNTR_BITS, PARAMS, STATUS
 from sniffer.line import LineSettings
-from sniffer.pd_framer import QUIET_NS
+from sniffer.framing.pd import QUIET_NS
 from sniffer.simulator import (
     KIND_BROADCAST,
     KIND_EXCEPTION,

@@ -18,11 +18,11 @@ from itertools import accumulate
 
 import pytest
 
-from sniffer.crc import crc_bytes, crc_ok
+from sniffer.framing.crc import crc_bytes, crc_ok
 from sniffer.events import Chunk
-from sniffer.framer import RtuFramer
+from sniffer.framing.rtu import RtuFramer
 from sniffer.line import LineSettings
-from sniffer.rtu_layout import candidates
+from sniffer.framing.rtu_lengths import candidates
 from sniffer.simulator import (
     FAULT_BROADCAST_ANSWER,
     FAULT_CRC,

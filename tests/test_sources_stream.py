@@ -23,12 +23,12 @@ from refdata import SIGROK, SIGROK_NAMES
 
 from sniffer.events import Chunk, Gap
 from sniffer.line import LineSettings
-from sniffer.pcap_format import global_header, packet, pcapng_header, pcapng_packet
-from sniffer.sources import CaptureError
-from sniffer.sources.bytecsv import write_byte_csv
-from sniffer.sources.csvstream import PER_BYTE_CHUNK, REORDER_WINDOW
-from sniffer.sources.replay import FORMATS, FileSource, open_replay
-from sniffer.sources.timeparse import seconds_to_ns
+from sniffer.formats.pcap.format import global_header, packet, pcapng_header, pcapng_packet
+from sniffer.events import CaptureError
+from sniffer.formats.bytecsv.reader import write_byte_csv
+from sniffer.formats.csvstream import PER_BYTE_CHUNK, REORDER_WINDOW
+from sniffer.sources.files import FORMATS, FileSource, open_replay
+from sniffer.formats.timeparse import seconds_to_ns
 
 CAPTURES = Path(__file__).resolve().parent.parent / "captures"
 WIZ = SIGROK / "wizmodbus.bytes.csv"
@@ -172,7 +172,7 @@ def test_memory_does_not_grow_with_the_file(tmp_path, monkeypatch):
     The CSV reorder window is made small so that a short file is long next to it; the smaller CSV
     is still long enough to fill the reader's fixed buffers (64 KB blocks of lines, 512-row lists,
     4,096-byte chunks), so that the two peaks compare steady states."""
-    from sniffer.sources import csvstream
+    from sniffer.formats import csvstream
 
     monkeypatch.setattr(csvstream, "REORDER_WINDOW", 64)
 
@@ -457,7 +457,7 @@ def test_triggered_saleae_export_is_shifted_to_start_at_zero(tmp_path):
 
 
 def test_mcap_channels_lost_with_the_first_chunk_come_from_the_summary(tmp_path):
-    from sniffer.mcap_repair import repair
+    from sniffer.formats.mcap.repair import repair
     from test_mcap import _chunk_offsets, make_event, write_capture
 
     p = tmp_path / "first.mcap"
@@ -482,7 +482,7 @@ def _library_capture(path, events) -> None:
     from mcap.writer import Writer
     from test_mcap import INFO
 
-    from sniffer.mcap_format import CHANNELS, METADATA_NAME, RAW_FORMAT, encode_event, info_to_metadata
+    from sniffer.formats.mcap.format import CHANNELS, METADATA_NAME, RAW_FORMAT, encode_event, info_to_metadata
 
     with open(path, "wb") as fh:
         w = Writer(fh)

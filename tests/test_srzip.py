@@ -11,11 +11,11 @@ from srgen import write_sr
 from sniffer.events import Chunk, read_fields
 from sniffer.frame import Frame
 from sniffer.line import SettingsError
-from sniffer.mcap_format import decode_event, encode_event
-from sniffer.records import frame_json, frame_record, frame_from_record, loads
-from sniffer.sources import CaptureError
+from sniffer.formats.mcap.format import decode_event, encode_event
+from sniffer.formats.records import frame_json, frame_record, frame_from_record, loads
+from sniffer.events import CaptureError
 from sniffer.sources.logic_options import DeviceSpec, LogicSpec
-from sniffer.sources.replay import FileSource
+from sniffer.sources.files import FileSource
 from sniffer.sources.srzip import logic_blocks, parse_rate, rate_text, read_meta, sniff
 
 

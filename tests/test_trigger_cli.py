@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from sniffer.sources.mcapsrc import read_frames
+from sniffer.formats.mcap.reader import read_frames
 from sniffer.triggers import read_trigger
 
 SNIFFER = [sys.executable, "-m", "sniffer"]

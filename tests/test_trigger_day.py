@@ -10,8 +10,8 @@ import time
 
 import pytest
 
-from sniffer.session import decode_capture
-from sniffer.sources.mcapsrc import read_frames
+from sniffer.capture.session import decode_capture
+from sniffer.formats.mcap.reader import read_frames
 from sniffer.triggers import read_trigger
 
 SNIFFER = [sys.executable, "-m", "sniffer"]

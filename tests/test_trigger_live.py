@@ -10,7 +10,7 @@ import subprocess
 import sys
 import time
 
-from sniffer.sources.mcapsrc import read_frames
+from sniffer.formats.mcap.reader import read_frames
 from sniffer.triggers import read_trigger
 
 SNIFFER = [sys.executable, "-m", "sniffer"]

@@ -12,8 +12,8 @@ from helpers import ListSink, fr
 
 from sniffer.events import CaptureInfo, Chunk, Tick
 from sniffer.line import LineSettings
-from sniffer.session import CaptureSpec, EventSource, Session
-from sniffer.sources.mcapsrc import open_mcap, read_frames
+from sniffer.capture.session import CaptureSpec, EventSource, Session
+from sniffer.formats.mcap.reader import open_mcap, read_frames
 from sniffer.triggers import TriggerSpec, read_trigger
 from sniffer.triggers.ring import FRAME, RAW, Ring
 

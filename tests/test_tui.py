@@ -5,9 +5,9 @@ import asyncio
 import pytest
 from tui_helpers import demo_viewer, filled_sink, registry_shadow, replay_frames, touches
 
-from sniffer.sources.mcapsrc import read_frames
+from sniffer.formats.mcap.reader import read_frames
 from sniffer.tui.app import SnifferApp
-from sniffer.tui.model import F_PROBLEM
+from sniffer.tui.store import F_PROBLEM
 from sniffer.tui.sink import INTAKE_CHUNK, TuiSink
 
 SIZE = (140, 45)
@@ -376,8 +376,8 @@ def test_replay_feed_thread_end_to_end():
     """The real path: a replay decoded on the feed thread while the App polls."""
     from tui_helpers import SIM
 
-    from sniffer.session import CaptureSpec, Session
-    from sniffer.sources.replay import FileSource
+    from sniffer.capture.session import CaptureSpec, Session
+    from sniffer.sources.files import FileSource
     from sniffer.tui.run import session_app
     from sniffer.tui.sink import TuiSink
 
@@ -406,8 +406,8 @@ def test_replay_feed_thread_end_to_end():
 
 def test_register_watch_of_an_attached_viewer_is_the_decoders_shadow():
     """A viewer attached to a capture gets frame records over a socket, no registry: the records' writes."""
-    from sniffer.records import frame_json, loads
-    from sniffer.tui.model import frame_from_record
+    from sniffer.formats.records import frame_json, loads
+    from sniffer.tui.store import frame_from_record
 
     async def go():
         info, frames, registry = replay_frames("a510.mcap")
@@ -606,7 +606,7 @@ def test_drive_faults_have_their_own_colour_count_and_are_found_by_n():
 
     from sniffer.line import LineSettings
     from sniffer.tui.framelist import S_ERROR, S_EXC, S_FAULT, row_style
-    from sniffer.tui.model import F_FAULT, FrameStore, frame_flags
+    from sniffer.tui.store import F_FAULT, FrameStore, frame_flags
 
     line = LineSettings(19200, "E", 1)
     frames = run_events(bursts([fr("010300000001"), fr("0103020005"),       # a plain read
@@ -629,7 +629,7 @@ def test_a_unit_seen_only_in_crc_bad_frames_is_marked_a_ghost():
     from helpers import bursts, fr, run_events
 
     from sniffer.line import LineSettings
-    from sniffer.tui.model import FrameStore
+    from sniffer.tui.store import FrameStore
     from sniffer.tui.units import unit_cells
 
     line = LineSettings(19200, "E", 1)

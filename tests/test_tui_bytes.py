@@ -9,15 +9,15 @@ from serve_helpers import published
 from tui_helpers import SIM, demo_viewer, filled_sink, frames_from_reads, replay_frames, replay_reads
 
 from decoders.registry import default_registry
-from sniffer.attach import Attachment, attach_feed
+from sniffer.processes.attach import Attachment, attach_feed
 from sniffer.events import Chunk
 from sniffer.line import LineSettings
-from sniffer.pipeline import Pipeline
-from sniffer.reads import Read
-from sniffer.session import CaptureSpec, Session
-from sniffer.sinks.publish import PublishSink
-from sniffer.sources.replay import FileSource, open_replay
-from sniffer.stream_format import CONTROL_PREFIX, parse_reads
+from sniffer.capture.pipeline import Pipeline
+from sniffer.analysis.reads import Read
+from sniffer.capture.session import CaptureSpec, Session
+from sniffer.processes.publish_sink import PublishSink
+from sniffer.sources.files import FileSource, open_replay
+from sniffer.processes.stream import CONTROL_PREFIX, parse_reads
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.byteview import PREFIX, header
 from sniffer.tui.run import session_app

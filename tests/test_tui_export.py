@@ -8,12 +8,12 @@ import pytest
 from tui_helpers import filled_sink, replay_frames
 
 from sniffer.line import LineSettings
-from sniffer.pcap_format import LINKTYPE_USER0
-from sniffer.pipeline import Pipeline
-from sniffer.records import frame_record
-from sniffer.sources.mcapsrc import read_frames
-from sniffer.sources.pcapsrc import read_packets
-from sniffer.sources.replay import open_replay
+from sniffer.formats.pcap.format import LINKTYPE_USER0
+from sniffer.capture.pipeline import Pipeline
+from sniffer.formats.records import frame_record
+from sniffer.formats.mcap.reader import read_frames
+from sniffer.formats.pcap.reader import read_packets
+from sniffer.sources.files import open_replay
 from sniffer.tui.app import SnifferApp
 
 from decoders.registry import default_registry

@@ -1,4 +1,4 @@
-"""Register history (sniffer/tui/history.py) and the plot's model (plotmodel.py), without Textual:
+"""Register history (sniffer/analysis/history.py) and the plot's model (plotmodel.py), without Textual:
 on simulated captures, checked against what the frames themselves carried."""
 
 import functools
@@ -7,8 +7,8 @@ import random
 import pytest
 from tui_helpers import replay_frames
 
-from sniffer.tui.history import BUDGET, CAP, CHANGE, GAP, Series, cap_for
-from sniffer.tui.model import FrameStore
+from sniffer.analysis.history import BUDGET, CAP, CHANGE, GAP, Series, cap_for
+from sniffer.tui.store import FrameStore
 from sniffer.tui.plotaxis import nice_step, tick_text
 from sniffer.tui.plotmodel import PlotSet, TimeWindow, Trace, column_ranges, render
 from sniffer.tui.timebase import TimeBase
@@ -42,7 +42,7 @@ def changes_of(samples: list[tuple[int, int, int]]) -> list[tuple[int, int, int 
 @functools.cache
 def long_a510(seconds: float = 120.0):
     """A 120 s a510 capture (the drives ramp their output frequency up and down), decoded."""
-    from sniffer.session import CaptureSpec, Session
+    from sniffer.capture.session import CaptureSpec, Session
     from sniffer.simulator.scenario import get_scenario
     from sniffer.simulator.sources import SimulatedSource
 
@@ -170,7 +170,7 @@ def test_a_block_reaching_its_cap_together_is_thinned_a_few_histories_per_frame(
     once held the UI for 90 ms.  They queue, the book thins THIN_PER_FRAME of them per frame, none grows
     past twice its cap, and once the queue is empty each is back within its cap and true to its samples."""
     from sniffer.frame import Frame
-    from sniffer.tui.shadow import THIN_PER_FRAME, RegisterBook
+    from sniffer.analysis.register_book import THIN_PER_FRAME, RegisterBook
 
     cap, n, polls = 64, 40, 400
     book = RegisterBook(cap)

@@ -11,12 +11,12 @@ from tui_helpers import frames_from_reads, registry_shadow, screen_text
 from sniffer.events import CaptureInfo, Chunk
 from sniffer.frame import LinkUnit
 from sniffer.line import LineSettings
-from sniffer.session import CaptureSpec, EventSource, Session
+from sniffer.capture.session import CaptureSpec, EventSource, Session
 from sniffer.simulator.bus import simulate
 from sniffer.simulator.chunks import wire_chunks
 from sniffer.simulator.scenario import get_scenario
 from sniffer.tui.app import SnifferApp
-from sniffer.tui.model import FrameStore
+from sniffer.tui.store import FrameStore
 from sniffer.tui.sink import TuiSink
 
 SIZE = (140, 45)
@@ -57,8 +57,8 @@ async def _loaded(app, pilot):
 
 def test_reads_are_marked_with_the_frames_of_their_own_link():
     """The byte view's reads: every link is a stream of its own; reads keep the order they came in."""
-    from sniffer.records import frame_json, loads
-    from sniffer.stream_format import parse_reads, read_item, reads_line
+    from sniffer.formats.records import frame_json, loads
+    from sniffer.processes.stream import parse_reads, read_item, reads_line
 
     info, frames, _, reads = _two_links()
     assert {r.link for r in reads} == set(LINKS)

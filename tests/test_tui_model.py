@@ -9,7 +9,7 @@ from tui_helpers import SIM_CAPTURES, registry_shadow, replay_frames, store_of
 from sniffer.filterlang import Context, Query
 from sniffer.tui.filters import filter_expr, parse_filter
 from sniffer.tui.framepack import pack, unpack
-from sniffer.tui.model import F_EXC, F_NOISE, F_PROBLEM, F_TIMEOUT, Filter, FrameStore, frame_flags
+from sniffer.tui.store import F_EXC, F_NOISE, F_PROBLEM, F_TIMEOUT, Filter, FrameStore, frame_flags
 from sniffer.tui.sink import TuiSink
 
 
@@ -151,13 +151,13 @@ def test_model_and_sink_do_not_import_textual():
     import subprocess
     import sys
 
-    code = ("import sys, sniffer.tui.model, sniffer.tui.sink, sniffer.tui.filters, sniffer.tui.goto; "
+    code = ("import sys, sniffer.tui.store, sniffer.tui.sink, sniffer.tui.filters, sniffer.tui.goto; "
             "sys.exit(1 if any(m == 'textual' or m.startswith('textual.') for m in sys.modules) else 0)")
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
 
 
 def test_records_round_trip_into_the_store():
-    from sniffer.records import frame_record
+    from sniffer.formats.records import frame_record
 
     info, frames, _ = replay_frames()
     a, b = FrameStore(info.t0_ns), FrameStore(info.t0_ns)
@@ -194,7 +194,7 @@ def _all_frames():
 
 
 def test_compact_store_gives_back_what_was_added_across_blocks_and_eviction():
-    from sniffer.records import frame_record
+    from sniffer.formats.records import frame_record
     from sniffer.tui.framepack import pack
 
     info, frames = _all_frames()
@@ -286,7 +286,7 @@ def test_filters_give_the_rows_a_brute_force_check_gives(kw):
 
 
 def test_row_index_takes_frames_out_of_order():
-    from sniffer.tui.model import RowIndex
+    from sniffer.tui.store import RowIndex
 
     ix = RowIndex()
     for row, index in enumerate([0, 1, 5, 3, 6, 7, 2, 9]):
@@ -305,7 +305,7 @@ def _watch(store) -> dict:
 def test_register_watch_is_the_decoders_shadow_locally_and_from_records(name):
     """Local frames and the same frames' JSON records (what an attached viewer gets) build one watch,
     and it is the registry's final shadow."""
-    from sniffer.records import frame_json, loads
+    from sniffer.formats.records import frame_json, loads
 
     info, frames, registry = replay_frames(name)
     local = FrameStore(info.t0_ns)

@@ -7,7 +7,7 @@ from tui_helpers import replay_frames, store_of
 
 from sniffer.tui.framelist import MIN_SUMMARY, fit_columns, format_row
 from sniffer.tui.goto import Target, nearest_shown, parse_goto, resolve
-from sniffer.tui.model import FrameStore
+from sniffer.tui.store import FrameStore
 from sniffer.tui.timebase import REF, REL, WALL, TimeBase, delta_text, parse_duration
 
 S = 1_000_000_000

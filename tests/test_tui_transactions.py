@@ -14,14 +14,14 @@ from tui_helpers import SIM, replay_frames
 
 from decoders.registry import default_registry
 from sniffer.line import LineSettings
-from sniffer.pipeline import Pipeline
-from sniffer.sources.replay import open_replay
+from sniffer.capture.pipeline import Pipeline
+from sniffer.sources.files import open_replay
 from sniffer.tui.app import SnifferApp
 from sniffer.tui.latency import EDGES_MS, histogram_text
-from sniffer.tui.model import F_PROBLEM, FrameStore
+from sniffer.tui.store import F_PROBLEM, FrameStore
 from sniffer.tui.sink import TuiSink
 from sniffer.tui.transactions import BROADCAST, END_OF_CAPTURE, EXCEPTION, NO_RESPONSE, OK, ORPHAN, TIMEOUT
-from sniffer.unitfigures import Latencies, UnitFigures
+from sniffer.analysis.unitfigures import Latencies, UnitFigures
 
 SIZE = (140, 45)
 SCENARIOS = ["a510.mcap", "errors.mcap", "pd-series.mcap", "pd-series-ascii.mcap"]

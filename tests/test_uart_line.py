@@ -10,8 +10,8 @@ import time
 
 from sniffer.events import FLAG_FRAMING, FLAG_PARITY
 from sniffer.line import LineSettings
-from sniffer.parmrk import InputFlags, MarkReader
-from sniffer.pty_settings import PortSettings
+from sniffer.sources.parmrk import InputFlags, MarkReader
+from sniffer.sources.pty_settings import PortSettings
 from sniffer.simulator import get_scenario, simulate
 from sniffer.simulator.received import LiveLine, received
 from sniffer.simulator.simport import SimulatedPort
@@ -111,7 +111,7 @@ def test_pty_line_delivers_what_a_uart_at_the_sniffers_settings_receives(tmp_pat
 
 def test_simulate_receiver_settings_record_what_that_uart_received(tmp_path):
     from sniffer.cli import main
-    from sniffer.sources.mcapsrc import open_mcap, read_frames
+    from sniffer.formats.mcap.reader import open_mcap, read_frames
 
     out = tmp_path / "odd.mcap"
     assert main(["simulate", "--out", str(out), "--duration", "1", "--adapter", "wire",

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from sniffer.cli import build_parser
-from sniffer.settings import CaptureSpec
+from sniffer.capture.settings import CaptureSpec
 
 UNIT = Path(__file__).resolve().parent.parent / "docs" / "sniffer.service"
 

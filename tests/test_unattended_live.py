@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from sniffer.segments import INDEX_NAME, STATUS_NAME
+from sniffer.formats.mcap.segments import INDEX_NAME, STATUS_NAME
 
 SNIFFER = [sys.executable, "-m", "sniffer"]
 HANG_S = 60  # a state not reached by then is a failure, not a slow machine

@@ -1,4 +1,4 @@
-"""One set of per-unit figures in every view (sniffer/unitfigures.py; the README's "What the figures mean").
+"""One set of per-unit figures in every view (sniffer/analysis/unitfigures.py; the README's "What the figures mean").
 
 One capture goes through every view a user has (the TUI's Units tab under Pilot, the HTML report, the
 status file and `sniffer status`, `sniffer diff`, the MQTT health topics on a real broker, the fleet
@@ -19,9 +19,9 @@ from broker import retained
 
 from sniffer.codes import CATEGORY, Annotation
 from sniffer.frame import Frame, unit_key
-from sniffer.session import decode_capture
-from sniffer.settings import CaptureSpec
-from sniffer.unitfigures import Latencies, UnitBook
+from sniffer.capture.session import decode_capture
+from sniffer.capture.settings import CaptureSpec
+from sniffer.analysis.unitfigures import Latencies, UnitBook
 
 ROOT = Path(__file__).resolve().parent.parent
 COUNTS = ("requests", "responses", "crc_errors", "exceptions", "timeouts", "retries", "faults", "alarms", "late",
@@ -56,7 +56,7 @@ def nearest_rank(values: list[float], q: float) -> float:
 
 
 def expected(frames) -> dict[str, dict]:
-    """Every unit's figures by the README's definitions, counted from the frames without sniffer.unitfigures."""
+    """Every unit's figures by the README's definitions, counted from the frames without analysis/unitfigures.py."""
     units: dict[str, dict] = {}
     lat: dict[str, list] = {}
     for f in frames:

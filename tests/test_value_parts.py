@@ -16,7 +16,7 @@ import pytest
 from helpers import decoded, simulated
 
 from sniffer.cli import main
-from sniffer.sources.replay import FileSource
+from sniffer.sources.files import FileSource
 
 KEY = "decoder_state"  # what a part starts with, in its metadata (decoders/carry.py)
 LATE_CN02 = ("--scenario", "tds-v8", "--param", "startup_polls=()", "--duration", "30", "--seed", "3")
@@ -150,7 +150,7 @@ def test_a_dataset_of_segments_keeps_one_unit_per_name(folder, tmp_path, capsys)
 
 
 def test_mqtt_and_foxglove_keep_a_provisional_value_on_a_topic_of_its_own(whole):
-    from sniffer.foxglove import Foxglove
+    from sniffer.formats.mcap.foxglove import Foxglove
     from sniffer.mqtt.bridge import Bridge
     from sniffer.mqtt.options import MqttSpec, parse_url
 

@@ -23,8 +23,8 @@ from sniffer.events import CaptureInfo
 from sniffer.filterlang import Context, Query
 from sniffer.filterlang.facts import register_ids
 from sniffer.line import LineSettings
-from sniffer.pipeline import Pipeline
-from sniffer.session import CaptureSpec
+from sniffer.capture.pipeline import Pipeline
+from sniffer.capture.session import CaptureSpec
 
 LATE_CN02 = ("--scenario", "tds-v8", "--param", "startup_polls=()", "--duration", "30", "--seed", "3")
 SCALED = {r.name for r in load_map(TDS_MAP).registers.values() if r.scale_by}  # "Output frequency", ...
@@ -66,7 +66,7 @@ def test_a_value_scaled_by_a_register_not_known_yet_is_provisional_and_named_apa
 
 def test_the_register_watch_and_the_report_draw_percent_and_hz_as_two_series(late):
     from sniffer.report.collect import Collector
-    from sniffer.tui.model import FrameStore
+    from sniffer.tui.store import FrameStore
 
     info, frames, first = late
     store = FrameStore(info.t0_ns)
@@ -146,8 +146,8 @@ def test_a_unit_is_drawn_as_its_model_only_from_its_identification_on(tmp_path, 
     generic registers (raw numbers), the rest as the A510's, scaled.  The report's trends and the TUI's
     register history draw each under what it was decoded as: no Hz trend holds a raw generic number."""
     from sniffer.report.collect import Collector
-    from sniffer.session import decode_capture
-    from sniffer.tui.shadow import RegisterBook
+    from sniffer.capture.session import decode_capture
+    from sniffer.analysis.register_book import RegisterBook
 
     csv = simulated(tmp_path_factory, "a510.csv", "--scenario", "a510", "--duration", "8", "--seed", "2")
     session = decode_capture(csv, CaptureSpec.of(baud=19200, parity="N", stopbits=1))

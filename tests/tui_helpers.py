@@ -8,9 +8,9 @@ from pathlib import Path
 
 from decoders.registry import default_registry
 from sniffer.line import LineSettings
-from sniffer.pipeline import Pipeline
-from sniffer.sources.replay import open_replay
-from sniffer.tui.model import FrameStore
+from sniffer.capture.pipeline import Pipeline
+from sniffer.sources.files import open_replay
+from sniffer.tui.store import FrameStore
 from sniffer.tui.sink import TuiSink
 
 SIM = Path(__file__).resolve().parent.parent / "captures" / "sim"
@@ -38,12 +38,12 @@ def replay_frames(name: str = "errors.mcap"):
 
 
 def replay_reads(name: str = "errors.mcap"):
-    """The capture's reads as the TUI's sink marked them with their frames (sniffer.reads)."""
+    """The capture's reads as the TUI's sink marked them with their frames (sniffer.analysis.reads)."""
     return _decode(name)[3]
 
 
 def frames_from_reads(reads) -> dict[int, bytes]:
-    """Each frame's bytes put together from reads (sniffer.reads), byte by byte, by the frame each went to."""
+    """Each frame's bytes put together from reads (sniffer.analysis.reads), byte by byte, by the frame each went to."""
     got: dict[int, bytearray] = {}
     for r in reads:
         for k, b in enumerate(r.data):
@@ -90,7 +90,7 @@ def filled_sink(name: str = "errors.mcap") -> TuiSink:
 def demo_viewer(tmp_path, scenario: str, seconds: float, **spec):
     """`sniffer demo` with the TUI, as run_capture_tui runs it: the capture (the simulated bus on a pty,
     captured to an MCAP) a process of its own, the App attached to it over the capture's socket."""
-    from sniffer.session import CaptureSpec
+    from sniffer.capture.session import CaptureSpec
     from sniffer.tui.run import CaptureViewer
 
     out = str(tmp_path / "d.mcap")

@@ -5,7 +5,7 @@ nobody when the capture only goes to JSONL or MCAP.  `RegisterBlock` keeps the
 table, first address, values and the ADU offset of the first value instead;
 `Frame.points` turns it into the list of dicts the first time it is read, and
 the JSON record is joined from a cached template of the block's constant parts
-(names, addresses, spans) with the values' digits (sniffer.records).  Polls read
+(names, addresses, spans) with the values' digits (sniffer.formats.records).  Polls read
 the same blocks over and over, so the templates, names and spans are cached per
 (table, address, count, offset).
 
@@ -84,7 +84,7 @@ class _Shape:
         self.last_json = self.last_summary = None
 
 
-SUMMARY_LIMIT = 6  # points a summary names (GenericModbus's _points_summary)
+SUMMARY_LIMIT = 6  # points a summary names (GenericModbus's points_summary)
 
 
 def _summary_template(space: str, addr: int, n: int, limit: int) -> str:
@@ -149,7 +149,7 @@ class RegisterBlock:
         return data
 
     def summary(self, limit: int = SUMMARY_LIMIT) -> str:
-        """What _points_summary says of these points: "holding[8448]=1 holding[8449]=2 ... (+n)"."""
+        """What points_summary says of these points: "holding[8448]=1 holding[8449]=2 ... (+n)"."""
         values, shape = self.values, self.shape
         if limit != SUMMARY_LIMIT:
             return _summary_template(shape.space, shape.addr, len(values), limit) % tuple(values[:limit])

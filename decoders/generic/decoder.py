@@ -182,7 +182,7 @@ class GenericModbus:
         else:
             f.annotations.append(note(NO_REQUEST_CONTEXT, "register numbers unknown", 2, n))
         pts = f.points = self._points(space, addr, values, state, 3)
-        f.summary = _points_summary(pts)
+        f.summary = points_summary(pts)
 
     def _read_bits_rsp(self, f, adu, request, state):  # 0x01 / 0x02 response: count, packed bits
         n = len(adu)
@@ -204,7 +204,7 @@ class GenericModbus:
         if addr is not None and f.crc_ok and bits:
             state.commit(f, space, addr, bits)
         pts = f.points = self._points(space, addr, bits, state, 3)
-        f.summary = _points_summary(pts)
+        f.summary = points_summary(pts)
 
     def _write_single(self, f, adu, request, state):  # 0x05 / 0x06, both ways: address, value
         if len(adu) < 6:
@@ -243,7 +243,7 @@ class GenericModbus:
         if f.unit == 0 and f.crc_ok and values:  # a broadcast is answered by nobody: written at once
             state.commit(f, space, a, values)
         f.points = pts
-        f.summary = "write " + _points_summary(pts)
+        f.summary = "write " + points_summary(pts)
 
     def _write_multi_rsp(self, f, adu, request, state):  # 0x0F / 0x10 response: address, quantity
         if len(adu) < 6:
@@ -282,7 +282,7 @@ class GenericModbus:
                 if values:
                     state.commit(f, "holding", addr, values)
             pts = f.points = self._points("holding", addr, values, state, 3)
-            f.summary = _points_summary(pts)
+            f.summary = points_summary(pts)
         else:  # a 0x17 response is laid out as a 0x03 one
             self._read_regs_rsp(f, f.adu, None, state)
 
@@ -390,7 +390,7 @@ def _pt_text(pt: dict) -> str:
     return f"{pt['name']}={pt['value']}{' ' + unit if unit else ''}{' [' + text + ']' if text else ''}"
 
 
-def _points_summary(pts, limit: int = 6) -> str:
+def points_summary(pts, limit: int = 6) -> str:
     if type(pts) is RegisterBlock:
         return pts.summary(limit)
     text = " ".join([f"{p['name']}={p['value']}" if not p["unit"] and not p.get("text") else _pt_text(p)

@@ -2,7 +2,7 @@
 
 Each entry maps (function, role) to a compiled construct Struct that parses
 the PDU body: the bytes after the function code and before the CRC.  The CRC
-is checked outside construct (sniffer.crc).  Only `this.*` expressions are
+is checked outside construct (sniffer.framing.crc).  Only `this.*` expressions are
 used, never lambdas, so the layouts stay compilable.
 
 We parse with the interpreted (uncompiled) Structs: construct 2.10's

@@ -37,8 +37,8 @@ _ORDER_SUFFIX = re.compile(r"^(?P<t>[a-z0-9]+?)[_ ]?(?P<o>abcd|cdab|badc|dcba|be
 
 
 def read_text(path: str) -> str:
-    """The file as text (UTF-8, a BOM allowed), or MapError naming it (sniffer.tomlfile.read_text's checks)."""
-    from sniffer.tomlfile import read_text as read_small_text
+    """The file as text (UTF-8, a BOM allowed), or MapError naming it (decoders.tomlfile.read_text's checks)."""
+    from decoders.tomlfile import read_text as read_small_text
 
     return read_small_text(path, MapError, "a register map", bom=True)
 

@@ -58,7 +58,10 @@ class PdSeriesDecoder:
 
     def tables(self) -> dict:
         """The protocol's tables (schema.py) as JSON rows, for a capture to carry (decoders.mapfile)."""
-        from ..mapfile import dataclass_rows
+        import dataclasses
+
+        def dataclass_rows(rows) -> list[dict]:
+            return [dataclasses.asdict(r) for r in rows]
 
         return {
             "source": "decoders/pd_series/schema.py (the manual: pd-series-protocol.txt, 'line' = its line)",

@@ -4,7 +4,7 @@ Source: shared/manuals/pd-series-protocol.txt ("l.N" = line N).  Every row
 cites its line so a reviewer can hold it against the manual.  The frame is
 ADDR FUNC LEN DATA check (l.64, l.203); these layouts parse DATA only, the
 bytes after LEN (ADU offset 3 on).  Checksums stay outside construct
-(sniffer.crc).  Interpreted Structs, only `this`-free fixed layouts.
+(sniffer.framing.crc).  Interpreted Structs, only `this`-free fixed layouts.
 
 Reading of LEN (the manual contradicts itself, see NOTES.md): LEN counts the
 bytes between LEN and the check.  In 01H/02H the DATA starts with the

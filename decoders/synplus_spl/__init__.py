@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from ..model import TableDecoder
+from decoders.table_decoder import TableDecoder
 from ..tables import load_map
 
 MAP_PATH = Path(__file__).with_name("registers.toml")

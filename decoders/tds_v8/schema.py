@@ -15,7 +15,7 @@ from sniffer.codes import TDS_PRG_ONLY as PRG_ONLY
 from sniffer.codes import note
 from sniffer.frame import RESPONSE
 
-from ..model import TableDecoder
+from decoders.table_decoder import TableDecoder
 from ..tables import load_map
 
 MAP_PATH = Path(__file__).with_name("registers.toml")

@@ -26,7 +26,7 @@ from sniffer.codes import A510_SWITCHED as SWITCHED
 from sniffer.codes import note
 from sniffer.frame import RESPONSE
 
-from ..model import TableDecoder
+from decoders.table_decoder import TableDecoder
 from ..tables import Register, load_map
 
 RULE = "a510_fmax_over_300hz"

@@ -1,4 +1,4 @@
-"""The commands: each a few lines that pick a source and sinks and run a sniffer.session.Session.
+"""The commands: each a few lines that pick a source and sinks and run a sniffer.capture.session.Session.
 
     capture.py   live, demo          replay.py   replay, decode
     simulate.py  simulate            export.py   export

@@ -10,17 +10,17 @@ from __future__ import annotations
 
 import sys
 
-from ..session import Session, on_signals
-from ..settings import CaptureSpec
-from .common import (
+from sniffer.capture.session import Session, on_signals
+from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.common import (
     UsageError, capture_sinks, default_capture_name, destination, report, say, summary_line, tui_wanted,
 )
 
 
 def cmd_live(spec: CaptureSpec, args) -> int:
-    from ..sources.reader_process import live_source
+    from sniffer.processes.reader import live_source
 
-    from ..sources.logic_options import is_device
+    from sniffer.sources.logic_options import is_device
 
     if not spec.port:
         raise UsageError("live: give a PORT (several for several links), --tap PORT_A PORT_B, "
@@ -37,7 +37,7 @@ def cmd_live(spec: CaptureSpec, args) -> int:
         label = " ".join(plan.name for plan in spec.links)
         ports = [p for plan in spec.links for p in plan.ports]
         if tui_wanted(spec):
-            from ..tui.run import run_capture_tui
+            from sniffer.tui.run import run_capture_tui
 
             return run_capture_tui(spec, "live", label)
         return _capture(spec, live_source("links", plans), label, inputs=ports,
@@ -45,7 +45,7 @@ def cmd_live(spec: CaptureSpec, args) -> int:
                             f"{p.name} ({' + '.join(p.ports)}{', tapped' if p.tap else ''})" for p, _ in plans))
     line = spec.resolve(None, need_baud=False).line  # flags > bus file > defaults: the port's settings
     if tui_wanted(spec):
-        from ..tui.run import run_capture_tui
+        from sniffer.tui.run import run_capture_tui
 
         return run_capture_tui(spec, "live", spec.port)
     source = live_source("serial", spec.port, line)
@@ -54,8 +54,8 @@ def cmd_live(spec: CaptureSpec, args) -> int:
 
 def _live_logic(spec: CaptureSpec) -> int:
     """`live sigrok:DRIVER --rx CH ...`: a logic analyzer read continuously by sigrok-cli (sources/sigrok_cli.py)."""
-    from ..sources.logic_options import DeviceSpec, is_device
-    from ..sources.sigrok_cli import device_source
+    from sniffer.sources.logic_options import DeviceSpec, is_device
+    from sniffer.sources.sigrok_cli import device_source
 
     if not is_device(spec.port):
         raise UsageError(f"--rx/--tx/--de are for a logic analyzer: give sigrok:DRIVER (e.g. sigrok:fx2lafw), "
@@ -64,7 +64,7 @@ def _live_logic(spec: CaptureSpec) -> int:
         raise UsageError(f"{spec.port}: say which channel carries the line: --rx CHANNEL (and --baud)")
     device = DeviceSpec.parse(spec.port)
     if tui_wanted(spec):
-        from ..tui.run import run_capture_tui
+        from sniffer.tui.run import run_capture_tui
 
         return run_capture_tui(spec, "live", spec.port)
     source = device_source(device, spec.logic)  # no sigrok-cli, no such driver or channel: one line, nothing made
@@ -74,13 +74,13 @@ def _live_logic(spec: CaptureSpec) -> int:
 
 
 def cmd_demo(spec: CaptureSpec, args) -> int:
-    from ..simulator.sources import DemoSource, scenario_named
+    from sniffer.simulator.sources import DemoSource, scenario_named
 
     if args.no_out:
         spec = spec.with_(out=None)
     scenario = scenario_named(spec.scenario or "default")
     if tui_wanted(spec):
-        from ..tui.run import run_capture_tui
+        from sniffer.tui.run import run_capture_tui
 
         return run_capture_tui(spec, "demo", f"demo {scenario.name}")
     source = DemoSource(scenario, spec.seed, spec.duration_s)
@@ -105,7 +105,7 @@ def _capture(spec: CaptureSpec, source, label: str, inputs=(), what=None, status
     session = capture_session(spec, source, label, inputs=inputs, status_label=status_label)
     on_signals(session.stop)
     if spec.wait_port and inputs:  # a live capture's inputs are its ports: of every link, both of a --tap
-        from ..status import wait_for_ports
+        from sniffer.capture.status import wait_for_ports
 
         if not wait_for_ports(list(inputs), session.stop, session.status_path(), status_label or label):
             return report(session)  # stopped while waiting: nothing captured, nothing to say

@@ -4,15 +4,83 @@ from __future__ import annotations
 
 import sys
 
-from ..golden import Tolerances, check
-from ..settings import CaptureSpec
+import os
+from pathlib import Path
+
+from sniffer.analysis.check import (
+    EXIT_DIFFERENT, EXIT_ERROR, EXIT_SAME, GoldenSink, Tolerances, compare_lines, golden_lines, golden_version,
+    read_lines,
+)
+from sniffer.capture.settings import CaptureSpec
 
 
 def cmd_check(spec: CaptureSpec, args) -> int:
-    from ..settings import finite
+    from sniffer.capture.settings import finite
 
     tol = Tolerances(finite(args.time_tol_ms, "--time-tol-ms", upper=1e9),
                      finite(args.latency_tol_ms, "--latency-tol-ms", upper=1e9))
     rc, text = check(spec.input, args.golden, spec=spec, update=args.update_golden, tolerances=tol)
     (sys.stdout if rc == 1 else sys.stderr).write(text)
     return rc
+
+
+def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
+          update: bool = False) -> tuple[int, str]:
+    """(exit code, text): 0 same, 1 different (unified diff), 2 error (one line)."""
+    from decoders.registry import DeviceMapError
+
+    from sniffer.line import SettingsError
+    from sniffer.formats.outputs import Output
+    from sniffer.capture.session import decode_capture
+    from sniffer.events import CaptureError
+
+    tol = tolerances or Tolerances()
+    golden = Path(golden)
+    name = f"{golden}"
+    try:
+        if update:
+            golden.parent.mkdir(parents=True, exist_ok=True)  # a new golden folder is part of --update-golden
+            out = Output(golden, inputs=[capture], what="--golden")
+            sink = GoldenSink(out)
+            err = "interrupted"
+            try:
+                session = decode_capture(capture, spec, [sink])
+                new = golden_lines(session.info.t0_ns, session)
+                d = ""
+                if golden.exists():
+                    d = compare_lines(read_lines(golden), new, Tolerances(0, 0), (name, os.fspath(capture)))
+                for _ in new:  # decode what the comparison did not need
+                    pass
+                err = _failed(session)
+            finally:
+                sink.close()
+                if err:  # a golden from a damaged or failed decode would be wrong: keep the old one
+                    out.discard()
+                else:
+                    out.commit()
+            if err:
+                return EXIT_ERROR, f"sniffer check: error: {err}\n"
+            return EXIT_SAME, f"sniffer check: wrote {golden} ({session.frames_out} frames)\n" + d
+        session = decode_capture(capture, spec)
+        if not golden.exists():
+            session.close()
+            return EXIT_ERROR, (f"sniffer check: error: {golden}: no such golden file "
+                                "(create it with --update-golden, then review it)\n")
+        d = compare_lines(read_lines(golden), golden_lines(session.info.t0_ns, session, golden_version(golden)), tol,
+                          (name, os.fspath(capture)))
+        err = _failed(session)
+        if err:
+            return EXIT_ERROR, f"sniffer check: error: {err}\n"
+    except (CaptureError, SettingsError, DeviceMapError, ValueError, OSError) as e:
+        why = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.filename else str(e)
+        return EXIT_ERROR, f"sniffer check: error: {why}\n"
+    return (EXIT_DIFFERENT, d) if d else (EXIT_SAME, "")
+
+
+def _failed(session) -> str | None:
+    """Why a decode cannot be trusted (input error or damage), or None."""
+    if session.error:
+        return session.error
+    if session.damage:
+        return f"{session.damage[0]} (input damaged: {len(session.damage)} problem(s))"
+    return None

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import os
 import sys
-import time
 
-from ..session import Session
-from ..settings import CaptureSpec
-from ..sinks import FileSink
-from ..stderr import say  # noqa: F401 - the commands' one line on stderr
+from sniffer.capture.session import Session
+from sniffer.capture.settings import CaptureSpec
+from sniffer.formats import FileSink
+from sniffer.stderr import say  # noqa: F401 - the commands' one line on stderr
+from sniffer.capture.summary import default_capture_name, summary_line, written  # noqa: F401 - re-exported
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -21,25 +20,21 @@ class UsageError(Exception):
 def stream_sink(spec: CaptureSpec, line_buffered: bool):
     """The text or JSONL stream on stdout (None with --quiet)."""
     if spec.stream == "jsonl":
-        from ..sinks.jsonl import JsonlSink
+        from sniffer.formats.jsonl import JsonlSink
 
         return JsonlSink(sys.stdout.buffer, flush=line_buffered)
     if spec.stream == "text":
-        from ..sinks.text import TextSink
+        from sniffer.formats.text import TextSink
 
         return TextSink(sys.stdout, flush=line_buffered)
     return None
-
-
-def default_capture_name() -> str:
-    return time.strftime("sniffer-%Y%m%d-%H%M%S.mcap")
 
 
 def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=(), line_buffered=True) -> list:
     """A capture's sinks: the stdout stream, the MCAP file (or its segments, --rotate), viewers on a
     socket (last: the file is closed before viewers are let go).  Outputs are checked (and the socket
     bound) now, before the port opens."""
-    from ..sinks.publish import PublishSink
+    from sniffer.processes.publish_sink import PublishSink
 
     sinks = []
     if stream:
@@ -48,7 +43,7 @@ def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=(), line
             sinks.append(s)
     ring = spec.trigger is not None and spec.trigger.ring  # --ring: only the windows
     if spec.out and spec.rotate is not None and not ring:
-        from ..sinks.segments import SegmentPlan
+        from sniffer.formats.mcap.rotating import SegmentPlan
 
         sinks.append(SegmentPlan(spec.out, spec.rotate, spec.keep, inputs=inputs))
     elif spec.out and not ring:
@@ -59,26 +54,12 @@ def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=(), line
     return sinks
 
 
-def written(session: Session) -> str:
-    """'; MCAP cab3.mcap (123456 bytes)' for the files a session wrote, or ''."""
-    parts = []
-    for o in session.outputs:
-        try:
-            size = os.path.getsize(o.path)
-        except OSError:
-            continue
-        kind = os.path.splitext(o.path)[1].lstrip(".").upper() or "file"
-        parts.append(f"{kind} {o.path} ({size} bytes)")
-    parts += [s.written_text for s in session.sinks if hasattr(s, "written_text")]
-    return "; " + ", ".join(parts) if parts else ""
-
-
 def destination(spec: CaptureSpec, session: Session) -> str:
     """' -> cab3.mcap (written as cab3.mcap.part until the capture ends)', or the segments' folder, or ''."""
     if not spec.out:
         return ""
     if spec.rotate is not None:
-        from ..segments import folder_for
+        from sniffer.formats.mcap.segments import folder_for
 
         keep = f", keeping {spec.keep.describe()}" if spec.keep else ""
         return (f" -> segments in {folder_for(spec.out)}/ (a new one every {spec.rotate.describe()}{keep}; "
@@ -86,11 +67,6 @@ def destination(spec: CaptureSpec, session: Session) -> str:
     if not session.outputs:
         return ""  # --ring: only the trigger windows are written
     return f" -> {spec.out} (written as {session.outputs[0].part} until the capture ends)"
-
-
-def summary_line(session: Session) -> str:
-    return (f"sniffer: {session.frames_out} frames, {session.bytes_in} bytes, {session.noise_bytes} noise bytes"
-            f"{written(session)}")
 
 
 def report(session: Session, *, label: str = "") -> int:

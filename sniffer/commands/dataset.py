@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import os
 
-from ..dataset.ingest import Failed, Skipped, Taken, take_in
-from ..dataset.layout import Known, create_dataset
-from ..outputs import shown
-from ..settings import CaptureSpec
-from .common import EXIT_FAILED, EXIT_OK, EXIT_USAGE, UsageError, say
+from sniffer.dataset.ingest import Failed, Skipped, Taken, take_in
+from sniffer.dataset.layout import Known, create_dataset
+from sniffer.formats.outputs import shown
+from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.common import EXIT_FAILED, EXIT_OK, EXIT_USAGE, UsageError, say
 
 
 def export_dataset(spec: CaptureSpec, args, files: list[str], root: str) -> int:
@@ -71,6 +71,6 @@ def _take_in(spec: CaptureSpec, args, files: list[str], root: str) -> int:
 
 
 def _bar(path: str, args):
-    from ..progress import ReplayProgress
+    from sniffer.capture.progress import ReplayProgress
 
     return ReplayProgress(path)

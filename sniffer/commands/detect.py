@@ -12,19 +12,19 @@ from __future__ import annotations
 
 import sys
 
-from ..detect.candidates import baud_order, parse_bauds, setting
-from ..detect.evidence import Evidence
-from ..detect.listen import SerialPort, listen
-from ..detect.report import bus_file, headline, table, units, verdict_word
-from ..detect.search import Search
-from ..outputs import Output
-from ..settings import CaptureSpec
-from .common import EXIT_FAILED, EXIT_OK, UsageError, say
+from sniffer.detect.candidates import baud_order, parse_bauds, setting
+from sniffer.detect.evidence import Evidence
+from sniffer.detect.listen import SerialPort, listen
+from sniffer.detect.report import bus_file, headline, table, units, verdict_word
+from sniffer.detect.search import Search
+from sniffer.formats.outputs import Output
+from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.common import EXIT_FAILED, EXIT_OK, UsageError, say
 
 
 def cmd_detect(spec: CaptureSpec, args) -> int:
-    from ..sources.logic_options import is_device
-    from ..sources.srzip import sniff
+    from sniffer.sources.logic_options import is_device
+    from sniffer.sources.srzip import sniff
 
     if is_device(spec.port) or sniff(spec.port):
         return _detect_logic(spec, args)
@@ -80,11 +80,11 @@ LIVE_LISTEN_S = 10.0  # a live analyzer is read this long (less with --max-time)
 
 def _detect_logic(spec: CaptureSpec, args) -> int:
     """`detect FILE.sr` / `detect sigrok:DRIVER`: bit widths from the samples, checked by sigrok's UART decode."""
-    from ..busfile import BusFile, format_bus_file
-    from ..detect.logic import detect_logic, summary, table
-    from ..sources.logic_options import DeviceSpec, LogicSpec, is_device
-    from ..sources.sigrok_cli import DEFAULT_RATE, SigrokSource, device_channels, file_source
-    from ..sources.srzip import read_meta
+    from sniffer.capture.busfile import BusFile, format_bus_file
+    from sniffer.detect.logic import detect_logic, summary, table
+    from sniffer.sources.logic_options import DeviceSpec, LogicSpec, is_device
+    from sniffer.sources.sigrok_cli import DEFAULT_RATE, SigrokSource, device_channels, file_source
+    from sniffer.sources.srzip import read_meta
 
     where = spec.port
     wanted = [spec.logic.rx] if spec.logic is not None else None
@@ -139,7 +139,7 @@ def _detect_logic(spec: CaptureSpec, args) -> int:
               f"{settled.databits} data bits)")
     if out is not None:
         m = next(c.measurement for c in verdicts if c.verdict == "settled")
-        from ..detect.logic import protocol_of
+        from sniffer.detect.logic import protocol_of
 
         bus = BusFile(m.baud, m.parity, m.stopbits, protocol_of(m).name, m.databits if m.databits != 8 else None)
         text = format_bus_file(bus, [f"written by `sniffer detect {where}`: {line}",

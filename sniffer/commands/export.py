@@ -9,11 +9,11 @@ was written so far (a valid, shorter file).
 
 from __future__ import annotations
 
-from ..session import Session
-from ..settings import CaptureSpec
-from ..sinks import FileSink
-from .common import UsageError, report, say
-from .replay import file_source
+from sniffer.capture.session import Session
+from sniffer.capture.settings import CaptureSpec
+from sniffer.formats import FileSink
+from sniffer.commands.common import UsageError, report, say
+from sniffer.commands.replay import file_source
 
 
 def cmd_export(spec: CaptureSpec, args) -> int:
@@ -24,7 +24,7 @@ def cmd_export(spec: CaptureSpec, args) -> int:
             raise UsageError("--to dataset needs the dataset folder: --to dataset DIR")
         if not files:
             raise UsageError("export needs a capture file: sniffer export CAPTURE... --to dataset DIR")
-        from .dataset import export_dataset
+        from sniffer.commands.dataset import export_dataset
 
         return export_dataset(spec, args, files, root)
     if len(files) != 1:
@@ -41,7 +41,7 @@ def cmd_export(spec: CaptureSpec, args) -> int:
     session = Session(spec, source, [sink])
     bar = None
     if args.progress:
-        from ..progress import ReplayProgress
+        from sniffer.capture.progress import ReplayProgress
 
         bar = ReplayProgress(spec.input, source=source, frames=lambda: session.frames_out)
         session.on_event = bar.update

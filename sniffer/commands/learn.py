@@ -1,4 +1,4 @@
-"""`sniffer learn CAPTURE --out map.toml`: a skeleton register map from a capture's traffic (sniffer.learn).
+"""`sniffer learn CAPTURE --out map.toml`: a skeleton register map from a capture's traffic (sniffer.analysis.learn).
 
 The map's model id is the output file's stem; it loads with --model-file and decodes the same
 capture with its placeholder names.  Written as NAME.part and renamed when complete; an output
@@ -9,17 +9,17 @@ from __future__ import annotations
 
 import os
 
-from ..outputs import Output, shown
-from ..session import Session
-from ..settings import CaptureSpec
-from .common import EXIT_USAGE, UsageError, report, say
-from .replay import file_source
+from sniffer.formats.outputs import Output, shown
+from sniffer.capture.session import Session
+from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.common import EXIT_USAGE, UsageError, report, say
+from sniffer.commands.replay import file_source
 
 
 def cmd_learn(spec: CaptureSpec, args) -> int:
     from decoders.tables import MapError, load_map
 
-    from ..learn import Learner
+    from sniffer.analysis.learn import Learner
 
     if not args.out.lower().endswith(".toml"):
         raise UsageError(f"--out {shown(args.out)}: the skeleton is a register map, give a .toml file name")
@@ -27,7 +27,7 @@ def cmd_learn(spec: CaptureSpec, args) -> int:
     model_id = os.path.splitext(os.path.basename(out.path))[0]
     learner = Learner()
     session = Session(spec, file_source(spec), [])
-    from ..protocols import PROTOCOLS
+    from sniffer.protocols import PROTOCOLS
 
     try:
         for f in session:

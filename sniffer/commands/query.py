@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import sys
 
-from ..dataset.layout import open_dataset
-from ..dataset.query import PRESETS, VIEWS, connect, write
-from ..settings import CaptureSpec
-from .common import EXIT_OK, UsageError
+from sniffer.dataset.layout import open_dataset
+from sniffer.dataset.query import PRESETS, VIEWS, connect, write
+from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.common import EXIT_OK, UsageError
 
 
 def cmd_query(spec: CaptureSpec, args) -> int:

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import os
 
-from ..mcap_repair import default_output, repair
-from ..outputs import Output, readable, shown
-from ..settings import CaptureSpec
-from ..sources import CaptureError
-from .common import EXIT_OK, say
+from sniffer.formats.mcap.repair import default_output, repair
+from sniffer.formats.outputs import Output, readable, shown
+from sniffer.capture.settings import CaptureSpec
+from sniffer.events import CaptureError
+from sniffer.commands.common import EXIT_OK, say
 
 
 def cmd_repair(spec: CaptureSpec, args) -> int:

@@ -4,17 +4,17 @@ from __future__ import annotations
 
 import sys
 
-from ..events import CaptureInfo, Chunk
-from ..session import Session
-from ..settings import CaptureSpec
-from .common import UsageError, report, say, stream_sink
+from sniffer.events import CaptureInfo, Chunk
+from sniffer.capture.session import Session
+from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.common import UsageError, report, say, stream_sink
 
 
 def file_source(spec: CaptureSpec):
     """The capture of a replay-like command: one file (a killed capture's part file when only that is
     there), or a set read as one capture: several files, a rotated capture's folder or its index."""
-    from ..outputs import readable
-    from ..sources.segset import capture_source, is_set
+    from sniffer.formats.outputs import readable
+    from sniffer.sources.segset import capture_source, is_set
 
     if is_set(spec.inputs or spec.input):
         return capture_source(spec.inputs, spec.input_format)
@@ -34,49 +34,49 @@ def cmd_replay(spec: CaptureSpec, args) -> int:
     if args.tui:
         if not (sys.stdout.isatty() and sys.stdin.isatty()):
             raise UsageError("replay --tui needs a terminal (stdin and stdout); without one, leave out --tui")
-        from ..tui.run import run_session_tui
-        from ..tui.sink import TuiSink
+        from sniffer.tui.run import run_session_tui
+        from sniffer.tui.sink import TuiSink
 
         sink = TuiSink()
         session = Session(spec, source, [sink])
         session.open()
-        _note_unfinished(session)
+        note_unfinished(session)
         rc = run_session_tui(session, sink, source_label=spec.input)
         return rc or report(session, label=spec.input)
     bar = None
     session = Session(spec, source, [s for s in (stream_sink(spec, line_buffered=False),) if s is not None])
     if args.progress:
-        from ..progress import ReplayProgress
+        from sniffer.capture.progress import ReplayProgress
 
         bar = ReplayProgress(spec.input, source=source, frames=lambda: session.frames_out)
         session.on_event = bar.update
     try:
         session.open()
-        _note_unfinished(session)
+        note_unfinished(session)
         session.run()
     finally:
         if bar is not None:
             bar.close()
     if getattr(source, "unfinished", None):
-        _note_unfinished(session)  # a set's segments are read only as the replay reaches them
+        note_unfinished(session)  # a set's segments are read only as the replay reaches them
     return report(session, label=spec.input)
 
 
 def _rotate(spec: CaptureSpec, source) -> int:
     """replay --rotate --out FOLDER: the capture written again as segments, as a live capture writes them."""
-    from .common import capture_sinks, destination, summary_line
+    from sniffer.commands.common import capture_sinks, destination, summary_line
 
     sinks = capture_sinks(spec, spec.input, inputs=spec.inputs or [spec.input], line_buffered=False)
     session = Session(spec, source, sinks, label=f"replay {spec.input}")
     session.open()
     say(f"replaying {spec.input}{destination(spec, session)}")
     session.run()
-    _note_unfinished(session)
+    note_unfinished(session)
     print(summary_line(session), file=sys.stderr)
     return report(session, label=spec.input)
 
 
-def _note_unfinished(session: Session) -> None:
+def note_unfinished(session: Session) -> None:
     paths = list(getattr(session.source, "unfinished", None) or ())
     if not paths and session.info.extra.get("mcap_unfinished"):
         paths = [session.spec.input]

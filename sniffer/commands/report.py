@@ -12,18 +12,18 @@ from __future__ import annotations
 
 import os
 
-from ..outputs import Output, readable, shown
-from ..session import Session
-from ..settings import CaptureSpec
-from ..sources import CaptureError
-from .common import EXIT_OK, report, say
-from .replay import _note_unfinished, file_source
+from sniffer.formats.outputs import Output, readable, shown
+from sniffer.capture.session import Session
+from sniffer.capture.settings import CaptureSpec
+from sniffer.events import CaptureError
+from sniffer.commands.common import EXIT_OK, report, say
+from sniffer.commands.replay import note_unfinished, file_source
 
 
 def _check_input(spec: CaptureSpec, path: str, what: str = "") -> None:
     """An input that is missing, unreadable, not a capture, or needs flags it was not given fails now, before
     hours of decoding the ones before it (its header is read; the source names the problem)."""
-    from ..sources.segset import capture_source
+    from sniffer.sources.segset import capture_source
 
     real, _ = readable(path)
     if not os.path.exists(real):
@@ -36,7 +36,7 @@ def _check_input(spec: CaptureSpec, path: str, what: str = "") -> None:
 
 
 def cmd_report(spec: CaptureSpec, args) -> int:
-    from ..report import Collector, render
+    from sniffer.report import Collector, render
 
     captures = list(args.captures)
     golden = args.compare
@@ -54,13 +54,13 @@ def cmd_report(spec: CaptureSpec, args) -> int:
             session = Session(cspec, source, [])
             bar = None
             if args.progress:
-                from ..progress import ReplayProgress
+                from sniffer.capture.progress import ReplayProgress
 
                 bar = ReplayProgress(path, source=source, frames=lambda s=session: s.frames_out)
                 session.on_event = bar.update
             try:
                 session.open()
-                _note_unfinished(session)
+                note_unfinished(session)
                 collector.begin(path, session)
                 for f in session:
                     collector.frame(f)
@@ -87,7 +87,8 @@ def cmd_report(spec: CaptureSpec, args) -> int:
 
 def _compare(collector, golden: str, captures: list[str], spec: CaptureSpec) -> dict:
     """The semantic diff of the golden capture (before) against the captures of this report (after)."""
-    from ..semdiff import compare, summarize_capture
+    from sniffer.analysis.diff import compare
+    from sniffer.commands.diff import summarize_capture
 
     before = summarize_capture(golden, spec.with_(input=None))
     d = compare(before, collector.summary.to_dict(), golden, " + ".join(captures))

@@ -19,16 +19,16 @@ from __future__ import annotations
 import os
 import threading
 
-from ..line import LineSettings
-from ..session import Session, on_signals
-from ..settings import CaptureSpec
-from ..sinks import FileSink
-from .common import UsageError, report, say
+from sniffer.line import LineSettings
+from sniffer.capture.session import Session, on_signals
+from sniffer.capture.settings import CaptureSpec
+from sniffer.formats import FileSink
+from sniffer.commands.common import UsageError, report, say
 
 
 def cmd_simulate(spec: CaptureSpec, args) -> int:
-    from ..simulator.overrides import apply
-    from ..simulator.sources import SimulatedSource, scenario_named
+    from sniffer.simulator.overrides import apply
+    from sniffer.simulator.sources import SimulatedSource, scenario_named
 
     scenario = apply(scenario_named(spec.scenario or "default"), args.param)
     base = scenario.line
@@ -55,7 +55,7 @@ def cmd_simulate(spec: CaptureSpec, args) -> int:
     source = SimulatedSource(scenario, line, duration, spec.seed, args.adapter, receiver=receiver)
     recorded = receiver or line
     if fmt == "segments":
-        from ..sinks.segments import SegmentPlan
+        from sniffer.formats.mcap.rotating import SegmentPlan
 
         sink = SegmentPlan(out, spec.rotate, spec.keep)
     else:
@@ -85,7 +85,7 @@ def _at(line: LineSettings, receiver: LineSettings | None) -> str:
 
 def _serve(scenario, line: LineSettings, seed: int, duration_s: float, path: str) -> int:
     """The line on a pty linked at `path`, until stopped (or `duration_s`, if given)."""
-    from ..simulator.uartpty import PtyLine
+    from sniffer.simulator.uartpty import PtyLine
 
     if os.path.lexists(path):
         if not (os.path.islink(path) and os.readlink(path).startswith("/dev/pts/")):

@@ -1,4 +1,4 @@
-"""`sniffer status [FOLDER|FILE]`: how an unattended capture is doing, from its status file (sniffer.status).
+"""`sniffer status [FOLDER|FILE]`: how an unattended capture is doing, from its status file (sniffer.capture.status).
 
 Exit status: 0 the capture is running (its status is fresh), 1 it ended, or
 its status is stale (the process is gone, or has not written for a while),
@@ -14,10 +14,10 @@ import os
 import sys
 import time
 
-from ..outputs import shown
-from ..segments import STATUS_NAME, read_json, size_text
-from ..settings import CaptureSpec
-from .common import EXIT_FAILED, EXIT_OK, UsageError
+from sniffer.formats.outputs import shown
+from sniffer.formats.mcap.segments import STATUS_NAME, read_json, size_text
+from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.common import EXIT_FAILED, EXIT_OK, UsageError
 
 _KNOWN = {"format", "state", "pid", "command", "source", "line", "started", "updated", "updated_ns", "every_s",
           "uptime_s", "frames", "bytes", "errors", "last_frame", "port", "segments", "ended", "units"}
@@ -146,7 +146,7 @@ def lines(d: dict, state: str) -> list[tuple[str, str]]:
 
 
 def _unit_lines(units: dict) -> list[tuple[str, str]]:
-    """A line per unit: its figures (sniffer.unitfigures), the latency's to the microsecond."""
+    """A line per unit: its figures (sniffer.analysis.unitfigures), the latency's to the microsecond."""
     out = []
     for name, u in list(units.items())[:UNITS_SHOWN]:
         if not isinstance(u, dict):

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-from ..settings import CaptureSpec
-from .common import UsageError, tui_wanted
+from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.common import UsageError, tui_wanted
 
 
 def cmd_attach(spec: CaptureSpec, args) -> int:
-    from ..attach import Attachment, attach_tui, run_headless
+    from sniffer.processes.attach import Attachment, run_headless
+    from sniffer.tui.run import attach_tui
 
     if getattr(args, "exit_with_parent", False):  # a browser's viewer under `sniffer serve`
         import signal
 
-        from ..lifeline import die_with_parent
+        from sniffer.processes.parent_death import die_with_parent
 
         die_with_parent(signal.SIGKILL)
     att = Attachment(args.socket)  # no capture there: CaptureError, one line, exit 2
@@ -22,7 +23,7 @@ def cmd_attach(spec: CaptureSpec, args) -> int:
 
 
 def cmd_serve(spec: CaptureSpec, args) -> int:
-    from ..serve import ServeUsageError, run_serve
+    from sniffer.processes.serve import ServeUsageError, run_serve
 
     if args.demo:
         given = [flag for flag, v in (("PORT", spec.port), ("--baud", spec.flags.baud), ("--parity", spec.flags.parity),

@@ -16,13 +16,13 @@ import os
 import shutil
 from dataclasses import dataclass, field
 
-from ..line import SettingsError
-from ..outputs import shown
-from ..session import Session
-from ..settings import CaptureSpec
-from ..sinks.dataset import DatasetSink
-from ..sources import CaptureError
-from .layout import STAGING, Dataset, Known, capture_name, new_entry
+from sniffer.line import SettingsError
+from sniffer.formats.outputs import shown
+from sniffer.capture.session import Session
+from sniffer.capture.settings import CaptureSpec
+from sniffer.dataset.sink import DatasetSink
+from sniffer.events import CaptureError
+from sniffer.dataset.layout import STAGING, Dataset, Known, capture_name, new_entry
 
 
 @dataclass
@@ -59,7 +59,7 @@ class Failed:
 def take_in(ds: Dataset, path: str, spec: CaptureSpec, known: Known, *, link: str | None = None,
             on_event=None) -> Taken | Skipped | Failed:
     """Decode `path` into the dataset unless the manifest has it (see the module doc)."""
-    from ..sources.replay import FileSource
+    from sniffer.sources.files import FileSource
 
     try:
         entry, sha = known.seen(path)

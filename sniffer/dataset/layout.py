@@ -18,10 +18,10 @@ import re
 import time
 from dataclasses import dataclass
 
-from .. import __version__
-from ..outputs import shown
-from ..sinks.schemas import DATASET_TABLES, PARTITIONS, SCHEMA_VERSION, dataset_schemas, described
-from ..sources import CaptureError
+from sniffer import __version__
+from sniffer.formats.outputs import shown
+from sniffer.formats.schemas import DATASET_TABLES, PARTITIONS, SCHEMA_VERSION, dataset_schemas, described
+from sniffer.events import CaptureError
 
 FORMAT = "sniffer-dataset"
 META = "dataset.json"
@@ -44,7 +44,7 @@ def safe_name(text: str) -> str:
 
 def link_name(info, given: str | None = None) -> str:
     """The link of a one-line capture: `--link NAME`, else the capture's port (`ttyUSB0`, as
-    sniffer.links names a port's link), else "default" (a simulated line, a file without a port)."""
+    sniffer.capture.links names a port's link), else "default" (a simulated line, a file without a port)."""
     if given:
         return safe_name(given)
     port = (getattr(info, "port", "") or "").rstrip("/")
@@ -76,10 +76,9 @@ def content_hash(path: str) -> str:
 
 
 def capture_name(path: str, sha256: str) -> str:
-    stem = os.path.basename(path)
-    for ext in (".part", ".mcap", ".csv", ".pcapng", ".pcap"):
-        stem = stem.removesuffix(ext)
-    return f"{safe_name(stem)}-{sha256[:12]}"
+    from sniffer.formats import stem_of
+
+    return f"{safe_name(stem_of(path))}-{sha256[:12]}"
 
 
 def _write_json(path: str, doc: dict, *, exclusive: bool = False) -> bool:

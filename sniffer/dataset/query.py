@@ -18,10 +18,10 @@ import glob
 import os
 from dataclasses import dataclass
 
-from .. import codes as C
-from ..sinks.schemas import DATASET_TABLES, PARTITIONS, dataset_schemas
-from ..unitfigures import QUANTILES
-from .layout import Dataset
+from sniffer import codes as C
+from sniffer.formats.schemas import DATASET_TABLES, PARTITIONS, dataset_schemas
+from sniffer.analysis.unitfigures import QUANTILES
+from sniffer.dataset.layout import Dataset
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,7 @@ def _codes(*categories: str) -> str:
     return "(" + ", ".join(_literal(c) for c in sorted(C.in_category(*categories))) + ")"
 
 
-# what a frame's annotations make it, one row a frame (the categories sniffer.unitfigures counts)
+# what a frame's annotations make it, one row a frame (the categories sniffer.analysis.unitfigures counts)
 _FRAME_CATEGORIES = f"""SELECT capture, frame,
          bool_or(code IN {_codes(C.TIMEOUT_CAT)}) AS timeout, bool_or(code IN {_codes(C.END_OF_CAPTURE_CAT)}) AS at_end,
          bool_or(code IN {_codes(C.LATE_CAT)}) AS late, bool_or(code IN {_codes(C.RETRY_CAT)}) AS retry,
@@ -49,7 +49,7 @@ _FRAME_CATEGORIES = f"""SELECT capture, frame,
 _QUANTILES = ",\n       ".join(f"quantile_disc(latency_ms, {q}) FILTER (WHERE paired) AS {name}"
                                for name, q in QUANTILES)
 
-# sniffer.unitfigures.UnitFigures, figure by figure (its docstring defines each; the README says what they mean);
+# analysis/unitfigures.py's UnitFigures, figure by figure (its docstring defines each; the README says what they mean);
 # an aggregate leaves out NULL: a latency counts where the response is paired and has one
 UNITS_SQL = f"""WITH a AS (
   {_FRAME_CATEGORIES}

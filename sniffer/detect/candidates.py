@@ -9,7 +9,7 @@ and format gives the bytes, and each protocol's framer reads them.
 
 from __future__ import annotations
 
-from ..line import LineSettings, SettingsError
+from sniffer.line import LineSettings, SettingsError
 
 # the common rates, most common first (the order they are tried in)
 COMMON_BAUDS = (9600, 19200, 38400, 115200, 57600, 4800, 2400, 1200, 14400, 230400, 460800, 921600)

@@ -23,13 +23,13 @@ from bisect import bisect_left, bisect_right
 from dataclasses import dataclass, field
 from statistics import median
 
-from .. import codes
-from ..events import Chunk
-from ..frame import REQUEST, RESPONSE
-from ..line import LineSettings
-from ..pairer import Pairer
-from .candidates import TWINS, fmt_of, setting
-from .units import UnitPolls, UnitSeen
+from sniffer import codes
+from sniffer.events import Chunk
+from sniffer.frame import REQUEST, RESPONSE
+from sniffer.line import LineSettings
+from sniffer.capture.pairer import Pairer
+from sniffer.detect.candidates import TWINS, fmt_of, setting
+from sniffer.detect.units import UnitPolls, UnitSeen
 
 # a good CRC/LRC on a frame whose shape these codes question is no evidence for the protocol
 MISFIT = frozenset(c.code for c in (

@@ -18,13 +18,13 @@ import select
 import time
 from collections.abc import Callable
 
-from ..line import LineSettings
-from ..lowlatency import request_low_latency
-from ..sources import CaptureError
-from ..sources.serial_port import configure, is_pty, open_read_only
-from .evidence import Evidence
-from .search import Search, Verdict
-from .window import Window
+from sniffer.line import LineSettings
+from sniffer.sources.lowlatency import request_low_latency
+from sniffer.events import CaptureError
+from sniffer.sources.serial_port import configure, is_pty, open_read_only
+from sniffer.detect.evidence import Evidence
+from sniffer.detect.search import Search, Verdict
+from sniffer.detect.window import Window
 
 TICK_S = 0.005  # silence is noticed this soon
 EVAL_NS = 50_000_000  # how often a listen asks whether it has heard enough

@@ -21,11 +21,11 @@ import re
 import subprocess
 from dataclasses import dataclass
 
-from ..frame import CAN_REQ, CAN_RSP
-from ..line import LineSettings
-from ..sources import CaptureError
-from ..sources.logic_options import LogicSpec
-from .bitwidth import Measurement, measure
+from sniffer.frame import CAN_REQ, CAN_RSP
+from sniffer.line import LineSettings
+from sniffer.events import CaptureError
+from sniffer.sources.logic_options import LogicSpec
+from sniffer.detect.bitwidth import Measurement, measure
 
 MAX_EDGES = 200_000
 MAX_CHANNELS = 8  # the parallel decoder's data lines
@@ -55,7 +55,7 @@ def edge_args(channels: list[str]) -> list[str]:
 
 def collect_edges(acquire: list[str], channels: list[str], where: str) -> dict[str, list[tuple[int, int]]]:
     """{channel: [(sample, level after), ...]} in order, at most MAX_EDGES each (see the module doc)."""
-    from ..sources.sigrok_cli import FINALIZE_CRASH, sigrok_cli
+    from sniffer.sources.sigrok_cli import FINALIZE_CRASH, sigrok_cli
 
     if not 1 <= len(channels) <= MAX_CHANNELS:
         raise CaptureError(f"{where}: {len(channels)} channels: give the one to measure (--rx CHANNEL); "
@@ -103,7 +103,7 @@ def verify(source_of, m: Measurement) -> Verified:
     """Decode the channel at the measured settings (`source_of(LogicSpec)` gives the SigrokSource)."""
     from decoders.registry import default_registry
 
-    from ..pipeline import Pipeline
+    from sniffer.capture.pipeline import Pipeline
 
     logic = LogicSpec(m.channel, invert=m.inverted, baud=m.baud, parity=m.parity, stopbits=m.stopbits,
                       databits=m.databits)
@@ -126,15 +126,15 @@ def verify(source_of, m: Measurement) -> Verified:
     frames += p.flush()
     v.frames = len(frames)
     v.crc_ok = sum(1 for f in frames if f.crc_ok)
-    v.requests = sum(1 for f in frames if f.crc_ok and f.can == CAN_REQ)
-    v.responses = sum(1 for f in frames if f.crc_ok and f.can == CAN_RSP)
+    v.requests = sum(1 for f in frames if f.crc_ok and f.role_fits == CAN_REQ)
+    v.responses = sum(1 for f in frames if f.crc_ok and f.role_fits == CAN_RSP)
     v.pairs = sum(1 for f in frames if f.role == "response" and f.pair is not None)
     return v
 
 
 def protocol_of(m: Measurement):
     """The protocol a line of this format is read with: Modbus ASCII on 7 data bits, else RTU."""
-    from ..protocols import get
+    from sniffer.protocols import get
 
     return get("modbus-ascii" if m.databits == 7 else "modbus-rtu")
 

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from ..busfile import BusFile, format_bus_file
-from .evidence import Evidence
-from .search import Verdict, rank
+from sniffer.capture.busfile import BusFile, format_bus_file
+from sniffer.detect.evidence import Evidence
+from sniffer.detect.search import Verdict, rank
 
 HEADER = ("setting", "protocol", "listened", "bytes", "UART errors", "fit frames", "pairs", "in pairs", "char time",
           "verdict")
@@ -94,6 +94,6 @@ def bus_file(v: Verdict, port: str) -> str:
 
 
 def _default_model(protocol: str) -> str:
-    from ..protocols import get
+    from sniffer.protocols import get
 
     return get(protocol).default_model

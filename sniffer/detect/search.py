@@ -29,9 +29,9 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 
-from ..line import LineSettings
-from .candidates import FORMATS_7, FORMATS_8, TWINS, fmt_of, setting
-from .evidence import FIT_ERRORS, Evidence
+from sniffer.line import LineSettings
+from sniffer.detect.candidates import FORMATS_7, FORMATS_8, TWINS, fmt_of, setting
+from sniffer.detect.evidence import FIT_ERRORS, Evidence
 
 MIN_WINDOW_S = 0.2
 MAX_WINDOW_S = 1.5

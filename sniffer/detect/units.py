@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from statistics import median
 
-from ..frame import Frame
+from sniffer.frame import Frame
 
 
 @dataclass(frozen=True)

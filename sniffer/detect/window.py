@@ -20,11 +20,11 @@ those whose parity bit is 0), and the timing (evidence.py).
 
 from __future__ import annotations
 
-from ..events import Chunk
-from ..line import LineSettings
-from ..parmrk import NUL_ERROR, MarkReader
-from ..protocols import PROTOCOLS
-from .evidence import Evidence, Reading
+from sniffer.events import Chunk
+from sniffer.line import LineSettings
+from sniffer.sources.parmrk import NUL_ERROR, MarkReader
+from sniffer.protocols import PROTOCOLS
+from sniffer.detect.evidence import Evidence, Reading
 
 SILENCE_MIN_NS = 2_000_000  # a read this long after the previous one ends the bytes dropped at the start
 BURST_GAP_NS = 10_000_000  # bursts are counted at gaps this long (a host can take a read 5 ms late)

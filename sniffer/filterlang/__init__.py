@@ -60,10 +60,12 @@ A frame without a field never passes a test of it (noise has no unit, a request 
 
 from __future__ import annotations
 
-from .facts import Context, Facts, matches_text, register_cell, register_ids, registers_of, search_text
-from .nodes import Node
-from .parser import FLAGS, KEYS, ROLES, FilterError, conjuncts, parse
-from .rate import SlidingCount, rate_terms
+from sniffer.filterlang.facts import (
+    Context, Facts, matches_text, register_cell, register_ids, registers_of, search_text,
+)
+from sniffer.filterlang.nodes import Node
+from sniffer.filterlang.parser import FLAGS, KEYS, ROLES, FilterError, conjuncts, parse
+from sniffer.filterlang.rate import SlidingCount, rate_terms
 
 
 class Query:

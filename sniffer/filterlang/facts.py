@@ -8,9 +8,9 @@ ids are (`reg:12-00`); the TUI's FrameStore is one as well.
 
 from __future__ import annotations
 
-from ..frame import REQUEST, RESPONSE, Frame
-from ..frameflags import frame_flags
-from ..protocols import TABLES, of_frame
+from sniffer.frame import REQUEST, RESPONSE, Frame
+from sniffer.analysis.flags import frame_flags
+from sniffer.protocols import TABLES, of_frame
 
 _FIELD = "\x00"  # between the fields of one frame's search text
 

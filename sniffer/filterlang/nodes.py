@@ -23,9 +23,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..frameflags import F_PROBLEM
-from .facts import REG_FRAME, REG_MASK, REG_NONE, REG_SHIFT, TABLE_CODE
-from .values import Interval, RegRange
+from sniffer.analysis.flags import F_PROBLEM
+from sniffer.filterlang.facts import REG_FRAME, REG_MASK, REG_NONE, REG_SHIFT, TABLE_CODE
+from sniffer.filterlang.values import Interval, RegRange
 
 Rows = set  # a set of row numbers
 _FAR_NEG, _FAR_POS = -(1 << 63), 1 << 63  # an open end of an interval on an integer column

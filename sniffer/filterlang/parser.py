@@ -9,12 +9,12 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from ..frameflags import F_CRC, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN
-from .nodes import And, Compare, Field, Flag, Links, Models, Node, Not, Or, Regs, Roles, Text
-from .rate import make_rate
-from .values import (
-    BadValue, Interval, RegRange, comparison_intervals, looks_like_register, parse_duration, parse_int,
-    parse_number, parse_register, split_range,
+from sniffer.analysis.flags import F_CRC, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN
+from sniffer.filterlang.nodes import And, Compare, Field, Flag, Links, Models, Node, Not, Or, Regs, Roles, Text
+from sniffer.filterlang.rate import make_rate
+from sniffer.filterlang.values import (
+    BadValue, Interval, RegRange, comparison_intervals, looks_like_register, parse_duration, parse_int, parse_number,
+    parse_register, split_range,
 )
 
 

@@ -19,9 +19,9 @@ from __future__ import annotations
 from bisect import bisect_right, insort
 from dataclasses import dataclass
 
-from .facts import Facts
-from .nodes import Node
-from .values import BadValue, Interval, comparison_intervals, parse_duration, parse_number
+from sniffer.filterlang.facts import Facts
+from sniffer.filterlang.nodes import Node
+from sniffer.filterlang.values import BadValue, Interval, comparison_intervals, parse_duration, parse_number
 
 MAX_WINDOW_NS = 24 * 3600 * 10**9
 LATE_NS = 10 * 10**9  # a frame may reach the filter this much after a later one (the pairer holds requests)

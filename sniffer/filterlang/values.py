@@ -11,7 +11,7 @@ import math
 import re
 from dataclasses import dataclass
 
-from ..protocols import TABLES
+from sniffer.protocols import TABLES
 
 
 class BadValue(ValueError):

@@ -7,6 +7,6 @@ client.py   the client's thread: bounded queue, reconnects, the retained state k
 sink.py     the sink the session adds
 """
 
-from .options import MqttSpec
+from sniffer.mqtt.options import MqttSpec
 
 __all__ = ["MqttSpec"]

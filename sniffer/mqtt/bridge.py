@@ -10,7 +10,7 @@ Topics under PREFIX (the URL's path), LINK the frame's link name ("default" on o
     PREFIX/status                   online / offline (retained; the client's last will)
     PREFIX/LINK/UNIT/NAME           a register's latest confirmed value (retained), NAME slugged (a
                                     provisional value has a name of its own: docs/values.md)
-    PREFIX/LINK/UNIT/health         the unit's figures (sniffer.unitfigures; retained, at most once a second)
+    PREFIX/LINK/UNIT/health         the unit's figures (sniffer.analysis.unitfigures; retained, at most once a second)
     PREFIX/LINK/events              warning and error annotations (not retained)
 
 Only confirmed values: a read response's values with a good CRC, and a write request's values
@@ -29,10 +29,10 @@ from typing import NamedTuple
 
 import orjson
 
-from ..frameflags import FAULT_CODES
-from ..unitfigures import UnitBook, UnitFigures
-from .ha import discovery, health_discovery, slug
-from .options import MqttSpec
+from sniffer.analysis.flags import FAULT_CODES
+from sniffer.analysis.unitfigures import UnitBook, UnitFigures
+from sniffer.mqtt.ha import discovery, health_discovery, slug
+from sniffer.mqtt.options import MqttSpec
 
 _NS = 1_000_000_000
 HEALTH_EVERY_NS = _NS  # a unit's health topic at most once a second of capture time

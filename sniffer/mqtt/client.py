@@ -23,9 +23,9 @@ import ssl
 import threading
 import time
 
-from .ha import availability
-from .options import MqttSpec
-from ..stderr import say
+from sniffer.mqtt.ha import availability
+from sniffer.mqtt.options import MqttSpec
+from sniffer.stderr import say
 
 BACKOFF_S = (0.5, 5.0)  # retry delays: from, up to (doubling)
 CLOSE_S = 5.0  # at the end: at most this long to send what is queued

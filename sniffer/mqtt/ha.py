@@ -17,7 +17,7 @@ import re
 
 import orjson
 
-from .. import __version__
+from sniffer import __version__
 
 # the register's unit -> (device_class, unit Home Assistant expects); other units: no device class
 DEVICE_CLASS = {

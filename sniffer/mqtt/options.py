@@ -17,7 +17,7 @@ import ssl
 from dataclasses import dataclass
 from urllib.parse import unquote, urlsplit
 
-from ..line import SettingsError
+from sniffer.line import SettingsError
 
 DEFAULT_QUEUE = 10_000
 DEFAULT_HA_PREFIX = "homeassistant"
@@ -62,7 +62,7 @@ class MqttSpec:
         spec = parse_url(url)
         interval = opt("mqtt_interval")
         if interval is not None:
-            from ..triggers.options import seconds
+            from sniffer.triggers.options import seconds
 
             spec = _with(spec, interval_s=seconds(interval, "--mqtt-interval"))
         queue = opt("mqtt_queue")

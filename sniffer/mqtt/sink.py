@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from collections import Counter
 
-from ..sinks.base import Sink
-from .bridge import Bridge
-from .client import Publisher
-from .options import MqttSpec
+from sniffer.sinks.base import Sink
+from sniffer.mqtt.bridge import Bridge
+from sniffer.mqtt.client import Publisher
+from sniffer.mqtt.options import MqttSpec
 
 
 class MqttSink(Sink):
@@ -56,7 +56,7 @@ class MqttSink(Sink):
         for registry in self.registries:
             dec = getattr(registry, "decoders", {}).get(model)
             if dec is not None:
-                return getattr(dec, "map", None)  # a model of register tables (decoders.model.TableDecoder)
+                return getattr(dec, "map", None)  # a model of register tables (decoders.table_decoder.TableDecoder)
         return None
 
     def _model_name(self, model: str) -> str | None:

@@ -17,7 +17,7 @@ a fresh clone that ran the project's own install writes reports.
 
 from __future__ import annotations
 
-from .collect import Collector
-from .page import render
+from sniffer.report.collect import Collector
+from sniffer.report.page import render
 
 __all__ = ["Collector", "render"]

@@ -32,15 +32,15 @@ import math
 import os
 from collections import Counter
 
-from .. import codes as C
-from ..frame import LinkUnit
-from ..semdiff import Summary
-from ..tui.shadow import RegisterBook
-from .buckets import TimeBuckets
-from .polls import Polls
-from .timeline import Timeline
-from ..unitfigures import UnitBook, unit_name
-from .units import UnitAgg, latency_edges, series_points, turnaround_edges
+from sniffer import codes as C
+from sniffer.frame import LinkUnit
+from sniffer.analysis.diff import Summary
+from sniffer.analysis.register_book import RegisterBook
+from sniffer.report.buckets import TimeBuckets
+from sniffer.report.polls import Polls
+from sniffer.report.timeline import Timeline
+from sniffer.analysis.unitfigures import UnitBook, unit_name
+from sniffer.report.units import UnitAgg, latency_edges, series_points, turnaround_edges
 
 COLUMNS = ("frames", "busy_ns", "crc", "exceptions", "timeouts", "retries", "noise", "gaps", "t15", "t35", "writes",
            "faults", "fast35", "fast15")  # fast35/15: responses under 3.5 / 1.5 characters after their request
@@ -133,7 +133,7 @@ class Collector:
         self._shift = start - info.t0_ns
         self.polls.new_capture()
         self.timeline.new_capture()
-        # several links: each its own line settings (sniffer.links.LinkPipelines.resolved)
+        # several links: each its own line settings (sniffer.capture.links.LinkPipelines.resolved)
         by_link = getattr(getattr(session, "pipeline", None), "resolved", None) or {"": resolved}
         self._lines = {name: _timing(r.line) for name, r in by_link.items()}
         self._char_ns, self._t15, self._t35 = self._lines.get("") or next(iter(self._lines.values()))

@@ -12,7 +12,7 @@ import json
 from html import escape
 from importlib import resources
 
-from .. import __version__
+from sniffer import __version__
 
 SECTIONS = (("captures", "Captures"), ("units", "Units"), ("latency", "Latency"), ("polls", "Poll cycles"),
             ("line", "Line"), ("errors", "Errors"), ("timing", "Turnaround"), ("registers", "Registers"),

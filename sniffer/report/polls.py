@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import math
 
-from ..protocols import of_frame
-from ..semdiff import Quantiles, key_text, request_key
-from ..tui.history import Series
-from .units import series_points
+from sniffer.protocols import of_frame
+from sniffer.analysis.diff import Quantiles, key_text, request_key
+from sniffer.analysis.history import Series
+from sniffer.report.units import series_points
 
 MAX_TYPES = 512
 GAP_POINTS = 1024  # kept per type for the plot

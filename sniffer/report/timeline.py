@@ -20,11 +20,11 @@ from __future__ import annotations
 
 from collections import Counter, deque
 
-from ..codes import CATEGORY
-from ..frame import unit_key
-from ..frameflags import FAULT_CODES
-from ..protocols import of_frame
-from ..semdiff import request_key
+from sniffer.codes import CATEGORY
+from sniffer.frame import unit_key
+from sniffer.analysis.flags import FAULT_CODES
+from sniffer.protocols import of_frame
+from sniffer.analysis.diff import request_key
 
 HEAD = 1000
 TAIL = 1000

@@ -1,6 +1,6 @@
 """Per unit, as the frames pass: its figures, response latency (histogram, over time) and turnaround.
 
-The counts and the latency quantiles are the unit's `sniffer.unitfigures.UnitFigures` (one definition
+The counts and the latency quantiles are the unit's `sniffer.analysis.unitfigures.UnitFigures` (one definition
 for every view); what only the report draws is kept here beside them.
 
 Turnaround is the silence between a request's last byte and its response's first,
@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import math
 
-from ..tui.history import Series
-from ..unitfigures import UnitFigures
+from sniffer.analysis.history import Series
+from sniffer.analysis.unitfigures import UnitFigures
 
 LAT_BINS_PER_DECADE = 10
 LAT_LO_MS = 0.01  # first bin edge; faster answers count in the first bin

@@ -20,26 +20,14 @@ truth.
 
 from __future__ import annotations
 
-from .bus import (
-    FAULT_BROADCAST_ANSWER,
-    FAULT_CRC,
-    FAULT_EXCEPTION,
-    FAULT_NOISE,
-    FAULT_TIMEOUT,
-    KIND_BROADCAST,
-    KIND_CORRUPTED,
-    KIND_EXCEPTION,
-    KIND_NOISE,
-    KIND_REQUEST,
-    KIND_RESPONSE,
-    KINDS,
-    WireFrame,
-    simulate,
+from sniffer.simulator.bus import (
+    FAULT_BROADCAST_ANSWER, FAULT_CRC, FAULT_EXCEPTION, FAULT_NOISE, FAULT_TIMEOUT, KIND_BROADCAST, KIND_CORRUPTED,
+    KIND_EXCEPTION, KIND_NOISE, KIND_REQUEST, KIND_RESPONSE, KINDS, WireFrame, simulate,
 )
-from .chunks import usb_chunks, wire_chunks
-from .ptybus import PlayStats, PtyBus
-from .profiles import PROFILES, ModelProfile, get_model
-from .scenario import SCENARIOS, DriveMap, PollSpec, Scenario, UnitSpec, get_scenario
+from sniffer.simulator.chunks import usb_chunks, wire_chunks
+from sniffer.simulator.ptybus import PlayStats, PtyBus
+from sniffer.simulator.profiles import PROFILES, ModelProfile, get_model
+from sniffer.simulator.scenario import SCENARIOS, DriveMap, PollSpec, Scenario, UnitSpec, get_scenario
 
 __all__ = [
     "FAULT_BROADCAST_ANSWER", "FAULT_CRC", "FAULT_EXCEPTION", "FAULT_NOISE", "FAULT_TIMEOUT",

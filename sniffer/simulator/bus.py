@@ -19,16 +19,16 @@ import random
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from ..crc import crc_bytes, lrc
-from ..events import FLAG_FRAMING
-from ..line import LineSettings
-from ..protocols import PROTOCOLS
-from .master import Master, Request
-from .model_drive import ModelDrive
-from .pd_drive import PdDrive, data_method
-from .pd_master import PdMaster
-from .scenario import Scenario, UnitSpec
-from .slave import Drive
+from sniffer.framing.crc import crc_bytes, lrc
+from sniffer.events import FLAG_FRAMING
+from sniffer.line import LineSettings
+from sniffer.protocols import PROTOCOLS
+from sniffer.simulator.master import Master, Request
+from sniffer.simulator.model_drive import ModelDrive
+from sniffer.simulator.pd_drive import PdDrive, data_method
+from sniffer.simulator.pd_master import PdMaster
+from sniffer.simulator.scenario import Scenario, UnitSpec
+from sniffer.simulator.drive import Drive
 
 KIND_REQUEST = "request"
 KIND_RESPONSE = "response"

@@ -25,8 +25,8 @@ import random
 from bisect import bisect_right
 from collections.abc import Iterable, Iterator
 
-from ..events import Chunk
-from .bus import WireFrame
+from sniffer.events import Chunk
+from sniffer.simulator.bus import WireFrame
 
 
 def wire_chunks(frames: Iterable[WireFrame], channel: str = "") -> Iterator[Chunk]:

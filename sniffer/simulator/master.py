@@ -18,8 +18,8 @@ import struct
 from collections import deque
 from dataclasses import dataclass
 
-from .profiles import Model, get_model
-from .scenario import PollSpec, Scenario
+from sniffer.simulator.profiles import Model, get_model
+from sniffer.simulator.scenario import PollSpec, Scenario
 
 
 @dataclass(frozen=True, slots=True)

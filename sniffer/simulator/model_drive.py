@@ -16,9 +16,9 @@ from __future__ import annotations
 import random
 import struct
 
-from .profiles import Model, Trip
-from .scenario import DriveMap, UnitSpec
-from .slave import ILLEGAL_ADDRESS, ILLEGAL_FUNCTION, ILLEGAL_VALUE, SLAVE_BUSY, Drive
+from sniffer.simulator.profiles import Model, Trip
+from sniffer.simulator.scenario import DriveMap, UnitSpec
+from sniffer.simulator.drive import ILLEGAL_ADDRESS, ILLEGAL_FUNCTION, ILLEGAL_VALUE, SLAVE_BUSY, Drive
 
 # when a model has no code of its own for a situation, it answers like this one
 _FALLBACK = {"read_only": "address", "locked": "address", "frame": "quantity", "quantity": "value",

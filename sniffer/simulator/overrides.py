@@ -12,7 +12,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 
-from .scenario import Scenario
+from sniffer.simulator.scenario import Scenario
 
 
 class OverrideError(ValueError):

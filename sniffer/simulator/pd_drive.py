@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 
 from decoders.pd_series.schema import CNST_BITS, CNTR_BITS, ERRORS, FUNCTIONS, PARAMS, STATUS, Param
 
-from .scenario import DriveMap, UnitSpec
-from .slave import RPM_PER_HZ, Drive
+from sniffer.simulator.scenario import DriveMap, UnitSpec
+from sniffer.simulator.drive import RPM_PER_HZ, Drive
 
 MODEL = "pd-series"  # the decoder's model id (--device N=pd-series)
 STATUS_BY_LABEL = {s.label: s for s in STATUS.values()}

@@ -24,12 +24,12 @@ from collections import deque
 
 from decoders.pd_series.schema import PARAMS
 
-from .master import Request
-from .pd_drive import (
-    CNTR_BY_NAME, CONTROL, LOOP_TEST, PARAM_BY_ID, READ_PARAM, READ_STATUS, STATUS_BY_LABEL, WRITE_FREQ,
-    WRITE_PARAM, param_width, pdu,
+from sniffer.simulator.master import Request
+from sniffer.simulator.pd_drive import (
+    CNTR_BY_NAME, CONTROL, LOOP_TEST, PARAM_BY_ID, READ_PARAM, READ_STATUS, STATUS_BY_LABEL, WRITE_FREQ, WRITE_PARAM,
+    param_width, pdu,
 )
-from .scenario import PollSpec, Scenario
+from sniffer.simulator.scenario import PollSpec, Scenario
 
 # what the operator may do to a drive in each state: (action, weight); an action is a CNTR
 # command (COMMANDS: the CNTR bits, the state it leaves the drive in) or "frequency" (05H)

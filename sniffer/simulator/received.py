@@ -16,11 +16,11 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
-from ..events import FLAG_FRAMING, FLAG_PARITY
-from ..line import LineSettings
-from ..parmrk import InputFlags, tty_bytes
-from .bus import WireFrame
-from .uart import Receiver, RxChar, Wire
+from sniffer.events import FLAG_FRAMING, FLAG_PARITY
+from sniffer.line import LineSettings
+from sniffer.sources.parmrk import InputFlags, tty_bytes
+from sniffer.simulator.bus import WireFrame
+from sniffer.simulator.uart import Receiver, RxChar, Wire
 
 GRID_NS = 1_000_000  # the latency timer of the adapter a pty line plays: 1 ms
 # a UART flags a break as a framing error too (its stop bit was 0)

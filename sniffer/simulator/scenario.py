@@ -13,9 +13,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..line import LineSettings
-from ..pd_framer import QUIET_NS
-from .profiles import A510, SPL, TDS_V8, ModelProfile
+from sniffer.line import LineSettings
+from sniffer.framing.pd import QUIET_NS
+from sniffer.simulator.profiles import A510, SPL, TDS_V8, ModelProfile
 
 # Function codes the simulated drives implement; 0x11 (report server id) is
 # left out on purpose so a master asking for it draws exception 01.

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 from collections import deque
 
-from ..line import LineSettings
-from ..parmrk import InputFlags
-from ..pty_settings import PortSettings
-from .bus import simulate
-from .received import LiveLine
-from .scenario import Scenario
+from sniffer.line import LineSettings
+from sniffer.sources.parmrk import InputFlags
+from sniffer.sources.pty_settings import PortSettings
+from sniffer.simulator.bus import simulate
+from sniffer.simulator.received import LiveLine
+from sniffer.simulator.scenario import Scenario
 
 MARKED = InputFlags(parmrk=True, inpck=True)
 

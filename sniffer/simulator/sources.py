@@ -17,20 +17,20 @@ from __future__ import annotations
 
 import threading
 
-from .. import __version__
-from ..events import CaptureInfo
-from ..line import LineSettings
-from .bus import simulate
-from .chunks import usb_chunks, wire_chunks
-from .received import received
-from .scenario import Scenario, get_scenario
+from sniffer import __version__
+from sniffer.events import CaptureInfo
+from sniffer.line import LineSettings
+from sniffer.simulator.bus import simulate
+from sniffer.simulator.chunks import usb_chunks, wire_chunks
+from sniffer.simulator.received import received
+from sniffer.simulator.scenario import Scenario, get_scenario
 
 LINGER_S = 0.3  # after the last frame: time for it to reach the sniffer before the capture ends
 
 
 def scenario_named(name: str) -> Scenario:
     """get_scenario with a SettingsError-style one-line error."""
-    from ..line import SettingsError
+    from sniffer.line import SettingsError
 
     try:
         return get_scenario(name)
@@ -53,8 +53,8 @@ class DemoSource:
         self._stop = threading.Event()
 
     def open(self) -> CaptureInfo:
-        from ..sources.serial_live import SerialSource
-        from .ptybus import PtyBus
+        from sniffer.sources.serial_live import SerialSource
+        from sniffer.simulator.ptybus import PtyBus
 
         sc = self.scenario
         self._bus = PtyBus()

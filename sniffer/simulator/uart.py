@@ -32,7 +32,7 @@ from bisect import bisect_left, bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from ..line import LineSettings
+from sniffer.line import LineSettings
 
 RESYNC = ("edge", "16550")
 

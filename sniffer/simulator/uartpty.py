@@ -25,12 +25,12 @@ import threading
 import time
 from collections import deque
 
-from ..line import LineSettings
-from ..pty_settings import PortSettings, read_settings
-from .bus import simulate
-from .ptybus import PtyBus
-from .received import LiveLine
-from .scenario import Scenario
+from sniffer.line import LineSettings
+from sniffer.sources.pty_settings import PortSettings, read_settings
+from sniffer.simulator.bus import simulate
+from sniffer.simulator.ptybus import PtyBus
+from sniffer.simulator.received import LiveLine
+from sniffer.simulator.scenario import Scenario
 
 FOREVER_S = 10 * 365 * 86400.0
 AHEAD_NS = 20_000_000  # reads are worked out this long before they are due

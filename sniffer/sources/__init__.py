@@ -1,126 +1,27 @@
-"""Sources of timestamped bytes: live serial, MCAP, byte CSV, Saleae CSV, pcap.
+"""Live sources of timestamped bytes: serial ports (one, several links, a --tap), read-only.
 
-Every file source is driven through `replay.FileSource`: a CaptureInfo, then a
-lazy iterator of events (Chunk / Tick / Gap), with what was lost on the way in
-its `damage` list.  The helpers here are shared by the file readers.
+    serial_port.py   opening a port read-only and setting its line: the one place that touches termios
+    serial_live.py   SerialSource: one port's reader thread, stamping reads;  serial_links.py  several ports
+    parmrk.py        UART errors marked in band by the tty;  pty_settings.py  what a pty keeps of a line
+    lowlatency.py    the adapter's latency timer;  reader_priority.py  the reader thread's real-time priority
+
+    files.py         FileSource: any capture file as events (its format's reader from sniffer.formats)
+    segset.py        several capture files as one (a rotated capture's folder)
+    sigrok_cli.py    a logic analyzer (live or a .sr file) through sigrok-cli: sigrok_uart.py, srzip.py,
+                     logic_options.py, driver_enable.py
+
+The process that runs the port readers for `sniffer live` is sniffer/processes/reader.py.
 """
 
-from __future__ import annotations
+from sniffer import face
 
-import os
-import stat
-from typing import BinaryIO
-
-
-class CaptureError(Exception):
-    """A capture file that cannot be read: one clear line for the user, exit code 2."""
-
-
-QUOTE_LIMIT = 200
-
-
-def quote(text: str, limit: int = QUOTE_LIMIT) -> str:
-    """repr() of a piece of bad input, cut to about `limit` characters (a 100 kB field is not echoed)."""
-    if len(text) <= limit:
-        return repr(text)
-    return f"{text[:limit]!r}... ({len(text):,} characters)"
-
-
-_KINDS = ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"), (stat.S_ISSOCK, "a socket"),
-          (stat.S_ISBLK, "a block device"))
-
-
-def not_regular(path: str, mode: int) -> str | None:
-    """Why a file of this st_mode cannot be replayed, or None for a regular file."""
-    if stat.S_ISDIR(mode):
-        return f"{path}: is a directory, not a capture file"
-    if stat.S_ISREG(mode):
-        return None
-    kind = next((name for test, name in _KINDS if test(mode)), "a special file")
-    return f"{path}: not a regular file ({kind}): replaying it would block forever or never end"
-
-
-def file_position(fh, size: int) -> tuple[int, int] | None:
-    """(bytes read so far, file size) of an open reader's file, for a progress bar; None once closed."""
-    if fh is None or fh.closed:
-        return None
-    return fh.tell(), size
-
-
-def open_regular(path: str | os.PathLike[str]) -> BinaryIO:
-    """Open a capture file for binary reading, refusing anything but a regular file.
-
-    O_NONBLOCK keeps open() itself from waiting for a FIFO's writer; the
-    file is then checked with fstat before a single byte is read.
-    """
-    p = os.fspath(path)
-    try:
-        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
-                     | getattr(os, "O_CLOEXEC", 0))
-    except OSError as e:
-        raise CaptureError(f"{p}: {e.strerror or e}") from None
-    try:
-        why = not_regular(p, os.fstat(fd).st_mode)
-        if why is None and hasattr(os, "set_blocking"):
-            os.set_blocking(fd, True)
-    except OSError as e:
-        os.close(fd)
-        raise CaptureError(f"{p}: {e.strerror or e}") from None
-    if why is not None:
-        os.close(fd)
-        raise CaptureError(why)
-    return os.fdopen(fd, "rb")
-
-
-class DamageLog:
-    """The `damage` list of a reader, bounded: a file with a million bad rows lists the first few.
-
-    `add(kind, sentence)` appends up to `per_kind` sentences of one kind;
-    `finish()` adds one line per kind saying how many more there were.
-    """
-
-    def __init__(self, target: list[str], per_kind: int = 10) -> None:
-        self.lines = target
-        self.per_kind = per_kind
-        self._counts: dict[str, int] = {}
-        self._finished = False
-
-    def add(self, kind: str, sentence: str) -> None:
-        n = self._counts.get(kind, 0) + 1
-        self._counts[kind] = n
-        if n <= self.per_kind:
-            self.lines.append(sentence)
-
-    def __len__(self) -> int:
-        return sum(self._counts.values())
-
-    def finish(self, path: str) -> None:
-        if self._finished:
-            return
-        self._finished = True
-        for kind, n in self._counts.items():
-            if n > self.per_kind:
-                self.lines.append(f"{path}: {n - self.per_kind:,} more {kind} not listed ({n:,} in all)")
-
-
-SLOWEST_CHAR_NS = 100_000_000  # 100 ms a character: slower than any serial line we decode (110 baud 8N1)
-
-
-def gap_before(last_t: int | None, ev, reason: str):
-    """The Gap to yield just before event `ev` when input was lost since time `last_t`.
-
-    The pipeline marks the first frame with t_ns >= t_end_ns, so t_end_ns is
-    the earliest time a frame of `ev` can start: its first byte (per-byte),
-    or its read time less 100 ms per byte (per-read: the framer dates the
-    bytes back from the read time at the line's character time).
-    """
-    from ..events import Chunk, Gap
-
-    if type(ev) is Chunk:
-        end = ev.byte_t_ns[0] if ev.byte_t_ns else ev.t_ns - len(ev.data) * SLOWEST_CHAR_NS
-        if ev.byte_t_ns is None and last_t is not None:
-            end = min(max(end, last_t + 1), ev.t_ns)
-    else:
-        end = ev.t_ns
-    start = end if last_t is None else min(last_t, end)
-    return Gap(start, end, reason)
+_EXPORTS = {
+    "SerialSource": "sniffer.sources.serial_live",
+    "LinksSource": "sniffer.sources.serial_links",
+    "PortLostError": "sniffer.sources.serial_live",
+    "open_read_only": "sniffer.sources.serial_port",
+    "FileSource": "sniffer.sources.files",
+    "capture_source": "sniffer.sources.segset",
+}
+__all__ = sorted(_EXPORTS)
+__getattr__ = face(__name__, _EXPORTS)

@@ -16,8 +16,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from ..line import LineSettings, SettingsError
-from . import CaptureError
+from sniffer.line import LineSettings, SettingsError
+from sniffer.events import CaptureError
 
 PREFIX = "sigrok:"
 _NAME = re.compile(r"[A-Za-z0-9_.+#/\[\] -]{1,64}")  # no ':' ',' '=' (sigrok-cli's own separators)
@@ -66,7 +66,7 @@ class LogicSpec:
         rate = getattr(args, "samplerate", None)
         hz = None
         if rate is not None:
-            from .srzip import parse_rate
+            from sniffer.sources.srzip import parse_rate
 
             try:
                 hz = parse_rate(rate)

@@ -26,10 +26,11 @@ from dataclasses import replace
 
 from decoders.carry import KEY
 
-from ..events import CaptureInfo, Chunk, Gap, Tick
-from ..segments import INDEX_NAME, set_files
-from . import CaptureError, gap_before
-from .replay import FileSource
+from sniffer.events import CaptureInfo, Chunk, Gap, Tick
+from sniffer.formats.mcap.segments import INDEX_NAME, set_files
+from sniffer.events import CaptureError
+from sniffer.formats.reading import gap_before
+from sniffer.sources.files import FileSource
 
 
 def is_set(paths) -> bool:

@@ -16,11 +16,24 @@ raises CaptureError naming it, so the command ends with one line and no file.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import Protocol
 
-from ..events import CaptureInfo, Chunk, Gap, Tick
-from ..line import LineSettings
-from ..settings import LinkPlan
-from .serial_live import Hub, SerialSource
+from sniffer.events import CaptureInfo, Chunk, Gap, Tick
+from sniffer.line import LineSettings
+from sniffer.sources.serial_live import Hub, SerialSource
+
+
+class LinkPlan(Protocol):
+    """What the source reads of a link's plan (capture/settings.py's LinkPlan): its name, its ports and
+    their channels, and its capture-info entry."""
+
+    name: str
+    ports: tuple[str, ...]
+
+    @property
+    def channels(self) -> tuple[str, ...]: ...
+
+    def entry(self) -> dict: ...
 
 
 class LinksSource:

@@ -67,12 +67,12 @@ import time
 from collections import deque
 from collections.abc import Iterator
 
-from ..events import CaptureInfo, Chunk, Gap, Tick
-from ..line import LineSettings
-from ..lowlatency import request_low_latency
-from . import CaptureError
-from .reader_priority import raise_reader
-from .serial_port import open_read_only
+from sniffer.events import CaptureInfo, Chunk, Gap, Tick
+from sniffer.line import LineSettings
+from sniffer.sources.lowlatency import request_low_latency
+from sniffer.events import CaptureError
+from sniffer.sources.reader_priority import raise_reader
+from sniffer.sources.serial_port import open_read_only
 
 READ_SIZE = 4096
 STALL_TICKS = 4  # the port unseen for longer than this many ticks: the reader stalled (a Chunk's unseen_ns)
@@ -86,7 +86,7 @@ class PortLostError(CaptureError):
     """The port went away during a capture and reconnect was off."""
 
 
-class _End:
+class ReaderEnd:
     """A reader's last item: its source (whose `_error`, if any, the consumer raises)."""
 
     __slots__ = ("source",)
@@ -127,7 +127,7 @@ class Hub:
                 while not self._queue:
                     self._cond.wait(0.1)
                 item = self._queue.popleft()
-            if type(item) is _End:
+            if type(item) is ReaderEnd:
                 readers -= 1
                 if item.source._error is not None:
                     raise item.source._error
@@ -269,7 +269,7 @@ class SerialSource:
             self._error = e
         finally:
             self._close()
-            self.hub.push(_End(self))
+            self.hub.push(ReaderEnd(self))
 
     def _lose(self, reason: str) -> None:
         self._close()

@@ -11,13 +11,13 @@ both open the port here, and only here:
   fills); `configure` reads the settings back and refuses to go on if they did
   not stick;
 * with `marks`, the tty reports UART errors in band (PARMRK + INPCK, see
-  sniffer/parmrk.py): what `detect` needs to tell a wrong parity or baud from a
+  sniffer/sources/parmrk.py): what `detect` needs to tell a wrong parity or baud from a
   right one.  `live` reads bytes as received, unmarked.
 
 A pseudo-terminal keeps no parity or character size (its driver forces CS8 and
 clears PARENB) and its line discipline cannot carry marks from the other end
 (it doubles every 0xFF written to it under PARMRK): on a pty the settings a
-UART would have are noted for a simulated line instead (sniffer/pty_settings.py).
+UART would have are noted for a simulated line instead (sniffer/sources/pty_settings.py).
 """
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ import os
 import stat
 import termios
 
-from ..line import LineSettings
-from ..pty_settings import note_settings
-from . import CaptureError
+from sniffer.line import LineSettings
+from sniffer.sources.pty_settings import note_settings
+from sniffer.events import CaptureError
 
 # IGNPAR/IGNBRK would make UART drivers drop bad bytes, and bad bytes are what a sniffer is for.
 # INPCK off delivers them as received; with `marks`, INPCK + PARMRK mark them in band.

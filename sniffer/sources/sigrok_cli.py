@@ -17,7 +17,7 @@ sigrok-cli fails.  Nothing is sent to any device: the
 only options are the sample rate and the channels to read.
 
 The capture's metadata (CaptureInfo.extra): `samplerate` (Hz), `logic` (the
-channels), `channel_roles` (wire -> request/response, sniffer.pipeline.roles_of)
+channels), `channel_roles` (wire -> request/response, sniffer.capture.pipeline.roles_of)
 and `sigrok` (the input or the device).  Byte times are ns from sample 0.
 """
 
@@ -33,10 +33,10 @@ import time
 from collections import deque
 from collections.abc import Iterator
 
-from ..events import CaptureInfo
-from . import CaptureError
-from .logic_options import DeviceSpec, LogicSpec
-from .sigrok_uart import UART, SigrokUart, decoder_args
+from sniffer.events import CaptureInfo
+from sniffer.events import CaptureError
+from sniffer.sources.logic_options import DeviceSpec, LogicSpec
+from sniffer.sources.sigrok_uart import UART, SigrokUart, decoder_args
 
 DEFAULT_RATE = 1_000_000
 MIN_SAMPLES_PER_BIT = 4
@@ -69,7 +69,7 @@ def _check_channels(where: str, logic: LogicSpec, channels) -> None:
 
 def file_source(path: str, logic: LogicSpec | None, damage: list[str] | None = None) -> SigrokSource:
     """The source of a .sr file (its channels and sample rate from its metadata)."""
-    from .srzip import logic_blocks, read_meta
+    from sniffer.sources.srzip import logic_blocks, read_meta
 
     meta = read_meta(path)
     if logic is None:
@@ -108,7 +108,7 @@ def device_source(device: DeviceSpec, logic: LogicSpec) -> SigrokSource:
     channels = device_channels(device)
     _check_channels(str(device), logic, channels)
     rate = logic.samplerate or DEFAULT_RATE
-    from .srzip import rate_text
+    from sniffer.sources.srzip import rate_text
 
     acquire = ["-d", device.arg, "-c", f"samplerate={rate}", "--continuous", "-C", ",".join(logic.channels)]
     src = SigrokSource(logic, str(device), acquire, rate, channels, live=True)
@@ -283,7 +283,7 @@ class SigrokSource:
             uart.finish()
             yield from uart.take()
             if uart.glitches:
-                from ..stderr import say
+                from sniffer.stderr import say
 
                 say(f"note: {self.where}: {uart.glitches} start bit(s) that were not (a glitch or noise shorter than "
                     "half a bit): no byte")

@@ -26,7 +26,7 @@ DE edge up to its stop bit has arrived.  A byte during which DE was high (at
 its start, or rising before its stop bit) belongs to that DE window; the
 window's bytes are held until its falling edge is known and then go out
 carrying `de = (rise, fall)`
-(sniffer.driver_enable puts the turn-on/turn-off times on the frames), on the
+(sniffer.sources.driver_enable puts the turn-on/turn-off times on the frames), on the
 wire `LogicSpec.de_channel` (their role: response).  A window held past
 HOLD_BYTES or HOLD_S goes out without its fall (a DE stuck high).
 
@@ -47,10 +47,10 @@ import re
 from collections import deque
 from math import ceil, floor
 
-from ..events import FLAG_FRAMING, FLAG_PARITY, Chunk, Tick
-from ..line import LineSettings
-from .csvstream import PER_BYTE_CHUNK
-from .logic_options import LogicSpec
+from sniffer.events import FLAG_FRAMING, FLAG_PARITY, Chunk, Tick
+from sniffer.line import LineSettings
+from sniffer.formats.csvstream import PER_BYTE_CHUNK
+from sniffer.sources.logic_options import LogicSpec
 
 _ANN = re.compile(rb'(\d+)-(\d+) ([\w.-]+): ([\w-]+): "([^"]*)"')
 UART = "uart-1"

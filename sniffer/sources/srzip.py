@@ -24,7 +24,8 @@ import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from . import CaptureError, open_regular
+from sniffer.events import CaptureError
+from sniffer.formats.reading import open_regular
 
 BLOCK = 1 << 20  # bytes of samples handed out at a time
 

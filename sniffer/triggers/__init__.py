@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import os
 
-from ..outputs import OutputError, shown
-from .options import TriggerSpec
-from .window import read_trigger
+from sniffer.formats.outputs import OutputError, shown
+from sniffer.triggers.options import TriggerSpec
+from sniffer.triggers.window import read_trigger
+from sniffer.formats import stem_of
 
 _SETTLE_MARGIN_NS = 500_000_000
 
@@ -27,9 +28,7 @@ def windows_place(spec) -> tuple[str, str]:
     named after --out, else the input file, else the port; OutputError for a folder that cannot be used."""
     t = spec.trigger
     named = spec.out or spec.input or (os.path.basename(spec.port) if spec.port else "") or "sniffer"
-    stem = os.path.basename(named)
-    for ext in (".part", ".mcap", ".csv", ".pcapng", ".pcap"):
-        stem = stem.removesuffix(ext)
+    stem = stem_of(named)
     folder = t.windows or (os.path.dirname(spec.out) if spec.out else "") or "."
     if t.windows and not os.path.exists(folder) and os.path.isdir(os.path.dirname(os.path.abspath(folder))):
         try:  # a new folder for the windows, as --rotate makes its own (not a whole missing path: a typo)
@@ -45,8 +44,8 @@ def windows_place(spec) -> tuple[str, str]:
 
 def trigger_sink(spec, resolved, registry):
     """The session's trigger sink for `spec.trigger` (see sink.py)."""
-    from ..filterlang import register_ids
-    from .sink import TriggerSink
+    from sniffer.filterlang import register_ids
+    from sniffer.triggers.sink import TriggerSink
 
     folder, stem = windows_place(spec)
     timeout = max([resolved.timeout_ms, *resolved.unit_timeouts.values()])

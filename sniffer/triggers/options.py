@@ -5,9 +5,9 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from ..filterlang import FilterError, Query
-from ..filterlang.values import BadValue, parse_duration
-from ..line import SettingsError
+from sniffer.filterlang import FilterError, Query
+from sniffer.filterlang.values import BadValue, parse_duration
+from sniffer.line import SettingsError
 
 DEFAULT_PRE_S = 300.0
 DEFAULT_POST_S = 60.0

@@ -21,19 +21,19 @@ import time
 
 from decoders.carry import KEY
 
-from ..events import Chunk, Gap
-from ..filterlang import Context, Query
-from ..frameflags import frame_flags
-from ..mcap_format import decode_event, encode_event
-from ..records import frame_json, loads
-from ..sinks.base import Sink
-from ..sinks.text import frame_line
-from ..stderr import say
-from .command import CommandRunner
-from .options import TriggerSpec
-from .plan import Plan, Window
-from .ring import FRAME, RAW, RAW_CLEAN, Ring
-from .window import WindowFile, next_number, window_path
+from sniffer.events import Chunk, Gap
+from sniffer.filterlang import Context, Query
+from sniffer.analysis.flags import frame_flags
+from sniffer.formats.mcap.format import decode_event, encode_event
+from sniffer.formats.records import frame_json, loads
+from sniffer.sinks.base import Sink
+from sniffer.formats.text import frame_line
+from sniffer.stderr import say
+from sniffer.triggers.command import CommandRunner
+from sniffer.triggers.options import TriggerSpec
+from sniffer.triggers.plan import Plan, Window
+from sniffer.triggers.ring import FRAME, RAW, RAW_CLEAN, Ring
+from sniffer.triggers.window import WindowFile, next_number, window_path
 
 _NS = 1_000_000_000
 ALIGN_NS = _NS  # how far before `t - pre` a window may start to start where nothing was pending

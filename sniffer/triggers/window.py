@@ -17,9 +17,9 @@ import msgspec
 
 from decoders.carry import record
 
-from ..events import CaptureInfo
-from ..outputs import Output
-from ..sinks.mcap import McapSink
+from sniffer.events import CaptureInfo
+from sniffer.formats.outputs import Output
+from sniffer.formats.mcap.sink import McapSink
 
 METADATA = "sniffer.trigger"
 _NUMBERED = re.compile(r"\.trigger-(\d+)\.mcap\Z")

@@ -23,24 +23,24 @@ from textual.containers import Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Input, Static, TabbedContent, TabPane
 
-from .byteview import BytesPane, ByteView, char_ns
-from ..filterlang import register_ids
-from .detail import DetailPane
-from .filters import filter_expr, parse_filter
-from .footer import KeyBar
-from .framelist import FrameList
-from .goto import parse_goto, resolve
-from .hangup import TerminalWatch
-from .gotobar import GotoBar
-from .model import FrameStore
-from .plot import JumpToFrame, PlotPane
-from .plotmodel import PlotSet
-from .readring import ReadRing
-from .registers import RegisterWatch
-from .sink import INTAKE_BUDGET_S, INTAKE_PERIOD_S, TuiSink
-from .status import status_text
-from .txlist import TransactionList, TransactionsPane
-from .units import UnitsTable
+from sniffer.tui.byteview import BytesPane, ByteView, char_ns
+from sniffer.filterlang import register_ids
+from sniffer.tui.detail import DetailPane
+from sniffer.tui.filters import filter_expr, parse_filter
+from sniffer.tui.footer import KeyBar
+from sniffer.tui.framelist import FrameList
+from sniffer.tui.goto import parse_goto, resolve
+from sniffer.tui.hangup import TerminalWatch
+from sniffer.tui.gotobar import GotoBar
+from sniffer.tui.store import FrameStore
+from sniffer.tui.plot import JumpToFrame, PlotPane
+from sniffer.tui.plotmodel import PlotSet
+from sniffer.tui.readring import ReadRing
+from sniffer.tui.registers import RegisterWatch
+from sniffer.tui.sink import INTAKE_BUDGET_S, INTAKE_PERIOD_S, TuiSink
+from sniffer.tui.status import status_text
+from sniffer.tui.txlist import TransactionList, TransactionsPane
+from sniffer.tui.units import UnitsTable
 
 HELP = """\
 [b]rs485-sniffer TUI[/b] — keys
@@ -179,7 +179,7 @@ class SnifferApp(App):
                  clock: Callable[[], float] = time.monotonic, live: bool = False) -> None:
         super().__init__()
         self.live = live  # quitting stops a capture running here: ask first
-        self.give_way = None  # a GiveWay (sniffer/giveway.py) when the App views a capture running now on this machine
+        self.give_way = None  # a GiveWay (processes/cpu_yield.py) while it views a capture running on this machine
         self._terminal = TerminalWatch(None)  # on_mount: the terminal it reads keys from (hangup.py)
         self.sink = sink
         self.feed = feed
@@ -204,7 +204,7 @@ class SnifferApp(App):
         self._shown_rows = 0  # store rows when the list was last told
         self.notices: deque[str] = deque()  # lines a capture process said on stderr: shown as notifications
         self.export_status: str | None = None  # an export running on its worker: how far it is
-        self.reads = ReadRing()  # the byte view's last reads (sniffer.reads)
+        self.reads = ReadRing()  # the byte view's last reads (sniffer.analysis.reads)
 
     # ---------------------------------------------------------------- layout
     def compose(self) -> ComposeResult:
@@ -352,7 +352,7 @@ class SnifferApp(App):
         path = self.capture_path or self.sink.capture_path
         if not path:
             return None
-        from ..outputs import readable
+        from sniffer.formats.outputs import readable
 
         try:
             return os.path.getsize(readable(path)[0])  # its part file while the capture writes it
@@ -518,7 +518,7 @@ class SnifferApp(App):
 
     # ---------------------------------------------------------------- export, copy (issue 11)
     def action_export(self) -> None:
-        from .exportscreen import ExportScreen, start_export
+        from sniffer.tui.exportscreen import ExportScreen, start_export
 
         if self.screen is not self.screen_stack[0]:  # help or a question on top: not now
             return

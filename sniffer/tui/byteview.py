@@ -1,6 +1,6 @@
 """The byte view (tab 6): the bytes as the port delivered them, one read per line, for framing problems.
 
-Each read (sniffer.reads.Read, kept in a ReadRing) shows its time, the gap
+Each read (sniffer.analysis.reads.Read, kept in a ReadRing) shows its time, the gap
 since the previous read in ms and in character times at the line's baud, its
 length and its bytes; a read longer than a line goes on below.  A `│` before
 a byte marks where a frame begins, the bytes take their frame's colour (the
@@ -37,12 +37,12 @@ from textual.scroll_view import ScrollView
 from textual.strip import Strip
 from textual.widgets import Static
 
-from ..line import LineSettings
-from ..reads import RING_READS, Read
-from .framelist import S_CURSOR, S_REQ, S_RSP, row_style
-from .model import ROLES, FrameStore
-from .readring import ReadRing
-from .vlist import MOVE_KEYS
+from sniffer.line import LineSettings
+from sniffer.analysis.reads import RING_READS, Read
+from sniffer.tui.framelist import S_CURSOR, S_REQ, S_RSP, row_style
+from sniffer.tui.store import ROLES, FrameStore
+from sniffer.tui.readring import ReadRing
+from sniffer.tui.vlist import MOVE_KEYS
 
 PREFIX = 42  # "   time  gap  chars  len  " before the bytes
 LINK_LOOKBACK = 64  # reads looked back for the last one of the same link (the gap column, several links)

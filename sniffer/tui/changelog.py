@@ -19,10 +19,10 @@ from rich.style import Style
 from rich.text import Text
 from textual.binding import Binding
 
-from .framelist import S_CURSOR
-from .plot import JumpToFrame, number
-from .shadow import RegisterValue
-from .vlist import CursorList
+from sniffer.tui.framelist import S_CURSOR
+from sniffer.tui.plot import JumpToFrame, number
+from sniffer.analysis.register_book import RegisterValue
+from sniffer.tui.vlist import CursorList
 
 S_THINNED = Style(color="grey62", italic=True)
 

@@ -19,8 +19,8 @@ from textual.containers import Vertical
 from textual.css.query import NoMatches
 from textual.widgets import Static, Tree
 
-from ..frame import Frame
-from .timebase import TimeBase, delta_text
+from sniffer.frame import Frame
+from sniffer.tui.timebase import TimeBase, delta_text
 
 HL = "black on yellow"
 FOLLOW_EVERY_S = 0.5  # while the list follows the tail, the detail is rebuilt at most this often

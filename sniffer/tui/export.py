@@ -1,8 +1,8 @@
 """Export from the TUI: the filtered view or the bookmarks, as MCAP, pcap or CSV (Textual-free).
 
-The files are written by the sinks `sniffer export` uses (sniffer.sinks.FileSink:
+The files are written by the sinks `sniffer export` uses (sniffer.formats.FileSink:
 McapSink, PcapSink, CsvSink), under a part name renamed into place when complete
-(sniffer.outputs), so a failed export leaves nothing under the name asked for.
+(sniffer.formats.outputs), so a failed export leaves nothing under the name asked for.
 What is written is the frames as the TUI holds them, decoded once by the
 capture: an MCAP's `/frames` are the view's records exactly; its `/raw` holds
 one read per frame (the frame's bytes, returned at the frame's end, as a
@@ -23,12 +23,12 @@ import os
 import threading
 from collections.abc import Callable, Iterable
 
-from ..events import CaptureInfo, Chunk
-from ..frame import Frame
-from ..outputs import OutputError, shown
-from ..sinks import FileSink
-from ..sinks.mcap import CaptureStorageError
-from ..sinks.rows import points_path
+from sniffer.events import CaptureInfo, Chunk
+from sniffer.frame import Frame
+from sniffer.formats.outputs import OutputError, shown
+from sniffer.formats import FileSink
+from sniffer.formats.mcap.sink import CaptureStorageError
+from sniffer.formats.rows import points_path
 
 FORMATS = {"mcap": ".mcap", "pcap": ".pcap", "csv": ".csv"}  # format -> extension, in the modal's order
 WHATS = {"view": "view", "bookmarks": "bookmarks"}  # what -> the default file name's tag
@@ -49,9 +49,9 @@ def default_path(capture_path: str | None, what: str, fmt: str, *, folder: str |
     added while a file of that name is there, so the default never replaces anything."""
     if capture_path:
         folder = os.path.dirname(os.path.abspath(capture_path))
-        stem = os.path.basename(capture_path)
-        for ext in (".part", ".mcap", ".csv", ".pcapng", ".pcap"):
-            stem = stem[: -len(ext)] if stem.endswith(ext) and len(stem) > len(ext) else stem
+        from sniffer.formats import stem_of
+
+        stem = stem_of(capture_path) or os.path.basename(capture_path)
     else:
         folder, stem = folder or os.getcwd(), "capture"
     base = os.path.join(folder, f"{stem}-{WHATS[what]}")

@@ -19,8 +19,8 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Input, Label, RadioButton, RadioSet, Static
 
-from ..outputs import OutputError, shown
-from .export import FORMATS, Export, default_path, existing, with_extension
+from sniffer.formats.outputs import OutputError, shown
+from sniffer.tui.export import FORMATS, Export, default_path, existing, with_extension
 
 FORMAT_LABELS = {"mcap": "MCAP", "pcap": "pcap", "csv": "CSV"}
 

@@ -9,9 +9,9 @@ again, so the bar reopens on the filter in force.
 
 from __future__ import annotations
 
-from ..filterlang import Query, conjuncts, parse
-from ..filterlang.nodes import And, Field, Flag, Links, Or, Roles
-from ..frameflags import F_PROBLEM
+from sniffer.filterlang import Query, conjuncts, parse
+from sniffer.filterlang.nodes import And, Field, Flag, Links, Or, Roles
+from sniffer.analysis.flags import F_PROBLEM
 
 _FIELD = {"u": "units", "fc": "functions"}
 

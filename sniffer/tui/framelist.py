@@ -15,10 +15,10 @@ from rich.text import Text
 from textual.message import Message
 from textual.strip import Strip
 
-from ..frame import Frame
-from .model import F_ERROR, F_EXC, F_FAULT, F_NOISE, F_TIMEOUT, F_WARN
-from .timebase import TimeBase, delta_text
-from .vlist import CursorList
+from sniffer.frame import Frame
+from sniffer.tui.store import F_ERROR, F_EXC, F_FAULT, F_NOISE, F_TIMEOUT, F_WARN
+from sniffer.tui.timebase import TimeBase, delta_text
+from sniffer.tui.vlist import CursorList
 
 ROLE_TAG = {"request": "->REQ", "response": "<-RSP", "unknown": " ??? ", "noise": "NOISE"}
 S_ERROR = Style(color="bright_red", bold=True)

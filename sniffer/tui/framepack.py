@@ -34,9 +34,9 @@ import zstandard
 
 from decoders.generic.block import RegisterBlock
 
-from ..codes import Annotation
-from ..filterlang import search_text
-from ..frame import Frame
+from sniffer.codes import Annotation
+from sniffer.filterlang import search_text
+from sniffer.frame import Frame
 
 BLOCK = 256  # frames per sealed block
 FRAME_CACHE = 1024  # rebuilt frames kept (a screen is 40-100 rows)

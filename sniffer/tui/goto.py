@@ -14,7 +14,7 @@ import re
 from dataclasses import dataclass
 from datetime import datetime, time, timedelta
 
-from .timebase import TimeBase, parse_duration
+from sniffer.tui.timebase import TimeBase, parse_duration
 
 EXAMPLES = "1234 or #1234 (a frame), 12.5s or 350ms (a time), 19:22:01.250 (wall clock)"
 _FRAME = re.compile(r"#?([0-9]+)")

@@ -7,7 +7,7 @@ from typing import ClassVar
 from textual.binding import Binding
 from textual.widgets import Input
 
-from .goto import EXAMPLES
+from sniffer.tui.goto import EXAMPLES
 
 
 class GotoBar(Input):
@@ -30,7 +30,7 @@ class GotoBar(Input):
         self.screen.set_focus(self)
 
     def action_close(self) -> None:
-        from .framelist import FrameList
+        from sniffer.tui.framelist import FrameList
 
         self.remove_class("shown")
         self.screen.set_focus(self.screen.query_one(FrameList))

@@ -1,6 +1,6 @@
 """The latency histogram of the Transactions tab: a unit's (or every unit's) figures and latencies in bins.
 
-Textual-free (rich only, for the drawing).  The figures are the unit's `sniffer.unitfigures.UnitFigures`
+Textual-free (rich only, for the drawing).  The figures are the unit's `sniffer.analysis.unitfigures.UnitFigures`
 (the same numbers the Units tab, the report, `status`, `diff` and MQTT show: quantiles by the nearest
 rank, timeouts once a request); the bins are counted from its `Latencies` when drawn.
 """

@@ -23,9 +23,9 @@ from textual.strip import Strip
 from textual.widget import Widget
 from textual.widgets import DataTable, Static
 
-from .model import FrameStore
-from .plotaxis import time_unit
-from .plotmodel import PlotImage, PlotSet, TimeWindow, Trace, render
+from sniffer.tui.store import FrameStore
+from sniffer.tui.plotaxis import time_unit
+from sniffer.tui.plotmodel import PlotImage, PlotSet, TimeWindow, Trace, render
 
 EMPTY = "nothing plotted: in the Registers tab (3) press a on a register to add it here"
 # the legend's columns and their widths (fixed: the rows are filled again as the view changes)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from .timebase import REL, WALL, TimeBase
+from sniffer.tui.timebase import REL, WALL, TimeBase
 
 
 def nice_step(span: float, count: int) -> float:

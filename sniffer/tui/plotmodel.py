@@ -18,8 +18,8 @@ import bisect
 import math
 from dataclasses import dataclass
 
-from .plotaxis import nice_step, tick_text, ticks, time_ticks
-from .timebase import TimeBase
+from sniffer.tui.plotaxis import nice_step, tick_text, ticks, time_ticks
+from sniffer.tui.timebase import TimeBase
 
 PALETTE = ("bright_cyan", "yellow", "bright_magenta", "bright_green", "dark_orange", "bright_blue", "bright_red",
            "white")

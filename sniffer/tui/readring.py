@@ -1,7 +1,7 @@
 """The byte view's model: the last reads of the capture, and where a frame's bytes are among them (no Textual).
 
 A ring of at most RING_READS reads holding at most RING_BYTES bytes
-(sniffer.reads): older reads are dropped a quarter at a time, so appending
+(sniffer.analysis.reads): older reads are dropped a quarter at a time, so appending
 stays cheap and memory stays flat however long the capture runs.  Reads are
 in stream order and so are the frames their bytes went to, which lets
 `find(index)` bisect for the read holding a frame's first byte.  Positions
@@ -14,7 +14,7 @@ from __future__ import annotations
 import bisect
 from array import array
 
-from ..reads import RING_BYTES, RING_READS, Read
+from sniffer.analysis.reads import RING_BYTES, RING_READS, Read
 
 
 class ReadRing:

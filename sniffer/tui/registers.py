@@ -12,11 +12,11 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Static
 
-from ..frame import LinkUnit
-from .changelog import ChangeLog
-from .model import FrameStore
-from .plot import PlotView
-from .plotmodel import PlotSet
+from sniffer.frame import LinkUnit
+from sniffer.tui.changelog import ChangeLog
+from sniffer.tui.store import FrameStore
+from sniffer.tui.plot import PlotView
+from sniffer.tui.plotmodel import PlotSet
 
 # "unit" is the Modbus unit (as in the frame list); "eng" the value's engineering unit (Hz, A, V)
 COLUMNS = ("unit", "table", "addr", "name", "value", "eng", "raw", "changes", "updated")

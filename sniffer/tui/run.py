@@ -21,9 +21,9 @@ import sys
 import threading
 from collections.abc import Callable
 
-from .app import SnifferApp
-from ..giveway import GiveWay, give_cpu
-from .sink import TuiSink
+from sniffer.tui.app import SnifferApp
+from sniffer.processes.cpu_yield import GiveWay, give_cpu
+from sniffer.tui.sink import TuiSink
 
 VIEWER_NICE = 19  # the viewer of a capture on this machine: the lowest priority (yield_to_capture)
 # the longest the UI thread waits for the interpreter while a feed thread (a replay's decoding, an attached
@@ -82,7 +82,7 @@ def _run(app: SnifferApp, *, attached: bool = False) -> int:
     app.stop_feed()
     result = app.feed_result
     if hasattr(result, "frames_out"):
-        from ..commands.common import summary_line
+        from sniffer.capture.summary import summary_line
 
         print(summary_line(result), file=sys.stderr)
         if getattr(result, "error", None):
@@ -101,7 +101,7 @@ def run_session_tui(session, sink: TuiSink, *, source_label: str, capture_path: 
 
 def give_way(app: SnifferApp) -> GiveWay:
     """The App's process hands its CPU back every GIVE_WAY_S while the capture it views records frames
-    (sniffer/giveway.py: how a redraw's burst delays the capture's reads although the viewer runs at nice 19)."""
+    (processes/cpu_yield.py: how a redraw's burst delays the capture's reads although the viewer runs at nice 19)."""
     app.give_way = GiveWay(lambda: app.sink.frames_in)
     return app.give_way
 
@@ -109,8 +109,8 @@ def give_way(app: SnifferApp) -> GiveWay:
 def local_capture_feed(att):
     """The feed of a viewer of a capture on this machine (`sniffer live|demo`'s TUI, `attach --tui` to a local
     socket): this process leaves the CPU to the capture (yield_to_capture, now: the App's threads inherit it)
-    and the feed gives way between two records (sniffer/giveway.py).  Run the App with give_way as well."""
-    from ..attach import attach_feed
+    and the feed gives way between two records (sniffer/processes/cpu_yield.py).  Run the App with give_way as well."""
+    from sniffer.processes.attach import attach_feed
 
     yield_to_capture()
     return attach_feed(att, pause=give_cpu)
@@ -141,7 +141,7 @@ class CaptureViewer:
     in one line, and `rc()` is its exit status."""
 
     def __init__(self, spec, command: str, label: str) -> None:
-        from ..capture_process import CaptureProcess, capture_argv, private_socket
+        from sniffer.processes.capture import CaptureProcess, capture_argv, private_socket
 
         self.label = label
         self.sock, self._cleanup = (spec.publish, lambda: None) if spec.publish else private_socket()
@@ -150,8 +150,8 @@ class CaptureViewer:
         self.attachment = None
 
     def start(self) -> bool:
-        from ..attach import Attachment
-        from ..sources import CaptureError
+        from sniffer.processes.attach import Attachment
+        from sniffer.events import CaptureError
 
         if not self.capture.wait_publishing():
             self.capture.stderr.release(wait_eof=True)  # its one line
@@ -206,3 +206,13 @@ def run_capture_tui(spec, command: str, label: str) -> int:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
     return viewer.rc()
+
+
+def attach_tui(att) -> int:
+    """The App over the capture; a capture on this machine gets the CPU first, as under the TUI of `sniffer
+    live` (yield_to_capture here, processes/cpu_yield.py)."""
+    from sniffer.processes.attach import attach_feed
+
+    here = att.on_this_machine
+    return run_tui(local_capture_feed(att) if here else attach_feed(att), source_label=att.label,
+                   capture_path=att.capture_path, attached=here)

@@ -18,7 +18,7 @@ The register watch needs nothing else: each frame carries what it wrote into
 its unit's register shadow (`Frame.writes`), so the sink never looks at the
 decoders' state.
 
-The byte view gets the reads (sniffer.reads): the sink marks each Chunk with
+The byte view gets the reads (sniffer.analysis.reads): the sink marks each Chunk with
 the frames its bytes went to (a ReadMarker on the capture thread) and keeps
 at most RING_READS of them for the UI to drain (`drain_reads`); a viewer
 attached to a capture gets them marked already (`reads`).
@@ -30,10 +30,10 @@ import threading
 import time
 from collections import deque
 
-from ..events import CaptureInfo, Chunk
-from ..frame import Frame
-from ..reads import RING_READS, Read, ReadMarker
-from ..sinks.base import Sink
+from sniffer.events import CaptureInfo, Chunk
+from sniffer.frame import Frame
+from sniffer.analysis.reads import RING_READS, Read, ReadMarker
+from sniffer.sinks.base import Sink
 
 MAX_BACKLOG = 2_000  # frames waiting for the UI before a replay waits
 INTAKE_BUDGET_S = 0.004  # the UI thread's turn at taking frames in: a key waits at most about this long

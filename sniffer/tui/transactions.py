@@ -18,8 +18,8 @@ from __future__ import annotations
 import bisect
 from array import array
 
-from .. import codes
-from ..frame import REQUEST, RESPONSE, Frame
+from sniffer import codes
+from sniffer.frame import REQUEST, RESPONSE, Frame
 
 OK, EXCEPTION, PENDING, TIMEOUT, NO_RESPONSE, END_OF_CAPTURE, BROADCAST, ORPHAN = range(8)
 KIND_TEXT = {OK: "ok", EXCEPTION: "exception", PENDING: "awaiting its response", TIMEOUT: "timeout",

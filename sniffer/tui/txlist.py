@@ -20,13 +20,13 @@ from textual.containers import Vertical
 from textual.message import Message
 from textual.widgets import Static
 
-from .. import codes
-from ..frame import Frame, unit_key
-from .framelist import S_CURSOR, row_mark, row_style
-from .latency import BAR_ROWS, histogram_text
-from .model import F_PROBLEM, FrameStore
-from .transactions import BROADCAST, EXCEPTION, KIND_TEXT, PENDING, UNANSWERED
-from .vlist import CursorList
+from sniffer import codes
+from sniffer.frame import Frame, unit_key
+from sniffer.tui.framelist import S_CURSOR, row_mark, row_style
+from sniffer.tui.latency import BAR_ROWS, histogram_text
+from sniffer.tui.store import F_PROBLEM, FrameStore
+from sniffer.tui.transactions import BROADCAST, EXCEPTION, KIND_TEXT, PENDING, UNANSWERED
+from sniffer.tui.vlist import CursorList
 
 VALUES = 6  # values shown of a read's answer
 

@@ -1,11 +1,11 @@
-"""Units table: one row per unit seen on the bus, its figures (sniffer.unitfigures: one definition each,
+"""Units table: one row per unit seen on the bus, its figures (sniffer.analysis.unitfigures: one definition each,
 the same the report, the status file, `diff`, MQTT and the dataset's `units` query show)."""
 
 from __future__ import annotations
 
 from textual.widgets import DataTable
 
-from .model import FrameStore
+from sniffer.tui.store import FrameStore
 
 # latencies in ms to the microsecond, as the frames have them; poll/s is the recent rate (the report's is the mean)
 COLUMNS = ("unit", "model", "req", "rsp", "CRC err", "exc", "timeouts", "retries", "faults", "alarms", "lat min",

@@ -1,0 +1,280 @@
+"""Pairing on one half-duplex line: which frame is a request, which answers it.
+
+Sans-I/O.  `push(frame)` returns the frames that are settled, in capture
+order; a request is held until its response, the next request, a timeout
+tick, or the end of the capture settles it (one transaction of delay).
+
+Rules (one master; each has a test of its name in tests/test_pairer.py):
+  * pass-through: noise, and a frame the pairer cannot read (no unit or no
+    function, or `can` = 0: its shape fits no role) is never paired; it
+    keeps its place in capture order and settles nothing;
+  * response-only shapes (`can` = CAN_RSP: exception, byte-count shape) are
+    responses, request-only shapes (CAN_REQ) requests;
+  * a shape that fits both (05/06/08/16 echoes, unknown codes): context
+    decides; the response if it matches the pending request's unit and
+    function within the response timeout (a 05/06/16 only if it repeats the
+    request: another write is the master's next request), else the answer
+    to a broadcast just before it (from a unit other than 0), else a new
+    request.  Where the two readings mean
+    different things (not an echo) and the context is not clear (a response
+    whose byte count does not fit the pending request, a request while one
+    of the same unit and function is pending, or nothing pending at all),
+    pair.role.ambiguous says which was chosen and why;
+  * a new request while one is pending: the pending one is unanswered
+    (`_unanswered`: pair.no_response "next request after X ms", and
+    pair.timeout when X is past the unit's timeout); identical bytes mark
+    the new one pair.retry;
+  * a timeout tick past the unit's timeout: the pending request is
+    unanswered the same way ("timeout tick after X ms", pair.timeout);
+  * end of capture: the pending request gets pair.end_of_capture instead of
+    pair.no_response (its answer may simply not have been captured);
+  * broadcast (unit 0) expects no answer (pair.broadcast, not held); a
+    response right after it is pair.broadcast_response; a Modbus broadcast
+    of a function that is not a write is pair.broadcast.function;
+  * a response with nothing pending, or for another unit or function, is an
+    orphan (pair.orphan_response);
+  * a response past the unit's timeout is still paired, and flagged
+    pair.late_response (no tick settled the request first);
+  * a CRC-good Modbus response that does not answer its CRC-good request
+    (byte count, echo, address) is paired and flagged pair.mismatch
+    (`response_mismatch`).
+The pairer never raises on a frame a framer can produce: whatever its unit,
+function, adu, crc_ok or `can` bits.
+"""
+
+from __future__ import annotations
+
+from sniffer import codes
+from sniffer.codes import note
+from sniffer.frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE, UNKNOWN, Frame
+from sniffer.protocols import PROTOCOLS
+from sniffer.framing.rtu_lengths import BROADCAST_FUNCTIONS, KNOWN_FUNCTIONS
+
+DEFAULT_TIMEOUT_MS = 1000.0
+_MODBUS = frozenset(name for name, p in PROTOCOLS.items() if p.family == "modbus")  # Modbus echo/count rules
+_ROLES = CAN_REQ | CAN_RSP
+_ECHOES = frozenset((0x05, 0x06, 0x08, 0x16))  # request and response are the same shape and meaning
+_WRITE_ECHOES = frozenset((0x05, 0x06, 0x16))  # ... and the response repeats the request byte for byte
+
+
+class Pairer:
+    def __init__(self, timeout_ms: float = DEFAULT_TIMEOUT_MS, unit_timeouts: dict | None = None) -> None:
+        self.timeout_ns = int(timeout_ms * 1e6)
+        self.unit_timeouts = {u: int(ms * 1e6) for u, ms in (unit_timeouts or {}).items()}
+        self.pending: Frame | None = None
+        self.held: list[Frame] = []  # the pending request and what came after it
+        self.last_request: Frame | None = None  # for broadcast-response detection
+        self.before: int | None = None  # Frame.index of the frame pushed before this one (on this line)
+        self._last_index: int | None = None
+
+    def _timeout(self, unit: int) -> int:
+        return self.unit_timeouts.get(unit, self.timeout_ns)
+
+    def push(self, f: Frame) -> list[Frame]:
+        # a line's frames are numbered in a capture-wide sequence when several links share it:
+        # "the frame just before" is the one pushed before, not index - 1
+        self.before, self._last_index = self._last_index, f.index
+        if f.protocol == "noise" or f.function is None or f.unit is None:
+            return self._pass_through(f)
+        can = f.role_fits
+        if can == CAN_RSP:
+            f.role = RESPONSE
+            return self._response(f)
+        if can == CAN_REQ:
+            f.role = REQUEST
+            return self._request(f)
+        if not can & _ROLES:  # fits no role
+            return self._pass_through(f)
+        pending = self.pending  # the shape fits both: context decides
+        if pending is not None and _same_transaction(pending, f):
+            if (f.function in _WRITE_ECHOES and f.crc_ok and pending.crc_ok and f.adu != pending.adu
+                    and f.protocol in _MODBUS):
+                # an echo repeats its request byte for byte: another write is the master's next request
+                f.annotations.append(note(
+                    codes.ROLE_AMBIGUOUS, f"not an echo of #{pending.index}: taken as a new request (as its "
+                                          f"response it would be a mismatched echo)", 0, len(f.raw)))
+            elif f.t_ns - pending.t_end_ns <= self._timeout(pending.unit):
+                if f.function not in _ECHOES and f.protocol in _MODBUS and pending.crc_ok and f.crc_ok:
+                    why = response_mismatch(pending.adu, f.adu)
+                    if why:
+                        f.annotations.append(note(
+                            codes.ROLE_AMBIGUOUS,
+                            f"taken as the response to #{pending.index} though {why}; as a request it "
+                            f"would leave #{pending.index} unanswered", 0, len(f.raw)))
+                f.role = RESPONSE
+                return self._response(f)
+            if f.function not in _ECHOES and f.protocol in _MODBUS:
+                f.annotations.append(note(
+                    codes.ROLE_AMBIGUOUS,
+                    f"taken as a new request: #{pending.index} waited past the unit's timeout", 0, len(f.raw)))
+        if pending is None and self._answers_broadcast(f):
+            f.role = RESPONSE
+            return self._response(f)
+        if (pending is None and f.protocol in _MODBUS and f.function in KNOWN_FUNCTIONS
+                and f.function not in _ECHOES):
+            f.annotations.append(note(codes.ROLE_AMBIGUOUS, "fits a request and a response; nothing pending, "
+                                                            "so taken as a request", 0, len(f.raw)))
+        f.role = REQUEST
+        return self._request(f)
+
+    def _pass_through(self, f: Frame) -> list[Frame]:
+        """Not paired: settled now, or held behind the pending request to keep capture order."""
+        if self.held:
+            self.held.append(f)
+            return []
+        return [f]
+
+    def _answers_broadcast(self, f: Frame) -> bool:
+        """A unit's echo of the broadcast write just before it (a bug to flag, not a new request)."""
+        last = self.last_request
+        if (last is None or last.unit != 0 or last.function != f.function or last.index != self.before
+                or f.unit == 0):  # unit 0 again: the master repeating its broadcast, not an answer
+            return False
+        if f.function in (0x05, 0x06, 0x16):
+            return f.adu[2:] == last.adu[2:]
+        if f.function in (0x0F, 0x10):
+            return len(f.adu) == 6 and f.adu[2:6] == last.adu[2:6]
+        return True
+
+    def _response(self, f: Frame) -> list[Frame]:
+        req = self.pending
+        if req is not None and req.unit == f.unit and (f.function == req.function or f.function == req.function | 0x80):
+            self.pending = None  # (_same_transaction, inline: every response passes here)
+            f.pair = req.index
+            req.pair = f.index
+            f.peer = req
+            req.peer = f
+            lat = f.t_ns - req.t_end_ns
+            # per-read times are estimated back from the read: a response read together
+            # with its request has no measurable turnaround (latency stays null; the
+            # frame's time_source "read" says why)
+            # frames typed in (`sniffer decode`, time source "none") have no time to measure
+            if f.time_source != "none" and not (f.time_source == "read" and lat <= 0):
+                # to the microsecond, as the frame record has it: a viewer that reads the record and
+                # one that has the frame show the same figure (rounding twice could differ)
+                f.latency_ms = round(lat / 1e6, 3)
+            if lat > self.unit_timeouts.get(req.unit, self.timeout_ns) and f.time_source != "none":
+                f.annotations.append(
+                    note(codes.LATE_RESPONSE, f"{lat / 1e6:.1f} ms after the request", 0, len(f.raw))
+                )
+            why = (response_mismatch(req.adu, f.adu)
+                   if req.crc_ok and f.crc_ok and f.protocol in _MODBUS else None)
+            if why:
+                f.annotations.append(note(codes.PAIR_MISMATCH, why, 0, len(f.raw)))
+            out = self.held  # the request and anything held since: settled now
+            out.append(f)
+            self.held = []
+            return out
+        last = self.last_request
+        if req is None and last is not None and last.unit == 0 and last.index == self.before:
+            f.annotations.append(
+                note(codes.BROADCAST_RESPONSE, f"unit {f.unit} answered broadcast frame #{last.index}",
+                     0, len(f.raw))
+            )
+        else:
+            why = "nothing pending" if req is None else (
+                f"pending request #{req.index} is for unit {req.unit} function 0x{req.function:02X}"
+            )
+            f.annotations.append(note(codes.ORPHAN_RESPONSE, why, 0, len(f.raw)))
+        return self._pass_through(f)
+
+    def _request(self, f: Frame) -> list[Frame]:
+        req = self.pending
+        if req is not None:  # held is empty unless a request is pending
+            out = self._unanswered("next request", f.t_ns - req.t_end_ns if f.time_source != "none" else None)
+            if req.raw == f.raw:
+                f.annotations.append(note(codes.RETRY, f"repeats frame #{req.index}", 0, len(f.raw)))
+        else:
+            out = []
+        self.last_request = f
+        if f.unit == 0:
+            f.annotations.append(note(codes.BROADCAST, "no response expected", 0, 1))
+            if f.protocol in _MODBUS and f.function not in BROADCAST_FUNCTIONS:
+                f.annotations.append(note(codes.BROADCAST_FUNCTION,
+                                          f"function 0x{f.function:02X} to unit 0: no unit may answer it", 1, 2))
+            out.append(f)
+            return out
+        self.pending = f
+        self.held.append(f)
+        return out
+
+    def _unanswered(self, ended_by: str, waited_ns: int | None, code=codes.NO_RESPONSE) -> list[Frame]:
+        """Settle the pending request without a response; the held frames, in capture order.
+
+        One annotation says what ended the wait ("next request", "timeout
+        tick", "end of capture") and after how long; pair.timeout follows
+        when that wait is known to be past the unit's timeout.
+        """
+        req = self.pending
+        after = "" if waited_ns is None else f" after {waited_ns / 1e6:.1f} ms"
+        req.annotations.append(note(code, f"no response: {ended_by}{after}", 0, len(req.raw)))
+        limit = self._timeout(req.unit)
+        if waited_ns is not None and waited_ns > limit:
+            req.annotations.append(
+                note(codes.TIMEOUT, f"unit {req.unit}: no response within {limit / 1e6:.0f} ms", 0, len(req.raw))
+            )
+        self.pending = None
+        out = self.held
+        self.held = []
+        return out
+
+    def would_time_out(self, t_ns: int) -> bool:
+        """True if tick(t_ns) would settle the pending request (used to record effective ticks)."""
+        req = self.pending
+        return req is not None and t_ns - req.t_end_ns > self._timeout(req.unit)
+
+    def tick(self, t_ns: int) -> list[Frame]:
+        if not self.would_time_out(t_ns):
+            return []
+        return self._unanswered("timeout tick", t_ns - self.pending.t_end_ns)
+
+    def flush(self) -> list[Frame]:
+        if self.pending is not None:
+            return self._unanswered("end of capture", None, codes.END_OF_CAPTURE)
+        out = self.held
+        self.held = []
+        return out
+
+
+def _same_transaction(req: Frame, f: Frame) -> bool:
+    return req.unit == f.unit and (f.function == req.function or f.function == (req.function | 0x80))
+
+
+def response_mismatch(req: bytes, rsp: bytes) -> str | None:
+    """Why a CRC-good response does not answer its CRC-good request, or None (ADUs, no checksum)."""
+    try:
+        fc = req[1]
+        if rsp[1] & 0x80:
+            return None
+        if fc in (0x01, 0x02):
+            qty = (req[4] << 8) | req[5]
+            want = (qty + 7) // 8
+            if rsp[2] != want:
+                return f"byte count {rsp[2]}, expected {want} for {qty} bits"
+        elif fc in (0x03, 0x04):
+            qty = (req[4] << 8) | req[5]
+            if rsp[2] != 2 * qty:
+                return f"byte count {rsp[2]}, expected {2 * qty} for {qty} registers"
+        elif fc in (0x05, 0x06, 0x16):
+            if rsp != req:
+                return "response is not an echo of the request"
+        elif fc == 0x08:
+            if rsp[2:4] != req[2:4]:
+                return "diagnostic sub-function not echoed"
+        elif fc in (0x0F, 0x10):
+            if rsp[2:6] != req[2:6]:
+                ra, rq = (req[2] << 8) | req[3], (req[4] << 8) | req[5]
+                sa, sq = (rsp[2] << 8) | rsp[3], (rsp[4] << 8) | rsp[5]
+                return f"response says address {sa} x {sq}, request was {ra} x {rq}"
+        elif fc == 0x17:
+            qty = (req[4] << 8) | req[5]
+            if rsp[2] != 2 * qty:
+                return f"byte count {rsp[2]}, expected {2 * qty} for {qty} registers"
+    except IndexError:
+        if len(req) < 2 or len(rsp) < 2:
+            return None  # no function code to compare (a framer never pairs such ADUs; built frames may)
+        return "response too short for its request"
+    return None
+
+
+__all__ = ["Pairer", "response_mismatch", "UNKNOWN"]

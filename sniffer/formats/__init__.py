@@ -1,0 +1,106 @@
+"""File formats: each one's reader and writer side by side, and the one table of them (as python-can's
+`can/io/logger.py` keeps one).
+
+    sink = make_sink("parquet", "line3.parquet", inputs=["line3.mcap"])     # a writer, by format name
+    fmt = format_of("line3.pcapng")                                          # a format, by suffix
+
+    mcap/      the capture format: format.py, writer.py, sink.py, reader.py, scan.py, repair.py, foxglove.py,
+               segments.py + rotating.py + segset.py (a rotated capture's folder)
+    pcap/      format.py, reader.py, writer.py;   bytecsv/  reader.py, writer.py
+    saleae.py  csvstream.py  timeparse.py  (readers);  jsonl.py  text.py  csvexport.py  parquet.py  rows.py
+    tables.py  schemas.py  (exports);  records.py  the frame record every writer shares;  files.py  open any
+    capture file;  reading.py  what readers share;  outputs.py  temporary name, then rename
+
+Adding a format is a module here and a row in `TABLE`; nothing else lists formats or their suffixes.
+Every file is written under a temporary name and renamed into place by the session (formats/outputs.py).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from dataclasses import dataclass
+
+from sniffer.formats.outputs import Output
+from sniffer.sinks.base import Sink
+
+
+@dataclass(frozen=True)
+class Format:
+    name: str
+    suffixes: tuple[str, ...]  # the first is what a file of this format is given
+    writer: str | None = None  # "module:function" making its sink: (fmt, path, part paths) -> Sink
+    reader: str | None = None  # "module" with `sniff(path)` and its source class `SOURCE`
+    export: bool = False  # offered by `sniffer export --to`
+
+
+TABLE: tuple[Format, ...] = (
+    Format("mcap", (".mcap",), "sniffer.formats.mcap.sink:open_sink", "sniffer.formats.mcap.reader", True),
+    Format("csv", (".csv",), "sniffer.formats.csvexport:open_sink", None, True),
+    Format("parquet", (".parquet",), "sniffer.formats.parquet:open_sink", None, True),
+    Format("pcap", (".pcap",), "sniffer.formats.pcap.writer:open_sink", "sniffer.formats.pcap.reader", True),
+    Format("pcapng", (".pcapng",), "sniffer.formats.pcap.writer:open_sink", None, True),
+    Format("jsonl", (".jsonl",), "sniffer.formats.jsonl:open_sink", None, True),
+    Format("text", (".txt",), "sniffer.formats.text:open_sink"),
+    Format("bytecsv", (".csv",), "sniffer.formats.bytecsv.writer:open_sink", "sniffer.formats.bytecsv.reader"),
+    Format("saleae", (".csv",), None, "sniffer.formats.saleae"),
+    Format("sigrok", (".sr",), None, "sniffer.sources.srzip"),  # decoded by sigrok-cli (sources/sigrok_cli.py)
+)
+WRITERS = {f.name: f for f in TABLE if f.writer}
+EXPORT_FORMATS = tuple(f.name for f in TABLE if f.export)
+FORMATS = tuple(WRITERS)
+# what a capture file's name may end in, longest first (a window or dataset name drops it)
+CAPTURE_SUFFIXES = (".part", ".mcap", ".csv", ".pcapng", ".pcap")
+
+
+def _load(ref: str):
+    module, _, name = ref.partition(":")
+    mod = importlib.import_module(module)
+    return getattr(mod, name) if name else mod
+
+
+def reader_module(name: str):
+    """The reader module of input format `name` (its `sniff(path)` and `SOURCE`)."""
+    return _load(next(f.reader for f in TABLE if f.name == name and f.reader))
+
+
+def stem_of(path: str) -> str:
+    """A capture file's name without its capture suffixes (`cab3.mcap.part` -> `cab3`)."""
+    stem = os.path.basename(path)
+    for ext in CAPTURE_SUFFIXES:
+        stem = stem.removesuffix(ext)
+    return stem
+
+
+class FileSink:
+    """A file output planned before the capture opens: checked now, created by `open()`.
+
+    `outputs` are the files it will write (sniffer.formats.outputs.Output), checked at
+    construction: a missing folder, a folder, or an input of the command is an
+    OutputError (one line) before anything is opened or created.
+    """
+
+    def __init__(self, fmt: str, out: str | os.PathLike[str], *, inputs=(), what: str = "--out") -> None:
+        if fmt not in WRITERS:
+            raise ValueError(f"unknown output format {fmt!r}")
+        self.fmt = fmt
+        self.path = os.fspath(out)
+        if fmt in ("csv", "parquet"):
+            from sniffer.formats.rows import points_path
+
+            second = points_path(self.path, ".csv" if fmt == "csv" else ".parquet")
+            self.outputs = (Output(self.path, inputs=inputs, what=what), Output(second, inputs=inputs, what=what))
+        else:
+            self.outputs = (Output(self.path, inputs=inputs, what=what),)
+
+    def open(self) -> Sink:
+        """The sink, writing the part files."""
+        fmt, parts = self.fmt, [o.part for o in self.outputs]
+        sink: Sink = _load(WRITERS[fmt].writer)(fmt, self.path, parts)
+        sink.outputs = self.outputs
+        return sink
+
+
+def make_sink(fmt: str, out: str | os.PathLike[str], *, inputs=(), what: str = "--out") -> Sink:
+    """FileSink(...).open(): a sink writing `out` (part files; the caller commits `sink.outputs`)."""
+    return FileSink(fmt, out, inputs=inputs, what=what).open()

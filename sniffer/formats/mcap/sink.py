@@ -1,0 +1,354 @@
+"""MCAP sink: a capture file that replays exactly and opens in Foxglove.
+
+What goes in it (topics, schemas, the /raw codec) is sniffer.formats.mcap.format;
+what Foxglove's panels read besides (the `foxglove` metadata, /annotations as
+foxglove.Log, a /values topic per register, the models' register maps as
+attachments) is sniffer.formats.mcap.foxglove, derived here from the frames (a trigger
+window's encoded records too).
+/capture and the `sniffer.capture` metadata are on disk right after start(),
+which flushes at once, so even a file cut a second after start still knows
+its baud, parity and t0 (the metadata index in the summary would be lost).
+
+The file is written by sniffer.formats.mcap.writer (plain MCAP, chunked, zstd).
+
+Durability.  The writer collects messages in a chunk in memory.  Every
+`flush_interval_s` of *wall* time (the sink's monotonic clock, checked on each
+raw()/frame() call and on `maybe_flush()`) the chunk is finished and written
+to the OS, so a SIGKILL loses at most that much.  Wall time, not event time:
+the bound is about how much a crash loses, and a fast file conversion would
+otherwise write thousands of tiny chunks per second.  No fsync: the page cache
+survives a killed process; power loss is not covered.
+
+Full disk.  Bytes reach the file only through `_AppendFile`, which writes
+whole records and, when the OS refuses a write (ENOSPC, EFBIG, EIO), cuts the
+file back to the last whole record and never writes again.  The file on disk
+is then a clean prefix that `sniffer.formats.mcap.reader` reads and
+`sniffer.formats.mcap.repair` finishes.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections import deque
+from collections.abc import Callable
+
+import msgspec
+
+from sniffer import __version__
+from sniffer.formats.mcap import foxglove
+from sniffer.events import CaptureInfo, Chunk, Gap, Tick
+from sniffer.frame import Frame
+from sniffer.formats.mcap.format import (
+    CAPTURE_TOPIC, CHANNELS, FRAMES_TOPIC, METADATA_NAME, RAW_FORMAT, RAW_TOPIC, encode_event, info_to_metadata,
+)
+from sniffer.formats.mcap.writer import McapWriter
+from sniffer.formats.records import frame_json
+from sniffer.sinks.base import Sink
+
+
+# uncompressed bytes per chunk: a damaged byte loses one chunk; 512 KiB files are 1 % larger than with
+# 1 MiB chunks (mcap's default), 128 KiB ones 14 % (measured on a 256k-frame export)
+CHUNK_SIZE = 512 * 1024
+
+
+class CaptureStorageError(Exception):
+    """The capture file cannot be written (disk full, file too large, I/O error): one line.
+
+    `reason` is the operating system's word for it (e.g. "No space left on device")."""
+
+    reason = ""
+
+
+class _AppendFile:
+    """The MCAP writer's output stream: never leaves a torn record behind.
+
+    The writer hands each write() whole records, so the end of every
+    write() is a record boundary.  Pieces wait here until flush(), which
+    writes them with os.write.  If the OS refuses (disk full, EFBIG), the file
+    is cut back to the end of the last whole piece (ftruncate needs no space)
+    and nothing is written again.  A BufferedWriter gives no such promise:
+    after a failed flush it may keep part of its buffer and write it later,
+    after a gap, which would corrupt the file instead of shortening it.
+    """
+
+    MAX_PENDING = 8 << 20  # write out early if a flush is long overdue
+
+    def __init__(self, path: str) -> None:
+        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_BINARY", 0) | getattr(os, "O_CLOEXEC", 0)
+        self._fd: int | None = os.open(path, flags, 0o666)
+        self._pending: deque[bytes] = deque()
+        self._pending_len = 0
+        self.on_disk = 0
+        self.failed: OSError | None = None
+
+    def write(self, data: bytes | bytearray | memoryview) -> int:
+        if self.failed is not None:
+            raise self.failed
+        n = len(data)
+        if n:
+            self._pending.append(bytes(data))
+            self._pending_len += n
+            if self._pending_len >= self.MAX_PENDING:
+                self.flush()
+        return n
+
+    def tell(self) -> int:
+        return self.on_disk + self._pending_len
+
+    def flush(self) -> None:
+        if self.failed is not None:
+            raise self.failed
+        assert self._fd is not None, "file is closed"
+        start = self.on_disk  # a flush is whole or not at all: a chunk without its message index is not kept
+        while self._pending:
+            piece = self._pending[0]
+            view = memoryview(piece)
+            done = 0
+            try:
+                while done < len(piece):
+                    n = os.write(self._fd, view[done:])
+                    if n <= 0:
+                        raise OSError(5, "write returned 0 bytes")
+                    done += n
+            except OSError as e:
+                self.failed = e
+                self.on_disk = start
+                try:
+                    os.ftruncate(self._fd, self.on_disk)
+                except OSError:
+                    pass  # the reader stops at the torn record anyway
+                raise
+            self._pending.popleft()
+            self._pending_len -= len(piece)
+            self.on_disk += len(piece)
+
+    def close(self) -> None:
+        if self._fd is not None:
+            fd, self._fd = self._fd, None
+            os.close(fd)
+
+
+class McapSink(Sink):
+    """Pipeline sink writing /capture, /raw and /frames to one MCAP file, and Foxglove's parts.
+
+    Raises CaptureStorageError once, from whichever call first fails to
+    write; after that every call is a no-op and close() only releases the
+    file (whose complete records stay readable).  `clock` (monotonic ns)
+    decides when to flush; tests pass a fake one.  `foxglove=False` writes
+    the capture alone (what a benchmark sets beside it).
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        flush_interval_s: float = 1.0,
+        clock: Callable[[], int] = time.monotonic_ns,
+        compress: bool = True,
+        foxglove: bool = True,
+        packing: tuple[int, int] = (0, 0),
+    ) -> None:
+        self.path = os.fspath(path)
+        self._packing = packing  # how the chunks of the file before (a segment's) compressed
+        self._interval_ns = int(flush_interval_s * 1e9)
+        self._clock = clock
+        self._compression = "zstd" if compress else ""
+        self._writer: McapWriter | None = None
+        self._t0 = 0
+        self._anchor = 0
+        self._seq: dict[int, int] = {}
+        self._foxglove_on = foxglove
+        self._fox: foxglove.Foxglove | None = None
+        self._fox_channels: dict[str, int] = {}
+        self._value_schema = 0
+        self._maps: tuple = ((), None)  # the capture's --model-file maps, --map-base (decoders.mapfile)
+        self._last_flush = 0
+        self._closed = False
+        self.error: CaptureStorageError | None = None
+        try:
+            self._file = _AppendFile(self.path)
+        except OSError as e:
+            raise CaptureStorageError(f"{self.path}: cannot create capture file: {e.strerror or e}") from None
+
+    @property
+    def bytes_written(self) -> int:
+        """Bytes on disk so far (the flushed, complete part of the file)."""
+        return self._file.on_disk
+
+    @property
+    def packing(self) -> tuple[int, int]:
+        """How its chunks compressed so far (McapWriter.packing): the next segment's estimates start there."""
+        return self._writer.packing if self._writer is not None else self._packing
+
+    @property
+    def size(self) -> int:
+        """Bytes of the file so far, written or waiting to be, of the open chunk (estimated: mcap_writer
+        open_chunk_bytes) and of the summary it will end with (a Foxglove capture has a channel per
+        register: the summary repeats them)."""
+        w = self._writer
+        return self._file.tell() + (w.summary_bytes + w.open_chunk_bytes() if w is not None else 0)
+
+    def start(self, info: CaptureInfo) -> None:
+        self._t0 = info.t0_ns
+        self._anchor = info.wall_anchor_ns
+        # chunks of at most CHUNK_SIZE: a damaged byte loses one chunk (`replay` and `repair` go on after it)
+        w = McapWriter(self._file, compression=self._compression, chunk_size=CHUNK_SIZE, packing=self._packing)
+        self._writer = w
+        try:
+            w.start(profile="", library=f"sniffer/{__version__}")
+            w.add_metadata(METADATA_NAME, info_to_metadata(info))
+            meta = {"sniffer.format": RAW_FORMAT}
+            ids = {}
+            for topic, name, schema in CHANNELS:
+                sid = w.register_schema(name, "jsonschema", msgspec.json.encode(schema))
+                ids[topic] = w.register_channel(topic, "json", sid, meta)
+            self._ch_capture, self._ch_raw, self._ch_frames = ids[CAPTURE_TOPIC], ids[RAW_TOPIC], ids[FRAMES_TOPIC]
+            if self._foxglove_on:
+                self._start_foxglove(info)
+            self._add(self._ch_capture, info.t0_ns, msgspec.json.encode(info.to_dict()))
+            self._flush_now()
+        except OSError as e:
+            raise self._fail(e) from None
+
+    def raw(self, event: Chunk | Tick | Gap) -> None:
+        if self._usable():
+            self._write(self._ch_raw, event.t_ns, encode_event(event))
+
+    def frame(self, frame: Frame) -> None:
+        if self._usable():
+            self._write(self._ch_frames, frame.t_ns, frame_json(frame, self._t0))
+            if self._fox is not None:
+                self._foxglove(self._fox.frame(frame, frame.t_ns), frame.t_ns)
+
+    def encoded(self, kind: str, t_ns: int, data: bytes) -> None:
+        """A /raw event or /frames record already encoded (`kind` "raw" or "frame"): a trigger's ring."""
+        if self._usable():
+            if kind == "raw":
+                self._write(self._ch_raw, t_ns, data)
+            else:
+                self._write(self._ch_frames, t_ns, data)
+                if self._fox is not None:
+                    self._foxglove(self._fox.record(data, t_ns), t_ns)
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        """A metadata record besides `sniffer.capture` (a trigger window's `sniffer.trigger`)."""
+        if self._usable():
+            try:
+                self._writer.add_metadata(name, data)
+            except OSError as e:
+                raise self._fail(e) from None
+
+    def maybe_flush(self) -> None:
+        """Flush if flush_interval_s has passed: call it from the live loop when idle."""
+        if self._usable() and self._clock() - self._last_flush >= self._interval_ns:
+            self.flush()
+
+    def flush(self) -> None:
+        """Finish the current chunk and hand it to the OS now."""
+        if self._usable():
+            try:
+                self._flush_now()
+            except OSError as e:
+                raise self._fail(e) from None
+
+    def close(self) -> None:
+        """Finish the file (summary, footer) so any MCAP reader opens it.  Safe to call twice.
+
+        Raises CaptureStorageError if finishing fails and no error was raised before.
+        """
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            if self._writer is not None and self.error is None:
+                try:
+                    for topic, t_ns, data in self._fox.finish() if self._fox is not None else ():
+                        self._add(self._fox_channels[topic], t_ns, data)  # each register's last sample
+                    self._writer.finish()
+                    self._file.flush()
+                except OSError as e:
+                    raise self._fail(e) from None
+        finally:
+            self._file.close()
+
+    # -- internals -------------------------------------------------------------------
+
+    def _start_foxglove(self, info: CaptureInfo) -> None:
+        """The `foxglove` metadata, the /annotations channel and the value schema (sniffer.formats.mcap.foxglove)."""
+        w = self._writer
+        w.add_metadata(foxglove.METADATA_NAME, foxglove.metadata(info))
+        sid = w.register_schema(foxglove.LOG_SCHEMA_NAME, "jsonschema", msgspec.json.encode(foxglove.LOG_SCHEMA))
+        self._fox_channels[foxglove.LOG_TOPIC] = w.register_channel(foxglove.LOG_TOPIC, "json", sid)
+        self._value_schema = w.register_schema(foxglove.VALUE_SCHEMA_NAME, "jsonschema",
+                                               msgspec.json.encode(foxglove.VALUE_SCHEMA))
+        self._fox = foxglove.Foxglove(info)
+        self._maps = (tuple(info.extra.get("model_files") or ()), info.extra.get("map_base"))
+
+    def _foxglove(self, messages: list, t_ns: int) -> None:
+        """A frame's Foxglove messages, after the channels and attachments they are the first to need."""
+        fox = self._fox
+        try:
+            if fox.new_models:
+                self._attach(t_ns)
+            if fox.new_topics:
+                w = self._writer
+                for topic in fox.new_topics:
+                    self._fox_channels[topic] = w.register_channel(topic, "json", self._value_schema,
+                                                                   fox.channel_meta[topic])
+                fox.new_topics.clear()
+        except OSError as e:
+            raise self._fail(e) from None
+        channels = self._fox_channels
+        for topic, t_ns, data in messages:
+            self._write(channels[topic], t_ns, data)
+
+    def _attach(self, t_ns: int) -> None:
+        """The register maps of the models first seen (decoders.mapfile)."""
+        from decoders.mapfile import map_file
+
+        log_time = max(0, self._anchor + (t_ns - self._t0))
+        for model in self._fox.new_models:
+            got = map_file(model, *self._maps, version=__version__)
+            if got is not None:
+                self._writer.add_attachment(got[0], got[1], got[2], log_time, log_time)
+        self._fox.new_models.clear()
+
+    def _usable(self) -> bool:
+        if self.error is not None:
+            return False  # already reported once: the capture goes on without the file
+        if self._writer is None or self._closed:
+            raise RuntimeError("McapSink used before start() or after close()")
+        return True
+
+    def _write(self, channel: int, t_ns: int, data: bytes) -> None:
+        try:
+            self._add(channel, t_ns, data)
+            if self._clock() - self._last_flush >= self._interval_ns:
+                self._flush_now()
+        except OSError as e:
+            raise self._fail(e) from None
+
+    def _add(self, channel: int, t_ns: int, data: bytes) -> None:
+        log_time = max(0, self._anchor + (t_ns - self._t0))
+        seq = self._seq.get(channel, 0)
+        self._seq[channel] = (seq + 1) & 0xFFFFFFFF
+        self._writer.add_message(channel, log_time, data, log_time, seq)
+
+    def _flush_now(self) -> None:
+        self._writer.flush()  # the chunk and its message indexes, in one write
+        self._file.flush()
+        self._last_flush = self._clock()
+
+    def _fail(self, e: OSError) -> CaptureStorageError:
+        what = e.strerror or str(e)
+        self.error = CaptureStorageError(
+            f"{self.path}: cannot write capture ({what}); stopped with {self._file.on_disk} bytes on disk"
+        )
+        self.error.reason = what
+        return self.error
+
+
+def open_sink(fmt: str, path: str, parts: list[str]) -> McapSink:
+    """The Mcap sink writing its part files (named in the table of sniffer.formats)."""
+    return McapSink(parts[0])

@@ -1,0 +1,1 @@
+"""pcap / pcapng: the format, its reader and its writer."""
