@@ -7,7 +7,7 @@ other end, exactly as it reads an adapter, in these configurations (each `--repe
 the machine's load falls on all alike):
 
 * headless            `sniffer live PORT --headless --out F.mcap` (the port read by a process of its own:
-                      sources/reader_process.py)
+                      processes/reader.py)
 * tui                 `sniffer live PORT --out F.mcap` on a terminal (a pty): the TUI attached to the
                       capture process it started, at nice 19, giving way (sniffer/processes/cpu_yield.py)
 * headless-thread     the peer: headless, the port read by a thread of the capture's process
@@ -108,7 +108,7 @@ NO_GIVE_WAY = ("import sys, sniffer.processes.cpu_yield as g; g._LIBC = g._SCHED
 # the TUI giving way every 0.1 ms, not every GIVE_WAY_S (0.2 ms)
 FAST_GIVE_WAY = ("import sys, sniffer.processes.cpu_yield as g; g.GiveWay.__init__.__defaults__ = (0.0001,); "
                  "from sniffer.cli import main; sys.argv[0] = 'sniffer'; sys.exit(main())")
-# the peer: the port read by a thread of the capture's own process, as before sources/reader_process.py
+# the peer: the port read by a thread of the capture's own process, as before processes/reader.py
 THREAD_READER = ["env", "SNIFFER_READER=thread", sys.executable, "-m", "sniffer"]
 # the TUI drawing as ever, its output thrown away once drawn (not written to the terminal)
 NO_OUTPUT = ("import sys, textual.drivers.linux_driver as d; d.LinuxDriver.write = lambda self, data: None; "
@@ -212,7 +212,7 @@ def capture_pid(pid: int, kind: str) -> int:
 
 
 def reader_pids(pid: int) -> list[int]:
-    """The capture's port reader process (sources/reader_process.py), if it has one."""
+    """The capture's port reader process (processes/reader.py), if it has one."""
     return children_with(pid, b"reader_process")
 
 

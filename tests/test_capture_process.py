@@ -85,7 +85,7 @@ def _run_live(tmp_path, name: str, frames, line, *, tui: bool, prefix: tuple = (
         bus.drain()
         assert rc == 0, term.screen[-3000:]
         assert stats["s"].frames == len(frames)
-        # the port is read by a process of the capture's own (sources/reader_process.py), never by the capture's
+        # the port is read by a process of the capture's own (processes/reader.py), never by the capture's
         # process, whose decoding thread would hold the interpreter the reader waits for
         assert capture not in holders and holders and all(h in readers for h in holders), (capture, holders)
         return out, bus.bytes_received_from_sniffer, term, holders, policies

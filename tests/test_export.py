@@ -149,7 +149,7 @@ def test_progress_total_from_mcap_summary(tmp_path):
 
 
 def test_parquet_export_does_not_load_pyarrow_file_systems(tmp_path):
-    """The Parquet files are written by pyarrow's engine directly (sinks/parquet.py): the cloud file
+    """The Parquet files are written by pyarrow's engine directly (formats/parquet.py): the cloud file
     system modules pyarrow.parquet would import (9.8 MB of RSS) stay out; the files read back whole."""
     import subprocess
     import sys

@@ -8,7 +8,7 @@ inside the reads.  `ReadMarker` is fed both (a sink's `raw()` and `frame()`,
 in any interleaving) and, once every byte of a read is in a frame, gives the
 `Read`: its time, its place in the stream, its bytes and its marks.  It is
 sans-I/O (no threads, clocks or files); the TUI's sink and the publisher of
-the viewers' stream (sinks/publish.py, stream_format.py) both run one.
+the viewers' stream (processes/publish_sink.py, processes/stream.py) both run one.
 
 Several links (sniffer.capture.links): every link is a byte stream of its own, cut into
 frames by its own framer, so frames are counted against the reads of their own

@@ -19,7 +19,7 @@ ended a capture (`keep_partial`, live/demo/simulate), discarded when a derived
 output (an export) could not be written.
 
 Unattended capture (sniffer.formats.mcap.segments).  With `--rotate` the MCAP is a set of
-segments (sinks/segments.py): between two events, once one is due and the
+segments (formats/mcap/rotating.py): between two events, once one is due and the
 pipeline has settled (`Pipeline.settled`), the loop closes the segment and
 opens the next, so each replays alone.  With a status file (`--status`, or
 the folder of a rotated capture) a StatusSink (sniffer.capture.status) counts frames

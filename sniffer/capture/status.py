@@ -8,7 +8,7 @@
      "units": {"1": {"requests": 40210, "responses": 40205, "timeouts": 4, ..., "lat_median": 4.77}, ...},
      "last_frame": {"t": 3599.98, "wall": "2026-11-25T11:40:59Z"},
      "port": {"state": "ok"},
-     "segments": {...}}                  <- a sink's status() (sinks/segments.py), merged in
+     "segments": {...}}                  <- a sink's status() (formats/mcap/rotating.py), merged in
 
 `StatusSink` is a sink like the others (it counts the frames it is given);
 the session adds it when the capture has a status file (`--status FILE`, or

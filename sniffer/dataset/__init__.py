@@ -8,7 +8,7 @@
     DIR/_staging/...                                     files being written (readers skip `_` folders)
 
 layout.py: the folder, dataset.json, the manifest, a capture's name and link;
-ingest.py: one capture file through one Session into the dataset (sinks/dataset.py
+ingest.py: one capture file through one Session into the dataset (dataset/sink.py
 writes the files); query.py: DuckDB views over it, the named queries, output.
 Schemas: sniffer.formats.schemas.  Nothing is ever rewritten: a capture adds its own
 files (written under `_staging`, renamed into place, its manifest entry last).

@@ -27,7 +27,7 @@ def _writer(path: str, schema, pool, options: dict | None = None):
     Its engine, pyarrow._parquet.ParquetWriter, is called directly with the settings the public
     class would pass; should a pyarrow release change that private signature, the public class
     is used (test_export reads every file back with pyarrow.parquet).  `options` replace settings
-    (compression, use_dictionary, column_encoding: the fleet dataset's, sinks/dataset.py).
+    (compression, use_dictionary, column_encoding: the fleet dataset's, dataset/sink.py).
     """
     try:
         from pyarrow import _parquet

@@ -150,7 +150,7 @@ class Attachment:
 
 def attach_feed(att: Attachment, pause: Callable[[], object] | None = None):
     """A feed(sink, stop) for tui.run.run_tui: the published frames into the TuiSink.  `pause()` is called
-    between two lines (giveway.py: a capture on this machine gets the CPU back in between)."""
+    between two lines (processes/cpu_yield.py: a capture on this machine gets the CPU back in between)."""
     from sniffer.formats.records import frame_from_record
 
     def feed(sink, stop: threading.Event):

@@ -1,15 +1,15 @@
 """A capture as a process of its own, publishing to viewers: what `sniffer serve` and every live TUI run.
 
 Why a process: a viewer in the capture's interpreter takes the interpreter from
-the reader thread, so reads come late and frames glue (issue 11: with the TUI
-open, 66 % of the stress line's responses had no latency).  So `sniffer live`
+the reader thread, so reads come late and frames glue (a late read holds a
+request and its answer together: the answer loses its latency).  So `sniffer live`
 / `sniffer demo` with the TUI, and `sniffer serve`, start the capture as
 `python -m sniffer live|demo ... --publish SOCKET --headless --quiet` and view
 it over the socket like `sniffer attach`.  The child:
 
 * runs in a session of its own (a Ctrl-C typed at the terminal reaches the
   viewer, which decides), and gets SIGINT from the kernel if its parent dies
-  (lifeline.py), so a killed viewer still leaves a closed, readable MCAP;
+  (processes/parent_death.py), so a killed viewer still leaves a closed, readable MCAP;
 * owns the port and the file; the parent never opens either;
 * says what it has to say on stderr, which the parent relays: at once before
   the viewer takes the terminal, held (and shown as notifications) while it has

@@ -1,16 +1,14 @@
 """The viewer of a live capture, and the publisher serving it, hand their CPU back every GIVE_WAY_S while
 frames come in.
 
-Why (issue 11, traced with ftrace on a 2-CPU VM, kernel 6.18, HZ=250, preempt none): a byte written to a
+Why (traced with ftrace on a kernel that preempts nothing on wakeup, preempt=none): a byte written to a
 tty (the USB-RS485 adapter's driver, or a pty) reaches the reader through the tty's flush work, a kworker of
 the unbound workqueue.  When that kworker is woken onto the CPU where the viewer is drawing, it is not given
 the CPU until the viewer's thread blocks or the next tick (4 ms): no reschedule is sent, whatever the
 viewer's priority (nice 19 or SCHED_IDLE alike).  The capture's read then comes late, holds the request and
-its answer together, and the answer loses its latency: 11-19 % of the 115200 stress line's answers with the
-TUI open, against ~1 % headless (benchmarks/bench_capture_timing.py).  Any process that runs in ms-long
-bursts does the same: a plain loop busy 1.3 ms every 10 ms kept the flush work waiting up to 1.3 ms (p99
-1.0 ms); the same loop sleeping 20 us after every 0.2 ms of work, p99 0.18 ms.  A Textual redraw is a burst
-of 1-7 ms.
+its answer together, and the answer loses its latency.  Any process that runs in ms-long bursts does the
+same, and a Textual redraw is such a burst; the same work cut into 0.2 ms slices keeps the flush work's
+wait that short (benchmarks/README.md has the figures).
 
 How: while frames come in and the App's loop works (not while it waits: watch_loop), an interval timer sends
 this process SIGALRM every GIVE_WAY_S; the kernel interrupts the running thread's CPU to deliver it, and the
@@ -22,15 +20,11 @@ records.  A thread of our own that takes the interpreter away periodically does 
 lands on the drawing's CPU and waits there like the kworker.  Nothing while the line is quiet or the capture
 has ended: idle means ~0 CPU.  SA_RESTART, and Python resumes what the signal still interrupts (PEP 475).
 
-Measured (bench_capture_timing.py, feeder SCHED_FIFO, stress line, four 10 s runs each, benchmarks/README.md):
-3.0-4.3 % of the answers glued by the capture with the TUI open and giving way, 3.4-8.9 % without (nice 19
-both; 11-19 % before, SCHED_IDLE and a feeder of normal policy), 0.6-4.0 % headless; read lateness p99
-0.6-0.85 ms against 1.0-2.4 ms without.  The waits left were mostly the capture's reader woken behind the
-viewer between two signals; where the system grants it, the reader now runs SCHED_FIFO
-(sources/reader_priority.py), which preempts at once: 1.8-2.6 % glued with the TUI, 0.6-1.7 % headless
-(2026-11-26, later).  On a kernel that preempts on wakeup (a desktop's preempt=voluntary
-or full) the viewer would not hold the CPU anyway; the timer then costs its signals only (5,000 a second
-while the App works and frames come in, ~1 us each).
+What it does not cover: the capture's reader woken behind the viewer between two signals; where the system
+grants it, the reader runs SCHED_FIFO (sources/reader_priority.py), which preempts at once.  On a kernel that
+preempts on wakeup (a desktop's preempt=voluntary or full) the viewer would not hold the CPU anyway; the
+timer then costs its signals only, while the App works and frames come in
+(benchmarks/bench_capture_timing.py measures all of it).
 """
 
 from __future__ import annotations

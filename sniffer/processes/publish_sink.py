@@ -1,8 +1,8 @@
-"""Publish a running capture to viewers on a local socket (`--publish`): the stream of stream_format.py.
+"""Publish a running capture to viewers on a local socket (`--publish`): the stream of processes/stream.py.
 
 The capture process owns the port and the MCAP file; any number of viewers
 (`sniffer attach`, the browser UI of `sniffer serve`) connect and read.  They
-are served by a process of its own (publish_server.py: the asyncio loop, the
+are served by a process of its own (processes/publisher.py: the asyncio loop, the
 read marking, the socket I/O), so serving them never holds the capture's
 interpreter while its reader waits for it.  This sink claims the socket,
 starts that process and hands it the frames' records and the reads over a
@@ -71,7 +71,7 @@ class PublishSink(Sink):
     """A pipeline sink that serves the capture's frames to viewers on a socket, from a process of its own.
 
     The socket is claimed at construction (so a bad address fails before the
-    port is opened) and the publisher process (publish_server.py) started with
+    port is opened) and the publisher process (processes/publisher.py) started with
     it; from `start()` it accepts viewers.  The capture thread only appends
     frames and reads to deques; a flusher thread hands them over every
     `tick_s`, their records encoded (the MCAP sink's encoding, made once per

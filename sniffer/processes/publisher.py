@@ -1,6 +1,6 @@
-"""The publisher process: serves a capture's stream (stream_format.py) to its viewers.
+"""The publisher process: serves a capture's stream (processes/stream.py) to its viewers.
 
-Run as `python -m sniffer.processes.publisher` by PublishSink (sinks/publish.py),
+Run as `python -m sniffer.processes.publisher` by PublishSink (processes/publish_sink.py),
 which hands it the listening socket (bound, not listening yet) and a pipe.
 The capture sends, over that pipe, length-prefixed pickles (childpipe.pipe_message):
 
@@ -9,8 +9,8 @@ The capture sends, over that pipe, length-prefixed pickles (childpipe.pipe_messa
     ("end",)                            the end of the capture (EOF says the same)
 
 Why a process: the asyncio loop, the read marking and the socket I/O held the
-capture's interpreter 0.15-0.3 ms every 50 ms, and the reader waited for it
-(issue 11: publishing, with nobody viewing, glued more answers than headless).
+capture's interpreter a fraction of a millisecond every batch, and the reader waited for it
+(publishing, with nobody viewing, glued more answers than headless).
 Here they cost the capture nothing.  A late viewer first gets the last
 `backlog` records, then the last reads (RING_READS, for the byte view), then
 the live stream; a viewer that falls behind has reads dropped and frames
@@ -150,7 +150,7 @@ class PublishServer:
 
     def run(self) -> None:
         """Serve until the capture's end.  Like a viewer, this process gives way while frames come in
-        (giveway.py): its loop's bursts (the reads marked and encoded, the viewers' writes) would otherwise
+        (processes/cpu_yield.py): its loop's bursts (the reads marked and encoded, the viewers' writes) would otherwise
         keep the tty's flush work, and so the capture's reads, waiting on a kernel that preempts nothing."""
         threading.Thread(target=self._pipe, name="capture-pipe", daemon=True).start()
         with GiveWay(lambda: self.frames_in) as self._give_way:

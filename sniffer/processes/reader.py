@@ -4,8 +4,8 @@ Why: a reader thread takes a read's time once it holds the interpreter again.  I
 process the decoding thread holds it most of the time, and when that thread loses its CPU while
 holding it (preempted by anything else on a loaded machine: a TUI, a kworker, the publisher), the
 reader waits until it runs again.  A read that comes that late holds a request and its answer
-together, and the answer has no latency (issue 11: with a TUI open, the capture's decoding thread
-waited on a run queue 66 ms per 10 s run against 15-18 ms headless, 90-108 preemptions against 63).
+together, and the answer has no latency (a TUI open beside the capture makes such preemptions
+several times more frequent: benchmarks/README.md).
 Here the readers (serial_live.SerialSource, several of them for serial_links.LinksSource) share an
 interpreter with nothing but each other: the process's main thread only waits for its pipe to end.
 

@@ -1,7 +1,7 @@
 """`sniffer serve`: the TUI in a browser (textual-serve), any number of viewers.
 
 textual-serve starts one app process per browser connection, so the capture
-cannot live in the UI: `serve` starts it as a process of its own (capture_process.py)
+cannot live in the UI: `serve` starts it as a process of its own (processes/capture.py)
 (`sniffer live PORT ... --publish SOCKET` or `sniffer demo ... --publish
 SOCKET`), waits until it publishes, then serves `sniffer attach SOCKET --tui`
 to browsers.  Terminal users attach to the same socket.  Ctrl-C stops the
@@ -33,7 +33,7 @@ def default_socket() -> str:
 
 def viewer_command(sock: str) -> str:
     """The shell command textual-serve runs for each browser connection: `exec`, so the viewer is the
-    process the server stops (not a shell in front of it), and it ends with the server (lifeline.py)."""
+    process the server stops (not a shell in front of it), and it ends with the server (processes/parent_death.py)."""
     return f"exec {shlex.quote(sys.executable)} -m sniffer attach {shlex.quote(sock)} --tui --exit-with-parent"
 
 

@@ -1,6 +1,6 @@
 """The viewers' stream: how a running capture talks to `sniffer attach` and `sniffer serve`.
 
-The capture (sinks/publish.py) listens on a Unix socket (mode 0600) or, if
+The capture (processes/publish_sink.py) listens on a Unix socket (mode 0600) or, if
 asked, a TCP port; viewers (attach.py) connect and read newline-delimited JSON:
 
     {"sniffer": "header", ...}    first: capture info, MCAP path, frames not sent

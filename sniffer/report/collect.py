@@ -13,10 +13,10 @@ clock (a capture that would overlap the one before is put after it, and says so)
 otherwise each capture follows the one before.
 
 Every figure is bounded whatever the capture's length: counts over time in at most
-1,024 buckets (buckets.py), per unit its figures (unitfigures.py: the counts and the latency
+1,024 buckets (buckets.py), per unit its figures (analysis/unitfigures.py: the counts and the latency
 quantiles every view shows), a latency histogram and a thinned series (units.py), per
 request type the poll period (polls.py), the register shadow's
-history through the TUI's RegisterBook (tui/shadow.py: the same values, names and
+history through the TUI's RegisterBook (analysis/register_book.py: the same values, names and
 units the Registers tab shows, at most REGISTER_POINTS samples a register; a register
 whose values changed model, name or unit is one series per each, never one line
 across units), the

@@ -4,9 +4,8 @@ A read that comes late holds a request and its answer together, and the answer l
 (serial_live.py).  The reader sleeps in select() and is woken when bytes arrive; on Linux 6.x a normal
 thread woken onto a CPU where another normal thread is running waits until that thread enters the
 kernel or the next tick (up to 4 ms at HZ=250), whatever their nice levels.  A SCHED_FIFO thread
-preempts it at once.  Traced on the 115200 stress line with a TUI open (2026-11-26): most waits of
-0.2 ms or more were the capture's reader behind the viewer; with the reader at SCHED_FIFO 1 the
-responses glued by the capture went from 3.1-3.8 % to 1.8-2.0 %, headless unchanged at 0.5-1.0 %
+preempts it at once.  Traced with a TUI open, most long waits were the capture's reader behind the
+viewer; at SCHED_FIFO 1 fewer answers are glued, and headless capture is unchanged
 (benchmarks/bench_capture_timing.py, benchmarks/README.md).
 
 The lowest real-time priority (1) is enough: it only has to come before normal work.  The reader's

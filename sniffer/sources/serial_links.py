@@ -4,7 +4,7 @@ Each port is a `SerialSource` (opened O_RDONLY, raw, nothing ever written:
 serial_live.py) with its own reader thread; all of them hand their events to
 one `Hub`, stamped under one lock, so `events()` is one stream in time order
 on one clock.  `sniffer live` runs them all in one reader process
-(reader_process.py), whose pipe keeps that order.  Every event carries its link's name; a tapped link's two ports
+(processes/reader.py), whose pipe keeps that order.  Every event carries its link's name; a tapped link's two ports
 carry their wire too (Chunk.channel: "master" for the master's pair, "slaves"
 for the slaves' pair).
 

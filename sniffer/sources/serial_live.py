@@ -35,16 +35,15 @@ waits in select() without the interpreter, but getting it back after the wake
 took up to CPython's switch interval (5 ms) while the decoding thread held it:
 on the 115200 stress line (answers ~1 ms after their request) 12-19 % of the
 answers came in their request's read.  `open()` lowers the interval to
-READER_SWITCH_S for the process (a capture process, see capture_process.py;
+READER_SWITCH_S for the process (a capture process, see processes/capture.py;
 1-3 % then at 0.5 ms; what is left is the scheduler of a loaded machine), and the
 reader asks for a real-time priority (reader_priority.py: a woken normal thread
 waits for the CPU's running one).  With the reader real-time it never waits for a
 CPU (schedstat: 0 us), so what it still waits for is the interpreter: publishing
-to viewers (the publisher thread's 0.2-0.3 ms of work every 50 ms) took the stress
-line from 0.8-1.0 % to 1.1-1.6 % at 0.5 ms, and 0.1 ms brought both to 0.2-1.0 %
-(benchmarks/README.md, 2026-11-27), the capture's CPU unchanged.  Viewers are now served by a
-process of its own (sinks/publish.py), so all the capture holds for them is a 16 us batch every 50 ms.
-And `sniffer live` runs its readers in a process of their own (reader_process.py), where no decoding
+to viewers glued more answers at a 0.5 ms switch interval than at 0.1 ms, with the capture's CPU
+unchanged (benchmarks/README.md).  Viewers are now served by a
+process of its own (processes/publish_sink.py), so all the capture holds for them is a 16 us batch every 50 ms.
+And `sniffer live` runs its readers in a process of their own (processes/reader.py), where no decoding
 thread shares their interpreter: one preempted while holding it can no longer keep a read waiting.
 
 A read can also come late because the reader stalled (its CPU or the interpreter taken for longer than
@@ -118,7 +117,7 @@ class Hub:
 
     def lost(self, reader: "SerialSource") -> None:
         """`reader`'s port went away (its lost_since_ns set) or came back (None): nothing here (a reader
-        process tells its capture, reader_process.py)."""
+        process tells its capture, processes/reader.py)."""
 
     def events(self, readers: int) -> Iterator[Chunk | Tick | Gap]:
         """Every queued event until `readers` readers have ended; a reader's error is raised."""

@@ -163,7 +163,7 @@ class SnifferApp(App):
         Binding("enter", "focus_detail", "Detail", show=False),
         Binding("question_mark,f1", "help", "Help"),
         Binding("q", "quit", "Quit"),
-        # export / copy / raw bytes (issue 11)
+        # export / copy / raw bytes
         Binding("x", "export", "Export"),
         Binding("y", "copy_hex", "Copy hex", show=False),
         Binding("6", "bytes_tab", "Bytes"),
@@ -516,7 +516,7 @@ class SnifferApp(App):
     def action_help(self) -> None:
         self.push_screen(HelpScreen())
 
-    # ---------------------------------------------------------------- export, copy (issue 11)
+    # ---------------------------------------------------------------- export, copy
     def action_export(self) -> None:
         from sniffer.tui.exportscreen import ExportScreen, start_export
 
@@ -541,7 +541,7 @@ class SnifferApp(App):
         self.notify(f"copied frame #{f.index}: {len(f.raw)} bytes, {f.raw[:24].hex(' ')}"
                     + (" …" if len(f.raw) > 24 else ""), timeout=3, markup=False)
 
-    # ---------------------------------------------------------------- the byte view (issue 11)
+    # ---------------------------------------------------------------- the byte view
     def action_bytes_tab(self) -> None:
         self.tabs.active = "bytes"
         self.byte_view.focus()

@@ -3,8 +3,8 @@
 Textual's Footer removes and mounts all its keys again whenever the screen's bindings may have
 changed, which is at every focus change: a tab switch (`1`, `2`, ...) moves the focus, so each one
 rebuilt some twenty FooterKey widgets and styled them anew. Under a live stress capture in the
-browser view that was a fifth of the viewer's CPU while keys were pressed (py-spy, 2026-11-26),
-for a bar that looked the same before and after.
+browser view that was a large share of the viewer's CPU while keys were pressed (profiled with
+py-spy), for a bar that looked the same before and after.
 """
 
 from __future__ import annotations

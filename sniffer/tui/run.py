@@ -2,7 +2,7 @@
 
 A live capture (`sniffer live`, `sniffer demo` on a terminal) is never run in
 the App's interpreter: `run_capture_tui` starts it as a process of its own
-(capture_process.py) and the App views it over the capture's socket, as
+(processes/capture.py) and the App views it over the capture's socket, as
 `sniffer attach` does, so nothing the UI does can delay a read.  A bad port
 or setting fails with the capture's one line before the UI starts; quitting
 asks, then stops the capture as Ctrl-C would (its MCAP closed and kept).
@@ -124,8 +124,8 @@ def yield_to_capture() -> None:
     proportion, and a normal task is placed on another CPU rather than behind it.  Not SCHED_IDLE, although
     it sounds right: the scheduler counts a CPU running only SCHED_IDLE work as idle and puts the tty's flush
     work and the capture's threads there, where (on a kernel that does not preempt on wakeup) they wait for
-    the viewer's burst to end; on the 115200 stress line, giving way, SCHED_IDLE glued 5-8 % of the
-    answers, nice 19 2.8-3.0 % in the same runs (benchmarks/bench_capture_timing.py, 2026-11-26).  Set
+    the viewer's burst to end; on the stress line SCHED_IDLE glued more answers than nice 19 in the same
+    runs (benchmarks/bench_capture_timing.py).  Set
     before threads start (Linux applies it to the calling thread; new threads inherit it)."""
     try:
         os.nice(VIEWER_NICE - os.nice(0))

@@ -1,4 +1,4 @@
-"""Byte CSV writer: every source event's bytes as `t_s,channel,byte_hex,flags` rows (sources/bytecsv.py reads it).
+"""Byte CSV writer: every source event's bytes as `t_s,channel,byte_hex,flags` rows (reader.py beside it reads it).
 
 Per-byte chunks write each byte's own time; per-read chunks give all their
 bytes the read's time, which is how the reader tells the two apart.

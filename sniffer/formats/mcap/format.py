@@ -1,6 +1,6 @@
 """The MCAP capture format: topics, schemas and the /raw event codec.
 
-Shared by the writer (sinks/mcap.py), the reader (sources/mcapsrc.py),
+Shared by the writer (formats/mcap/sink.py), the reader (formats/mcap/reader.py),
 `sniffer repair` and the progress bar; none of them imports another.
 
 Channels (JSON messages described by JSON Schema, so Foxglove can plot fields):

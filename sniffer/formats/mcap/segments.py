@@ -1,6 +1,6 @@
 """A capture kept as a set of MCAP segments in one folder: names, the index, retention, the flags.
 
-Shared by the writer (sinks/segments.py), the reader (sources/segset.py) and
+Shared by the writer (formats/mcap/rotating.py), the reader (sources/segset.py) and
 `sniffer status`; none of them imports another.
 
     cab3/                                  the capture's folder (--out with --rotate)

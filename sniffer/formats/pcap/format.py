@@ -1,6 +1,6 @@
 """pcap / pcapng as this project writes and reads it: constants, header builders, record checks.
 
-Shared by the writer (sinks/pcap.py) and the reader (sources/pcapsrc.py);
+Shared by the writer (formats/pcap/writer.py) and the reader (formats/pcap/reader.py);
 neither imports the other.  Writer side: classic pcap with nanosecond
 timestamps (magic a1b23c4d), or pcapng with a nanosecond if_tsresol; link
 type 147 (LINKTYPE_USER0), which Wireshark decodes as Modbus/RTU with
@@ -100,7 +100,7 @@ def pcapng_block_problem(blen: int, room: int) -> str | None:
     return None
 
 
-# -- writing (sinks/pcap.py) ------------------------------------------------------------------------
+# -- writing (formats/pcap/writer.py) ------------------------------------------------------------------------
 def global_header(linktype: int = LINKTYPE_USER0) -> bytes:
     return struct.pack("<IHHiIII", MAGIC_NS, 2, 4, 0, 0, SNAPLEN, linktype)
 
