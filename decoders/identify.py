@@ -307,7 +307,7 @@ class Identifier:
         else:
             q = (r_adu[4] << 8) | r_adu[5]
             data = adu[3:3 + 2 * q] if kind == "read" else r_adu[7:7 + 2 * q]
-        if not 1 <= q <= 125 or len(data) != 2 * q:
+        if not 1 <= q <= 125 or a + q > 0x10000 or len(data) != 2 * q:
             return
         if len(ev.answered) < MAX_SIGNATURES:
             if (fc, a, q) not in ev.answered:

@@ -39,7 +39,7 @@ from sniffer.codes import MODEL_UNKNOWN_REG as UNKNOWN_REG
 from sniffer.codes import MODEL_VENDOR_EXCEPTION as VENDOR_EXCEPTION
 from sniffer.codes import Code, note
 from sniffer.frame import REQUEST, RESPONSE, Frame
-from sniffer.protocols import MODBUS_TABLES
+from sniffer.protocols import MODBUS_TABLES, modbus_range_ok
 
 from . import regtypes
 from .base import UnitState
@@ -296,7 +296,7 @@ class TableDecoder(GenericModbus):
 
     def _split_range(self, f: Frame, a: int, q: int, start: int) -> None:
         """Annotate a read of registers a..a+q-1 that starts or ends inside a value of several registers."""
-        if q < 1:
+        if not modbus_range_ok(f.function, a, q):
             return
         parts = self.view(MODBUS_TABLES.get(f.function)).parts
         first, last = parts.get(a), parts.get(a + q - 1)

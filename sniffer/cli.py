@@ -25,7 +25,37 @@ from sniffer.sources.files import FORMATS as INPUT_FORMATS
 MAX_BAUD = 4_000_000
 
 
+class _Once(argparse.Action):
+    """A flag that takes one value (argparse's plain store): given twice, the second would silently replace
+    the first (`--bus a.toml --bus b.toml`: a link captured at the wrong settings), so it is refused."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if option_string is not None:
+            given = namespace.__dict__.setdefault("_given_once", {})
+            if self.dest in given:
+                raise UsageError(f"{option_string} given twice ({_shown(given[self.dest])} and {_shown(values)}): "
+                                 "it takes one value")
+            given[self.dest] = values
+        setattr(namespace, self.dest, values)
+
+
+def _shown(v) -> str:
+    from sniffer.formats.reading import quote
+
+    return quote(" ".join(map(str, v)) if isinstance(v, list) else str(v))
+
+
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *a, **kw) -> None:
+        super().__init__(*a, **kw)
+        self.register("action", None, _Once)  # every single-value flag, in every subcommand
+        self.register("action", "store", _Once)
+
+    def parse_known_args(self, args=None, namespace=None):
+        ns, rest = super().parse_known_args(args, namespace)
+        ns.__dict__.pop("_given_once", None)
+        return ns, rest
+
     def error(self, message: str):  # one line, not usage + line
         raise UsageError(message)
 

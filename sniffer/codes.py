@@ -77,8 +77,15 @@ def note_in(code: Code, detail: str, start: int, end: int, size: int) -> Annotat
 
 # --- framing -----------------------------------------------------------------
 CRC_MISMATCH = Code("modbus.crc.mismatch", ERROR, "CRC does not match the frame's bytes")
+CRC_UNPROVEN = Code(
+    "modbus.crc.unproven", ERROR,
+    "the CRC (or LRC) matches, but over a byte received with a UART error: no proof, the frame is not taken as good",
+)
 LENGTH_MISMATCH = Code(
     "modbus.length.mismatch", ERROR, "frame length does not match its function code / byte count"
+)
+LENGTH_TRUNCATED = Code(
+    "modbus.length.truncated", ERROR, "frame ends before the length its header announces (cut off)"
 )
 FUNCTION_UNKNOWN = Code(
     "modbus.function.unknown", WARNING, "function code neither public nor user-defined in the Modbus spec"
@@ -235,9 +242,10 @@ CORE_CODES: tuple[Code, ...] = (
     BROADCAST_FUNCTION, ROLE_AMBIGUOUS, MODEL_GUESS_WITHDRAWN,
 )
 # the Modbus RTU framer's codes (LineBuffer's own are the UART, t1.5 and noise ones)
-LINE_CODES: tuple[Code, ...] = (UART_FRAMING, UART_PARITY, T15_VIOLATION, NOISE)
+LINE_CODES: tuple[Code, ...] = (UART_FRAMING, UART_PARITY, T15_VIOLATION, NOISE, CRC_UNPROVEN)
 RTU_CODES: tuple[Code, ...] = LINE_CODES + (
     CRC_MISMATCH, LENGTH_MISMATCH, FUNCTION_UNKNOWN, FUNCTION_USER, UNIT_RESERVED, T35_SHORT, STRUCTURE_MISMATCH,
+    LENGTH_TRUNCATED,
 )
 
 

@@ -36,6 +36,9 @@ class Chunk:
     # a logic analyzer's driver-enable line (--de): the bytes were sent while the slave's driver was enabled,
     # from `de[0]` to `de[1]` (ns; None: before the capture began / not known yet).  None: no DE window
     de: tuple[int | None, int | None] | None = None
+    # one packet of a capturing tool (pcap): the tool drew its edges, so no frame spans them (the framer
+    # takes both as HARD boundaries, whatever the times say)
+    packet: bool = False
 
     @property
     def per_byte(self) -> bool:
@@ -45,7 +48,7 @@ class Chunk:
 def read_fields(c: Chunk) -> tuple:
     """A read as it crosses a pipe to a helper process: the Chunk's fields in order (Chunk(*read_fields(c)) ==
     c), since pickling the dataclass itself costs ten times as much."""
-    return (c.t_ns, c.data, c.byte_t_ns, c.flags, c.channel, c.link, c.unseen_ns, c.de)
+    return (c.t_ns, c.data, c.byte_t_ns, c.flags, c.channel, c.link, c.unseen_ns, c.de, c.packet)
 
 
 @dataclass(slots=True, frozen=True)

@@ -29,6 +29,21 @@ MODBUS_TABLES: Mapping[int, str] = MappingProxyType({
     0x01: COIL, 0x02: DISCRETE, 0x03: HOLDING, 0x04: INPUT, 0x05: COIL, 0x06: HOLDING,
     0x0F: COIL, 0x10: HOLDING, 0x16: HOLDING, 0x17: HOLDING,
 })
+# the most registers (or bits) one frame of a function can name (Modbus application protocol 6.1-6.17; 17H:
+# its read part), and the end of every table: a quantity beyond, or registers past 65535, name no registers
+MODBUS_MAX_QUANTITY: Mapping[int, int] = MappingProxyType({
+    0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x0F: 1968, 0x10: 123, 0x17: 125,
+})
+TABLE_END = 0x10000
+
+
+def modbus_range_ok(fc: int, a: int, q: int) -> bool:
+    """Can `q` registers (or bits) from `a` be what a frame of function `fc` names: a quantity the function
+    carries, every address below 65536?  A frame whose fields say otherwise (CRC-bad junk, a device's bug)
+    is summarised, filtered and exported without a register range."""
+    return 1 <= q <= MODBUS_MAX_QUANTITY.get(fc, TABLE_END) and 0 <= a and a + q <= TABLE_END
+
+
 # PD-series: 01H/02H read/write a parameter (kept as holding), 04H reads a status value (input)
 PD_TABLES: Mapping[int, str] = MappingProxyType({0x01: HOLDING, 0x02: HOLDING, 0x04: INPUT})
 

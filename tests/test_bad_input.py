@@ -180,6 +180,29 @@ def test_bus_file_not_utf8_or_huge(tmp_path, capsys):
         f"{bus}: over 16 MB: not a bus file or register map"
 
 
+@pytest.mark.parametrize("command", [["decode", "010300000002C40B"], ["replay", "CAPTURE"],
+                                     ["live", "/dev/nonexistent-port"], ["export", "CAPTURE", "--to", "jsonl"]])
+@pytest.mark.parametrize("flag, first, second", [("--bus", "a.toml", "b.toml"), ("--baud", "9600", "19200"),
+                                                 ("--parity", "E", "N"), ("--out", "x.mcap", "y.mcap")])
+def test_a_single_value_flag_given_twice_is_refused(tmp_path, capsys, command, flag, first, second):
+    """The second would silently replace the first (a link captured at the wrong settings): one line, exit 2,
+    before any file is read or written."""
+    capture = tmp_path / "c.csv"
+    capture.write_text(HEADER + GOOD_ROW)
+    argv = [str(capture) if a == "CAPTURE" else a for a in command]
+    if (flag == "--out" and command[0] in ("decode", "replay")) or (flag == "--parity" and command[0] == "decode"):
+        return  # flags these commands do not have
+    paths = [str(tmp_path / v) if flag in ("--bus", "--out") else v for v in (first, second)]
+    line = one_error(capsys, *argv, flag, paths[0], flag, paths[1])
+    assert line == f"{flag} given twice ({paths[0]!r} and {paths[1]!r}): it takes one value"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.csv"]  # nothing written
+
+
+def test_repeatable_flags_still_repeat(capsys):
+    code, lines = cli(capsys, "decode", "--device", "1=a510", "--device", "2=tds-v8", "010300000002C40B")
+    assert code == 0 and not lines
+
+
 def test_good_bus_file_still_loads(tmp_path):
     bus = tmp_path / "bus.toml"
     bus.write_text('[serial]\nbaud = 19200\nparity = "e"\nstopbits = 2\nprotocol = "pd-rtu"\n'

@@ -8,7 +8,7 @@ import dataclasses
 import pytest
 
 from sniffer.capture.busfile import load_bus_file
-from sniffer.detect.candidates import COMMON_BAUDS, baud_order, parse_bauds, setting
+from sniffer.detect.candidates import COMMON_BAUDS, baud_order, fmt_of, parse_bauds, setting
 from sniffer.detect.listen import listen
 from sniffer.detect.report import bus_file, headline, table
 from sniffer.detect.search import Search
@@ -31,7 +31,8 @@ def detect(scenario: str, line: str | None = None, resync: str = "edge", bauds=(
 
 
 def settled(v) -> tuple[str, str]:
-    return f"{v.best.rx.baud} {v.best.fmt}", v.best.best.protocol
+    """The settings the verdict names (a listen at 8E1 names 8E2 when its characters come 12 bits apart)."""
+    return f"{v.best.line.baud} {fmt_of(v.best.line)}", v.best.best.protocol
 
 
 @pytest.mark.parametrize("scenario, line, protocol", [
@@ -47,14 +48,17 @@ def settled(v) -> tuple[str, str]:
     ("pd-series", "9600 8N1", "pd-rtu"),
     ("pd-series-ascii", "4800 8O1", "pd-ascii"),
     ("default", "1200 8E1", "modbus-rtu"),
-    ("default", "921600 8O1", "modbus-rtu"),
+    ("default", "19200 8E2", "modbus-rtu"),  # 2 stop bits after a parity bit: received alike at 8E1, timed apart
+    ("default", "9600 8O2", "modbus-rtu"),
+    ("a510-ascii", "9600 7E2", "modbus-ascii"),
 ])
 def test_each_line_is_found_certain(scenario, line, protocol):
     v, port = detect(scenario, line)
     assert v.status == "certain", headline(v, "sim")
     assert settled(v) == (line, protocol)
     assert v.best.errors == 0 and v.best.timing in ("exact", "?")
-    assert port.configured[-1] == v.best.rx  # it ended listening at the answer
+    assert port.configured[-1] == v.best.rx  # it ended listening at the answer (or at its twin: received alike)
+    assert v.best.line.stopbits == int(line[-1]) and f"{line} {protocol} (certain" in headline(v, "sim")
 
 
 def test_a_uart_that_takes_a_low_stop_bit_for_a_start_bit_is_found_by_the_second_sweep():
@@ -86,12 +90,42 @@ def test_stop_bits_left_open_when_the_timing_cannot_be_measured(scenario, line):
     assert "stop bits not told apart" in headline(v, "sim")
 
 
+@pytest.mark.parametrize("scenario, line", [("default", "921600 8O1"), ("fast", "115200 8E2"),
+                                            ("default", "250000 8E1")])
+def test_stop_bits_after_a_parity_bit_left_open_when_the_timing_cannot_be_measured(scenario, line):
+    """8E1 and 8E2 receive alike: without the characters' spacing, never "certain" of either."""
+    v, _ = detect(scenario, line, bauds=(int(line.split()[0]),))
+    assert v.status == "stop bits" and v.settled and not v.best.certain
+    fmt = line.split()[1]
+    assert settled(v) == (f"{line.split()[0]} {fmt[:2]}1", "modbus-rtu")  # 1 stop bit: a UART reads both so
+    assert f"a UART receives {fmt[:2]}1 and {fmt[:2]}2 alike" in headline(v, "sim")
+
+
+def load_bus_text(tmp_path, text: str):
+    path = tmp_path / "line.toml"
+    path.write_text(text)
+    return load_bus_file(str(path))
+
+
+def test_the_character_time_names_the_stop_bits_a_listen_cannot(tmp_path):
+    """An 8E2 line heard at 8E1 (no UART error: a UART checks one stop bit): 12 bits a character, so 8E2,
+    in the verdict, the table and the bus file; an 8E1 line stays 8E1."""
+    v, _ = detect("default", "19200 8E2")
+    ev = v.best
+    assert (ev.fmt, fmt_of(ev.line), ev.timing) == ("8E1", "8E2", "exact") and ev.bits_per_char > 11.7
+    assert v.status == "certain" and "19200 8E2 modbus-rtu (certain" in headline(v, "sim")
+    assert table(v)[1].endswith("certain as 8E2")
+    assert load_bus_text(tmp_path, bus_file(v, "/dev/ttyUSB0")).stopbits == 2
+    v, _ = detect("default", "19200 8E1")
+    assert (fmt_of(v.best.line), v.status) == ("8E1", "certain") and v.best.bits_per_char < 11.7
+
+
 def test_a_rate_not_tried_fits_nothing_until_asked_for():
     v, _ = detect("default", "250000 8E1", max_s=30)
     assert v.status == "none" and not v.settled
     assert "no candidate fits" in headline(v, "sim")
     v, _ = detect("default", "250000 8E1", bauds=parse_bauds(["250000"]))
-    assert settled(v) == ("250000 8E1", "modbus-rtu") and len(v.windows) <= 3  # asked-for rates go first
+    assert settled(v) == ("250000 8E1", "modbus-rtu") and {w.rx.baud for w in v.windows} == {250000}  # first
 
 
 def test_silent_line_is_no_traffic():

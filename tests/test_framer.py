@@ -217,11 +217,13 @@ def test_t35_annotation_when_a_frame_starts_too_soon():
 def test_uart_flags_annotate_their_byte():
     times = tuple(i * CHAR for i in range(len(REQ)))
     (f,) = frames(RtuFramer, [Chunk(0, REQ, times, ((2, "parity"), (5, FLAG_FRAMING)))])
-    assert f.raw == REQ and f.crc_ok
+    # still one frame of these bytes, but a CRC over bytes the UART flagged proves nothing
+    assert f.raw == REQ and f.crc_ok is False and f.unit == 1 and f.function == 3
     assert [(a.code, a.start, a.end) for a in f.annotations] == [("uart.parity_error", 2, 3),
-                                                                ("uart.framing_error", 5, 6)]
+                                                                ("uart.framing_error", 5, 6),
+                                                                ("modbus.crc.unproven", 6, 8)]
     (g,) = frames(RtuFramer, [Chunk(10_000_000, REQ, None, ((2, "parity"),))])  # per read: not the fast path
-    assert g.raw == REQ and codes(g) == ["uart.parity_error"]
+    assert g.raw == REQ and codes(g) == ["uart.parity_error", "modbus.crc.unproven"] and not g.crc_ok
 
 
 # ------------------------------------------------------------------ PD-series RTU rules
@@ -273,7 +275,7 @@ def test_pd_rule_b4_malformed_burst_between_two_quiets():
     burst = bytes.fromhex("01030501021122")  # LEN=05 says 10 bytes; 7 here, bad CRC
     (f,) = frames(PdRtuFramer, wire(burst))
     assert shape([f]) == [(burst, "pd-rtu", BOTH, False)]
-    assert codes(f) == ["pd.len.mismatch", "modbus.crc.mismatch"]
+    assert codes(f) == ["pd.len.mismatch", "modbus.crc.mismatch", "modbus.length.truncated"]  # 3 bytes missing
     got = frames(PdRtuFramer, wire(PD_REQ, 20, burst))  # 20 characters: less than the quiet, no burst
     assert shape(got) == [(PD_REQ, "pd-rtu", BOTH, True), (burst, "noise", 0, None)]
 

@@ -51,8 +51,9 @@ def _agrees(f: Frame, parsed, bits_wanted: int | None) -> None:
         assert [p["raw"] for p in f.points] == [(vals[i >> 3] >> (i & 7)) & 1 for i in range(n)]
     elif fc in (0x05, 0x06):
         assert f.points[0]["address"] == parsed["address"]
-    else:
-        assert f.summary.split()[2].startswith(str(parsed["address"]))
+    else:  # "read holding 16..140 (125)", or where fields name no range "read holding from 16 (...)"
+        words = f.summary.split()
+        assert words[3 if words[2] == "from" else 2].startswith(str(parsed["address"]))
 
 
 def _frame(adu: bytes, role: str, peer: Frame | None = None) -> Frame:

@@ -271,6 +271,57 @@ def test_a_killed_segment_is_read_and_listed(capsys, capture, tmp_path):
     assert [s["state"] for s in _index(folder)][:3] == ["closed", "closed", "killed"]
 
 
+def _header_only(segment) -> bytes:
+    """The first bytes of a real segment up to the end of its MCAP header record: what a writer killed just
+    after it began a file leaves (magic, header; no capture info, no event)."""
+    import struct
+
+    data = segment.read_bytes()
+    assert data[8] == 0x01  # the header record's opcode
+    return data[: 8 + 9 + struct.unpack_from("<Q", data, 9)[0]]
+
+
+@pytest.mark.parametrize("empty", ["part", "header-only", "both"])
+def test_an_empty_or_header_only_segment_is_skipped_with_a_note(capsys, capture, tmp_path, empty):
+    """SIGKILL right after a rotation leaves the next segment empty (or its header alone): `replay FOLDER`
+    (and export, check) read the capture around it, with a note on stderr, not an error."""
+    folder = tmp_path / "rotated"
+    _rotate(capsys, capture, folder, "--rotate", "20s")
+    index = _index(folder)
+    want = _jsonl(capsys, folder)
+    last = index[-1]["file"]
+    seq = int(last[-10:-5])
+    made = []
+    if empty in ("part", "both"):  # the open segment a kill right after the rotation left: nothing written
+        made.append(folder / last.replace(f"{seq:05d}.mcap", f"{seq + 1:05d}.mcap.part"))
+        made[-1].write_bytes(b"")
+    if empty in ("header-only", "both"):
+        made.append(folder / last.replace(f"{seq:05d}.mcap", f"{seq + 2:05d}.mcap"))
+        made[-1].write_bytes(_header_only(folder / last))
+    listed = {seg.extra.get("part") or seg.file for seg in read_index(str(folder))}
+    assert all(p.name in listed for p in made)  # the folder's segments, as a replay finds them
+    rc, out, err = _cli(capsys, "replay", folder, "--format", "jsonl")
+    assert rc == 0, err
+    assert out.splitlines() == want  # every frame, nothing after them
+    notes = [line for line in err.splitlines() if line.startswith("sniffer: note:")]
+    assert len(notes) == len(made) and all(any(str(p) in n for n in notes) for p in made)
+    assert all("holds nothing" in n for n in notes) and "error" not in err
+    rc, _out, err = _cli(capsys, "export", folder, "--to", "jsonl", "--out", tmp_path / "all.jsonl")
+    assert rc == 0 and "holds nothing" in err, err
+    assert len((tmp_path / "all.jsonl").read_text().splitlines()) == len(want)
+
+
+def test_an_empty_segment_alone_is_nothing_to_replay(capsys, capture, tmp_path):
+    folder = tmp_path / "nothing"
+    folder.mkdir()
+    (folder / "nothing-19700101T000000Z-00001.mcap.part").write_bytes(b"")
+    rc, _out, err = _cli(capsys, "replay", folder / "nothing-19700101T000000Z-00001.mcap.part")
+    assert rc == 2 and err.count("\n") == 1 and "empty file" in err
+    (folder / "nothing-19700101T000001Z-00002.mcap").write_bytes(b"\x89MCAP0\r\n")
+    rc, _out, err = _cli(capsys, "replay", folder)
+    assert rc == 2 and "holds anything recorded" in err and "Traceback" not in err
+
+
 # ---------------------------------------------------------------- the status file
 def test_status_counts_what_the_frames_say(capsys, capture, tmp_path):
     folder = tmp_path / "st"

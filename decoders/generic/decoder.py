@@ -15,7 +15,7 @@ from sniffer.codes import (
     QUANTITY, Code, note, note_in,
 )
 from sniffer.frame import REQUEST, RESPONSE, Frame
-from sniffer.protocols import MODBUS_TABLES
+from sniffer.protocols import MODBUS_MAX_QUANTITY, MODBUS_TABLES, TABLE_END, modbus_range_ok
 
 from ..base import UnitState
 from .block import BIT_SPACES, RegisterBlock, spans
@@ -23,7 +23,6 @@ from .names import EXCEPTION_NAMES, FUNCTION_NAMES
 
 
 SPACE = MODBUS_TABLES  # function code -> "coil" / "discrete" / "holding" / "input"
-_MAX_QTY = {0x01: 2000, 0x02: 2000, 0x03: 125, 0x04: 125, 0x0F: 1968, 0x10: 123}
 
 
 class GenericModbus:
@@ -39,8 +38,28 @@ class GenericModbus:
 
     def range_text(self, space: str, a: int, q: int) -> str:
         """How a summary names `q` registers or bits from `a`: generic numbers them in decimal;
-        a model names them as its manual does (TableDecoder: hex and parameter ids)."""
+        a model names them as its manual does (TableDecoder: hex and parameter ids).  Asked only for
+        a range the function can name (`_range`)."""
         return f"{space} {a}..{a + q - 1} ({q})"
+
+    def _range(self, fc: int, a: int, q: int) -> str:
+        """A frame's address and quantity fields in a summary: a range where the function can name it,
+        else only where it starts (the quantity annotation says what the field holds): no summary names
+        a register past 65535 or a count the function cannot carry (CRC-bad junk: `holding from 33667`)."""
+        space = SPACE[fc]
+        if modbus_range_ok(fc, a, q):
+            return self.range_text(space, a, q)
+        hi = MODBUS_MAX_QUANTITY.get(fc, TABLE_END)
+        return f"{space} from {a} ({'quantity out of range' if not 1 <= q <= hi else 'runs past 65535'})"
+
+    def _first_address(self, f: Frame, addr: int | None, n: int) -> int | None:
+        """`addr` for `n` consecutive values, or None (their numbers unknown, annotated) when they would run
+        past 65535: no point, shadow write or filter range names a register that cannot exist."""
+        if addr is None or addr + n <= TABLE_END:
+            return addr
+        f.annotations.append(note_in(QUANTITY, f"{n} values from {addr} run past 65535: their numbers are unknown",
+                                     2, 6, len(f.raw)))
+        return None
 
     def make_points(self, space: str, addr: int | None, values: list[int], state: UnitState,
                     offset: int) -> list[dict]:
@@ -159,9 +178,8 @@ class GenericModbus:
             return
         fc = f.function
         a, q = _HH.unpack_from(adu, 2)
-        f.summary = "read " + self.range_text(SPACE[fc], a, q)
-        if not 1 <= q <= _MAX_QTY[fc]:
-            self._check_qty(f, fc, q)
+        f.summary = "read " + self._range(fc, a, q)
+        self._check_qty(f, fc, q)
 
     def _read_regs_rsp(self, f, adu, request, state):  # 0x03 / 0x04 (and 0x17) response: count, words
         n = len(adu)
@@ -176,8 +194,8 @@ class GenericModbus:
         space = SPACE[f.function]
         addr = None
         if request is not None and request.crc_ok and len(request.adu) >= 6:
-            addr = (request.adu[2] << 8) | request.adu[3]
-            if f.crc_ok and values:  # the shadow holds what CRC-good frames said
+            addr = self._first_address(f, (request.adu[2] << 8) | request.adu[3], len(values))
+            if f.crc_ok and values and addr is not None:  # the shadow holds what CRC-good frames said
                 state.commit(f, space, addr, values)
         else:
             f.annotations.append(note(NO_REQUEST_CONTEXT, "register numbers unknown", 2, n))
@@ -201,6 +219,7 @@ class GenericModbus:
         else:
             f.annotations.append(note(NO_REQUEST_CONTEXT, "bit numbers unknown", 2, n))
         bits = _bits(status, qty)
+        addr = self._first_address(f, addr, len(bits))
         if addr is not None and f.crc_ok and bits:
             state.commit(f, space, addr, bits)
         pts = f.points = self._points(space, addr, bits, state, 3)
@@ -239,8 +258,9 @@ class GenericModbus:
         a, q, values = written
         self._check_qty(f, fc, q)
         space = SPACE[fc]
+        a = self._first_address(f, a, len(values))
         pts = self._points(space, a, values, state, 7)
-        if f.unit == 0 and f.crc_ok and values:  # a broadcast is answered by nobody: written at once
+        if f.unit == 0 and f.crc_ok and values and a is not None:  # a broadcast is answered by nobody: written at once
             state.commit(f, space, a, values)
         f.points = pts
         f.summary = "write " + points_summary(pts)
@@ -251,7 +271,8 @@ class GenericModbus:
             return
         fc = f.function
         a, q = _HH.unpack_from(adu, 2)
-        f.summary = "wrote " + self.range_text(SPACE[fc], a, q)
+        f.summary = "wrote " + self._range(fc, a, q)
+        self._check_qty(f, fc, q)
         # the request's values, confirmed here: only by a response naming the same registers (pair.mismatch
         # otherwise, and nothing is known written)
         if request is not None and request.crc_ok and f.crc_ok and request.adu[2:6] == adu[2:6]:
@@ -269,17 +290,19 @@ class GenericModbus:
             if old is not None:  # the result needs the register's value before the mask
                 state.commit(f, "holding", a, [(old & p["and_mask"]) | (p["or_mask"] & ~p["and_mask"] & 0xFFFF)])
         if fc == 0x17 and role == REQUEST:
-            f.points = self._points("holding", p["write_address"], list(p["values"]), state, 11)
+            values = list(p["values"])
+            f.points = self._points("holding", self._first_address(f, p["write_address"], len(values)), values,
+                                    state, 11)
 
     def _rw_rsp(self, f, role, p, request, state):
         if request is not None and request.crc_ok and len(request.adu) >= 6:
-            addr = (request.adu[2] << 8) | request.adu[3]
             values = list(p["values"])
+            addr = self._first_address(f, (request.adu[2] << 8) | request.adu[3], len(values))
             if f.crc_ok:  # 0x17 writes first, then reads (Modbus 6.17): both parts, in that order
                 written = _request_writes(request, 0x17)
                 if written is not None:
                     state.commit(f, *written)
-                if values:
+                if values and addr is not None:
                     state.commit(f, "holding", addr, values)
             pts = f.points = self._points("holding", addr, values, state, 3)
             f.summary = points_summary(pts)
@@ -287,7 +310,7 @@ class GenericModbus:
             self._read_regs_rsp(f, f.adu, None, state)
 
     def _check_qty(self, f, fc, q):
-        hi = _MAX_QTY.get(fc)
+        hi = MODBUS_MAX_QUANTITY.get(fc)
         if hi is not None and not 1 <= q <= hi:
             f.annotations.append(note(QUANTITY, f"quantity {q} (allowed 1..{hi})", 4, 6))
 
@@ -373,9 +396,10 @@ def _request_writes(request: Frame, fc: int) -> tuple[str, int, list[int]] | Non
         n = body[8] // 2
         if len(body) < 9 + 2 * n or not n:
             return None
-        return "holding", (body[4] << 8) | body[5], list(unpack_from(f">{n}H", body, 9))
+        a = (body[4] << 8) | body[5]
+        return ("holding", a, list(unpack_from(f">{n}H", body, 9))) if a + n <= TABLE_END else None
     written = _request_values(adu)
-    if written is None or not written[2]:
+    if written is None or not written[2] or written[0] + len(written[2]) > TABLE_END:
         return None
     return SPACE[fc], written[0], written[2]
 

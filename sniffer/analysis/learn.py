@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 
 from decoders.tables import Register, RegisterMap
 
+from sniffer.protocols import modbus_range_ok
+
 MAX_SAMPLES = 512
 MAX_DISTINCT = 64
 MIN_PAIR_SAMPLES = 4
@@ -247,6 +249,8 @@ class Learner:
             return
         start = (adu[2] << 8) | adu[3]
         qty = 1 if fc == 0x06 else (adu[4] << 8) | adu[5]
+        if fc != 0x06 and not modbus_range_ok(fc, start, qty):
+            return  # fields no request of this function can carry: no block, no rows
         key = (f.unit, fc, start, qty)
         b = self.blocks.get(key)
         if b is None:

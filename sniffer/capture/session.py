@@ -115,6 +115,11 @@ class Session:
         return list(getattr(self.source, "damage", None) or ())
 
     @property
+    def notes(self) -> list[str]:
+        """What the source skipped that is not damage (a segment that held nothing)."""
+        return list(getattr(self.source, "notes", None) or ())
+
+    @property
     def outputs(self) -> list:
         return [o for s in self.planned for o in getattr(s, "outputs", ())]
 

@@ -72,6 +72,8 @@ def destination(spec: CaptureSpec, session: Session) -> str:
 def report(session: Session, *, label: str = "") -> int:
     """Say how the run ended (damage, error) and give its exit code."""
     where = f"{label}: " if label else ""
+    for note in session.notes:
+        say(f"note: {note}")
     if session.damage:
         first = session.damage[0]
         if label and first.startswith(label):  # the reader names the file already

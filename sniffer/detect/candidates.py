@@ -15,8 +15,11 @@ from sniffer.line import LineSettings, SettingsError
 COMMON_BAUDS = (9600, 19200, 38400, 115200, 57600, 4800, 2400, 1200, 14400, 230400, 460800, 921600)
 FORMATS_8 = ("8N1", "8E1", "8O1", "8N2")
 FORMATS_7 = ("7E1", "7O1", "7N2")
-# a receiver takes both alike (a UART checks the first stop bit only): only timing tells them apart
-TWINS = {"8N1": "8N2", "8N2": "8N1"}
+LISTENED = frozenset(FORMATS_8 + FORMATS_7)
+# the same format with the other number of stop bits: a receiver takes both alike (a UART checks the first
+# stop bit only), so only the characters' spacing tells them apart.  8E2, 8O2, 7E2, 7O2 and 7N1 are never
+# listened at (a listen at the twin receives the same bytes): a listen at their twin reports them
+TWINS = {f"{d}{p}{s}": f"{d}{p}{3 - s}" for d in "87" for p in "NEO" for s in (1, 2)}
 MIN_BAUD, MAX_BAUD = 300, 4_000_000
 
 

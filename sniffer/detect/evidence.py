@@ -8,9 +8,12 @@
   of the bytes, and characters no faster than the format allows;
 * `certain`: it fits and `doubts` finds nothing: no UART error at all, 4+ frames
   and 2+ pairs, bytes of both parities (so a wrong parity setting would have shown
-  as errors), one protocol clearly ahead of the others, and for 8N1 / 8N2 (which a
-  UART receives alike: it checks the first stop bit only) the characters' spacing
-  says which;
+  as errors), one protocol clearly ahead of the others, and the characters'
+  spacing says how many stop bits (a UART receives 8E1 and 8E2, 8N1 and 8N2 alike:
+  it checks the first stop bit only);
+* `line`: the settings the evidence supports: the listen's, or its twin with the
+  other number of stop bits when the spacing says so and the twin is never
+  listened at itself (an 8E1 listen whose characters come 12 bits apart: 8E2);
 * timing: within a frame the sender sends back to back, so the reads inside a
   fitting frame tell how long a character takes: `bits_per_char` = that time x
   baud.  Fewer bits than the format has is impossible; more is a sender that
@@ -28,7 +31,7 @@ from sniffer.events import Chunk
 from sniffer.frame import REQUEST, RESPONSE
 from sniffer.line import LineSettings
 from sniffer.capture.pairer import Pairer
-from sniffer.detect.candidates import TWINS, fmt_of, setting
+from sniffer.detect.candidates import LISTENED, TWINS, fmt_of, setting
 from sniffer.detect.units import UnitPolls, UnitSeen
 
 # a good CRC/LRC on a frame whose shape these codes question is no evidence for the protocol
@@ -148,21 +151,41 @@ class Evidence:
         return self.scores[0] if self.scores and self.scores[0].fit_frames else None
 
     @property
+    def line(self) -> LineSettings:
+        """The settings this listen's evidence supports (see the module doc)."""
+        told = self.stop_bits_told()
+        if told is not None and told != self.fmt and told not in LISTENED:
+            return setting(self.rx.baud, told)
+        return self.rx
+
+    @property
     def timing(self) -> str:
-        """"exact", "slower" (pauses between characters), "impossible" (faster than the format) or "?"."""
+        """"exact", "slower" (pauses between characters), "impossible" (faster than the format) or "?", for
+        the settings the evidence supports (`line`)."""
         if self.bits_per_char is None:
             return "?"
-        bits = self.rx.bits_per_char
+        bits = self.line.bits_per_char
         if self.bits_per_char < bits * (1 - TIMING_TOLERANCE):
             return "impossible"
         return "exact" if self.bits_per_char <= bits * (1 + TIMING_TOLERANCE) else "slower"
 
+    def stop_bits_told(self) -> str | None:
+        """Of this listen's format and its twin (the other number of stop bits), the one whose character
+        time the measured spacing fits exactly and nearer than the other's; None: the spacing does not tell
+        (not measured, or a sender pausing between characters)."""
+        twin = TWINS.get(self.fmt)
+        bits = self.bits_per_char
+        if twin is None or bits is None:
+            return None
+        own_bits, twin_bits = self.rx.bits_per_char, setting(self.rx.baud, twin).bits_per_char
+        for fmt, want, other in ((self.fmt, own_bits, twin_bits), (twin, twin_bits, own_bits)):
+            if abs(bits - want) <= want * TIMING_TOLERANCE and abs(bits - want) + TWIN_MARGIN < abs(bits - other):
+                return fmt
+        return None
+
     def timing_tells_twins(self) -> bool:
-        """Does the characters' spacing say 8N1 rather than 8N2 (or the other way) for this format?"""
-        if self.timing != "exact":
-            return False
-        own, twin = self.rx.bits_per_char, setting(self.rx.baud, TWINS[self.fmt]).bits_per_char
-        return abs(self.bits_per_char - own) + TWIN_MARGIN < abs(self.bits_per_char - twin)
+        """Does the characters' spacing say this listen's format rather than its twin?"""
+        return self.stop_bits_told() == self.fmt
 
     @property
     def fits(self) -> bool:
@@ -186,10 +209,27 @@ class Evidence:
             out.append("too few bytes of each parity to rule out the other parity settings")
         if b is not None and len(self.scores) > 1 and self.scores[1].paired > b.paired - CERTAIN_MARGIN:
             out.append(f"{self.scores[1].protocol} fits nearly as well as {b.protocol}")
-        if self.fmt in TWINS and not self.timing_tells_twins():
-            out.append(f"{self.fmt} and {TWINS[self.fmt]} receive alike and the timing does not tell them apart "
-                       f"({'not measurable' if self.timing == '?' else self.timing})")
+        stop = self.stop_bits_doubt()
+        if stop:
+            out.append(stop)
         return out
+
+    def stop_bits_doubt(self) -> str | None:
+        """Why the stop bits are not known, if they are not: the twins receive alike and the timing does
+        not tell them apart (or tells the twin, which is listened at itself)."""
+        told = self.stop_bits_told()
+        if self.fmt not in TWINS or told == fmt_of(self.line):
+            return None
+        bits = self.bits_per_char
+        spacing = "not measurable" if bits is None else f"characters {bits:.1f} bits apart"
+        if told is None:
+            return f"{self.fmt} and {TWINS[self.fmt]} receive alike and the timing does not tell them apart ({spacing})"
+        return f"the timing says {told}, not {self.fmt} ({spacing})"
+
+    @property
+    def only_stop_bits_open(self) -> bool:
+        """It fits, and would be certain but for the stop bits its evidence cannot tell."""
+        return self.fits and self.doubts() == [self.stop_bits_doubt()]
 
     @classmethod
     def of(cls, w, t_ns: int) -> Evidence:

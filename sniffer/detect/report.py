@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from sniffer.capture.busfile import BusFile, format_bus_file
+from sniffer.detect.candidates import TWINS, fmt_of
 from sniffer.detect.evidence import Evidence
 from sniffer.detect.search import Verdict, rank
 
@@ -25,18 +26,21 @@ def headline(v: Verdict, port: str) -> str:
         fitting = ", ".join(f"{_setting(r)} {r.best.protocol}" for r in (v.best, *v.rivals))
         return f"several candidates fit and nothing tells them apart: {fitting}"
     b = v.best
-    what = f"{_setting(b)} {b.best.protocol}"
+    what = f"{_line(b)} {b.best.protocol}"
     if v.status == "certain":
         return f"{what} (certain: {evidence(b)})"
     if v.status == "stop bits":
-        return (f"{what} ({evidence(b)}; stop bits not told apart: a UART receives 8N1 and 8N2 alike and the "
-                f"characters' spacing could not be measured; either works for listening)")
+        twin = TWINS[b.fmt]
+        return (f"{what} ({evidence(b)}; stop bits not told apart: a UART receives {b.fmt} and {twin} alike and "
+                f"the characters' spacing could not be measured; either works for listening)")
     return f"{what} (fits, not certain: {'; '.join(b.doubts())}; {evidence(b)})"
 
 
 def evidence(ev: Evidence) -> str:
     b = ev.best
     timing = f", characters {ev.bits_per_char:.1f} bits apart" if ev.bits_per_char is not None else ""
+    if ev.line != ev.rx:
+        timing += f" ({ev.line.bits_per_char} bits: {fmt_of(ev.line)}, received alike at {ev.fmt})"
     return (f"{b.fit_frames} frames with a good {'LRC' if b.protocol.endswith('ascii') else 'CRC'} fit {b.protocol}, "
             f"{b.pairs} request/response pairs, {_errors(ev)} UART errors in {ev.chars} bytes{timing}")
 
@@ -61,7 +65,8 @@ def _row(w: Evidence) -> tuple[str, ...]:
 def verdict_word(w: Evidence) -> str:
     """A listen's verdict on its own setting, in a word or two."""
     if w.certain or w.fits:
-        return "certain" if w.certain else "fits"
+        word = "certain" if w.certain else "fits"
+        return word if w.line == w.rx else f"{word} as {fmt_of(w.line)}"
     if w.best is None:
         return "no frames"
     return "UART errors" if w.errors else "too fast" if w.timing == "impossible" else "does not fit"
@@ -69,6 +74,11 @@ def verdict_word(w: Evidence) -> str:
 
 def _setting(w: Evidence) -> str:
     return f"{w.rx.baud} {w.fmt}"
+
+
+def _line(w: Evidence) -> str:
+    """The settings the listen's evidence supports (its own, or its twin with the other stop bits)."""
+    return f"{w.line.baud} {fmt_of(w.line)}"
 
 
 def _errors(w: Evidence) -> str:
@@ -84,7 +94,7 @@ def bus_file(v: Verdict, port: str) -> str:
     """The bus file for the verdict's line (`sniffer live PORT --bus FILE`); the units seen as comments:
     a device map would turn off the guessing of their models."""
     ev = v.best
-    line = ev.rx
+    line = ev.line
     bus = BusFile(line.baud, line.parity, line.stopbits, ev.best.protocol,
                   line.databits if line.databits != 8 else None)
     comments = [f"written by `sniffer detect {port}`: {headline(v, port)}"]

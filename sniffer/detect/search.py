@@ -141,7 +141,7 @@ class Search:
             return Verdict("none", ranked[0], ws)
         best, rivals = fitting[0], fitting[1:]
         if not rivals:
-            return Verdict("fits", best, ws)
+            return Verdict("stop bits" if best.only_stop_bits_open else "fits", best, ws)
         if all(r.rx.baud == best.rx.baud and TWINS.get(best.fmt) == r.fmt and r.best.protocol == best.best.protocol
                for r in rivals):
             # a UART set to 1 stop bit reads both alike: that one, unless the timing said 2

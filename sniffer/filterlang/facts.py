@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from sniffer.frame import REQUEST, RESPONSE, Frame
 from sniffer.analysis.flags import frame_flags
-from sniffer.protocols import TABLES, of_frame
+from sniffer.protocols import TABLES, modbus_range_ok, of_frame
 
 _FIELD = "\x00"  # between the fields of one frame's search text
 
@@ -101,7 +101,7 @@ def _addressed(f: Frame) -> tuple[str, int, int] | None:
             return table, a, a + 1
         q = adu[4] << 8 | adu[5]
         if ((fc <= 0x04 or fc == 0x17) and f.role == REQUEST) or (fc in (0x0F, 0x10) and f.role == RESPONSE):
-            return table, a, a + q
+            return (table, a, a + q) if modbus_range_ok(fc, a, q) else None  # junk fields name no registers
         return None
     if fc in (0x01, 0x04) and f.role == REQUEST and len(adu) >= 4:
         return table, adu[3], adu[3] + 1

@@ -9,6 +9,12 @@ from typing import BinaryIO
 from sniffer.events import CaptureError
 
 
+class EmptyCapture(CaptureError):
+    """A capture file that holds nothing recorded: empty, or cut off before its capture info (a capture
+    killed as it began, or right after a rotation opened its next segment).  Alone it is nothing to replay;
+    in a set of segments it is skipped with a note, not damage."""
+
+
 QUOTE_LIMIT = 200
 
 

@@ -18,6 +18,12 @@ next one) or `WAIT` (the decision needs bytes not here yet).  A framer
 supplies A, B1, B3, B4 (B3b if it has one), `_frame_starts_at` (for B2's scan), `_header` (unit,
 function, adu and header notes of an emitted frame) and `_short_silence_note`;
 B2, B5, the scan and the emission live here.
+
+A CRC that holds over a byte the UART flagged is no proof (`LineBuffer._flagged`):
+the framers' CRC checks skip such a span, and a frame that holds one anyway
+is emitted damaged (`modbus.crc.unproven`).  `_last_good` keeps what the
+framer last emitted (the evidence of what is pending, for a framer that
+weighs two CRC-valid readings of one header).
 """
 
 from __future__ import annotations
@@ -33,6 +39,10 @@ NEXT = False  # a rule's "does not apply here": distinct from WAIT (None)
 
 class Crc16Framing:
     """Mixin for LineBuffer subclasses: the rule order, B2/B5, the later-frame scan, CRC-16 frame emission."""
+
+    # (roles, raw) of the last frame emitted with a good CRC; None before the first and after a
+    # damaged one (nothing reliable is pending).  Noise leaves it as it is.
+    _last_good: tuple[int, bytes] | None = None
 
     # ------------------------------------------------------------ the order
     def _step(self, p: int):
@@ -138,12 +148,16 @@ class Crc16Framing:
         fr.crc_ok = crc_good
         if not crc_good:
             exp = crc_expected(raw)
-            fr.crc_expected = exp
-            fr.annotations.append(
-                note(codes.CRC_MISMATCH,
-                     f"CRC is 0x{crc_found(raw):04X}, expected 0x{exp:04X} (bytes {exp & 0xFF:02x} {exp >> 8:02x})",
-                     len(raw) - 2, len(raw))
-            )
+            if crc_found(raw) == exp and self._flagged(p, e):
+                fr.annotations.append(self._unproven_note(p, e, "CRC", len(raw) - 2, len(raw)))
+            else:
+                fr.crc_expected = exp
+                fr.annotations.append(
+                    note(codes.CRC_MISMATCH,
+                         f"CRC is 0x{crc_found(raw):04X}, expected 0x{exp:04X} (bytes {exp & 0xFF:02x} {exp >> 8:02x})",
+                         len(raw) - 2, len(raw))
+                )
+        self._last_good = (fr.role_fits, raw) if crc_good else None
         idle = fr.idle_before_ns
         if fr.time_source == "byte" and idle is not None and idle < self.hard_ns:
             fr.annotations.append(self._short_silence_note(idle))

@@ -12,7 +12,10 @@ hex pairs holding at least unit, function and the LRC; otherwise the line is
 a noise frame that says why in ASCII terms (and carries the framer's
 `bad_hex_code` when the characters are not hex pairs).  A bad LRC is flagged
 like a bad CRC (`modbus.crc.mismatch` over the LRC characters, the expected
-value in `crc_expected`); a frame not ended by CR LF gets `no_crlf_code`.
+value in `crc_expected`); a frame not ended by CR LF gets `no_crlf_code`.  A
+line holding a character the UART flagged is never LRC-valid (an 8-bit LRC
+proves little, and nothing over a character received wrong):
+`modbus.crc.unproven` when the LRC matches all the same.
 A framer supplies `_header(fr, adu, crc_good)` (unit, function, adu, roles
 and header notes) and the two codes.
 """
@@ -76,9 +79,13 @@ class HexLineFraming:
         adu, got = binary[:-1], binary[-1]
         fr = self._new_frame(p, e, self.protocol, raw)
         want = lrc(adu)
-        fr.crc_ok = got == want
+        unproven = got == want and self._flagged(p, e)  # an LRC over a flagged character proves nothing
+        fr.crc_ok = got == want and not unproven
         self._header(fr, adu, fr.crc_ok)
-        if not fr.crc_ok:
+        if unproven:
+            stop = len(raw) - tail
+            fr.annotations.append(self._unproven_note(p, e, "LRC", stop - 2, stop))
+        elif not fr.crc_ok:
             fr.crc_expected = want
             stop = len(raw) - tail
             fr.annotations.append(

@@ -7,12 +7,20 @@ hold what the binary and the ':' ... CR LF framings share).
 
 What the buffer knows about each byte boundary:
   HARD  silence >= t3.5 (per-byte times), a large gap between reads, a line
-        (channel) change, or a tick that proved silence: frames never span it.
+        (channel) change, a tick that proved silence, or the edges of a capturing
+        tool's packet (`Chunk.packet`: pcap): frames never span it.
   SOFT  silence >= 1.5 characters (per-byte times), or the start of a new USB
         read: a likely boundary, but frames may span it.
   none  bytes known back to back, or inside one read (unknown timing).
 Per-read bytes get times estimated back from the read's time (the last byte
 arrived just before the read returned, characters back to back).
+
+A byte the UART flagged (framing or parity error) is kept and annotated, but
+it is no evidence for a check: a CRC or LRC that holds over it proves
+nothing (`_flagged`), so it never ends up inside a CRC-valid frame.  (CRC-16
+alone cannot tell a frame from the same frame plus a 0x00: a line driver's
+turn-off glitch, received as 0x00 with a framing error, must not extend the
+frame before it.)
 """
 
 from __future__ import annotations
@@ -79,7 +87,7 @@ class LineBuffer:
             if chunk.unseen_ns is not None:  # the bytes may have come as early as the reader's last empty look
                 first_t = min(first_t, chunk.t_ns - chunk.unseen_ns)
         cls = NONE
-        if self.last_t_end is None:
+        if self.last_t_end is None or chunk.packet:
             cls = HARD
         elif self.closed or (self.last_channel is not None and chunk.channel != self.last_channel):
             cls = HARD
@@ -105,7 +113,7 @@ class LineBuffer:
                 prev = t
         for off, flag in chunk.flags:
             self.flags.append((start + off, flag))
-        self.closed = False
+        self.closed = chunk.packet  # a tool's packet ends where it drew the edge
         self.last_t_end = end_t
         self.last_channel = chunk.channel
         self.buf += data
@@ -196,6 +204,26 @@ class LineBuffer:
         if ch.byte_t_ns is not None:
             return ch.byte_t_ns[i - start]
         return ch.t_ns - (start + len(ch.data) - i) * self.char_ns
+
+    def _flagged(self, p: int, e: int) -> bool:
+        """True if a byte in [p, e) came with a UART error (framing or parity): no check over it is proof."""
+        for pos, _flag in self.flags:
+            if pos >= e:
+                return False
+            if pos >= p:
+                return True
+        return False
+
+    def _flag_offsets(self, p: int, e: int) -> frozenset[int]:
+        """Offsets from p of the flagged bytes in [p, e)."""
+        return frozenset(pos - p for pos, _flag in self.flags if p <= pos < e)
+
+    def _unproven_note(self, p: int, e: int, check: str, start: int, end: int):
+        """The annotation for a frame [p, e) whose check holds over flagged bytes (span: the check)."""
+        offs = sorted(self._flag_offsets(p, e))
+        which = ", ".join(str(k) for k in offs[:4]) + (", ..." if len(offs) > 4 else "")
+        return note(codes.CRC_UNPROVEN, f"{check} matches, but byte {which} came with a UART error: "
+                                        "no proof, taken as damaged", start, end)
 
     def _per_byte_at(self, i: int) -> bool:
         return self._seg(i)[1].byte_t_ns is not None

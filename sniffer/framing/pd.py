@@ -31,8 +31,11 @@ RTU (`PdRtuFramer`, protocol "pd-rtu"):
       B3. LEN + 5 ends exactly at the boundary (or, with per-read times, at a
          later read boundary): a damaged frame, bad CRC.
       B4. a whole burst between two quiets with a known function: a
-         malformed frame (bad CRC, `pd.len.mismatch` when LEN disagrees).
+         malformed frame (bad CRC, `pd.len.mismatch` when LEN disagrees;
+         `modbus.length.truncated` when LEN + 5 runs past it: cut off).
       B5. otherwise noise up to the boundary.
+  * a byte the UART flagged is in no CRC-valid frame (`LineBuffer._flagged`):
+    a 00 received with a framing error is never the CRC's high byte.
 ASCII (`PdAsciiFramer`, protocol "pd-ascii"): ':' ... LF cut as in Modbus
 ASCII (`HexLineFraming`); `raw` keeps the characters, `adu` the binary
 ADDR..DATA without the LRC.  The LRC is the manual's (l.187): 100H minus the
@@ -52,7 +55,7 @@ from __future__ import annotations
 
 from fastcrc.crc16 import modbus as crc16_modbus  # incremental: `initial` = the running register
 
-from sniffer.codes import CRC_MISMATCH, LINE_CODES, note
+from sniffer.codes import CRC_MISMATCH, LENGTH_TRUNCATED, LINE_CODES, note
 from sniffer.codes import PD_BAD_HEX as BAD_HEX
 from sniffer.codes import PD_FUNCTION_UNKNOWN as FUNCTION_UNKNOWN
 from sniffer.codes import PD_LEN_MISMATCH as LEN_MISMATCH
@@ -75,7 +78,7 @@ RESERVED = frozenset({0x06, 0x07})  # l.87-89
 ERRORS = frozenset({0x81, 0x83})  # error replies (l.111, l.125, l.153)
 KNOWN = FUNCTIONS | ERRORS
 
-RTU_CODES = LINE_CODES + (CRC_MISMATCH, LEN_MISMATCH, QUIET_SHORT, FUNCTION_UNKNOWN, WRITE_ERROR)
+RTU_CODES = LINE_CODES + (CRC_MISMATCH, LEN_MISMATCH, QUIET_SHORT, FUNCTION_UNKNOWN, WRITE_ERROR, LENGTH_TRUNCATED)
 ASCII_CODES = LINE_CODES + (CRC_MISMATCH, LEN_MISMATCH, FUNCTION_UNKNOWN, WRITE_ERROR, NO_CRLF, BAD_HEX)
 
 
@@ -171,7 +174,12 @@ class PdRtuFramer(PdHeader, Crc16Framing, LineBuffer):
         buf, base = self.buf, self.base
         if (b - p >= MIN_FRAME and buf[p + 1 - base] in KNOWN and buf[p - base] <= MAX_UNIT
                 and self._whole_burst(p, b, end, final)):
-            return self._emit(p, b, 0, crc_good=False)
+            fr = self._emit(p, b, 0, crc_good=False)
+            want, n = buf[p + 2 - base] + MIN_FRAME, b - p
+            if want > n:  # the frame LEN announces, cut off
+                fr.annotations.append(note(LENGTH_TRUNCATED, f"cut off: {n} of the {want} bytes LEN announces "
+                                                             f"({want - n} missing)", 0, n))
+            return fr
         return NEXT
 
     def _frame_starts_at(self, q: int, b: int, end: int, final: bool):
@@ -197,7 +205,7 @@ class PdRtuFramer(PdHeader, Crc16Framing, LineBuffer):
         n = buf[q + 2 - base] + MIN_FRAME
         if q + n > end:
             return False if final else WAIT
-        return n if crc_ok(buf[q - base : q + n - base]) else False
+        return n if crc_ok(buf[q - base : q + n - base]) and not self._flagged(q, q + n) else False
 
     def _settle_zero_end(self, p: int, e: int, end: int, final: bool):
         """A's frame [p, e) ends in 00: it also checks one byte shorter (see `_lenient_cut`).
@@ -244,6 +252,8 @@ class PdRtuFramer(PdHeader, Crc16Framing, LineBuffer):
                 continue
             ends = (e + 1, e) if e < b and buf[e - base] == 0 and want > e else (e,)
             for c in ends:
+                if self._flagged(p, c):  # a flagged byte is in no CRC-valid frame
+                    continue
                 if c == b or not any(buf[c - base : b - base]):
                     return c
                 nxt = self._good_at(c, end, final, MAX_UNIT)

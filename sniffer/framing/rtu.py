@@ -4,7 +4,8 @@ Sans-I/O: `feed(chunk)`, `tick(t_ns)` and `flush()` return finished Frames.
 
 What the framer knows about each byte boundary (linebuf.LineBuffer):
   HARD  silence >= t3.5 (per-byte times), a large gap between reads, a line
-        (channel) change, or a tick that proved silence: frames never span it.
+        (channel) change, a tick that proved silence, or a pcap packet's edges:
+        frames never span it.
   SOFT  silence >= 1.5 characters (per-byte times), or the start of a new USB
         read: a likely boundary, but frames may span it (an adapter splits
         frames across reads; a sloppy master pauses mid-frame).
@@ -32,14 +33,17 @@ each rule a method named for it:
      (glued frames no length rule cuts), a few junk bytes before them allowed;
   B4. `_rule_b4_malformed_burst`: a whole burst between two t3.5 silences
      with a plausible header is a malformed frame (the Modbus definition of
-     a frame), bad CRC;
+     a frame), bad CRC; shorter than a length its header announces, it is
+     that frame cut off (its roles, `modbus.length.truncated`);
   B5. `_rule_b5_noise`: otherwise noise up to the next boundary.
 B2 judges the bytes before the good frame as a run of their own: CRC-valid
 -> a frame (B1's notes), a structural length ending there -> a damaged frame,
 CRC-valid pieces -> frames, else noise.  Every unit gets the same lengths
 (rtu_layout.candidates); the frame's bytes may narrow its roles
-(rtu_layout.roles), and of two CRC-valid lengths the shorter wins only where
-it ends at a boundary (`_prefer_longer`).
+(rtu_layout.roles), and of two CRC-valid lengths the evidence decides, not the
+length (`_prefer_longer`: UART flags, boundaries, what is pending).  A byte the
+UART flagged is in no CRC-valid frame: a frame holding one is damaged
+(`modbus.crc.unproven` when its CRC holds all the same).
 Decisions depend only on bytes and boundaries, never on how reads were cut,
 so feeding a capture whole, byte by byte or in random chunks gives the same
 frames (a property test checks it).
@@ -72,7 +76,12 @@ class RtuFramer(Crc16Framing, LineBuffer):
         out: list[Frame] = []
         # rule A for per-read bytes first; a flagged byte needs the rule-by-rule path. When
         # _fast stops where _step would wait too (the rest of a frame), _step is not asked
-        if self.flags or not self._fast(out):
+        waits = False
+        if not self.flags:
+            waits = self._fast(out)
+            if out:
+                self._last_good = (out[-1].can, out[-1].raw)
+        if not waits:
             step = self._step
             while (fr := step(self.pos)) is not None:
                 out.append(fr)
@@ -136,7 +145,7 @@ class RtuFramer(Crc16Framing, LineBuffer):
             if cands[-1][0] != length:  # a longer length of this header may hold a CRC too: _prefer_longer
                 at = self._is_boundary(e, limit, final)
                 if not at:
-                    for n2, can2 in cands:
+                    for n2, _can2 in cands:
                         if n2 <= length:
                             continue
                         if at is None or i + n2 > lim:
@@ -152,9 +161,9 @@ class RtuFramer(Crc16Framing, LineBuffer):
                                 self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
                                 self._need = p + n2 + 1
                                 return True
-                            if at2:
-                                length, can, raw, e = n2, can2, raw2, p + n2
-                                break
+                            if at2:  # the longer ends at a boundary: what is pending decides (_prefer_longer)
+                                self.index, self.prev_frame_end_ns, self.pos = index, prev_end, p
+                                return False
             t0 = c0.t_ns - (end0 - p) * char
             while e > end0:  # the frame ends in a later read
                 k += 1
@@ -199,7 +208,7 @@ class RtuFramer(Crc16Framing, LineBuffer):
                         self._need = p + length
                         return WAIT
                     raw = bytes(buf[i : i + length])
-                    if not crc16_raw(raw):
+                    if not crc16_raw(raw) and not (self.flags and self._flagged(p, p + length)):
                         if k + 1 < len(quick):
                             return self._prefer_longer(p, (length, can, raw), quick[k + 1 :], end, final)
                         return length, can, raw
@@ -215,17 +224,22 @@ class RtuFramer(Crc16Framing, LineBuffer):
                     continue
                 return WAIT
             raw = bytes(buf[i : i + length])
-            if crc_ok(raw):
+            if crc_ok(raw) and not self._flagged(p, p + length):
                 if k + 1 < len(cands):
                     return self._prefer_longer(p, (length, can, raw), cands[k + 1 :], end, final)
                 return length, can, raw
         return False
 
     def _prefer_longer(self, p: int, hit: tuple, longer, end: int, final: bool):
-        """Two lengths of one header both carry a valid CRC (a 9-byte read response whose first 8
-        bytes pass as a request, about 1 in 65536): the shorter is taken unless the bytes say
-        otherwise, i.e. it ends where no boundary is and a longer one ends at a boundary.  Only
-        bytes and boundaries decide, so a frame waits while the longer one's bytes are coming."""
+        """Two lengths of one header both carry a valid CRC: the shorter is taken unless the evidence
+        says otherwise, never the length alone.  CRC-16 makes this common: any frame followed by a
+        0x00 checks one byte longer too (a request's 8 bytes and the 0x00 a line driver leaves at
+        turn-off read as a 9-byte response when the request's third byte is 04), and a 9-byte read
+        response's first 8 bytes pass as a request about 1 in 65536 times.  The evidence, in order:
+        a flagged byte is in no CRC-valid reading (`_crc_candidate` skips it); the shorter ends at a
+        boundary: the shorter; the longer ends at a boundary and what is pending allows it
+        (`_roles_allow_longer`): the longer.  Only bytes, flags, boundaries and the frames before
+        decide, so a frame waits while the longer one's bytes are coming."""
         at = self._is_boundary(p + hit[0], end, final)
         if at is None:
             return WAIT  # the shorter ends where the bytes so far end: what follows decides
@@ -240,13 +254,32 @@ class RtuFramer(Crc16Framing, LineBuffer):
                     self._need = p + length
                 return WAIT
             raw = bytes(buf[i : i + length])
-            if crc_ok(raw):
+            if crc_ok(raw) and not self._flagged(p, p + length):
                 at = self._is_boundary(p + length, end, final)
                 if at is None:
                     return WAIT
-                if at:
+                if at and self._roles_allow_longer(hit, (length, can, raw)):
                     return length, can, raw
         return hit
+
+    def _roles_allow_longer(self, short: tuple, long: tuple) -> bool:
+        """What is pending, and the roles each reading can have, allow the longer of two CRC-valid
+        readings (length, roles, raw) of one header?  A reading that can only be a response needs
+        the pending request it answers (unit, function, size or echo); a shorter reading that
+        answers it, or repeats it byte for byte (a retry), wins.  Before the first frame, and after
+        a damaged one, nothing is pending."""
+        last = self._last_good
+        req = last[1] if last is not None and last[0] & CAN_REQ else None
+        if req is not None:
+            if short[2] == req:
+                return False
+            s_ans = bool(short[1] & CAN_RSP) and _answers(req, short[2])
+            l_ans = bool(long[1] & CAN_RSP) and _answers(req, long[2])
+            if s_ans and not l_ans:
+                return False
+            if l_ans:
+                return True
+        return bool(long[1] & CAN_REQ)
 
     # --------------------------------------------------------------- rules
     def _rule_a_structural(self, p: int, end: int, final: bool):
@@ -262,7 +295,7 @@ class RtuFramer(Crc16Framing, LineBuffer):
         """B1: the run up to the boundary carries a valid CRC: a frame of the wrong length or an
         unknown / user-defined function (annotated so)."""
         seg = bytes(self.buf[p - self.base : b - self.base])
-        if not (len(seg) >= 4 and crc_ok(seg)):
+        if not (len(seg) >= 4 and crc_ok(seg)) or self._flagged(p, b):
             return NEXT
         return self._crc_run(p, b, seg)
 
@@ -300,13 +333,14 @@ class RtuFramer(Crc16Framing, LineBuffer):
         """[p, q) before a good frame: a CRC-valid run, a damaged structural frame, or noise."""
         buf, base = self.buf, self.base
         seg = bytes(buf[p - base : q - base])
-        if len(seg) >= 4 and crc_ok(seg):  # any function: an unknown or user-defined one is annotated
+        flagged = self._flag_offsets(p, q)
+        if len(seg) >= 4 and crc_ok(seg) and not flagged:  # any function: an unknown or user-defined one is annotated
             return self._crc_run(p, q, seg)
         if len(seg) >= 4 and (seg[1] & 0x7F) in KNOWN_FUNCTIONS and seg[1] != 0x80:
             for length, can in candidates(buf, p - base, q - base):
                 if length == q - p and type(length) is int:
                     return self._emit(p, q, can, crc_good=False, raw=seg)
-        cut = _crc_partition(seg)
+        cut = _crc_partition(seg, flagged=flagged)
         if cut:
             return self._crc_run(p, p + cut, seg[:cut])
         return self._emit_noise(p, q)
@@ -331,11 +365,12 @@ class RtuFramer(Crc16Framing, LineBuffer):
         if b - p > 4 * MAX_ADU:
             return NEXT
         seg = bytes(self.buf[p - self.base : b - self.base])
-        cut = _crc_partition(seg)
+        flagged = self._flag_offsets(p, b)
+        cut = _crc_partition(seg, flagged=flagged)
         if cut:
             return self._crc_run(p, p + cut, seg[:cut])
         for q in range(1, min(JUNK_BEFORE, len(seg) - 4) + 1):  # a few bytes of line noise before them
-            if _crc_partition(seg[q:], whole_ok=True):
+            if _crc_partition(seg[q:], whole_ok=True, flagged=frozenset(k - q for k in flagged if k >= q)):
                 return self._emit_noise(p, p + q)
         return NEXT
 
@@ -367,9 +402,18 @@ class RtuFramer(Crc16Framing, LineBuffer):
         if not (b - p >= 4 and buf[p - base] <= 247 and (buf[p + 1 - base] & 0x7F) in KNOWN_FUNCTIONS
                 and self._whole_burst(p, b, end, final)):
             return NEXT
+        n = b - p
+        cut = [(length, can) for length, can in candidates(buf, p - base, b - base)
+               if type(length) is int and length > n]
+        if cut:  # the frame its header announces, cut off (a logger's packet limit, a dropped line)
+            want = cut[0][0]
+            fr = self._emit(p, b, sum_roles(can for length, can in cut if length == want), crc_good=False)
+            fr.annotations.append(note(codes.LENGTH_TRUNCATED, f"cut off: {n} of the {want} bytes its header "
+                                                               f"announces ({want - n} missing)", 0, n))
+            return fr
         fr = self._emit(p, b, CAN_REQ | CAN_RSP, crc_good=False)
         fr.annotations.append(
-            note(codes.LENGTH_MISMATCH, f"{b - p} bytes do not fit function 0x{buf[p + 1 - base]:02X}", 0, b - p)
+            note(codes.LENGTH_MISMATCH, f"{n} bytes do not fit function 0x{buf[p + 1 - base]:02X}", 0, n)
         )
         return fr
 
@@ -455,25 +499,55 @@ def _quick(buf, i: int, n: int):
 JUNK_BEFORE = 8  # bytes of noise B3c looks past for glued CRC-valid runs (each try costs up to 256 CRCs)
 
 
-def _crc_partition(seg: bytes, whole_ok: bool = False) -> int:
+def _crc_partition(seg: bytes, whole_ok: bool = False, flagged: frozenset[int] = frozenset()) -> int:
     """The length of the first piece when `seg` splits wholly into CRC-valid runs of 4..256 bytes,
     shortest pieces first; 0 if it does not (or is one piece, unless `whole_ok`).  A chance CRC
-    match splits no run: every piece must hold one, end to end."""
+    match splits no run: every piece must hold one, end to end.  A piece holding a flagged byte
+    (an offset in `flagged`) is not CRC-valid."""
     n = len(seg)
-    if whole_ok and 4 <= n <= MAX_ADU and crc_ok(seg):
+
+    def good(i: int, j: int) -> bool:
+        return crc_ok(seg[i:j]) and not any(i <= k < j for k in flagged)
+
+    if whole_ok and 4 <= n <= MAX_ADU and good(0, n):
         return n
     memo: dict[int, bool] = {n: True}
 
     def whole(i: int) -> bool:  # seg[i:] splits into CRC-valid runs
         hit = memo.get(i)
         if hit is None:
-            hit = memo[i] = any(crc_ok(seg[i:j]) and whole(j) for j in range(i + 4, min(n, i + MAX_ADU) + 1))
+            hit = memo[i] = any(good(i, j) and whole(j) for j in range(i + 4, min(n, i + MAX_ADU) + 1))
         return hit
 
     for j in range(4, min(n - 4, MAX_ADU) + 1):
-        if crc_ok(seg[:j]) and whole(j):
+        if good(0, j) and whole(j):
             return j
     return 0
+
+
+def sum_roles(cans) -> int:
+    out = 0
+    for can in cans:
+        out |= can
+    return out
+
+
+def _answers(req: bytes, raw: bytes) -> bool:
+    """Does `raw`, read as a response, answer the request `req` (both with their CRC): same unit
+    (never a broadcast's) and function, and the size or echo the request asks for?"""
+    if req[0] == 0 or raw[0] != req[0] or (raw[1] & 0x7F) != req[1]:
+        return False
+    fc = raw[1]
+    if fc & 0x80:
+        return True
+    if fc <= 0x04 and len(req) == 8:
+        qty = (req[4] << 8) | req[5]
+        return raw[2] == (2 * qty if fc >= 0x03 else (qty + 7) // 8) and len(raw) == raw[2] + 5
+    if fc in (0x0F, 0x10):
+        return len(raw) == 8 and raw[2:6] == req[2:6]
+    if fc in (0x05, 0x06):
+        return raw == req
+    return True
 
 
 def _noise_reason(raw: bytes) -> str:  # RtuFramer.noise_reason

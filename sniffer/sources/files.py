@@ -23,6 +23,7 @@ from collections.abc import Iterator
 
 from sniffer.events import CaptureInfo, Chunk, Gap, Tick
 from sniffer.events import CaptureError
+from sniffer.formats.reading import EmptyCapture
 from sniffer.formats.reading import not_regular, quote
 
 FORMATS = ("auto", "mcap", "csv", "saleae", "pcap", "sigrok")
@@ -83,7 +84,7 @@ class FileSource:
         if why is not None:
             raise CaptureError(why)
         if st.st_size == 0:
-            raise CaptureError(f"{p}: empty file")
+            raise EmptyCapture(f"{p}: empty file")
         self.format, reader = _reader(p, self._requested, self.damage, self.logic)
         if self.logic is not None and self.format != "sigrok":
             raise CaptureError(f"{p}: --rx/--tx/--de are for a sigrok logic capture (.sr); this is {self.format}")

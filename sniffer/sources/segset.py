@@ -12,9 +12,11 @@ captures (a restart) and where a segment of one capture is missing (deleted by
 carries what the decoders knew where the next file starts (its recorded
 `decoder_state`, decoders/carry.py), so its values are scaled and named as the
 capture had them.  Across segments that follow each other the decoders go on as
-they are (one pipeline).  A
-segment that cannot be read at all is skipped and listed in `damage`; damage
-inside a file is listed as its reader says.
+they are (one pipeline).  A segment that holds nothing recorded (empty, or its
+header alone: the next segment of a capture killed right after a rotation) is
+skipped with a line in `notes`, not damage.  A killed segment cut before its
+metadata is skipped and listed in `damage`; damage inside a file is listed as
+its reader says.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from decoders.carry import KEY
 from sniffer.events import CaptureInfo, Chunk, Gap, Tick
 from sniffer.formats.mcap.segments import INDEX_NAME, set_files
 from sniffer.events import CaptureError
+from sniffer.formats.reading import EmptyCapture
 from sniffer.formats.reading import gap_before
 from sniffer.sources.files import FileSource
 
@@ -70,6 +73,7 @@ class SetSource:
         self.format = fmt
         self.damage: list[str] = []
         self.unfinished: list[str] = []
+        self.notes: list[str] = []  # segments skipped that held nothing (not damage)
         self.files: list[tuple[str, CaptureInfo]] = []
         self._info: CaptureInfo | None = None
         self._stop = threading.Event()
@@ -88,6 +92,12 @@ class SetSource:
             src = FileSource(path, self.format)
             try:
                 info = src.open()
+            except EmptyCapture as e:
+                if len(files) == 1:
+                    raise
+                self.notes.append(f"{e}: skipped (a segment that holds nothing: its capture was stopped as it "
+                                  "opened it)")
+                continue
             except CaptureError as e:
                 if len(files) == 1 or not path.endswith(".part"):
                     raise
@@ -96,6 +106,8 @@ class SetSource:
             finally:
                 src.close()
             infos.append((path, info))
+        if not infos:
+            raise EmptyCapture(f"{self.path}: none of its {len(files)} capture files holds anything recorded")
         first_path, first = infos[0]
         for path, info in infos[1:]:
             if _line(info) != _line(first):

@@ -76,6 +76,8 @@ RAW_SCHEMA = {
                "description": "chunk of a logic analyzer's --de capture, sent while the slave's driver was "
                               "enabled: [rise, fall] of its driver-enable line (ns; null: before the capture / "
                               "not known); absent: not in a DE window"},
+        "packet": {"type": "boolean", "description": "chunk: one packet of a capturing tool (pcap), whose edges no "
+                   "frame spans; absent: false"},
         "t_end_ns": {"type": "integer", "description": "gap: end of the interruption"},
         "reason": {"type": "string", "description": "gap: why the source was interrupted"},
     },
@@ -132,6 +134,8 @@ def encode_event(ev: Chunk | Tick | Gap) -> bytes:
             d["unseen_ns"] = ev.unseen_ns
         if ev.de is not None:
             d["de"] = list(ev.de)
+        if ev.packet:
+            d["packet"] = True
     elif type(ev) is Tick:
         d = {"kind": "tick", "t_ns": ev.t_ns}
     elif type(ev) is Gap:
@@ -167,7 +171,7 @@ def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
             rise, fall = de
             de = (None if rise is None else int(rise), None if fall is None else int(fall))
         return Chunk(t, raw, byte_t, flags, str(d.get("channel") or ""), link, None if unseen is None else int(unseen),
-                     de)
+                     de, bool(d.get("packet")))
     if kind == "tick":
         return Tick(t, link)
     if kind == "gap":

@@ -2,7 +2,9 @@
 
 sniffer.formats.mcap.scan walks the records: a file that just stops (killed
 writer, full disk) is read up to its last complete record and
-info.extra["mcap_unfinished"] says so; that is expected, not damage.  A hole
+info.extra["mcap_unfinished"] says so; that is expected, not damage.  A file
+cut off before it recorded anything (the header alone: a segment opened just
+before a kill) is `EmptyCapture`.  A hole
 in the middle (a chunk failing its CRC, a record that does not parse, a
 damaged length) is skipped: every readable event is still replayed, a Gap
 marks the place and `damage` says what was lost.  A /raw message that does
@@ -25,6 +27,7 @@ from sniffer.formats.mcap.format import (
 from sniffer.formats.records import loads
 from sniffer.events import CaptureError
 from sniffer.formats.reading import DamageLog, file_position, gap_before, open_regular, quote
+from sniffer.formats.reading import EmptyCapture
 from sniffer.formats.mcap.scan import Corrupt, Hole, Scan, open_file
 
 __all__ = ["Corrupt", "McapSource", "Scan", "open_file", "open_mcap", "read_frames", "sniff"]
@@ -74,8 +77,10 @@ class McapSource:
         scan = self._scan = Scan(fh, size, tail_ok=tail_ok, keep_topics=frozenset({CAPTURE_TOPIC, RAW_TOPIC}))
         records = self._records = scan.records()
         info: CaptureInfo | None = None
+        recorded = False  # a message or metadata record read (header, schemas and channels record nothing)
         try:
             for rec in records:
+                recorded = recorded or isinstance(rec, (Message, Metadata))
                 if isinstance(rec, Metadata) and rec.name == METADATA_NAME:
                     info = _info(p, rec.metadata)
                     break
@@ -98,8 +103,8 @@ class McapSource:
             if scan.holes:
                 raise CaptureError(f"{p}: no readable sniffer capture info ({scan.holes[0][2]})")
             if scan.problem and not scan.finished:
-                raise CaptureError(f"{p}: MCAP file cut off before its capture info ({scan.problem}); "
-                                   "nothing to replay")
+                cls = EmptyCapture if not recorded else CaptureError  # header only: killed as it began
+                raise cls(f"{p}: MCAP file cut off before its capture info ({scan.problem}); nothing to replay")
             raise CaptureError(f"{p}: MCAP file has no sniffer capture info (not recorded by sniffer?)")
         if not tail_ok:
             info.extra["mcap_unfinished"] = True

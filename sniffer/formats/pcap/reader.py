@@ -8,9 +8,13 @@ CaptureError naming the type; packets of other interfaces later in a
 pcapng are skipped and reported.
 
 A packet's time is when the sniffer emitted it, not a per-byte wire time, so
-the events are per-read Chunks (`time_source` "read"), one per packet, each
-followed by a silence Tick up to the next packet so the framer closes frames
-as the original tool cut them.  pcap does not say the baud rate: give it.
+the events are per-read Chunks (`time_source` "read"), one per packet.  A
+packet is a boundary the capturing tool already drew: each Chunk is marked
+`packet`, and the framer cuts at its edges whatever the times say (a logger
+that stamps a packet's start puts the next one "before" the end of the
+last), so a packet cut off inside a frame is that frame truncated, as in any
+other format.  A silence Tick still follows each packet up to the next one.
+pcap does not say the baud rate: give it.
 
 Damage (sniffer.formats.pcap.format says what is plausible): a record header that
 cannot be right is reported in `damage`, the reader scans forward to the
@@ -143,7 +147,7 @@ class PcapSource:
             while pkt is not None:
                 _lt, t, payload = pkt
                 t_rel = max(t - t0, 0)
-                chunk = Chunk(max(t_rel, last or 0), payload)
+                chunk = Chunk(max(t_rel, last or 0), payload, packet=True)
                 if self._hole_first is not None:
                     yield gap_before(last, chunk, self._hole_first)
                     self._hole_first = None
