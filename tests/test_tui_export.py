@@ -184,3 +184,54 @@ def test_help_and_readme_name_the_keys_of_export_copy_and_the_byte_view():
         assert key in keys
         assert f"[b]{key}[/b]" in HELP and words in HELP.split(f"[b]{key}[/b]")[1][:40].lower()
         assert f"`{key}`" in readme
+
+
+def test_export_of_a_finished_replay_writes_every_frame_beside_the_capture(tmp_path, monkeypatch):
+    """`replay --tui` as the command builds it (sniffer.tui.run.session_app): the replay has ended, so its session's
+    stop event is set, before `x`; an export of more frames than the writer does between two looks at its stop
+    (2,048) is written whole, proposed beside the capture (not in the working folder), and says so."""
+    from sniffer.events import CaptureInfo
+    from sniffer.capture.session import CaptureSpec, EventSource, Session
+    from sniffer.simulator import get_scenario, simulate, wire_chunks
+    from sniffer.formats.mcap.sink import McapSink
+    from sniffer.sources.files import FileSource
+    from sniffer.tui.run import session_app
+    from sniffer.tui.sink import TuiSink
+
+    sc = get_scenario("stress")
+    cap = tmp_path / "captures" / "stress.mcap"  # 8 s of it: about 3,000 frames
+    cap.parent.mkdir()
+    info = CaptureInfo(baud=sc.line.baud, parity=sc.line.parity, stopbits=sc.line.stopbits, protocol=sc.protocol)
+    Session(CaptureSpec(), EventSource(info, wire_chunks(simulate(sc, sc.line, 8.0, 1))), [McapSink(cap)]).run()
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+
+    async def go():
+        sink = TuiSink()
+        session = Session(CaptureSpec(), FileSource(str(cap)), [sink])
+        session.open()
+        app = session_app(session, sink, source_label=str(cap), source_path=str(cap), clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            while not app.caught_up:
+                await pilot.pause(0.05)
+            await loaded(app, pilot)
+            assert session.stop.is_set() and len(app.store.view) > 2048  # the replay is over
+            assert await export(app, pilot) is None
+            path = cap.parent / "stress-view.mcap"
+            assert notes(app)[-1] == f"{len(app.store.view)} frames -> {path}"
+            return path, [frame_record(app.store.frame(r), app.sink.info.t0_ns) for r in app.store.view]
+
+    path, shown = asyncio.run(go())
+    assert read_frames(path) == shown
+    assert not list(elsewhere.iterdir()) and not list(cap.parent.glob("*.part"))
+
+
+def test_the_default_export_of_a_rotated_capture_goes_beside_its_folder(tmp_path):
+    from sniffer.tui.export import default_path
+
+    folder = tmp_path / "cab3"
+    folder.mkdir()
+    want = str(tmp_path / "cab3-view.mcap")  # not inside: `replay FOLDER` reads what is in it
+    for named in (str(folder), str(folder) + "/", str(folder / "index.json")):
+        assert default_path(named, "view", "mcap") == want

@@ -1,10 +1,12 @@
-"""The TUI over a capture of two links (Pilot, fixed size): a link column, the `link:` filter, and units and
-registers per link (unit 1 on link a is not unit 1 on link b)."""
+"""The TUI over a capture of two links at their own speeds (Pilot, fixed size): a link column, the `link:`
+filter, units and registers per link (unit 1 on link a is not unit 1 on link b), the frames in time order, every
+link's settings in the status bar, and each link's gaps in its own character times in the byte view."""
 
 from __future__ import annotations
 
 import asyncio
 import functools
+import re
 
 from tui_helpers import frames_from_reads, registry_shadow, screen_text
 
@@ -20,20 +22,22 @@ from sniffer.tui.store import FrameStore
 from sniffer.tui.sink import TuiSink
 
 SIZE = (140, 45)
-LINE = LineSettings(19200, "E", 1)
-LINKS = ("a", "bb")
+LINES = {"a": LineSettings(19200, "E", 1), "bb": LineSettings(38400, "N", 1)}
+LINKS = tuple(LINES)
+ROW = re.compile(r"^..\s*\d+\.\d{6} ")  # a row of the frame list (its time column)
 
 
 @functools.cache
 def _two_links():
     """(info, frames, {link: registry}): two simulated lines of the default scenario (the same units,
-    other values), their bytes merged by time and decoded as one capture of two links."""
+    other values, other speeds), their bytes merged by time and decoded as one capture of two links."""
     events = []
-    for seed, name in enumerate(LINKS):
+    for seed, (name, line) in enumerate(LINES.items()):
         events += [Chunk(c.t_ns, c.data, c.byte_t_ns, c.flags, "", name)
-                   for c in wire_chunks(simulate(get_scenario("default"), LINE, 3.0, seed=seed + 1))]
+                   for c in wire_chunks(simulate(get_scenario("default"), line, 3.0, seed=seed + 1))]
     events.sort(key=lambda c: c.t_ns)
-    info = CaptureInfo(baud=LINE.baud, parity="E", links=[{"name": n, "ports": [], "tap": False} for n in LINKS])
+    info = CaptureInfo(links=[{"name": n, "ports": [], "tap": False, "baud": line.baud, "parity": line.parity,
+                               "stopbits": line.stopbits} for n, line in LINES.items()])
     sink = TuiSink()
     session = Session(CaptureSpec(), EventSource(info, events), [sink])
     session.run()
@@ -91,9 +95,9 @@ def test_link_column_filter_and_units_per_link():
             await _loaded(app, pilot)
             store = app.store
             assert store.several_links and app.frame_list.layout_columns().has("link")
-            text = screen_text(app)
-            assert " link " in text and any(line.split()[1:2] == ["bb"] for line in text.splitlines()
-                                            if line[:1] in " *")
+            lines = screen_text(app).splitlines()
+            col = next(line.index(" link ") + 1 for line in lines if " link " in line)  # the column's cells
+            assert {line[col:col + 3] for line in lines if ROW.match(line)} == {"a  ", "bb "}
             await pilot.press("slash", *"link:bb", "enter")
             assert store.filter.links == {"bb"}
             assert store.view and all(store.frames[r].link == "bb" for r in store.view)
@@ -121,3 +125,58 @@ def test_one_link_shows_no_link_column():
 
     store = store_of("errors.mcap")
     assert not store.several_links and store.link_names == [""]
+
+
+def test_frames_of_both_links_are_listed_in_time_order():
+    """Δt is never negative: the list holds the frames of both links in time order, numbered in that order."""
+    async def go():
+        app = _app()
+        async with app.run_test(size=SIZE) as pilot:
+            await _loaded(app, pilot)
+            frames = [app.store.frame(r) for r in app.store.view]
+            assert {f.link for f in frames} == set(LINKS)
+            assert [f.t_ns for f in frames] == sorted(f.t_ns for f in frames)
+            assert [f.index for f in frames] == list(range(len(frames)))
+            for keys in (("home",), ("end",)):
+                await pilot.press(*keys)
+                lines = screen_text(app).splitlines()
+                col = next(line.index("Δt") for line in lines if "Δt" in line)
+                cells = [line[col - 7:col + 2].strip() for line in lines if ROW.match(line)]
+                assert len(cells) > 20 and all(c.endswith("ms") for c in cells[1:])
+                assert not any(c.startswith("-") for c in cells)
+    asyncio.run(go())
+
+
+def test_the_status_bar_shows_every_links_settings():
+    from sniffer.tui.status import status_text
+
+    async def go():
+        app = _app()
+        async with app.run_test(size=SIZE) as pilot:
+            await _loaded(app, pilot)
+            text = status_text(app, width=400).plain
+            assert "a 19200 8E1, bb 38400 8N1 modbus-rtu" in text
+    asyncio.run(go())
+
+
+def test_the_byte_view_counts_each_links_gaps_in_that_links_characters():
+    """The chars column is the gap in character times of the read's own link: gap (ms) / its character time."""
+    async def go():
+        app = _app()
+        info, _, _, reads = _two_links()
+        app.sink.reads(reads)
+        async with app.run_test(size=SIZE) as pilot:
+            await _loaded(app, pilot)
+            await pilot.press("6")
+            bv, seen = app.byte_view, set()
+            for seq in range(app.reads.first_seq, app.reads.end_seq):
+                text = bv.format_line(seq, 0, bv._layout[1]).plain
+                gap, chars = text[17:27].strip(), text[27:35].strip()
+                if not chars.endswith("ch"):
+                    continue
+                link = app.reads.get(seq).link
+                char_ms = LINES[link].char_ns / 1e6
+                assert abs(float(chars[:-2]) * char_ms - float(gap[:-2])) <= 0.05 * char_ms + 0.001, text
+                seen.add(link)
+            assert seen == set(LINKS)
+    asyncio.run(go())

@@ -67,7 +67,8 @@ class Pairer:
         self.before: int | None = None  # Frame.index of the frame pushed before this one (on this line)
         self._last_index: int | None = None
 
-    def _timeout(self, unit: int) -> int:
+    def timeout_for(self, unit: int) -> int:
+        """How long a request to `unit` waits for its answer (ns)."""
         return self.unit_timeouts.get(unit, self.timeout_ns)
 
     def push(self, f: Frame) -> list[Frame]:
@@ -93,7 +94,7 @@ class Pairer:
                 f.annotations.append(note(
                     codes.ROLE_AMBIGUOUS, f"not an echo of #{pending.index}: taken as a new request (as its "
                                           f"response it would be a mismatched echo)", 0, len(f.raw)))
-            elif f.t_ns - pending.t_end_ns <= self._timeout(pending.unit):
+            elif f.t_ns - pending.t_end_ns <= self.timeout_for(pending.unit):
                 if f.function not in _ECHOES and f.protocol in _MODBUS and pending.crc_ok and f.crc_ok:
                     why = response_mismatch(pending.adu, f.adu)
                     if why:
@@ -208,7 +209,7 @@ class Pairer:
         req = self.pending
         after = "" if waited_ns is None else f" after {waited_ns / 1e6:.1f} ms"
         req.annotations.append(note(code, f"no response: {ended_by}{after}", 0, len(req.raw)))
-        limit = self._timeout(req.unit)
+        limit = self.timeout_for(req.unit)
         if waited_ns is not None and waited_ns > limit:
             req.annotations.append(
                 note(codes.TIMEOUT, f"unit {req.unit}: no response within {limit / 1e6:.0f} ms", 0, len(req.raw))
@@ -221,7 +222,7 @@ class Pairer:
     def would_time_out(self, t_ns: int) -> bool:
         """True if tick(t_ns) would settle the pending request (used to record effective ticks)."""
         req = self.pending
-        return req is not None and t_ns - req.t_end_ns > self._timeout(req.unit)
+        return req is not None and t_ns - req.t_end_ns > self.timeout_for(req.unit)
 
     def tick(self, t_ns: int) -> list[Frame]:
         if not self.would_time_out(t_ns):

@@ -7,20 +7,22 @@ frames (and hand them to the sinks); `close()` closes the sinks.  A sink is
 any object with `start(info)`, `raw(event)`, `frame(frame)` and `close()`
 (sniffer.sinks.base.Sink).  Sans-I/O: sniffer.capture.session drives it.
 
-Several links (sniffer.capture.links.LinkPipelines) run one Pipeline per link over the
-same sinks: `link` names the line (set on every frame), `numbering` is the
-capture-wide frame counter the links share (a frame is numbered as it leaves
-its framer, before pairing, so pairs and notes name capture-wide numbers), and
-`directions` maps a wire (Chunk.channel) to the one role its frames can have
-(--tap: the master's pair carries requests, the slaves' pair responses; a
-logic capture's channels: CaptureInfo.extra["channel_roles"], see `roles_of`).
-Chunks of a logic capture's driver-enable windows (Chunk.de) put the driver's
-turn-on and turn-off times on their frames (sniffer.sources.driver_enable).
+Several links (sniffer.capture.links.LinkPipelines) run one Pipeline per link, without
+sinks, and drive its two stages themselves: `framed(ev)` (the frames an event
+closes, not yet paired) and `paired(frames)` / `timed_out(t)` (pairing and
+decoding), so the frames of every link can be put in time order and numbered
+in between.  `link` names the line (set on every frame); `directions` maps a
+wire (Chunk.channel) to the one role its frames can have (--tap: the master's
+pair carries requests, the slaves' pair responses; a logic capture's channels:
+CaptureInfo.extra["channel_roles"], see `roles_of`).  Chunks of a logic capture's
+driver-enable windows (Chunk.de) put the driver's turn-on and turn-off times on
+their frames (sniffer.sources.driver_enable).
 
 What the decoders know that scales or names values (decoders/carry.py) is
 `decoder_state()`; `state_version()` changes when it may have.  A Gap that
 carries a `state` (the next segment's, after a hole in a replayed folder)
-starts the decoders from it once the frames before the gap are out.
+starts the decoders from it once the frames before the gap are out
+(`carry_in`).
 """
 
 from __future__ import annotations
@@ -58,7 +60,6 @@ class Pipeline:
         unit_timeouts: dict[int, float] | None = None,
         *,
         link: str = "",
-        numbering=None,
         directions: dict[str, int] | None = None,
         start: bool = True,
     ) -> None:
@@ -75,42 +76,67 @@ class Pipeline:
         self.noise_bytes = 0
         self._gap_pending: Gap | None = None
         self.link = link
-        self.numbering = numbering
         self.directions = directions or None
         self.driver_enable = None  # sniffer.sources.driver_enable.DriverEnable, made by the first DE chunk
         if start:
             for s in self.sinks:
                 s.start(info)
 
-    def feed(self, ev, record: bool = True) -> list[Frame]:
-        """The frames `ev` settles; `record=False`: the sinks have the event already (LinkPipelines)."""
+    def feed(self, ev) -> list[Frame]:
+        """The frames `ev` settles (and the event to the sinks' raw)."""
+        if type(ev) is Tick and not self.tick_matters(ev.t_ns):
+            return []  # a tick that changes nothing is not recorded
+        for s in self.sinks:
+            s.raw(ev)
+        out = self.paired(self.framed(ev))
+        if type(ev) is Tick:
+            out += self.timed_out(ev.t_ns)
+        elif type(ev) is Gap and ev.state:
+            self.carry_in(ev.state)
+        return out
+
+    def tick_matters(self, t_ns: int) -> bool:
+        """Would a Tick at t_ns close pending bytes or time out the pending request?"""
+        return self.framer.would_close(t_ns) or self.pairer.would_time_out(t_ns)
+
+    def framed(self, ev) -> list[Frame]:
+        """The first stage: the frames `ev` closes, in line order, marked but not yet paired (nothing recorded)."""
         if type(ev) is Chunk:
-            if record:
-                for s in self.sinks:
-                    s.raw(ev)
             self.bytes_in += len(ev.data)
             if ev.de is not None:
                 self._note_de(ev)
-            return self._settle(self.framer.feed(ev))
-        if type(ev) is Tick:
-            if not self.framer.would_close(ev.t_ns) and not self.pairer.would_time_out(ev.t_ns):
-                return []  # a tick that changes nothing is not recorded
-            if record:
-                for s in self.sinks:
-                    s.raw(ev)
-            out = self._settle(self.framer.tick(ev.t_ns))
-            out += self._decode(self.pairer.tick(ev.t_ns))
-            return out
-        if type(ev) is Gap:
-            if record:
-                for s in self.sinks:
-                    s.raw(ev)
+            frames = self.framer.feed(ev)
+        elif type(ev) is Tick:
+            frames = self.framer.tick(ev.t_ns)
+        elif type(ev) is Gap:
             self._gap_pending = ev
-            out = self._settle(self.framer.flush())
-            if ev.state:
-                self.registry.carry_in(ev.state.get(self.link) or {})
-            return out
-        raise TypeError(f"unknown event {ev!r}")
+            frames = self.framer.flush()
+        else:
+            raise TypeError(f"unknown event {ev!r}")
+        if frames:
+            self._mark(frames)
+            if self.driver_enable is not None:
+                self.driver_enable.mark(frames)
+        return frames
+
+    def carry_in(self, state: dict) -> None:
+        """A Gap's `state` (the decoder state recorded where the next file starts), once the frames before the
+        gap are paired and decoded."""
+        self.registry.carry_in(state.get(self.link) or {})
+
+    def paired(self, frames: list[Frame]) -> list[Frame]:
+        """The second stage: `frames` (from `framed`, in order) paired and decoded; the frames it settles."""
+        if not frames:
+            return frames
+        out: list[Frame] = []
+        push = self.pairer.push
+        for f in frames:
+            out.extend(push(f))
+        return self._decode(out)
+
+    def timed_out(self, t_ns: int) -> list[Frame]:
+        """The frames a timeout tick at t_ns settles (after `paired` had the frames framed before it)."""
+        return self._decode(self.pairer.tick(t_ns))
 
     def decoder_state(self) -> dict:
         """{link: the registry's carried state} (decoders/carry.py): what a part cut now starts with."""
@@ -129,20 +155,26 @@ class Pipeline:
 
     def flush(self) -> list[Frame]:
         """End of input: every pending byte becomes a frame, every held request is settled."""
-        out = self._settle(self.framer.flush())
-        out += self._decode(self.pairer.flush())
+        out = self.paired(self.framed_flush())
+        out += self.flush_pairer()
         return out
+
+    def flush_pairer(self) -> list[Frame]:
+        """End of input, the second stage (after `paired` had every frame): every held request settled."""
+        return self._decode(self.pairer.flush())
+
+    def framed_flush(self) -> list[Frame]:
+        """End of input, the first stage: every pending byte becomes a frame (not yet paired)."""
+        frames = self.framer.flush()
+        if frames:
+            self._mark(frames)
+            if self.driver_enable is not None:
+                self.driver_enable.mark(frames)
+        return frames
 
     def close(self) -> None:
         """Close every sink, even if one fails (the first failure is raised)."""
-        first_error = None
-        for s in self.sinks:
-            try:
-                s.close()
-            except Exception as e:  # noqa: BLE001 - re-raised below
-                first_error = first_error or e
-        if first_error is not None:
-            raise first_error
+        close_sinks(self.sinks)
 
     def finish(self) -> list[Frame]:
         """flush() then close()."""
@@ -150,27 +182,6 @@ class Pipeline:
             return self.flush()
         finally:
             self.close()
-
-    def _settle(self, frames: list[Frame]) -> list[Frame]:
-        if not frames:
-            return frames
-        if self.numbering is not None or self.directions is not None:
-            self._mark(frames)
-        if self.driver_enable is not None:
-            self.driver_enable.mark(frames)
-        out: list[Frame] = []
-        push = self.pairer.push
-        gap = self._gap_pending
-        for f in frames:
-            if gap is not None and f.t_ns >= gap.t_end_ns:
-                f.annotations.append(
-                    note(codes.SOURCE_GAP,
-                         f"{gap.reason}; {(gap.t_end_ns - gap.t_ns) / 1e9:.1f} s without data before this frame",
-                         0, len(f.raw))
-                )
-                self._gap_pending = gap = None
-            out.extend(push(f))
-        return self._decode(out)
 
     def _note_de(self, c: Chunk) -> None:
         if self.driver_enable is None:
@@ -180,16 +191,26 @@ class Pipeline:
         self.driver_enable.note(c)
 
     def _mark(self, frames: list[Frame]) -> None:
-        """A multi-link capture's number and link name; a tapped wire's role."""
-        numbering, link, directions = self.numbering, self.link, self.directions
-        for f in frames:
-            if numbering is not None:
-                f.index = next(numbering)
+        """What the line says about a frame before pairing: a gap before it, its link, a tapped wire's role."""
+        gap = self._gap_pending
+        if gap is not None:
+            for f in frames:
+                if f.t_ns >= gap.t_end_ns:
+                    f.annotations.append(
+                        note(codes.SOURCE_GAP,
+                             f"{gap.reason}; {(gap.t_end_ns - gap.t_ns) / 1e9:.1f} s without data before this frame",
+                             0, len(f.raw))
+                    )
+                    self._gap_pending = None
+                    break
+        link, directions = self.link, self.directions
+        if link or directions is not None:
+            for f in frames:
                 f.link = link
-            if directions is not None:
-                can = directions.get(f.channel, 0)
-                if f.role_fits & can:
-                    f.role_fits = can
+                if directions is not None:
+                    can = directions.get(f.channel, 0)
+                    if f.role_fits & can:
+                        f.role_fits = can
 
     def _decode(self, frames: list[Frame]) -> list[Frame]:
         decode = self.registry.decode
@@ -206,3 +227,14 @@ class Pipeline:
         self.frames_out += len(frames)
         return frames
 
+
+def close_sinks(sinks) -> None:
+    """Close every sink, even if one fails (the first failure is raised)."""
+    first_error = None
+    for s in sinks:
+        try:
+            s.close()
+        except Exception as e:  # noqa: BLE001 - re-raised below
+            first_error = first_error or e
+    if first_error is not None:
+        raise first_error

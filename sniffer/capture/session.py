@@ -27,9 +27,10 @@ and errors and merges every sink's `status()` into the file.
 
 Every command goes through here: live, demo, replay, decode, simulate, export,
 check, diff, serve's capture process and the TUI's feeds.  A capture of
-several links (its CaptureInfo lists `links`) runs one pipeline per link over
-the same sinks (sniffer.capture.links.LinkPipelines); `resolved` and `registry` are
-then its first link's, `pipeline.resolved` / `.registries` every link's.
+several links (its CaptureInfo lists `links`) runs one pipeline per link, their
+frames merged in time order for the same sinks (sniffer.capture.links.LinkPipelines);
+`resolved` and `registry` are then its first link's, `pipeline.resolved` /
+`.registries` every link's.
 Sinks the spec asks for are added here, so every command has them: the
 trigger sink (--trigger, sniffer.triggers) and the MQTT sink (--mqtt,
 sniffer.mqtt).

@@ -41,7 +41,7 @@ def cmd_replay(spec: CaptureSpec, args) -> int:
         session = Session(spec, source, [sink])
         session.open()
         note_unfinished(session)
-        rc = run_session_tui(session, sink, source_label=spec.input)
+        rc = run_session_tui(session, sink, source_label=spec.input, source_path=spec.input)
         return rc or report(session, label=spec.input)
     bar = None
     session = Session(spec, source, [s for s in (stream_sink(spec, line_buffered=False),) if s is not None])

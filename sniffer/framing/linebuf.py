@@ -144,6 +144,10 @@ class LineBuffer:
     def pending_bytes(self) -> int:
         return self.base + len(self.buf) - self.pos
 
+    def pending_since(self) -> int | None:
+        """When the first byte no frame holds yet began (the next frame starts there), or None."""
+        return self._time_of(self.pos) if self.pos < self.base + len(self.buf) else None
+
     # ------------------------------------------------------------- decisions
 
     def _per_read_tail(self) -> bool:

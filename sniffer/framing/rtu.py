@@ -80,7 +80,7 @@ class RtuFramer(Crc16Framing, LineBuffer):
         if not self.flags:
             waits = self._fast(out)
             if out:
-                self._last_good = (out[-1].can, out[-1].raw)
+                self._last_good = (out[-1].role_fits, out[-1].raw)
         if not waits:
             step = self._step
             while (fr := step(self.pos)) is not None:

@@ -23,7 +23,7 @@ from textual.containers import Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Input, Static, TabbedContent, TabPane
 
-from sniffer.tui.byteview import BytesPane, ByteView, char_ns
+from sniffer.tui.byteview import BytesPane, ByteView, link_char_ns
 from sniffer.filterlang import register_ids
 from sniffer.tui.detail import DetailPane
 from sniffer.tui.filters import filter_expr, parse_filter
@@ -174,8 +174,8 @@ class SnifferApp(App):
     ]
 
     def __init__(self, sink: TuiSink, feed: Callable[[TuiSink, threading.Event], object] | None = None, *,
-                 source_label: str = "", capture_path: str | None = None, registry=None,
-                 poll_hz: float = 15.0, max_batch: int = 5_000,
+                 source_label: str = "", capture_path: str | None = None, source_path: str | None = None,
+                 registry=None, poll_hz: float = 15.0, max_batch: int = 5_000,
                  clock: Callable[[], float] = time.monotonic, live: bool = False) -> None:
         super().__init__()
         self.live = live  # quitting stops a capture running here: ask first
@@ -183,9 +183,11 @@ class SnifferApp(App):
         self._terminal = TerminalWatch(None)  # on_mount: the terminal it reads keys from (hangup.py)
         self.sink = sink
         self.feed = feed
-        self.stop_event = threading.Event()
+        self.stop_event = threading.Event()  # the feed's stop (a session's: it is set when the feed ends too)
+        self.quitting = threading.Event()  # the App is closing: what runs on its workers (an export) stops
         self.source_label = source_label
         self.capture_path = capture_path
+        self.source_path = source_path  # the capture a replay views (a file, a folder): exports go beside it
         self.registry = registry  # read only, for the units table's given / guessed models
         self.poll_hz = poll_hz
         self.max_batch = max_batch
@@ -258,6 +260,7 @@ class SnifferApp(App):
             self.sink.closed.set()
 
     def stop_feed(self, timeout: float = 5.0) -> None:
+        self.quitting.set()
         self.stop_event.set()
         self.sink.release()  # a replay waiting for the UI to drain would not see the stop
         if self._thread is not None:
@@ -525,7 +528,7 @@ class SnifferApp(App):
         if self.export_status is not None:
             self.notify("an export is running (its progress is in the status bar)", timeout=3)
             return
-        path = self.capture_path or self.sink.capture_path
+        path = self.capture_path or self.sink.capture_path or self.source_path
         screen = ExportScreen(path, len(self.store.view), len(self.store.bookmarks), inputs=[path])
         self.push_screen(screen, lambda job: job and start_export(self, job))
 
@@ -560,7 +563,7 @@ class SnifferApp(App):
 
     def _bytes_shown(self) -> None:
         if self.tabs.active == "bytes":
-            self.byte_view.char_ns = char_ns(self.sink.info)
+            self.byte_view.char_ns = link_char_ns(self.sink.info)
             self.byte_view.refresh_reads()
 
     def on_byte_view_chosen(self, message: ByteView.Chosen) -> None:

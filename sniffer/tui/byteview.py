@@ -1,7 +1,8 @@
 """The byte view (tab 6): the bytes as the port delivered them, one read per line, for framing problems.
 
 Each read (sniffer.analysis.reads.Read, kept in a ReadRing) shows its time, the gap
-since the previous read in ms and in character times at the line's baud, its
+since the previous read in ms and in character times at the line's baud (with
+several links, the previous read of its own link, at that link's baud), its
 length and its bytes; a read longer than a line goes on below.  A `│` before
 a byte marks where a frame begins, the bytes take their frame's colour (the
 frame list's: request, response, error, exception, noise ...), the frames
@@ -51,14 +52,28 @@ S_BEGIN = Style(color="bright_white", bold=True)
 S_STALL = Style(color="black", bgcolor="dark_orange", bold=True)
 
 
-def char_ns(info) -> int | None:
-    """One character's time on the line of a CaptureInfo, or None (no baud known)."""
-    if info is None or not info.baud:
+def _char_ns(baud, parity, stopbits, databits) -> int | None:
+    if not baud:
         return None
     try:
-        return LineSettings(int(info.baud), info.parity or "N", info.stopbits or 1, info.databits or 8).char_ns
+        return LineSettings(int(baud), parity or "N", stopbits or 1, databits or 8).char_ns
     except (ValueError, TypeError):
         return None
+
+
+def char_ns(info) -> int | None:
+    """One character's time on the line of a CaptureInfo, or None (no baud known)."""
+    if info is None:
+        return None
+    return _char_ns(info.baud, info.parity, info.stopbits, info.databits)
+
+
+def link_char_ns(info) -> dict[str, int | None]:
+    """One character's time on each line of a CaptureInfo, by link name ("": the capture's one line)."""
+    out = {"": char_ns(info)}
+    for x in (info.links if info is not None else ()):
+        out[str(x.get("name", ""))] = _char_ns(x.get("baud"), x.get("parity"), x.get("stopbits"), x.get("databits"))
+    return out
 
 
 def header(bpl: int) -> str:
@@ -96,7 +111,7 @@ class ByteView(ScrollView, can_focus=True):
         super().__init__(**kw)
         self.ring = ring
         self.store = store
-        self.char_ns: int | None = None
+        self.char_ns: dict[str, int | None] = {}  # by link (link_char_ns)
         self.cursor = -1  # seq of the read under the cursor
         self.frame: int | None = None  # the selected frame's index
         self.follow = True
@@ -242,7 +257,7 @@ class ByteView(ScrollView, can_focus=True):
                 return "", ""
         if prev.link != r.link:
             return "", ""
-        ch = self.char_ns
+        ch = self.char_ns.get(r.link)
         if r.last_ns is not None and prev.last_ns is not None:  # per byte: silence between the two
             gap = r.t_ns - prev.last_ns - (ch or 0)
         else:

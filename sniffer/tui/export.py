@@ -26,6 +26,7 @@ from collections.abc import Callable, Iterable
 from sniffer.events import CaptureInfo, Chunk
 from sniffer.frame import Frame
 from sniffer.formats.outputs import OutputError, shown
+from sniffer.formats.mcap.segments import INDEX_NAME
 from sniffer.formats import FileSink
 from sniffer.formats.mcap.sink import CaptureStorageError
 from sniffer.formats.rows import points_path
@@ -45,10 +46,14 @@ def existing(fmt: str, path: str) -> list[str]:
 
 
 def default_path(capture_path: str | None, what: str, fmt: str, *, folder: str | None = None) -> str:
-    """Next to the capture (or in `folder`, the working folder): `<capture stem>-<what><ext>`, with -2, -3 ...
-    added while a file of that name is there, so the default never replaces anything."""
+    """Next to the capture (a file, or a rotated capture's folder; without one in `folder`, the working folder):
+    `<capture stem>-<what><ext>`, with -2, -3 ... added while a file of that name is there, so the default
+    never replaces anything."""
     if capture_path:
-        folder = os.path.dirname(os.path.abspath(capture_path))
+        capture_path = os.path.abspath(capture_path)  # a folder named with a trailing / too
+        if os.path.basename(capture_path) == INDEX_NAME:  # a rotated capture's index: beside its folder
+            capture_path = os.path.dirname(capture_path)
+        folder = os.path.dirname(capture_path)
         from sniffer.formats import stem_of
 
         stem = stem_of(capture_path) or os.path.basename(capture_path)

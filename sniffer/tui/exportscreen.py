@@ -117,7 +117,8 @@ def start_export(app, job: Export) -> None:
     store = app.store
     rows = store.view if job.what == "view" else sorted(store.bookmarks)
     frames, n, info = store.blocks.reader(rows), len(rows), app.sink.info
-    stop: threading.Event = app.stop_event  # quitting stops the export (its part files are removed)
+    # quitting stops the export (its part files are removed); not the feed's stop, which a finished replay has set
+    stop: threading.Event = app.quitting
     app.export_status = f"exporting 0/{n} -> {shown(job.path, 60)}"
 
     def progress(done: int) -> None:
@@ -131,6 +132,9 @@ def start_export(app, job: Export) -> None:
         else:
             if done >= 0:
                 app.notify(job.describe(done), markup=False, timeout=8)
+            else:
+                app.notify(f"export stopped: nothing written to {shown(job.path, 60)}", severity="warning",
+                           markup=False)
         finally:
             app.export_status = None
 

@@ -94,9 +94,12 @@ def _run(app: SnifferApp, *, attached: bool = False) -> int:
     return 0
 
 
-def run_session_tui(session, sink: TuiSink, *, source_label: str, capture_path: str | None = None) -> int:
-    """Run the App over an opened session whose sinks include `sink`, until the user quits."""
-    return _run(session_app(session, sink, source_label=source_label, capture_path=capture_path))
+def run_session_tui(session, sink: TuiSink, *, source_label: str, capture_path: str | None = None,
+                    source_path: str | None = None) -> int:
+    """Run the App over an opened session whose sinks include `sink`, until the user quits (`source_path`: the
+    capture a replay reads, which exports are proposed beside)."""
+    return _run(session_app(session, sink, source_label=source_label, capture_path=capture_path,
+                            source_path=source_path))
 
 
 def give_way(app: SnifferApp) -> GiveWay:

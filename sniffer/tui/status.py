@@ -24,6 +24,37 @@ def _low_latency(ll: dict) -> str:
     return "low-latency " + (",".join(ok) if ok else "off")
 
 
+def _line(d) -> str:
+    """A line's settings as the bar shows them: `19200 8E1` (a CaptureInfo or a CaptureInfo.links entry)."""
+    get = d.get if isinstance(d, dict) else lambda k: getattr(d, k, None)
+    return f"{get('baud') or '?'} {get('databits') or 8}{get('parity') or 'N'}{get('stopbits') or 1}"
+
+
+def line_settings(info) -> str:
+    """Every line's settings and protocol: `19200 8E1 modbus-rtu`; several links each by name:
+    `a 9600 8N1, b 19200 8E1 modbus-rtu` (the protocol once when every link has the same)."""
+    links = info.links
+    if not links:
+        return f"{_line(info)} {info.protocol}"
+    protocols = {x.get("protocol") or info.protocol for x in links}
+    if len(protocols) == 1:
+        return ", ".join(f"{x.get('name', '')} {_line(x)}" for x in links) + f" {protocols.pop()}"
+    return ", ".join(f"{x.get('name', '')} {_line(x)} {x.get('protocol') or info.protocol}" for x in links)
+
+
+def links_low_latency(info) -> dict:
+    """The low-latency state of every port: one port's dict, or with several links what every port got."""
+    if not info.links:
+        return info.low_latency
+    ports = [ll for x in info.links for ll in (x.get("low_latency") or {}).values() if isinstance(ll, dict)]
+    if not ports:
+        return {}
+    if all(ll.get("simulated") for ll in ports):
+        return {"simulated": True}
+    keys = {k for ll in ports for k in ll}
+    return {k: all(ll.get(k) is True for ll in ports) for k in sorted(keys)}
+
+
 def status_text(app, width: int | None = None) -> Text:
     """The status line, fitted to `width` (default: the status bar's): the view's state (paused, not
     following the tail, ended, an error) and the filter always show; the least useful parts go first
@@ -33,9 +64,8 @@ def status_text(app, width: int | None = None) -> Text:
     parts = []  # (keep: higher stays longer, text)
     if info is not None:
         src = app.source_label or info.port or info.source
-        line = f"{info.baud or '?'} {info.databits}{info.parity or 'N'}{info.stopbits or 1}"
-        parts.append((5, f"{src} {line} {info.protocol}"))
-        parts.append((1, _low_latency(info.low_latency)))
+        parts.append((5, f"{src} {line_settings(info)}"))
+        parts.append((1, _low_latency(links_low_latency(info))))
     else:
         parts.append((5, app.source_label or "waiting for source"))
     path = app.capture_path or sink.capture_path
