@@ -259,7 +259,7 @@ class SigrokSource:
                 ready, _, _ = select.select(fds, [], [], 0.2)
                 if err_fd in ready and not self._read_stderr():
                     fds.remove(err_fd)
-                if out_fd in ready or self._pending_wm:
+                if out_fd in fds and (out_fd in ready or self._pending_wm):
                     while True:  # drain: everything sigrok printed before its last stderr line is here
                         try:
                             data = os.read(out_fd, 1 << 16)
