@@ -7,13 +7,14 @@ One loader for the built-in drive models and for `--model-file`; the lint
 from __future__ import annotations
 
 import bisect
-import math
+import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from decoders.tomlfile import read_toml
 
 from . import regtypes
+from .model_keys import MAX_REGISTERS, MODEL_KEYS, MODEL_NOTES, _is_int, _is_number
 from .regtypes import ORDERS, TEXT, TYPES, WIDTH
 
 
@@ -176,19 +177,10 @@ class RegisterMap:
 
 
 MAX_ADDR = 0xFFFF
-MAX_REGISTERS = 0x10000  # every address once: a map can hold no more
 TOP_LEVEL = ("registers", "model", "enums", "bits", "exceptions")
 MAX_BIT = 63  # bit fields of a u64
 _STR_FIELDS = ("id", "name", "unit", "enum", "bits", "scale_rule", "section", "note")
 _INT_FIELDS = ("min", "max", "default")
-
-
-def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
-def _is_number(v) -> bool:
-    return (_is_int(v) or isinstance(v, float)) and math.isfinite(v)
 
 
 def _show(v) -> str:
@@ -247,39 +239,27 @@ class _Check:
             self.fail(where, f"{field} must be an integer in {lo}..{hi}, not {_show(d[field])}")
 
     def model(self, model) -> dict:
+        """The [model] table: every key known (MODEL_KEYS), each value of its kind."""
         if not isinstance(model, dict) or not model.get("id"):
             raise MapError(f"{self.path}: no [model] table with an id")
         for key in ("registers",) + tuple(k for k in TOP_LEVEL if k != "model"):
             if key in model:  # TOML puts a key after a [table] header into that table
                 raise MapError(f"{self.path}: [model]: {key} sits under [model]; write `{key} = ...` before the "
                                f"first [table] (TOML puts it in the table above it)")
-        self.text(model, "id", "[model]", required=True)
-        for f in ("name", "manual", "revision"):
-            self.text(model, f, "[model]")
-        self.int_in(model, "max_registers_per_request", "[model]", 1, MAX_REGISTERS)
-        for f in ("word_order", "byte_order"):  # the defaults of the rows
+        unknown = sorted(str(k) for k in model if k not in MODEL_KEYS and k not in MODEL_NOTES)
+        if unknown:
+            near = difflib.get_close_matches(unknown[0], [*MODEL_KEYS, *MODEL_NOTES], n=1)
+            self.fail("[model]", f"unknown key {_show(unknown[0])}" + (f" (did you mean {near[0]}?)" if near else
+                                  " (docs/register-map-format.md lists the keys)"))
+        for f in ("word_order", "byte_order"):  # the defaults of the rows: said as a row's are
             if model.get(f, "big") not in ORDERS:
                 self.fail("[model]", f"{f} {_show(model[f])} (big or little)")
-        self.int_in(model, "max_frame_bytes", "[model]", 4, 1 << 16)
         if model.get("exception_table", "standard") not in ("standard", "complete"):
             self.fail("[model]", f"exception_table {_show(model['exception_table'])} (standard or complete)")
-        marks = model.get("not_available", [])
-        if not isinstance(marks, list) or not all(
-                isinstance(m, dict) and _is_int(m.get("addr")) and 0 <= m["addr"] <= MAX_ADDR
-                and _is_int(m.get("raw")) and 0 <= m["raw"] <= 0xFFFF and isinstance(m.get("text"), str)
-                for m in marks):
-            self.fail("[model]", "not_available must be a list of { addr, raw (0..0xFFFF), text }")
-        subs = model.get("loopback_subfunctions")
-        if subs is not None and (not isinstance(subs, list)
-                                 or not all(_is_int(x) and 0 <= x <= MAX_ADDR for x in subs)):
-            self.fail("[model]", f"loopback_subfunctions must be a list of integers 0..0xFFFF, not {_show(subs)}")
-        for f, ok in (("protocols", lambda x: isinstance(x, str)), ("bauds", _is_int),
-                      ("broadcast_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR),
-                      ("fault_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR),
-                      ("alarm_registers", lambda x: _is_int(x) and 0 <= x <= MAX_ADDR)):
-            if f in model and (not isinstance(model[f], list) or not all(ok(x) for x in model[f])):
-                self.fail("[model]", f"{f} must be a list of {'strings' if f == 'protocols' else 'integers'}, "
-                                     f"not {_show(model[f])}")
+        for key, value in model.items():
+            rule = MODEL_KEYS.get(key)
+            if rule is not None and not rule[1](value):
+                self.fail("[model]", f"{key} must be {rule[0]}, not {_show(value)}")
         return model
 
     def place(self, i: int) -> str:

@@ -326,3 +326,71 @@ def test_a_toml_map_without_an_id_takes_its_file_stem(tmp_path, capsys):
     code = main(["decode", "--model-file", str(m), "--device", "1=pump", "010300000001840A", "0103020064B9AF"])
     out = capsys.readouterr().out
     assert code == 0 and "pump" in out and "Speed=100 rpm" in out
+
+
+# -- [model]: every key checked as a row's fields are (decoders/model_keys.py) ---------------------
+MODEL_KEY_CASES = [
+    ("function_codes = 3", "[model]: function_codes must be a list of integers 1..255, not 3"),
+    ("function_codes = [0x103]", "[model]: function_codes must be a list of integers 1..255, not [259]"),
+    ("function_code = [3]", "[model]: unknown key 'function_code' (did you mean function_codes?)"),
+    ('mode_register = { addr = 32 }', "[model]: mode_register must be { addr, bit (0..15) }, not {'addr': 32}"),
+    ('max_frame_bytes = "80"', "[model]: max_frame_bytes must be an integer in 4..65536, not '80'"),
+    ("unit_addresses = [1]", "[model]: unit_addresses must be [lowest, highest] unit address (0..255), not [1]"),
+    ("not_available = [{ addr = 1 }]",
+     "[model]: not_available must be a list of { addr, raw (0..0xFFFF), text }, not [{'addr': 1}]"),
+]
+
+
+@pytest.mark.parametrize("line, said", MODEL_KEY_CASES, ids=[c[0] for c in MODEL_KEY_CASES])
+def test_a_model_key_of_the_wrong_kind_is_one_line(tmp_path, capsys, line, said):
+    m = tmp_path / "map.toml"
+    m.write_text(f'registers = [{{ addr = 0, name = "a" }}]\n[model]\nid = "x"\n{line}\n')
+    assert one_error(capsys, "decode", "010300000002C40B", "--model-file", m, "--device", "1=x") == f"{m}: {said}"
+
+
+WRONG_KINDS = ["3", "-1", "1.5", '"x"', "true", '["a"]', "[3]", "[[1, 2]]", "[1, 300]", "{ a = 1 }",
+               "{ addr = 1, bit = 99 }", '[{ addr = 1, raw = 2, text = 3 }]']
+
+
+def test_every_model_key_read_by_the_code_is_checked_before_it_is_used(tmp_path, capsys):
+    """Every key a decoder, the identifier or the simulator reads, given every kind of wrong value: the map
+    loads (the value fits) and a decode, a replay and the identifier run; or one line naming the key."""
+    from decoders.model_keys import MODEL_KEYS
+
+    seen = {"loaded": 0, "refused": 0}
+    for key in MODEL_KEYS:
+        for value in WRONG_KINDS:
+            m = tmp_path / "map.toml"
+            m.write_text('registers = [{ addr = 0, name = "a" }]\n[model]\n'
+                         + ('id = "x"\n' if key != "id" else "") + f"{key} = {value}\n")
+            code, lines = cli(capsys, "decode", "010300000002C40B", "0103040001000290", "011000000001",
+                              "--model-file", m, "--device", "1=x")
+            assert code in (0, 2), (key, value, lines)
+            if code == 2:
+                assert len(lines) == 1 and lines[0].startswith(f"sniffer: error: {m}: "), (key, value, lines)
+                assert key in lines[0] or "id" in lines[0], (key, value, lines)
+                seen["refused"] += 1
+            else:
+                seen["loaded"] += 1
+    assert seen["refused"] > len(MODEL_KEYS) * 5 and seen["loaded"] > 0
+
+
+def test_a_csv_map_field_over_the_csv_limit_is_one_line(tmp_path, capsys):
+    m = tmp_path / "meter.csv"
+    m.write_text("address,name,type\n0,Voltage,u16\n1," + "V" * 200_000 + ",u16\n")
+    assert one_error(capsys, "decode", "010300000002C40B", "--model-file", m, "--device", "1=meter") == (
+        f"{m}: line 3: not a CSV row (field larger than field limit (131072))")
+
+
+NESTED = {"5000 parentheses": "(" * 5000 + "crc" + ")" * 5000, "5000 nots": "not " * 5000 + "crc",
+          "100000 !": "!" * 100_000 + "crc", "rates in rates": "rate(" * 3 + "crc" + ")>1/s" * 3,
+          "101 parentheses": "(" * 101 + "crc" + ")" * 101}
+
+
+@pytest.mark.parametrize("nest", list(NESTED.values()), ids=list(NESTED))
+def test_a_trigger_nested_too_deep_is_one_line(tmp_path, capsys, nest):
+    from refdata import SIGROK
+
+    msg = one_error(capsys, "replay", SIGROK / "wizmodbus.bytes.csv", "--baud", "9600", "--trigger", nest,
+                    "--windows", tmp_path)
+    assert "filter error at column" in msg and len(msg) < 400, msg

@@ -207,6 +207,9 @@ def test_query_of_an_empty_table_and_a_new_dataset(tmp_path, capsys):
     (["query", "{missing}", "SELECT 1"], "no such dataset folder"),
     (["query", "{tmp}", "SELECT 1"], "not a sniffer dataset"),
     (["query", "{ds}"], "query needs SQL or --preset NAME"),
+    (["query", "{ds}", ""], "query: no SQL statement in it"),
+    (["query", "{ds}", "-- nothing"], "query: no SQL statement in it"),
+    (["query", "{ds}", " ; /* c */ ;"], "query: no SQL statement in it"),
     (["export", "{a510}", "--to", "csv", "{ds}"], "--to csv takes no folder"),
     (["export", "{a510}", "{errors}", "--to", "csv", "--out", "{tmp}/x.csv"], "writes one capture"),
 ])
@@ -218,6 +221,16 @@ def test_bad_query_and_flags_are_one_line(tmp_path, argv, text, capsys):
     assert main(args) == 2
     err = capsys.readouterr().err
     assert text in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_json_takes_what_orjson_refuses(tmp_path, capsys):
+    """An integer past 64 bits, a time with a zone, NaN: JSON as the other rows are, not a traceback."""
+    ds = tmp_path / "fleet"
+    assert main(["ingest", str(tmp_path), "--to", str(ds)]) == 0
+    capsys.readouterr()
+    assert main(["query", str(ds), "SELECT 1::HUGEINT << 100 AS big, '12:00:00+01'::TIMETZ AS t, "
+                 "'nan'::DOUBLE AS n", "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out) == [{"big": 1 << 100, "t": "12:00:00+01:00", "n": None}]
 
 
 def test_corrupt_capture_is_left_out_whole(tmp_path, truth, capsys):

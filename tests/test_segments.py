@@ -488,3 +488,27 @@ def test_status_names_each_lost_port_of_several_links(tmp_path):
     assert port["reason"] == "port path vanished"  # the first to go
     text = dict(lines({"port": port}, "running"))["port"]
     assert text.startswith("/dev/ttyUSB1, /dev/ttyUSB2: lost since ") and text.endswith("(port path vanished)")
+
+
+def test_port_notices_say_an_outage_shorter_than_a_look():
+    """PortNotices looks every 50 ms: a port that went and came back between two looks is said too."""
+    from types import SimpleNamespace
+
+    from sniffer.capture.status import PortNotices
+
+    said = []
+    port = SimpleNamespace(port="/dev/ttyUSB0", lost_since_ns=None, lost_reason="", losses=0)
+    notices = PortNotices(SimpleNamespace(readers=[port]), announce=said.append)
+    notices.check()
+    assert said == []
+    port.lost_since_ns, port.lost_reason, port.losses = 123, "hang-up", 1
+    notices.check()
+    notices.check()
+    assert said == ["/dev/ttyUSB0: port lost (hang-up); waiting for it to come back"]
+    port.lost_since_ns = None
+    notices.check()
+    port.losses = 2  # away and back again before the next look
+    notices.check()
+    assert said[1:] == ["/dev/ttyUSB0: port back; capturing again",
+                        "/dev/ttyUSB0: port lost (hang-up); waiting for it to come back",
+                        "/dev/ttyUSB0: port back; capturing again"]

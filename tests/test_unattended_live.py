@@ -229,3 +229,45 @@ def test_memory_stays_flat_over_hundreds_of_segments():
     # a leak of a few objects per segment would add thousands over the 260 segments between the two
     assert mean([s["objects"] for s in late]) - mean([s["objects"] for s in early]) < 1000
     assert max(s["rss_mib"] for s in late) - max(s["rss_mib"] for s in early) < 4.0
+
+
+@pytest.mark.parametrize("reader", ["process", "thread"])
+def test_an_unplug_is_said_when_it_happens_without_a_status_file(tmp_path, reader):
+    """No --status, no --rotate: stderr still says the port went away when it goes (not at the end), and
+    that it came back when it comes; the reader in a process of its own or a thread of the capture."""
+    import os
+    import threading
+
+    link, out = tmp_path / "ttyRS485", tmp_path / "plant.mcap"
+    env = {**os.environ, "SNIFFER_READER": reader}
+    live = subprocess.Popen(SNIFFER + ["live", str(link), "--wait-port", "--baud", "19200", "--parity", "E",
+                                       "--out", str(out), "--quiet"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+    said: list[str] = []
+    reading = threading.Thread(target=lambda: said.extend(iter(live.stderr.readline, "")), daemon=True)
+    reading.start()
+    sims = []
+    try:
+        wait_until("waiting for the port", lambda: any("waiting for it (--wait-port)" in x for x in said))
+        sims.append(_plug(link))
+        wait_until("capturing", lambda: any(" (read-only) -> " in x for x in said))
+        time.sleep(1.0)  # some frames
+        sims[-1].send_signal(signal.SIGTERM)
+        assert sims[-1].wait(timeout=20) == 0
+        lost = wait_until("the loss said", lambda: [x for x in said if ": port lost (" in x])
+        assert live.poll() is None  # said while the capture goes on, waiting for the adapter
+        assert lost[0].rstrip("\n") in (f"sniffer: {link}: port lost ({why}); waiting for it to come back"
+                                        for why in ("hang-up (end of file)", "port path vanished"))
+        sims.append(_plug(link))
+        wait_until("the return said", lambda: f"sniffer: {link}: port back; capturing again\n" in said)
+    finally:
+        live.send_signal(signal.SIGTERM)
+        rc = live.wait(timeout=30)
+        reading.join(10)
+        for sim in sims:
+            if sim.poll() is None:
+                sim.send_signal(signal.SIGTERM)
+            sim.wait(timeout=20)
+    assert rc == 0, said
+    assert sum(": port lost (" in x for x in said) == 1 and sum(": port back" in x for x in said) == 1
+    assert "Traceback" not in "".join(said)

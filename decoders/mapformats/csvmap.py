@@ -81,6 +81,14 @@ def load_csv(path: str, base: str | None = None) -> list[RegisterMap]:
     base = base or file_base
     delim = _delimiter(lines[first])
     reader = csv.reader(io.StringIO("\n".join(lines[first:])), delimiter=delim)
+    try:
+        return _read(path, reader, model, first, base, delim)
+    except csv.Error as e:  # a field over csv.field_size_limit(), a NUL byte, a quote left open
+        raise MapError(f"{path}: line {first + reader.line_num}: not a CSV row ({e})") from None
+
+
+def _read(path: str, reader, model: dict, first: int, base: str, delim: str) -> list[RegisterMap]:
+    """The header and the rows under it (`first`: the header's line index)."""
     header = next(reader)
     cols: dict[str, int] = {}
     for k, h in enumerate(header):

@@ -283,15 +283,21 @@ class Session:
             self._abandon()
 
     def _watch(self) -> threading.Thread | None:
-        """A thread that stops the source on `stop` or at the end of --duration."""
+        """A thread that stops the source on `stop` or at the end of --duration, and says on stderr when a
+        live source's port goes away and comes back (status.PortNotices)."""
         duration = self.spec.duration_s
         source_stop = getattr(self.source, "stop", None)
         if source_stop is None:
             return None
         deadline = time.monotonic() + duration if duration > 0 else None
+        from sniffer.capture.status import PortNotices, port_readers
+
+        notices = PortNotices(self.source) if port_readers(self.source) else None
 
         def watch():
             while not self.stop.wait(0.05):
+                if notices is not None:
+                    notices.check()
                 if deadline is not None and time.monotonic() >= deadline:
                     break
             source_stop()

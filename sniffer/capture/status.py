@@ -161,10 +161,9 @@ class StatusSink:
 
     def _lost(self) -> dict[str, dict]:
         """The source's ports that are away now (several links: each reader's), {port: {since, reason}}."""
-        src = self.session.source
         lost = {}
         mono_to_wall = time.time_ns() - time.monotonic_ns()
-        for reader in getattr(src, "readers", None) or [src]:
+        for reader in port_readers(self.session.source):
             since = getattr(reader, "lost_since_ns", None)
             if since is not None:
                 lost[str(getattr(reader, "port", "?"))] = {"since": iso(since + mono_to_wall),
@@ -189,15 +188,10 @@ class StatusSink:
             self.write_error = str(e)
 
     def _watch(self) -> None:
-        """While the loop waits (no events: a lost adapter), keep the file fresh and say when a port goes."""
-        away: set[str] = set()
+        """While the loop waits (no events: a lost adapter), keep the file fresh (PortNotices, run by every
+        capture's session, says on stderr when a port goes and comes back)."""
         while not self._done.wait(min(1.0, self.every_ns / _NS)):
             lost = self._lost()
-            for port in sorted(set(lost) - away):
-                self.announce(f"{port}: port lost ({lost[port]['reason'] or '?'}); waiting for it to come back")
-            for port in sorted(away - set(lost)):
-                self.announce(f"{port}: port back; capturing again")
-            away = set(lost)
             if time.monotonic_ns() - self._written < 2 * self.every_ns and not lost:
                 continue
             with self._lock:
@@ -207,6 +201,41 @@ class StatusSink:
                 snap.update(port=self._port(lost), updated=iso(time.time_ns()), updated_ns=time.time_ns(),
                             uptime_s=round((time.monotonic_ns() - self.started_mono) / _NS, 1))
                 self._write(snap)
+
+
+def port_readers(source) -> list:
+    """The readers of a live source whose ports may go away (SerialSource, each link's, or a reader process's
+    ports): they have `port`, `lost_since_ns` (None while it is there), `lost_reason` and `losses`."""
+    readers = getattr(source, "readers", None)
+    if readers:
+        return list(readers)
+    return [source] if hasattr(source, "lost_since_ns") else []
+
+
+class PortNotices:
+    """Says on stderr when a port of the capture's source goes away and when it comes back: every live
+    capture, with or without a status file.  `check()` is polled (Session's watcher thread): the readers
+    only count their losses (`losses`), so an outage shorter than a poll is said too, and a reader never
+    waits for stderr."""
+
+    def __init__(self, source, announce=None) -> None:
+        self.source = source
+        self.announce = announce or say
+        self._seen: dict[int, tuple[bool, int]] = {}  # id(reader) -> (away, losses) as last said
+
+    def check(self) -> None:
+        for reader in port_readers(self.source):
+            port = getattr(reader, "port", "?")
+            away = getattr(reader, "lost_since_ns", None) is not None
+            losses = getattr(reader, "losses", 0)
+            was_away, said = self._seen.get(id(reader), (False, 0))
+            if losses > said and not was_away:  # gone since the last look (and maybe back already)
+                why = getattr(reader, "lost_reason", "") or "?"
+                self.announce(f"{port}: port lost ({why}); waiting for it to come back")
+                was_away = True
+            if was_away and not away:
+                self.announce(f"{port}: port back; capturing again")
+            self._seen[id(reader)] = (away, losses)
 
 
 def wait_for_ports(ports: list[str], stop: threading.Event, status_path: str | None, label: str,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 
-from sniffer.dataset.ingest import Failed, Skipped, Taken, take_in
+from sniffer.dataset.ingest import Failed, Skipped, Taken, take_in, tidy
 from sniffer.dataset.layout import Known, create_dataset
 from sniffer.formats.outputs import shown
 from sniffer.capture.settings import CaptureSpec
@@ -42,8 +42,10 @@ def cmd_ingest(spec: CaptureSpec, args) -> int:
 
 def _take_in(spec: CaptureSpec, args, files: list[str], root: str) -> int:
     ds = create_dataset(root)
+    for line in tidy(ds):  # what killed runs left
+        say(f"note: {line}")
     known = Known(ds.manifest())
-    taken = skipped = frames = 0
+    taken = skipped = frames = replaced = 0
     failed: list[Failed] = []
     for path in files:
         bar = _bar(path, args) if getattr(args, "progress", False) else None
@@ -54,6 +56,7 @@ def _take_in(spec: CaptureSpec, args, files: list[str], root: str) -> int:
                 bar.close()
         if isinstance(result, Taken):
             taken += 1
+            replaced += bool(result.replaced)
             frames += result.entry["frames"]
             say(result.line())
         elif isinstance(result, Skipped):
@@ -63,7 +66,8 @@ def _take_in(spec: CaptureSpec, args, files: list[str], root: str) -> int:
             failed.append(result)
             say(f"error: {result.line()}")
     more = f", {len(failed)} not taken in (said above)" if failed else ""
-    say(f"{shown(root)}: {taken} capture{'s' if taken != 1 else ''} taken in ({frames} frames), "
+    again = f" ({replaced} replacing an earlier version of their file)" if replaced else ""
+    say(f"{shown(root)}: {taken} capture{'s' if taken != 1 else ''} taken in ({frames} frames){again}, "
         f"{skipped} already there{more}")
     if any(f.why.startswith(f"{shown(f.path)}: cannot write the dataset") for f in failed):
         return EXIT_FAILED

@@ -29,7 +29,11 @@ def cmd_query(spec: CaptureSpec, args) -> int:
     con = None
     try:
         con = connect(ds)
-        write(con.execute(sql), args.format, sys.stdout, max_rows=args.max_rows)
+        cursor = con.execute(sql)
+        if cursor is None:  # DuckDB found no statement: only blanks, comments, semicolons
+            raise UsageError("query: no SQL statement in it (only blanks or comments): "
+                             f"sniffer query DIR \"SELECT ... FROM frames\" (views: {', '.join(VIEWS)})")
+        write(cursor, args.format, sys.stdout, max_rows=args.max_rows)
     except duckdb.Error as e:
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise UsageError(f"query: {first}") from None

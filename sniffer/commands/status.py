@@ -2,22 +2,28 @@
 
 Exit status: 0 the capture is running (its status is fresh), 1 it ended, or
 its status is stale (the process is gone, or has not written for a while),
-2 no status file there.  Sections a sink contributed that this command does
-not know (e.g. `triggers`) are shown generically, one line each.
+2 no status file there (or not one: not a JSON object, over 16 MB, nested
+too deep).  Sections a sink contributed that this command does not know
+(e.g. `triggers`) are shown generically, one line each.  Every field is read
+as the kind the capture writes; one of another kind is shown as ? and named
+in one warning line.
 """
 
 from __future__ import annotations
 
 import calendar
 import json
+import math
 import os
 import sys
 import time
 
 from sniffer.formats.outputs import shown
-from sniffer.formats.mcap.segments import STATUS_NAME, read_json, size_text
+from sniffer.formats.mcap.segments import STATUS_NAME, size_text
 from sniffer.capture.settings import CaptureSpec
-from sniffer.commands.common import EXIT_FAILED, EXIT_OK, UsageError
+from sniffer.events import CaptureError
+from sniffer.formats.reading import open_regular
+from sniffer.commands.common import EXIT_FAILED, EXIT_OK, UsageError, say
 
 _KNOWN = {"format", "state", "pid", "command", "source", "line", "started", "updated", "updated_ns", "every_s",
           "uptime_s", "frames", "bytes", "errors", "last_frame", "port", "segments", "ended", "units"}
@@ -30,22 +36,90 @@ def cmd_status(spec: CaptureSpec, args) -> int:
     path = args.path
     if os.path.isdir(path):
         path = os.path.join(path, STATUS_NAME)
-    d = read_json(path)
-    if d is None:
-        why = "no such file" if not os.path.exists(path) else "not a status file (JSON object)"
-        raise UsageError(f"{shown(path)}: {why} (a capture writes it with --rotate or --status FILE)")
+    d = read_status(path)
     if args.json:
-        json.dump(d, sys.stdout, indent=1)
-        print()
+        try:
+            text = json.dumps(d, indent=1)
+        except (RecursionError, ValueError) as e:
+            raise UsageError(f"{shown(path)}: cannot be shown as JSON ({type(e).__name__})") from None
+        print(text)
         return EXIT_OK
-    running, state = _state(d)
-    for label, text in lines(d, state):
-        print(f"{label:<9} {text}")  # a long label (a unit of a link) still gets its space
+    st = Fields(d)
+    running, state = _state(st)
+    enc = getattr(sys.stdout, "encoding", None) or "utf-8"
+    for label, text in lines(d, state, st):  # text from the file: what the terminal cannot show is escaped
+        print(f"{label:<9} {text}".encode(enc, "backslashreplace").decode(enc, "replace"))
+    if st.odd:
+        say(f"warning: {shown(path)}: {', '.join(sorted(st.odd))} not as a capture writes "
+            f"{'them' if len(st.odd) > 1 else 'it'} (shown as ?)")
     return EXIT_OK if running else EXIT_FAILED
 
 
+MAX_STATUS_BYTES = 16 << 20  # a capture's status file is a few kB
+
+
+def read_status(path: str) -> dict:
+    """The status file's JSON object, or UsageError (one line) saying why it is none."""
+    hint = "(a capture writes it with --rotate or --status FILE)"
+    if not os.path.lexists(path):
+        raise UsageError(f"{shown(path)}: no such file {hint}")
+    try:
+        with open_regular(path) as fh:  # a FIFO or a device is refused before a byte is read
+            raw = fh.read(MAX_STATUS_BYTES + 1)
+    except CaptureError as e:
+        raise UsageError(f"{e} {hint}") from None
+    except OSError as e:
+        raise UsageError(f"{shown(path)}: {e.strerror or e}") from None
+    if len(raw) > MAX_STATUS_BYTES:
+        raise UsageError(f"{shown(path)}: over {MAX_STATUS_BYTES >> 20} MB: not a status file {hint}")
+    try:
+        d = json.loads(raw)
+    except RecursionError:
+        raise UsageError(f"{shown(path)}: nested too deep to be a status file {hint}") from None
+    except ValueError:  # not JSON, not UTF-8
+        d = None
+    if not isinstance(d, dict):
+        raise UsageError(f"{shown(path)}: not a status file (JSON object) {hint}")
+    return d
+
+
+class Fields:
+    """The status file's fields, each read as the kind the capture writes (sniffer.capture.status); a field of
+    another kind reads as None and is noted in `odd` (a file edited by hand, or of another program)."""
+
+    def __init__(self, d: dict) -> None:
+        self.d = d
+        self.odd: set[str] = set()
+
+    def get(self, key: str, kind: str, within: dict | None = None, name: str = "", default=None):
+        """The field `key` of the file (or of its section `within`, named `name`); `default` if it is not
+        there, None if it is of another kind."""
+        src = self.d if within is None else within
+        if key not in src or src[key] is None:
+            return default
+        v = src[key]
+        ok = {"int": _is_int(v) and abs(v) < 1 << 63, "num": _is_num(v), "str": isinstance(v, str),
+              "dict": isinstance(v, dict),
+              "strs": isinstance(v, list) and all(isinstance(x, str) for x in v)}[kind]
+        if not ok:
+            self.odd.add(name or key)
+            return None
+        return v
+
+    def section(self, key: str) -> dict:
+        return self.get(key, "dict") or {}
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_num(v) -> bool:
+    return (isinstance(v, float) and math.isfinite(v)) or (_is_int(v) and abs(v) < 1 << 63)
+
+
 def _alive(pid) -> bool:
-    if not isinstance(pid, int) or pid <= 0:
+    if not _is_int(pid) or not 0 < pid < 1 << 31:
         return False
     try:
         os.kill(pid, 0)
@@ -60,24 +134,27 @@ def _alive(pid) -> bool:
         return True
 
 
-def _state(d: dict) -> tuple[bool, str]:
+def _state(st: Fields) -> tuple[bool, str]:
     """(running, what to say about it)."""
-    state = str(d.get("state", "?"))
-    age = _age(d)
-    every = float(d.get("every_s") or 2.0)
+    state = st.get("state", "str") or "?"
+    age = _age(st)
+    every = st.get("every_s", "num")
+    every = every if every is not None and every > 0 else 2.0
+    pid = st.get("pid", "int")
     if state == "ended":
-        return False, f"ended ({d.get('ended', '')})" if d.get("ended") else "ended"
-    if not _alive(d.get("pid")):
-        return False, f"not running: its process ({d.get('pid')}) is gone; the status is {_ago(age)} old " \
-                      f"(killed? `sniffer repair` mends its open segment)"
+        ended = st.get("ended", "str")
+        return False, f"ended ({_cut(ended, 200)})" if ended else "ended"
+    if not _alive(pid):
+        return False, f"not running: its process ({pid if pid is not None else '?'}) is gone; the status is " \
+                      f"{_ago(age)} old (killed? `sniffer repair` mends its open segment)"
     if age is not None and age > STALE_AFTER * every:
         return False, f"{state}, but the status has not been written for {_ago(age)} (hung?)"
     return True, state
 
 
-def _age(d: dict) -> float | None:
-    ns = d.get("updated_ns")
-    return (time.time_ns() - ns) / 1e9 if isinstance(ns, int) else None
+def _age(st: Fields) -> float | None:
+    ns = st.get("updated_ns", "int")
+    return (time.time_ns() - ns) / 1e9 if ns is not None else None
 
 
 def _ago(s: float | None) -> str:
@@ -91,7 +168,7 @@ def _ago(s: float | None) -> str:
 
 
 def _uptime(s) -> str:
-    if not isinstance(s, (int, float)):
+    if s is None or not 0 <= s < 1e12:
         return "?"
     d, rest = divmod(int(s), 86_400)
     h, rest = divmod(rest, 3_600)
@@ -99,68 +176,100 @@ def _uptime(s) -> str:
     return (f"{d}d " if d else "") + (f"{h}h " if d or h else "") + f"{m}min {sec}s"
 
 
-def lines(d: dict, state: str) -> list[tuple[str, str]]:
-    """The status as (label, text) lines."""
-    out = [("capture", f"{d.get('command') or d.get('source') or '?'} (pid {d.get('pid')}): {state}")]
-    if d.get("line"):
-        out.append(("line", str(d["line"])))
-    out.append(("started", f"{d.get('started') or '?'}, up {_uptime(d.get('uptime_s'))}; "
-                           f"status written {_ago(_age(d))} ago"))
-    last = d.get("last_frame") or {}
+def _size(n) -> str:
+    return size_text(n) if n is not None and n >= 0 else "?"
+
+
+def _count(n) -> str:
+    return f"{n:,}" if n is not None else "?"
+
+
+def lines(d: dict, state: str, st: Fields | None = None) -> list[tuple[str, str]]:
+    """The status as (label, text) lines (`st`: the fields as read; a field of the wrong kind is ?)."""
+    st = st or Fields(d)
+    pid = st.get("pid", "int")
+    what = _cut(st.get("command", "str") or st.get("source", "str") or "?", 120)
+    out = [("capture", f"{what} (pid {pid if pid is not None else '?'}): {_cut(state)}")]
+    if st.get("line", "str"):
+        out.append(("line", _cut(st.get("line", "str"))))
+    out.append(("started", f"{_cut(st.get('started', 'str') or '?', 40)}, up {_uptime(st.get('uptime_s', 'num'))}; "
+                           f"status written {_ago(_age(st))} ago"))
+    last = st.section("last_frame")
     if "frames" in d:
         when = ""
         if last:
-            when = f"; last frame at {last.get('wall') or str(last.get('t')) + ' s'}"
-            if last.get("wall") and isinstance(d.get("updated_ns"), int):
-                when += f" ({_ago(_age_of(last['wall']))} ago)"
-        out.append(("frames", f"{d['frames']:,} ({size_text(int(d.get('bytes') or 0))} received){when}"))
-    errors = d.get("errors")
-    if isinstance(errors, dict):
-        out.append(("errors", ", ".join(f"{k} {v:,}" if isinstance(v, int) else f"{k} {v}"
-                                        for k, v in errors.items())))
-    units = d.get("units")
-    if isinstance(units, dict):
+            wall = st.get("wall", "str", last, "last_frame.wall")
+            t = st.get("t", "num", last, "last_frame.t")
+            when = f"; last frame at {_cut(wall, 40) if wall else (f'{t} s' if t is not None else '?')}"
+            if wall and st.get("updated_ns", "int") is not None:
+                when += f" ({_ago(_age_of(wall))} ago)"
+        out.append(("frames", f"{_count(st.get('frames', 'int'))} ({_size(st.get('bytes', 'int'))} received){when}"))
+    errors = st.get("errors", "dict")
+    if errors:
+        out.append(("errors", _cut(", ".join(f"{_cut(k, 40)} {v:,}" if _is_int(v) else f"{_cut(k, 40)} {_generic(v)}"
+                                             for k, v in errors.items()))))
+    units = st.get("units", "dict")
+    if units:
         out += _unit_lines(units)
-    port = d.get("port")
-    if isinstance(port, dict) and port.get("state") not in (None, "ok"):
-        ports = port.get("ports") or ()
-        out.append(("port", (f"{', '.join(ports)}: " if len(ports) > 1 else "")
-                    + f"{port.get('state')} since {port.get('since', '?')}"
-                    + (f" ({port['reason']})" if port.get("reason") else "")))
-    seg = d.get("segments")
-    if isinstance(seg, dict):
-        free = f"; {size_text(seg['disk_free'])} free on its disk" if isinstance(seg.get("disk_free"), int) else ""
-        text = (f"{seg.get('count', 0)} in {seg.get('folder', '?')} ({size_text(int(seg.get('bytes') or 0))}{free}), "
-                f"open: {seg.get('open') or '-'}; rotate {seg.get('rotate') or '-'}, keep {seg.get('keep') or 'all'}")
-        if seg.get("deleted"):
-            text += f"; {seg['deleted']} deleted"
-        if seg.get("killed"):
-            text += f"; {seg['killed']} left open by a killed capture (replayable; `sniffer repair` mends them)"
-        out.append(("segments", text))
-        for err in seg.get("delete_errors") or ():
-            out.append(("", f"could not delete {err}"))
+    port = st.section("port")
+    pstate = st.get("state", "str", port, "port.state")
+    if port and pstate != "ok":
+        ports = st.get("ports", "strs", port, "port.ports") or ()
+        reason = st.get("reason", "str", port, "port.reason")
+        out.append(("port", _cut((f"{', '.join(ports)}: " if len(ports) > 1 else "")
+                                 + f"{pstate or '?'} since {st.get('since', 'str', port, 'port.since') or '?'}"
+                                 + (f" ({reason})" if reason else ""))))
+    seg = st.get("segments", "dict")
+    if seg is not None:
+        def g(key: str, kind: str, default=None):
+            return st.get(key, kind, seg, f"segments.{key}", default)
+
+        free = g("disk_free", "int")
+        text = (f"{_count(g('count', 'int', 0))} in {_cut(g('folder', 'str') or '?', 200)} "
+                f"({_size(g('bytes', 'int', 0))}"
+                f"{f'; {_size(free)} free on its disk' if free is not None else ''}), "
+                f"open: {_cut(g('open', 'str') or '-', 200)}; "
+                f"rotate {_cut(g('rotate', 'str') or '-', 40)}, keep {_cut(g('keep', 'str') or 'all', 40)}")
+        if g("deleted", "int"):
+            text += f"; {g('deleted', 'int')} deleted"
+        if g("killed", "int"):
+            text += f"; {g('killed', 'int')} left open by a killed capture (replayable; `sniffer repair` mends them)"
+        out.append(("segments", _cut(text)))
+        for err in (g("delete_errors", "strs") or ())[:3]:
+            out.append(("", _cut(f"could not delete {err}")))
     for key, value in d.items():
         if key not in _KNOWN:
-            out.append((key, _generic(value)))
+            out.append((_cut(key, 40), _generic(value)))
     return out
 
 
 def _unit_lines(units: dict) -> list[tuple[str, str]]:
     """A line per unit: its figures (sniffer.analysis.unitfigures), the latency's to the microsecond."""
+    def count(u: dict, key: str) -> str:
+        v = u.get(key)
+        return f"{v:,}" if _is_int(v) else "?"
+
+    def ms(u: dict, key: str) -> str:
+        v = u.get(key)
+        return f"{v:.3f}" if isinstance(v, (int, float)) and not isinstance(v, bool) else "?"
+
     out = []
     for name, u in list(units.items())[:UNITS_SHOWN]:
         if not isinstance(u, dict):
             continue
-        counts = [f"req {u.get('requests')}", f"rsp {u.get('responses')}", f"CRC err {u.get('crc_errors')}",
-                  f"exc {u.get('exceptions')}", f"timeouts {u.get('timeouts')}", f"retries {u.get('retries')}"]
-        counts += [f"{label} {u[key]}" for key, label in (("faults", "faults"), ("alarms", "alarms"), ("late", "late"),
-                                                          ("unanswered_at_end", "unanswered at end")) if u.get(key)]
+        counts = [f"req {count(u, 'requests')}", f"rsp {count(u, 'responses')}", f"CRC err {count(u, 'crc_errors')}",
+                  f"exc {count(u, 'exceptions')}", f"timeouts {count(u, 'timeouts')}",
+                  f"retries {count(u, 'retries')}"]
+        counts += [f"{label} {count(u, key)}" for key, label in (("faults", "faults"), ("alarms", "alarms"),
+                                                                  ("late", "late"),
+                                                                  ("unanswered_at_end", "unanswered at end"))
+                   if u.get(key)]
         if u.get("lat_n"):
-            approx = "" if u.get("lat_exact", True) else " (within 0.1 %)"
-            counts.append(f"latency median {u.get('lat_median'):.3f} p95 {u.get('lat_p95'):.3f} "
-                          f"max {u.get('lat_max'):.3f} ms{approx}")
-        ghost = " (CRC-bad frames only: a damaged address?)" if u.get("ghost") else ""
-        out.append((f"unit {name}", ", ".join(counts) + ghost))
+            approx = "" if u.get("lat_exact", True) is True else " (within 0.1 %)"
+            counts.append(f"latency median {ms(u, 'lat_median')} p95 {ms(u, 'lat_p95')} max {ms(u, 'lat_max')} ms"
+                          f"{approx}")
+        ghost = " (CRC-bad frames only: a damaged address?)" if u.get("ghost") is True else ""
+        out.append((_cut(f"unit {name}", 40), _cut(", ".join(counts) + ghost)))
     if len(units) > UNITS_SHOWN:
         out.append(("", f"and {len(units) - UNITS_SHOWN} more units (--json)"))
     return out
@@ -169,7 +278,7 @@ def _unit_lines(units: dict) -> list[tuple[str, str]]:
 def _age_of(iso_text: str) -> float | None:
     try:
         return time.time() - calendar.timegm(time.strptime(iso_text, "%Y-%m-%dT%H:%M:%SZ"))
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None
 
 
@@ -177,19 +286,26 @@ def _generic(value, prefix: str = "", depth: int = 0) -> str:
     """A section this command does not know, on one line: `a 1, b.c 2, d [x, y]` (two levels deep, at
     most GENERIC_WIDTH characters: `--json` has it all)."""
     if not isinstance(value, dict):
-        return _cut(value if isinstance(value, str) else json.dumps(value))
+        return _cut(value if isinstance(value, str) else _json(value))
     parts = []
-    for k, v in value.items():
+    for k, v in list(value.items())[:50]:
         if isinstance(v, dict):
             parts.append(_generic(v, f"{prefix}{k}.", depth + 1) if depth < 1 else f"{prefix}{k} {{...}}")
-        elif isinstance(v, (list, tuple)) and len(json.dumps(v)) > 60:
+        elif isinstance(v, (list, tuple)) and len(_json(v)) > 60:
             parts.append(f"{prefix}{k} [{len(v)}]")
         else:
-            parts.append(f"{prefix}{k} {_cut(v if isinstance(v, (str, int, float)) else json.dumps(v), 80)}")
+            parts.append(f"{prefix}{k} {_cut(v if isinstance(v, (str, int, float)) else _json(v), 80)}")
     text = ", ".join(p for p in parts if p)
     return text if depth else _cut(text, GENERIC_WIDTH)
 
 
+def _json(value) -> str:
+    try:
+        return json.dumps(value)
+    except (RecursionError, ValueError):
+        return "[...]" if isinstance(value, list) else "?"
+
+
 def _cut(text, width: int = GENERIC_WIDTH) -> str:
-    text = " ".join(str(text).split())
+    text = " ".join(str(text)[: width * 4].split())
     return text if len(text) <= width else text[: width - 3] + "..."

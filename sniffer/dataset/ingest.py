@@ -1,19 +1,32 @@
 """One capture file into the dataset: decoded by one Session into a DatasetSink, then moved into place.
 
     ds = create_dataset("fleet")
+    tidy(ds)                                             # what killed runs left: said, then removed
     known = Known(ds.manifest())
     result = take_in(ds, "line3.mcap", spec, known)      # Taken | Skipped | Failed
 
-The sink writes under `_staging/CAPTURE.PID/` (readers skip `_` folders); only a capture read
-whole is moved in: each file renamed into its partition, then the manifest entry written, then
-the staging folder removed.  A damaged or unreadable capture, a full disk, Ctrl-C: the staging
-folder is removed and the dataset is as it was (the capture is not listed, a later run takes it in).
+The sink writes under `_staging/CAPTURE.PID/` (readers skip `_` folders), holding a lock on its
+`.lock` file while it works; only a capture read whole is moved in: each file renamed into its
+partition, then the manifest entry written, then the staging folder removed.  A damaged or
+unreadable capture, a full disk, Ctrl-C: the staging folder is removed and the dataset is as it
+was (the capture is not listed, a later run takes it in).  A run killed outright leaves its
+staging folder: the next run's `tidy` removes every one whose lock nobody holds.
+
+Whole means closed cleanly: an MCAP without its end (still being copied or written, or its
+capture killed) or a file that changed while it was read is not taken in (a later run takes it
+when it is whole).  A file taken in before that changed since (the same path on this host, the
+same first frame: the same capture, grown or rewritten) replaces its rows: the new files move in,
+the new manifest entry names the old one in `replaces`, then the old files and entry are removed
+(`tidy` finishes that if a run was killed in between).  Another capture at the same path (another
+first frame) is added.
 """
 
 from __future__ import annotations
 
+import fcntl
 import os
 import shutil
+import time
 from dataclasses import dataclass, field
 
 from sniffer.line import SettingsError
@@ -22,7 +35,10 @@ from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.dataset.sink import DatasetSink
 from sniffer.events import CaptureError
-from sniffer.dataset.layout import STAGING, Dataset, Known, capture_name, new_entry
+from sniffer.dataset.layout import MANIFEST, STAGING, Dataset, Known, capture_name, new_entry, well_formed
+
+LOCK = ".lock"  # in a staging folder: locked (flock) while its run is alive
+ORPHAN_AGE_S = 60.0  # a staging folder without a lock file (an older sniffer's, or one killed as it began)
 
 
 @dataclass
@@ -30,11 +46,14 @@ class Taken:
     path: str
     entry: dict
     files: list = field(default_factory=list)
+    replaced: list = field(default_factory=list)  # the manifest entries of the file's earlier version
 
     def line(self) -> str:
         e = self.entry
+        again = (f"; the file changed since it was taken in: its rows replace those of "
+                 f"{', '.join(r['capture'] for r in self.replaced)}" if self.replaced else "")
         return (f"{shown(self.path)}: {e['frames']} frames, {e['points']} points, {e['annotations']} annotations "
-                f"-> {e['capture']} ({', '.join(e['partitions']) or 'no partition'})")
+                f"-> {e['capture']} ({', '.join(e['partitions']) or 'no partition'}){again}")
 
 
 @dataclass
@@ -62,6 +81,7 @@ def take_in(ds: Dataset, path: str, spec: CaptureSpec, known: Known, *, link: st
     from sniffer.sources.files import FileSource
 
     try:
+        before = _stat(path)
         entry, sha = known.seen(path)
     except OSError as e:
         return Failed(path, f"{shown(path)}: {e.strerror or e}")
@@ -70,16 +90,21 @@ def take_in(ds: Dataset, path: str, spec: CaptureSpec, known: Known, *, link: st
     capture = capture_name(path, sha)
     staging = ds.path(STAGING, f"{capture}.{os.getpid()}")
     shutil.rmtree(staging, ignore_errors=True)  # a killed run of this process id's
+    lock = None
     try:
         os.makedirs(staging)
+        lock = _hold(staging)
         sink = DatasetSink(staging, capture, link=link, source=os.path.abspath(path))
         session = Session(spec.with_(input=path), FileSource(path, spec.input_format), [sink], on_event=on_event)
         try:
             session.open()
+            if _unfinished(session):  # not whole: nothing decoded
+                session.close()
+                return Failed(path, f"{shown(path)}: {UNFINISHED}")
             session.run()
         except (CaptureError, SettingsError) as e:
             return Failed(path, str(e))
-        why = _why_not(session, path)
+        why = _why_not(session, path) or _changed(path, before)
         if why:
             return Failed(path, why)
         entry = new_entry(path, sha)
@@ -88,19 +113,141 @@ def take_in(ds: Dataset, path: str, spec: CaptureSpec, known: Known, *, link: st
                      settings=session.resolved.describe(), links=sorted({k[0] for k in sink.partitions}),
                      partitions=[f"link={k[0]}/date={k[1]}" for k in sink.partitions],
                      files=[rel for rel, _, _ in sink.written])
+        old = known.earlier(entry)
+        if old:
+            entry["replaces"] = [e["capture"] for e in old]
         _move_in(ds, staging, sink.written)
         ds.record(entry)
+        for e in old:  # the new rows are in: the old go
+            forget(ds, e)
         known.add(entry)
-        return Taken(path, entry, sink.written)
+        known.drop(old)
+        return Taken(path, entry, sink.written, old)
     except OSError as e:
         where = e.filename if isinstance(e.filename, str) else ds.root
         return Failed(path, f"{shown(path)}: cannot write the dataset: {shown(where)}: {e.strerror or e}")
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+        if lock is not None:
+            os.close(lock)
         try:
             os.rmdir(ds.path(STAGING))  # when no other sniffer is writing
         except OSError:
             pass
+
+
+UNFINISHED = ("not closed cleanly (still being copied or written, or its capture was killed): not taken in; a "
+              "later run takes it in when it is whole (`sniffer repair` writes a whole copy of one that will not be)")
+
+
+def _stat(path: str) -> tuple[int, int]:
+    st = os.stat(path)
+    return st.st_size, st.st_mtime_ns
+
+
+def _unfinished(session: Session) -> bool:
+    """An MCAP (or a segment of a folder) that does not end as a closed capture does."""
+    return bool(getattr(session.source, "unfinished", None) or session.info.extra.get("mcap_unfinished"))
+
+
+def _changed(path: str, before: tuple[int, int]) -> str | None:
+    try:
+        now = _stat(path)
+    except OSError as e:
+        return f"{shown(path)}: {e.strerror or e} after it was read: not taken in"
+    if now != before:
+        return (f"{shown(path)}: changed while it was read (still being copied or written?): not taken in; a later "
+                "run takes it in")
+    return None
+
+
+def _hold(staging: str) -> int:
+    """The staging folder's lock, held (flock) until the run ends: `tidy` leaves a folder whose lock is held."""
+    fd = os.open(os.path.join(staging, LOCK), os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o600)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    return fd
+
+
+def _abandoned(folder: str) -> bool:
+    """A staging folder whose run is gone: its lock is free (or, without a lock file, an older sniffer's or
+    one killed as it began: its process id is not running here and it is a minute old)."""
+    try:
+        fd = os.open(os.path.join(folder, LOCK), os.O_RDWR | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        pid = folder.rsplit(".", 1)[-1]
+        try:
+            old = time.time() - os.stat(folder).st_mtime > ORPHAN_AGE_S
+        except OSError:
+            return False
+        return old and not (pid.isdigit() and _running(int(pid)))
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return True
+    except OSError:  # held: a run is writing it
+        return False
+    finally:
+        os.close(fd)
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def tidy(ds: Dataset) -> list[str]:
+    """Remove what killed runs left (staging folders nobody holds; the old files of a capture another replaced
+    when the run was killed before removing them); what was removed, one line each."""
+    said = []
+    folder = ds.path(STAGING)
+    names = sorted(os.listdir(folder)) if os.path.isdir(folder) else []
+    gone = [n for n in names if os.path.isdir(os.path.join(folder, n)) and _abandoned(os.path.join(folder, n))]
+    for n in gone:
+        shutil.rmtree(os.path.join(folder, n), ignore_errors=True)
+    if gone:
+        said.append(f"{shown(folder)}: removed {len(gone)} staging folder{'s' if len(gone) > 1 else ''} of killed "
+                    f"runs ({', '.join(gone[:3])}{', ...' if len(gone) > 3 else ''})")
+    try:
+        os.rmdir(folder)
+    except OSError:
+        pass
+    entries = [e for e in ds.manifest() if well_formed(e)]
+    by_name = {e.get("capture"): e for e in entries}
+    for e in entries:
+        for name in e.get("replaces") or ():
+            if isinstance(name, str) and name in by_name and name != e.get("capture"):
+                forget(ds, by_name.pop(name))
+                said.append(f"{shown(ds.root)}: removed {name}, replaced by {e.get('capture')} (a run was killed "
+                            "before it removed it)")
+    return said
+
+
+def forget(ds: Dataset, entry: dict) -> None:
+    """A capture's files and then its manifest entry removed (only files of its own name, inside the dataset)."""
+    name = entry.get("capture")
+    if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
+        return
+    root = os.path.realpath(ds.root)
+    files = entry.get("files")
+    for rel in files if isinstance(files, list) else ():
+        if not isinstance(rel, str) or os.path.basename(rel) != f"{name}.parquet":
+            continue
+        p = os.path.realpath(ds.path(rel))
+        if p.startswith(root + os.sep) and not rel.startswith("_"):
+            try:
+                os.remove(p)
+            except FileNotFoundError:
+                pass
+    try:
+        os.remove(ds.path(MANIFEST, f"{name}.json"))
+    except FileNotFoundError:
+        pass
 
 
 def _why_not(session: Session, path: str) -> str | None:

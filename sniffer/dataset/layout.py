@@ -4,8 +4,9 @@ A capture segment is named `STEM-HASH` (its file's stem, made safe, and the firs
 digits of its content's SHA-256): the same name in every table, and its manifest entry
 `_manifest/STEM-HASH.json`.  A file is taken in once: one whose path, size and mtime a
 manifest entry lists is skipped without being read, and one whose content hash is known
-(a copy, a renamed file) after hashing.  Entries are separate files, written last, so
-sniffers appending at once never rewrite each other's work.
+(a copy, a renamed file) after hashing.  An entry names the host that took the file in, so
+`Known.earlier` finds an earlier version of a file by its path on this host only.  Entries are
+separate files, written last, so sniffers appending at once never rewrite each other's work.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import hashlib
 import json
 import os
 import re
+import socket
 import time
 from dataclasses import dataclass
 
@@ -22,6 +24,7 @@ from sniffer import __version__
 from sniffer.formats.outputs import shown
 from sniffer.formats.schemas import DATASET_TABLES, PARTITIONS, SCHEMA_VERSION, dataset_schemas, described
 from sniffer.events import CaptureError
+from sniffer.formats.reading import open_regular
 
 FORMAT = "sniffer-dataset"
 META = "dataset.json"
@@ -131,9 +134,11 @@ class Dataset:
             if name.endswith(".json"):
                 try:
                     with open(os.path.join(folder, name), encoding="utf-8") as fh:
-                        entries.append(json.load(fh))
-                except (OSError, ValueError):
+                        e = json.load(fh)
+                except (OSError, ValueError, RecursionError):
                     continue
+                if isinstance(e, dict):
+                    entries.append(e)
         return entries
 
     def record(self, entry: dict) -> None:
@@ -148,13 +153,19 @@ def open_dataset(root: str) -> Dataset:
     if not os.path.isdir(root):
         raise DatasetError(f"{shown(root)}: no such dataset folder")
     try:
-        with open(meta_path, encoding="utf-8") as fh:
-            meta = json.load(fh)
+        with open_regular(meta_path) as fh:  # a FIFO is refused, not waited on
+            meta = json.loads(fh.read(1 << 20))  # a dataset.json is a few kB
+    except CaptureError as e:
+        if not os.path.lexists(meta_path):
+            raise DatasetError(f"{shown(root)}: not a sniffer dataset (no {META}; "
+                               f"`sniffer export CAPTURE --to dataset {shown(root)}` makes one)") from None
+        raise DatasetError(f"{shown(meta_path)}: cannot be read: {str(e).removeprefix(meta_path + ': ')}") from None
     except FileNotFoundError:
         raise DatasetError(f"{shown(root)}: not a sniffer dataset (no {META}; "
                            f"`sniffer export CAPTURE --to dataset {shown(root)}` makes one)") from None
-    except (OSError, ValueError) as e:
-        raise DatasetError(f"{shown(meta_path)}: cannot be read: {getattr(e, 'strerror', None) or e}") from None
+    except (OSError, ValueError, RecursionError) as e:
+        why = "nested too deep" if isinstance(e, RecursionError) else getattr(e, "strerror", None) or str(e)[:200]
+        raise DatasetError(f"{shown(meta_path)}: cannot be read: {why}") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise DatasetError(f"{shown(meta_path)}: not a sniffer dataset description")
     version = meta.get("schema_version")
@@ -187,8 +198,9 @@ class Known:
     """What the manifest says was taken in: by (path, size, mtime) and by content hash."""
 
     def __init__(self, entries: list[dict]) -> None:
-        self.by_stat = {(e.get("source"), e.get("size"), e.get("mtime_ns")): e for e in entries}
-        self.by_hash = {e.get("sha256"): e for e in entries}
+        self.entries = [e for e in entries if well_formed(e)]  # one edited by hand into other kinds: left out
+        self.by_stat = {(e.get("source"), e.get("size"), e.get("mtime_ns")): e for e in self.entries}
+        self.by_hash = {e.get("sha256"): e for e in self.entries}
 
     @staticmethod
     def stat_key(path: str) -> tuple:
@@ -204,12 +216,40 @@ class Known:
         return self.by_hash.get(sha), sha
 
     def add(self, entry: dict) -> None:
+        self.entries.append(entry)
         self.by_stat[(entry["source"], entry["size"], entry["mtime_ns"])] = entry
         self.by_hash[entry["sha256"]] = entry
+
+    def earlier(self, entry: dict) -> list[dict]:
+        """The entries of an earlier version of `entry`'s file: the same path on the same host and the same
+        first frame (the same capture, grown or rewritten; either without a wall clock: the path decides)."""
+        def same(e: dict) -> bool:
+            first = (e.get("first_ns"), entry.get("first_ns"))
+            return (e.get("source") == entry["source"] and e.get("host", entry["host"]) == entry["host"]
+                    and e.get("capture") != entry["capture"] and (None in first or first[0] == first[1]))
+        return [e for e in self.entries if same(e)]
+
+    def drop(self, entries: list[dict]) -> None:
+        gone = {id(e) for e in entries}
+        self.entries = [e for e in self.entries if id(e) not in gone]
+        self.by_stat = {k: e for k, e in self.by_stat.items() if id(e) not in gone}
+        self.by_hash = {k: e for k, e in self.by_hash.items() if id(e) not in gone}
+
+
+# the manifest fields a run reads, and their kinds (an entry with another kind is left out, as an unreadable one)
+_ENTRY_KINDS = {"capture": str, "source": str, "size": int, "mtime_ns": int, "sha256": str}
+
+
+def well_formed(e) -> bool:
+    """A manifest entry whose fields `Known` and `tidy` read are of the kinds this sniffer writes."""
+    return (isinstance(e, dict) and all(isinstance(e.get(k), t) and not isinstance(e.get(k), bool)
+                                        for k, t in _ENTRY_KINDS.items())
+            and isinstance(e.get("host", ""), str) and isinstance(e.get("replaces", []), list)
+            and isinstance(e.get("files", []), list) and isinstance(e.get("first_ns"), (int, type(None))))
 
 
 def new_entry(path: str, sha256: str) -> dict:
     source, size, mtime_ns = Known.stat_key(path)
-    return {"capture": capture_name(path, sha256), "source": source, "size": size, "mtime_ns": mtime_ns,
-            "sha256": sha256, "schema_version": SCHEMA_VERSION, "sniffer_version": __version__,
+    return {"capture": capture_name(path, sha256), "source": source, "host": socket.gethostname(), "size": size,
+            "mtime_ns": mtime_ns, "sha256": sha256, "schema_version": SCHEMA_VERSION, "sniffer_version": __version__,
             "ingested_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}

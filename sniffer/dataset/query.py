@@ -15,6 +15,8 @@ import csv
 import datetime as dt
 import decimal
 import glob
+import json
+import math
 import os
 from dataclasses import dataclass
 
@@ -144,7 +146,7 @@ def _captures(ds: Dataset):
         rows.append(row)
     try:
         return pa.Table.from_pylist(rows, schema=schema)
-    except (pa.ArrowInvalid, pa.ArrowTypeError, TypeError):  # an entry edited by hand: keep the ones that fit
+    except (pa.ArrowInvalid, pa.ArrowTypeError, TypeError, ValueError, OverflowError):  # edited by hand: those that fit
         return pa.Table.from_pylist([r for r in rows if _fits(r, schema)], schema=schema)
 
 
@@ -153,7 +155,7 @@ def _fits(row: dict, schema) -> bool:
 
     try:
         pa.Table.from_pylist([row], schema=schema)
-    except (pa.ArrowInvalid, pa.ArrowTypeError, TypeError):
+    except (pa.ArrowInvalid, pa.ArrowTypeError, TypeError, ValueError, OverflowError):
         return False
     return True
 
@@ -204,9 +206,22 @@ def _cell(v) -> str:
 def _json_default(v):
     if isinstance(v, decimal.Decimal):
         return float(v)
+    if isinstance(v, (dt.date, dt.time)):
+        return v.isoformat()
     if isinstance(v, (dt.timedelta, bytes, bytearray, memoryview)):
         return str(v) if isinstance(v, dt.timedelta) else bytes(v).hex()
     return str(v)
+
+
+def _finite(v):
+    """A value for the standard json module as orjson writes it: NaN and infinities are null."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, dict):
+        return {str(k): _finite(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_finite(x) for x in v]
+    return v
 
 
 def write(cursor, fmt: str, out, *, max_rows: int = 100) -> int:
@@ -229,8 +244,12 @@ def write(cursor, fmt: str, out, *, max_rows: int = 100) -> int:
         while rows := cursor.fetchmany(FETCH):
             for r in rows:
                 out.write(",\n" if n else "\n")
-                out.write(orjson.dumps(dict(zip(names, r)), default=_json_default,
-                                       option=orjson.OPT_NON_STR_KEYS).decode())
+                row = dict(zip(names, r))
+                try:
+                    text = orjson.dumps(row, default=_json_default, option=orjson.OPT_NON_STR_KEYS).decode()
+                except orjson.JSONEncodeError:  # what orjson refuses: an integer past 64 bits, a time with a zone
+                    text = json.dumps(_finite(row), default=_json_default, allow_nan=False)
+                out.write(text)
                 n += 1
         out.write("\n]\n" if n else "]\n")
         return n

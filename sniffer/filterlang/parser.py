@@ -2,6 +2,7 @@
 
 Precedence, loosest first: `or` (also `||`, `|`), `and` (also `&&`, `&`, or nothing between two
 terms), `not` (also `!`); parentheses group.  Every error is one FilterError with the column.
+Parentheses and `not`s nest at most MAX_DEPTH deep (the parser and the tree it builds recurse).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ _TIME_DEFAULT = {"t": "s", "lat": "ms"}  # a bare number's unit
 _ID = re.compile(r"[a-z]*\d*-\d+\Z", re.I)  # a parameter id as the manuals write them: 12-00, Cn-02
 _SPECIAL = frozenset("()\"'<>=!~&|")
 _OPS = (">=", "<=", "==", "!=", ">", "<", "=", "~")
+MAX_DEPTH = 100  # parentheses and nots inside each other: no filter a person writes comes near it
 
 
 @dataclass(frozen=True)
@@ -109,6 +111,7 @@ class _Parser:
         self.toks = tokenize(text)
         self.i = 0
         self.in_rate = False
+        self.depth = 0
 
     @property
     def peek(self) -> Tok | None:
@@ -147,6 +150,11 @@ class _Parser:
                 items.append(self.unary())
         return items[0] if len(items) == 1 else And(tuple(_flat(items, And)))
 
+    def deeper(self, t: Tok) -> None:
+        self.depth += 1
+        if self.depth > MAX_DEPTH:
+            self.fail(f"parentheses and nots nested more than {MAX_DEPTH} deep", t.pos)
+
     def unary(self, after: Tok | None = None) -> Node:
         t = self.peek
         if t is None:
@@ -154,7 +162,10 @@ class _Parser:
             self.fail(f"{after.text!r} needs a term after it" if after else "a term is missing", where)
         if _is(t, "NOT", "not"):
             self.next()
-            return Not(self.unary(after=t))
+            self.deeper(t)
+            node = Not(self.unary(after=t))
+            self.depth -= 1
+            return node
         if after is not None and (t.kind == "RP" or _is(t, "OR", "or") or _is(t, "AND", "and")):
             self.fail(f"{after.text!r} needs a term after it", t.pos)
         return self.primary()
@@ -164,7 +175,9 @@ class _Parser:
         if t.kind == "LP":
             if self.peek is not None and self.peek.kind == "RP":
                 self.fail("empty parentheses", t.pos)
+            self.deeper(t)
             node = self.or_()
+            self.depth -= 1
             close = self.next()
             if close is None or close.kind != "RP":
                 where = len(self.text) if close is None else close.pos
@@ -301,7 +314,9 @@ class _Parser:
         if self.peek is not None and self.peek.kind == "RP":
             self.fail("rate() needs a filter inside: rate(crc)", lp.pos)
         self.in_rate = True
+        self.deeper(lp)
         item = self.or_()
+        self.depth -= 1
         self.in_rate = False
         close = self.next()
         if close is None or close.kind != "RP":

@@ -13,6 +13,13 @@ what is queued) and a retained value dropped from the queue is sent again once t
 A broker that cannot be reached (at the start or later) is one line on stderr per distinct reason
 and a retry every 0.5 .. 5 s; the capture goes on.  PREFIX/status is `online` while connected and
 `offline` at the end, or as the last will when the connection dies.
+
+What happened to each message is counted: `published` once paho wrote it to the socket (its
+on_publish), `dropped` from a full queue, `lost` when the connection died with it handed to paho
+but not yet written (paho drops those on reconnecting), and what is left at the end "not
+delivered".  A message written to the socket of a broker that then died is not known to be lost
+(QoS 0 has no acknowledgement).  The end (close) takes at most `CLOSE_S` in all: a broker that
+accepts and never answers holds it no longer (the last connect's timeout is what is left of it).
 """
 
 from __future__ import annotations
@@ -40,8 +47,10 @@ class Publisher:
         self.q: queue.Queue = queue.Queue(max(1, spec.queue))
         self.retained: dict[str, bytes] = {}
         self.stale: set[str] = set()  # retained topics whose latest message was dropped: sent again later
-        self.published = 0
-        self.dropped = 0
+        self.published = 0  # written to the socket (on_publish)
+        self.dropped = 0  # a full queue
+        self.lost = 0  # handed to paho, not yet written when the connection died
+        self._unwritten = 0  # handed to paho and not yet written (on this connection)
         self.connects = 0
         self.connected = False
         self.last_error: str | None = None
@@ -51,6 +60,7 @@ class Publisher:
         self._ready = False  # CONNACK accepted
         self._refused: str | None = None
         self._said: set[str] = set()
+        self._finishing = False
 
     # ------------------------------------------------------------ the capture's side
     def send(self, topic: str, payload: bytes, retain: bool) -> None:
@@ -67,7 +77,8 @@ class Publisher:
     def status(self) -> dict:
         return {"broker": self.spec.broker, "prefix": self.spec.prefix, "tls": self.spec.tls,
                 "connected": self.connected, "published": self.published, "queued": self.q.qsize(),
-                "queue_max": self.spec.queue, "dropped": self.dropped, "retained": len(self.retained),
+                "queue_max": self.spec.queue, "dropped": self.dropped, "lost": self.lost,
+                "retained": len(self.retained),
                 "connects": self.connects, "last_error": self.last_error}
 
     def start(self) -> None:
@@ -75,15 +86,17 @@ class Publisher:
         self._thread.start()
 
     def close(self, timeout: float = CLOSE_S) -> None:
-        """Send what is queued (for at most `timeout` s), mark PREFIX/status offline, disconnect."""
+        """Send what is queued (for at most `timeout` s in all), mark PREFIX/status offline, disconnect."""
         self._close_by = time.monotonic() + timeout
         self._closing.set()
         if self._thread is not None:
-            self._thread.join(timeout + 2)
-        left = self.q.qsize()
-        if self.connects or left or self.dropped:
+            self._thread.join(max(0.0, self._close_by - time.monotonic()) + 0.5)  # the thread ends by _close_by
+        left = self.q.qsize() + self._unwritten
+        if self.connects or left or self.dropped or self.lost:
             self.report(f"mqtt: {self.published} messages published to {self.spec.broker}"
                         + (f", {self.dropped} dropped (queue full)" if self.dropped else "")
+                        + (f", {self.lost} lost with the connection (handed over, not yet sent when the broker "
+                           "went)" if self.lost else "")
                         + (f", {left} not delivered ({self.last_error or 'not connected'})" if left else ""))
 
     # ------------------------------------------------------------ the client's thread
@@ -99,7 +112,18 @@ class Publisher:
             c.tls_set_context(ctx)
         c.will_set(availability(self.spec.prefix), b"offline", qos=1, retain=True)
         c.on_connect = self._on_connect
+        c.on_publish = self._on_publish
         return c
+
+    def _on_publish(self, client, userdata, mid, reason_code, properties) -> None:
+        """A QoS 0 message written to the socket (the offline mark, QoS 1: acknowledged)."""
+        self.published += 1
+        self._unwritten = max(0, self._unwritten - 1)
+
+    def _connection_died(self) -> None:
+        """What paho held unwritten is gone (reconnect() drops QoS 0 messages): counted as lost."""
+        self.lost += self._unwritten
+        self._unwritten = 0
 
     def _on_connect(self, client, userdata, flags, reason_code, properties) -> None:
         if reason_code.is_failure:
@@ -128,6 +152,12 @@ class Publisher:
     def _connect(self) -> bool:
         """Open the connection and wait for the broker's answer; False (said once per reason) if it fails."""
         c, self._ready, self._refused, lost = self._client, False, None, False
+        self._connection_died()
+        by = getattr(self, "_close_by", None) if self._closing.is_set() or self._finishing else None
+        if by is not None:  # the end: the socket's connect may take what is left of CLOSE_S, no more
+            if by - time.monotonic() < 0.05:
+                return self._failed(self.last_error or "no time left to connect")
+            c.connect_timeout = min(5.0, by - time.monotonic())
         try:
             if self.connects or self.last_error:
                 c.reconnect()
@@ -202,6 +232,7 @@ class Publisher:
                 busy = self._hand_over(BATCH)
             rc = c.loop(0.0 if busy else 0.05)
             if not _ok(rc):
+                self._connection_died()
                 self.connected = False
                 self.last_error = f"connection lost ({mqtt.error_string(rc).rstrip('.')})"
                 self.report(f"mqtt: lost the connection to {self.spec.broker}; reconnecting "
@@ -228,9 +259,9 @@ class Publisher:
     def _publish(self, topic: str, payload: bytes, retain: bool) -> None:
         info = self._client.publish(topic, payload, qos=0, retain=retain)
         if info.rc == 0:
-            self.published += 1
-        else:
-            self.dropped += 1
+            self._unwritten += 1  # published once written (_on_publish)
+        else:  # paho refused it (not connected): lost with the connection
+            self.lost += 1
             if retain:
                 self.stale.add(topic)
 
@@ -240,6 +271,7 @@ class Publisher:
         if c is None:
             return
         by = getattr(self, "_close_by", time.monotonic() + CLOSE_S)
+        self._finishing = True
         if not self.connected:  # one more try: the broker may be back, and the final state is worth it
             self._closing.clear()
             try:
@@ -252,10 +284,13 @@ class Publisher:
                 if not c.want_write():
                     self._hand_over(BATCH)
                 if not _ok(c.loop(0.01)):
+                    self._connection_died()
                     return
             info = c.publish(availability(self.spec.prefix), b"offline", qos=1, retain=True)
+            self._unwritten += info.rc == 0  # the offline mark: counted published when acknowledged
             while time.monotonic() < by and not info.is_published():
                 if not _ok(c.loop(0.01)):
+                    self._connection_died()
                     return
             c.disconnect()
             c.loop(0.01)

@@ -66,14 +66,16 @@ def _make(kind: str, args: tuple, kw: dict):
 
 
 class _Port:
-    """A port as the capture's status sees it (status.py): whether it is away now, since when, why."""
+    """A port as the capture's status sees it (status.py): whether it is away now, since when, why, and how
+    often it went."""
 
-    __slots__ = ("lost_reason", "lost_since_ns", "port")
+    __slots__ = ("losses", "lost_reason", "lost_since_ns", "port")
 
     def __init__(self, port: str) -> None:
         self.port = port
         self.lost_since_ns: int | None = None
         self.lost_reason = ""
+        self.losses = 0  # times it went away (status.PortNotices)
 
 
 class ReaderProcess:
@@ -187,6 +189,7 @@ class ReaderProcess:
                 elif tag == "l":
                     r = ports[msg[1]]
                     r.lost_since_ns, r.lost_reason = msg[2], msg[3]
+                    r.losses += msg[2] is not None
                 elif tag == "e":
                     if msg[2] is not None:
                         raise msg[2]

@@ -149,6 +149,7 @@ class SerialSource:
         self.sysfs = sysfs
         self.info: CaptureInfo | None = None
         self.lost_since_ns: int | None = None  # set while the port is away (for a status line)
+        self.losses = 0  # times the port went away (status.PortNotices says each, however short)
         self._fd: int | None = None
         self._rdev: int | None = None
         self.hub = hub or Hub()
@@ -276,6 +277,7 @@ class SerialSource:
             raise PortLostError(f"{self.port}: port lost ({reason})")
         self.lost_since_ns = time.monotonic_ns()
         self.lost_reason = reason
+        self.losses += 1
         self.hub.lost(self)
 
     def _wait_for_port(self) -> None:

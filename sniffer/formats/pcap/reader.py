@@ -20,8 +20,13 @@ Damage (sniffer.formats.pcap.format says what is plausible): a record header tha
 cannot be right is reported in `damage`, the reader scans forward to the
 next offset where a plausible record is followed by another plausible one
 (pcapng: a block whose length is repeated at its end) and goes on from
-there; a Gap marks the hole.  A file that ends inside a record (a killed
-capture) keeps every complete record and says so in `damage`.  Fatal
+there; a Gap marks the hole.  Inside an intact pcapng block, lengths and
+options that do not read (pcap_format.pcapng_body_problem) and a packet
+timed a year away from the one before are damage too: the block is
+skipped, said, and a Gap marks it.  A packet captured shorter than it was
+sent (pcap or pcapng) keeps its bytes, is said, and a Gap follows it.  A
+file that ends inside a record (a killed capture) keeps every complete
+record and says so in `damage`.  Fatal
 (CaptureError from open()): not pcap/pcapng, a cut global header, a
 non-serial link type, no packet at all.
 """
@@ -35,8 +40,9 @@ from collections.abc import Iterator
 from sniffer.events import CaptureInfo, Chunk, Gap, Tick
 from sniffer.formats.pcap.format import (
     BLOCK_EPB, BLOCK_IDB, BLOCK_PB, BLOCK_SHB, BLOCK_SPB, BLOCKS_WITHOUT_PACKETS, GLOBAL_HEADER, LINKTYPE_RTAC_SERIAL,
-    LINKTYPE_USER0, MAX_BLOCK, PCAP_MAGIC, PCAPNG_BYTE_ORDER_LE, PCAPNG_SHB, RECORD_HEADER, RTAC_HEADER,
-    SUPPORTED_LINKTYPES, parse_global_header, pcap_record_problem, pcapng_block_problem, tsresol,
+    LINKTYPE_USER0, MAX_BLOCK, MAX_JUMP_NS, PCAP_MAGIC, PCAPNG_BYTE_ORDER_LE, PCAPNG_SHB, RECORD_HEADER, RTAC_HEADER,
+    SUPPORTED_LINKTYPES, cut_packet, packet_of, parse_global_header, pcap_record_problem, pcapng_block_problem,
+    pcapng_body_problem, reads_as_packet, tsresol,
 )
 from sniffer.events import CaptureError
 from sniffer.formats.reading import DamageLog, file_position, gap_before, open_regular
@@ -221,6 +227,8 @@ class PcapSource:
                     return
                 last_t = sec * 1_000_000_000 + frac * mult
                 yield linktype, last_t, body
+                if incl < orig:
+                    yield self._cut(f"pcap record at byte {pos}", incl, orig)
                 pos += RECORD_HEADER + incl
                 continue
             q = _scan(fh, pos + 1, size, lambda buf, i, lt=last_t: problem(buf, i, lt) is None,
@@ -230,6 +238,11 @@ class PcapSource:
                 return
             pos = q
             fh.seek(pos)
+
+    def _cut(self, what: str, incl: int, orig: int) -> _Hole:
+        """A packet that lost bytes (captured shorter than sent): said, and a hole after its bytes."""
+        self._log.add("cut packets", f"{self.path}: {what} {cut_packet(incl, orig)}")
+        return _Hole(f"{orig - incl} bytes of a packet not in the capture file")
 
     def _hole(self, what: str, pos: int, q: int | None) -> _Hole:
         if q is None:
@@ -278,6 +291,8 @@ class PcapSource:
             return blen >= 12 and blen % 4 == 0 and blen <= MAX_BLOCK
 
         pos = 0
+        last_t: int | None = None  # the time of the last packet read
+        stray: int | None = None  # the time of a packet skipped for being a year away from last_t
         while pos < size:
             b = block_at(pos, None)
             if isinstance(b, str):
@@ -298,44 +313,51 @@ class PcapSource:
             btype, blen, end = b
             fh.seek(pos + 8)
             body = fh.read(blen - 12)
-            pos += blen
+            at, pos = pos, pos + blen
+            why = pcapng_body_problem(btype, body, end)
             if btype == BLOCK_SHB:
                 ifaces = []
-            elif btype == BLOCK_IDB and len(body) >= 8:
-                lt = struct.unpack_from(end + "H", body, 0)[0]
-                ifaces.append((lt, tsresol(body[8:], end)))
-                self._iface_types = (*self._iface_types, lt)
+            elif btype == BLOCK_IDB:
+                lt = struct.unpack_from(end + "H", body, 0)[0] if len(body) >= 8 else None
+                ifaces.append((lt, tsresol(body[8:], end)))  # one too short keeps the interfaces' numbering
+                if lt is not None:
+                    self._iface_types = (*self._iface_types, lt)
+                if why is not None:
+                    self._log.add("damaged blocks", f"{self.path}: interface description at byte {at} {why}"
+                                  + (": its packets cannot be read" if lt is None else
+                                     ": the times of its packets may be wrong"))
+                    yield _Hole(f"damaged interface description at byte {at}")
             elif btype in (BLOCK_EPB, BLOCK_PB, BLOCK_SPB):
-                pkt = _packet(btype, body, end, ifaces)
+                pkt = why or packet_of(btype, body, end, ifaces)
                 if isinstance(pkt, str):
-                    self._log.add("skipped blocks", f"{self.path}: packet block at byte {pos - blen} {pkt}: skipped")
-                    yield _Hole(f"damaged packet block skipped at byte {pos - blen}")
-                else:
-                    yield pkt
+                    self._log.add("skipped blocks", f"{self.path}: packet block at byte {at} {pkt}: skipped")
+                    yield _Hole(f"damaged packet block skipped at byte {at}")
+                    continue
+                lt, t, data, orig, note = pkt
+                if note is not None:
+                    self._log.add("damaged blocks", f"{self.path}: packet block at byte {at} {note}")
+                    yield _Hole(f"damaged packet block at byte {at}")
+                if btype != BLOCK_SPB and last_t is not None and abs(t - last_t) > MAX_JUMP_NS and (
+                        stray is None or abs(t - stray) > MAX_JUMP_NS):  # two in a row: the times moved on
+                    stray = t
+                    self._log.add("skipped blocks", f"{self.path}: packet block at byte {at} is timed more than "
+                                                    "a year away from the packet before it: skipped")
+                    yield _Hole(f"damaged packet block skipped at byte {at}")
+                    continue
+                if btype != BLOCK_SPB:
+                    last_t, stray = t, None
+                yield lt, t, data
+                if len(data) < orig:
+                    yield self._cut(f"packet block at byte {at}", len(data), orig)
+            elif why is not None or (btype in BLOCKS_WITHOUT_PACKETS and reads_as_packet(body, end, ifaces)):
+                what = why or "reads as a packet block on a declared interface"  # a damaged packet block's type?
+                self._log.add("skipped blocks", f"{self.path}: block of type 0x{btype:08x} at byte {at} {what}: "
+                                                f"skipped ({blen} bytes; a packet block with a damaged type?)")
+                yield _Hole(f"damaged pcapng block skipped at byte {at}")
             elif btype not in BLOCKS_WITHOUT_PACKETS:
                 self._log.add("skipped blocks", f"{self.path}: block of unknown type 0x{btype:08x} at byte "
-                                                f"{pos - blen} skipped ({blen} bytes)")
-                yield _Hole(f"unknown pcapng block skipped at byte {pos - blen}")
-
-
-def _packet(btype: int, body: bytes, end: str, ifaces: list[tuple[int, int]]) -> tuple[int, int, bytes] | str:
-    """(link type, t_ns, captured bytes) of an enhanced / obsolete / simple packet block, or why not."""
-    if btype == BLOCK_SPB:  # simple packet: no time, always interface 0
-        if len(body) < 4 or not ifaces:
-            return "is too short" if ifaces else "comes before any interface description"
-        return ifaces[0][0], 0, body[4:4 + struct.unpack_from(end + "I", body, 0)[0]]
-    if len(body) < 20:
-        return "is too short"
-    if btype == BLOCK_EPB:
-        iid, hi, lo, incl, _orig = struct.unpack_from(end + "IIIII", body, 0)
-    else:  # obsolete packet block: 16-bit interface id, drops count
-        iid, _drops, hi, lo, incl, _orig = struct.unpack_from(end + "HHIIII", body, 0)
-    if iid >= len(ifaces):
-        return f"is on undeclared interface {iid}"
-    if incl > len(body) - 20:
-        return f"claims {incl} captured bytes in a {len(body) - 20}-byte block"
-    lt, ns = ifaces[iid]
-    return lt, ((hi << 32) | lo) * ns, body[20:20 + incl]
+                                                f"{at} skipped ({blen} bytes)")
+                yield _Hole(f"unknown pcapng block skipped at byte {at}")
 
 
 def _scan(fh, start: int, size: int, quick, ok, step: int = 1) -> int | None:
