@@ -15,16 +15,16 @@ from .regtypes import ORDERS
 MAX_REGISTERS = 0x10000  # every address once
 
 
-def _is_int(v) -> bool:
+def is_int(v) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
 
 
-def _is_number(v) -> bool:
-    return (_is_int(v) or isinstance(v, float)) and math.isfinite(v)
+def is_number(v) -> bool:
+    return (is_int(v) or isinstance(v, float)) and math.isfinite(v)
 
 
 def _int_in(lo: int, hi: int):
-    return lambda v: _is_int(v) and lo <= v <= hi
+    return lambda v: is_int(v) and lo <= v <= hi
 
 
 def _list_of(ok):
@@ -40,7 +40,7 @@ def _table_of(required: dict, optional: dict | None = None):
 
 _ADDR = _int_in(0, 0xFFFF)
 _TEXT = lambda v: isinstance(v, str)  # noqa: E731 - one line in a table of checks
-_NUMBER = lambda v: _is_number(v) and v >= 0  # noqa: E731
+_NUMBER = lambda v: is_number(v) and v >= 0  # noqa: E731
 _RANGE = lambda v: isinstance(v, list) and len(v) == 2 and all(_ADDR(x) for x in v) and v[0] <= v[1]  # noqa: E731
 _UNITS = lambda v: isinstance(v, list) and len(v) == 2 and all(_int_in(0, 255)(x) for x in v) and v[0] <= v[1]  # noqa: E731
 
@@ -75,7 +75,7 @@ MODEL_KEYS = {
                      _table_of({"addr": _ADDR, "to_drv_bit": _int_in(0, 15), "to_prg_bit": _int_in(0, 15)})),
     "eeprom_save": ("{ addr, value (0..0xFFFF) }", _table_of({"addr": _ADDR, "value": _ADDR})),
     "frequency_scale": ("{ addr, full (a positive number) }",
-                        _table_of({"addr": _ADDR, "full": lambda v: _is_number(v) and v > 0})),
+                        _table_of({"addr": _ADDR, "full": lambda v: is_number(v) and v > 0})),
     "response_delay_ms": ("a number of ms", _NUMBER), "response_time_ms": ("a number of ms", _NUMBER),
     "response_timeout_ms": ("a number of ms", _NUMBER), "turnaround_ms": ("a number of ms", _NUMBER),
 }

@@ -14,7 +14,7 @@ from pathlib import Path
 from decoders.tomlfile import read_toml
 
 from . import regtypes
-from .model_keys import MAX_REGISTERS, MODEL_KEYS, MODEL_NOTES, _is_int, _is_number
+from .model_keys import MAX_REGISTERS, MODEL_KEYS, MODEL_NOTES, is_int, is_number
 from .regtypes import ORDERS, TEXT, TYPES, WIDTH
 
 
@@ -59,7 +59,7 @@ class Register:
         if t not in TYPES:
             raise MapError(f"{where}: unknown type {_show(t)} (one of {', '.join(TYPES)})")
         if t == TEXT:
-            if not _is_int(self.words) or not 1 <= self.words <= regtypes.MAX_WORDS:
+            if not is_int(self.words) or not 1 <= self.words <= regtypes.MAX_WORDS:
                 raise MapError(f"{where}: a str needs words = 1..{regtypes.MAX_WORDS} (registers of text)")
         elif not self.words:
             self.words = WIDTH[t]
@@ -183,14 +183,23 @@ _STR_FIELDS = ("id", "name", "unit", "enum", "bits", "scale_rule", "section", "n
 _INT_FIELDS = ("min", "max", "default")
 
 
+def brief(v, limit: int = 60) -> str:
+    """`v`'s repr for an error line, at most `limit` characters (never the whole of a huge value)."""
+    import reprlib
+
+    r = reprlib.Repr()
+    r.maxlevel, r.maxstring, r.maxother = 4, limit, limit
+    text = r.repr(v)
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 def _show(v) -> str:
-    text = repr(v)
-    return text if len(text) <= 60 else text[:60] + "..."
+    return brief(v, 60)
 
 
 def _int(key) -> int:
     """A table key or value that names a number: an int, or a string "12" / "-3" / "0x0C"; ValueError if not."""
-    if _is_int(key):
+    if is_int(key):
         return key
     if isinstance(key, str):
         t = key.strip()
@@ -235,7 +244,7 @@ class _Check:
             self.fail(where, f"{field} must be a{' non-empty' if required else ''} string, not {_show(d[field])}")
 
     def int_in(self, d: dict, field: str, where: str, lo: int, hi: int) -> None:
-        if field in d and (not _is_int(d[field]) or not lo <= d[field] <= hi):
+        if field in d and (not is_int(d[field]) or not lo <= d[field] <= hi):
             self.fail(where, f"{field} must be an integer in {lo}..{hi}, not {_show(d[field])}")
 
     def model(self, model) -> dict:
@@ -287,7 +296,7 @@ class _Check:
             self.fail(where, f"unknown type {_show(t)} (one of {', '.join(TYPES)})")
         words = row.get("words", 0)
         if t == TEXT:
-            if not _is_int(words) or not 1 <= words <= regtypes.MAX_WORDS:
+            if not is_int(words) or not 1 <= words <= regtypes.MAX_WORDS:
                 self.fail(where, f"a str needs words = 1..{regtypes.MAX_WORDS} (registers of text), "
                                  f"not {_show(words) if 'words' in row else 'none'}")
             if "word_order" in row:
@@ -299,16 +308,16 @@ class _Check:
         for f in ("word_order", "byte_order"):
             if row.get(f, "big") not in ORDERS:
                 self.fail(where, f"{f} {_show(row[f])} (big or little)")
-        if "scale" in row and not _is_number(row["scale"]):
+        if "scale" in row and not is_number(row["scale"]):
             self.fail(where, f"scale must be a finite number, not {_show(row['scale'])}")
         if "scale_by" in row:
             sb = self.table(row["scale_by"], f"{where} scale_by")
             self.int_in(sb, "addr", f"{where} scale_by", 0, MAX_ADDR)
-            if "addr" not in sb or not _is_number(sb.get("full")) or sb["full"] <= 0:
+            if "addr" not in sb or not is_number(sb.get("full")) or sb["full"] <= 0:
                 self.fail(where, "scale_by needs addr and a positive number full")
-        if not _is_int(count) or not 1 <= count <= MAX_REGISTERS:
+        if not is_int(count) or not 1 <= count <= MAX_REGISTERS:
             self.fail(where, f"count must be an integer in 1..{MAX_REGISTERS}, not {_show(count)}")
-        if not _is_int(stride) or not 1 <= stride <= MAX_ADDR:
+        if not is_int(stride) or not 1 <= stride <= MAX_ADDR:
             self.fail(where, f"stride must be an integer in 1..{MAX_ADDR}, not {_show(stride)}")
         last = row["addr"] + (count - 1) * stride + (words if t == TEXT else WIDTH[t]) - 1
         if last > MAX_ADDR:

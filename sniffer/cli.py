@@ -476,6 +476,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-rows", type=_number(int, "--max-rows", 1, 10**9), default=100,
                    help="rows a table shows (default 100; csv and json give every row)")
     s.add_argument("--show-sql", action="store_true", help="print the preset's SQL instead of running it")
+    s.add_argument("--read-only", action="store_true",
+                   help="for SQL from elsewhere (a dashboard, a script): the SQL may read the dataset's views "
+                        "only, never open, write or attach a file, nor install an extension (without it, "
+                        "DuckDB runs with your rights)")
     return p
 
 

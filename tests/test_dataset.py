@@ -194,6 +194,42 @@ def test_query_formats_and_presets(tmp_path, truth, capsys):
     assert len(out) == 2 + 3 + 1 and "more not shown" in out[-1]
 
 
+def test_query_read_only_gives_the_same_answers_and_no_access(tmp_path, capsys):
+    """--read-only: every preset and the views give what they give without it; SQL that would read a file,
+    write one (into the dataset too), attach a database, install or load an extension, or turn the
+    setting back is refused with one line and exit 2, and nothing is written."""
+    ds = tmp_path / "fleet"
+    assert main(["export", str(A510), str(ERRORS), "--to", "dataset", str(ds)]) == 0
+    before = sorted(p.relative_to(ds) for p in ds.rglob("*"))
+    secret = tmp_path / "secret.csv"
+    secret.write_text("who,pin\nops,1234\n")
+    for argv in (["--preset", "faults", "--format", "json"], ["--preset", "latency", "--format", "csv"],
+                 ["--preset", "writes", "--format", "json"],
+                 ["SELECT link, date, capture, count(*) AS n, min(time) AS t FROM points GROUP BY ALL ORDER BY ALL",
+                  "--format", "csv"], ["SELECT * FROM captures ORDER BY capture", "--format", "json"]):
+        capsys.readouterr()
+        assert main(["query", str(ds), *argv]) == 0
+        plain = capsys.readouterr().out
+        assert main(["query", str(ds), *argv, "--read-only"]) == 0
+        got = capsys.readouterr().out
+        if argv[0] == "--preset" and argv[1] == "faults":  # its `example` is any_value(): either scan's pick
+            got, plain = ([{k: v for k, v in r.items() if k != "example"} for r in json.loads(x)] for x in (got, plain))
+        assert got == plain and len(plain) > 2
+    out = tmp_path / "out.csv"
+    for sql in (f"SELECT * FROM read_csv('{secret}')", f"SELECT * FROM '{secret}'",
+                f"COPY (SELECT * FROM frames) TO '{out}'", f"COPY (SELECT 1) TO '{ds}/frames/x.parquet'",
+                f"ATTACH '{tmp_path}/db.duckdb'", "INSTALL httpfs", "LOAD httpfs",
+                "SET enable_external_access = true", "SELECT * FROM 'https://example.com/x.parquet'",
+                f"SELECT * FROM glob('{tmp_path}/*')"):
+        capsys.readouterr()
+        assert main(["query", str(ds), sql, "--read-only"]) == 2, sql
+        err = capsys.readouterr().err
+        assert err.startswith("sniffer: error: query:") and len(err.strip().splitlines()) == 1, (sql, err)
+        assert "1234" not in err
+    assert not out.exists() and not (tmp_path / "db.duckdb").exists()
+    assert sorted(p.relative_to(ds) for p in ds.rglob("*")) == before
+
+
 def test_query_of_an_empty_table_and_a_new_dataset(tmp_path, capsys):
     ds = tmp_path / "fleet"
     assert main(["ingest", str(tmp_path), "--to", str(ds)]) == 0  # no captures: an empty dataset

@@ -328,3 +328,54 @@ def test_input_and_holding_at_one_address_keep_their_names(tmp_path, capsys):
         assert pts["Voltage"] == (0, 230.0, None) and pts["Demand period"] == (0, 60, None), path
         [m] = load_model_file(str(path))
         _round_trip(m, tmp_path)
+
+
+# ---------------------------------------------------------------- aliases: bounded expansion
+def _laughs(levels: int, inner: str) -> str:
+    """A few hundred bytes of nested aliases ("billion laughs"): 9**levels copies of `inner` once expanded."""
+    lines = [f"l0: &l0 [{', '.join([inner] * 9)}]"]
+    lines += [f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 9)}]" for i in range(1, levels)]
+    return "\n".join(lines) + f"\nmodbus:\n  - name: x\n    sensors: *l{levels - 1}\n"
+
+
+_LOAD_LIMITED = """
+import resource, sys
+resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))
+from decoders.mapformats import load_model_file
+from decoders.tables import MapError
+try:
+    load_model_file(sys.argv[1])
+except MapError as e:
+    print(e)
+"""
+
+
+@pytest.mark.parametrize("inner", ['"lol"', "{name: a, address: 1}"])
+def test_nested_aliases_are_refused_before_anything_is_built(tmp_path, inner):
+    """9**10 nodes from under 1 kB: refused by counting, in a process that may not take more than 1 GB."""
+    import subprocess
+    import sys
+
+    p = tmp_path / "laughs.yaml"
+    p.write_text(_laughs(10, inner))
+    assert p.stat().st_size < 1000
+    r = subprocess.run([sys.executable, "-c", _LOAD_LIMITED, str(p)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-500:]
+    assert "aliases expand to more than" in r.stdout and len(r.stdout.splitlines()) == 1
+
+
+def test_an_alias_of_itself_is_one_line(tmp_path):
+    p = tmp_path / "loop.yaml"
+    p.write_text("modbus: &m\n  - name: x\n    sensors: [*m]\n")
+    with pytest.raises(MapError, match="refers to the node that holds it"):
+        load_model_file(str(p))
+
+
+def test_aliases_within_bounds_are_followed(tmp_path):
+    """Merging shared defaults into each sensor (a common HA idiom) still loads."""
+    p = tmp_path / "merged.yaml"
+    sensors = "\n".join(f"      - {{<<: *d, name: s{i}, address: {2 * i}}}" for i in range(200))
+    p.write_text(f"defaults: &d {{data_type: uint32, slave: 3, scale: 0.1}}\nmodbus:\n  - name: x\n"
+                 f"    sensors:\n{sensors}\n")
+    (m,) = load_model_file(str(p))
+    assert len(m.registers) == 200 and m.registers[2].type == "u32" and m.registers[2].scale == 0.1

@@ -165,3 +165,75 @@ def test_windows_folder_is_made_when_its_parent_exists(tds, tmp_path):
     r = run("replay", path, "--quiet", "--trigger", "fault", "--pre", "10s", "--post", "5s", "--windows", folder)
     assert r.returncode == 0, r.stderr
     assert folder.is_dir() and list(folder.glob("*.trigger-*.mcap"))
+
+
+_MAX_RSS = """
+import resource, subprocess, sys
+r = subprocess.run(sys.argv[1:], capture_output=True, text=True,
+                   preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30)))
+sys.stderr.write(r.stderr)
+print(r.returncode, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)
+"""
+
+
+def test_a_command_that_prints_without_end_costs_no_memory(tds, tmp_path):
+    """`yes` for 1.5 s per window: its output is shown on stderr up to a cap and the rest dropped as it is
+    read (the capture may never take more than 3 GB here: what an unbounded buffer would reach first)."""
+    path, _ = tds
+    r = subprocess.run([sys.executable, "-c", _MAX_RSS, *SNIFFER, "replay", str(path), "--trigger", "fault u:2",
+                        "--pre", "5s", "--post", "2s", "--windows", str(tmp_path), "--quiet",
+                        "--on-trigger", "yes", "--on-trigger-timeout", "1.5s"], capture_output=True, text=True,
+                       timeout=300)
+    rc, max_rss_kb = map(int, r.stdout.split())
+    assert rc == 0, r.stderr[-2000:]
+    assert max_rss_kb < 400 * 1024
+    windows = sorted(tmp_path.glob("tds.trigger-*.mcap"))
+    killed = [x for x in r.stderr.splitlines() if "'yes' killed after 1.5 s" in x]
+    shown = [x for x in r.stderr.splitlines() if x.startswith("sniffer: on-trigger| ")]
+    assert len(killed) == len(windows) >= 3
+    assert len(shown) <= 50 * len(windows) and shown[0] == "sniffer: on-trigger| y"  # a few lines each
+    assert sum("more lines not shown" in x for x in shown) == len(windows)
+
+
+def test_a_command_shows_its_output_and_a_failure_quotes_its_last_line(tds, tmp_path):
+    path, _ = tds
+    r = run("replay", path, "--trigger", "fault u:2", "--pre", "5s", "--post", "2s", "--windows", tmp_path, "--quiet",
+            "--on-trigger", "echo uploading; printf 'x%.0s' $(seq 1000); echo; echo 'no route to host' >&2; exit 1")
+    assert r.returncode == 0, r.stderr
+    lines = r.stderr.splitlines()
+    windows = sorted(tmp_path.glob("tds.trigger-*.mcap"))
+    assert lines.count("sniffer: on-trigger| uploading") == len(windows) >= 3
+    long = [x for x in lines if x.startswith("sniffer: on-trigger| xxx")]
+    assert len(long) == len(windows) and all(x.endswith(" ...") and len(x) < 400 for x in long)
+    failed = [x for x in lines if x.startswith("sniffer: on-trigger: ")]
+    assert len(failed) == len(windows) and all(x.endswith("exited with status 1 (window "
+                                                          + x.split("(window ", 1)[1].split(")")[0]
+                                                          + "): no route to host") for x in failed)
+
+
+@pytest.mark.parametrize("command,timeout", [
+    ("setsid sh -c 'echo $$ >> \"$PIDS\"; exec sleep 60' &", "60s"),  # the shell ends, its child keeps the pipe
+    ("setsid sh -c 'echo $$ >> \"$PIDS\"; exec sleep 60' & sleep 60", "0.5s"),  # the shell is killed at 0.5 s
+])
+def test_a_child_that_leaves_the_group_with_the_pipe_does_not_hold_the_capture(tds, tmp_path, command, timeout):
+    """A child in a session of its own escapes the group kill and keeps the output pipe open: the runner stops
+    reading it (shortly after the shell ends, or at the timeout) instead of waiting for the child to end.
+    Seven windows whose commands each kept the pipe 60 s took 7 minutes; the replay is bounded here by
+    the test's own timeout, far under one such minute per window."""
+    path, _ = tds
+    pids = tmp_path / "pids"
+    try:
+        r = run("replay", path, "--trigger", "fault u:2", "--pre", "5s", "--post", "2s", "--windows", tmp_path,
+                "--quiet", "--on-trigger", command, "--on-trigger-timeout", timeout, timeout=50,
+                env={**os.environ, "PIDS": str(pids)})
+        assert r.returncode == 0, r.stderr
+        windows = sorted(tmp_path.glob("tds.trigger-*.mcap"))
+        assert len(windows) >= 3
+        killed = [x for x in r.stderr.splitlines() if "killed after 0.5 s" in x]
+        assert len(killed) == (len(windows) if timeout == "0.5s" else 0)
+    finally:
+        for pid in (pids.read_text().split() if pids.exists() else ()):  # the children this test started
+            try:
+                os.kill(int(pid), 9)
+            except OSError:
+                pass

@@ -21,6 +21,11 @@ a holding one holding registers (FC03/06/10), so a meter's input 0000H and holdi
 their own names.  Other platforms (binary_sensors, switches, climates, ...) are coils or write
 targets, not register readings, and are left out.  `!secret` / `!include` values are read as
 text (an `!include`d sensors list is not followed: the error says so).
+
+Aliases (`*name`, `<<: *name`) are followed as YAML says, within MAX_EXPANSION nodes more than the
+file holds: a few kilobytes of nested aliases ("billion laughs") would otherwise expand to
+gigabytes.  The node graph is measured before anything is built from it; past the bound, or for an
+alias of itself, the file is refused with one line.
 """
 
 from __future__ import annotations
@@ -28,8 +33,10 @@ from __future__ import annotations
 import os
 
 from ..regtypes import WIDTH, canonical
-from ..tables import MapError, RegisterMap, map_from_doc
+from ..tables import MapError, RegisterMap, brief, map_from_doc
 from .common import model_id_of, parse_number, read_text
+
+MAX_EXPANSION = 100_000  # nodes aliases may add to the file's own (a sensors list merging defaults: a few each)
 
 _TYPES = {"int16": "s16", "uint16": "u16", "int32": "s32", "uint32": "u32", "int64": "s64", "uint64": "u64",
           "float32": "f32", "float64": "f64", "string": "str",
@@ -62,6 +69,42 @@ def _loader():
     return Loader
 
 
+def _check_expansion(root, path: str) -> None:
+    """MapError if following the aliases under `root` would build more than MAX_EXPANSION nodes beyond the
+    file's own, or if an alias holds itself (the sizes are counted on the node graph, nothing is built)."""
+    size: dict[int, int] = {}  # id(node) -> nodes it stands for, aliases followed
+    busy: set[int] = set()
+    distinct: set[int] = set()
+
+    def measure(node) -> int:
+        key = id(node)
+        if key in size:
+            return size[key]
+        if key in busy:
+            raise MapError(f"{path}: line {node.start_mark.line + 1}: an alias refers to the node that holds it "
+                           f"(a recursive structure is not a register map)")
+        distinct.add(key)
+        value = node.value
+        if isinstance(value, list):
+            busy.add(key)
+            n = 1
+            for item in value:
+                n += sum(measure(x) for x in item) if isinstance(item, tuple) else measure(item)
+                if n - len(distinct) > MAX_EXPANSION:
+                    raise MapError(f"{path}: line {node.start_mark.line + 1}: its aliases expand to more than "
+                                   f"{MAX_EXPANSION} nodes (nested aliases?): not a register map")
+            busy.discard(key)
+        else:
+            n = 1
+        size[key] = n
+        return n
+
+    total = measure(root)
+    if total - len(distinct) > MAX_EXPANSION:
+        raise MapError(f"{path}: its aliases expand to more than {MAX_EXPANSION} nodes (nested aliases?): "
+                       f"not a register map")
+
+
 def _hubs(doc, path: str) -> list[dict]:
     if isinstance(doc, dict) and "modbus" in doc:
         doc = doc["modbus"]
@@ -80,8 +123,12 @@ def load_ha_yaml(path: str, base: str | None = None) -> list[RegisterMap]:
     import yaml
 
     text = read_text(path)
+    loader = _loader()(text)
     try:
-        doc = yaml.load(text, Loader=_loader())  # noqa: S506 - a SafeLoader subclass
+        node = loader.get_single_node()
+        if node is not None:
+            _check_expansion(node, path)
+        doc = loader.construct_document(node) if node is not None else None
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f"line {mark.line + 1}: " if mark is not None else ""
@@ -89,6 +136,8 @@ def load_ha_yaml(path: str, base: str | None = None) -> list[RegisterMap]:
         raise MapError(f"{path}: {where}not valid YAML ({what})") from None
     except RecursionError:
         raise MapError(f"{path}: nested too deeply to be a register map") from None
+    finally:
+        loader.dispose()
     groups: dict[object, tuple[list[dict], list[str], dict[int, tuple[str, str]]]] = {}
     fname = os.path.basename(path)
     n = 0
@@ -101,7 +150,8 @@ def load_ha_yaml(path: str, base: str | None = None) -> list[RegisterMap]:
             raise MapError(f"{path}: line {hub.get('__line__', '?')}: sensors must be a list")
         for s in sensors:
             if not isinstance(s, dict):
-                raise MapError(f"{path}: line {hub.get('__line__', '?')}: a sensor must be a mapping, not {s!r:.40}")
+                raise MapError(f"{path}: line {hub.get('__line__', '?')}: a sensor must be a mapping, "
+                               f"not {brief(s, 40)}")
             where = f"line {s.get('__line__', '?')}"
             try:
                 row, slave, space = _row(s, fname, where)
@@ -131,7 +181,7 @@ def _row(s: dict, fname: str, where: str) -> tuple[dict, object, str]:
         raise ValueError("a sensor needs a name")
     addr = s.get("address")
     if isinstance(addr, bool) or not isinstance(addr, int) or not 0 <= addr <= 0xFFFF:
-        raise ValueError(f"address {addr!r:.40} must be a register number 0..65535")
+        raise ValueError(f"address {brief(addr, 40)} must be a register number 0..65535")
     space = str(s.get("input_type", "holding")).strip().lower()
     if space not in _SPACES:
         raise ValueError(f"input_type {space[:40]!r}: only holding and input registers go into a register map")
@@ -171,11 +221,11 @@ def _row(s: dict, fname: str, where: str) -> tuple[dict, object, str]:
     more = s.get("slave_count", s.get("virtual_count"))
     if more:
         if isinstance(more, bool) or not isinstance(more, int) or more < 0:
-            raise ValueError(f"slave_count {more!r:.40} must be a whole number")
+            raise ValueError(f"slave_count {brief(more, 40)} must be a whole number")
         row["count"] = more + 1
         row["stride"] = WIDTH.get(canonical(typ)) or row["words"]
     row["section"] = f"{fname} {where} ({space})"
     slave = s.get("slave", s.get("device_address"))
     if slave is not None and (isinstance(slave, bool) or not isinstance(slave, int) or not 0 <= slave <= 255):
-        raise ValueError(f"slave {slave!r:.40} must be a unit address 0..255")
+        raise ValueError(f"slave {brief(slave, 40)} must be a unit address 0..255")
     return row, slave, space

@@ -262,7 +262,7 @@ class GoldenSink:
 
     def start(self, info) -> None:
         self._t0 = info.t0_ns
-        self._fh = open(self.out.part, "w", encoding="utf-8")
+        self._fh = open(self.out.claim(), "w", encoding="utf-8")
         self._fh.write(GOLDEN_HEADER + "\n")
 
     def raw(self, event) -> None:

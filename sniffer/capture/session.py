@@ -93,6 +93,9 @@ class Session:
         self.ended = False
         self._started = False
         self._frames: Iterator[Frame] | None = None
+        from sniffer.capture.status import check_status
+
+        check_status(spec)  # a status file that cannot be written: one line, before anything opens
         if spec.trigger is not None:
             from sniffer.triggers import windows_place
 
@@ -258,7 +261,13 @@ class Session:
                 self.error = f"{self._storage_text(e)} (stopped there)"
             except CaptureError as e:
                 self.error = str(e)
-            yield from p.flush()
+            try:
+                yield from p.flush()
+            except BrokenPipeError:
+                raise
+            except (CaptureStorageError, OSError) as e:  # the last frames could not be written
+                self.storage_error = True
+                self.error = self.error or f"{self._storage_text(e)} (stopped there)"
             completed = True
         except (KeyboardInterrupt, BrokenPipeError):
             self.interrupted = True  # the user's doing: what was written is kept
@@ -326,18 +335,27 @@ class Session:
         finally:
             self._close_source()
             self.ended = True
-            keep = self.keep_partial or not self.storage_error
             unexpected = not completed and not self.interrupted and self.error is None
+            kept = []
             for o in self.outputs:
-                if keep and not unexpected:
-                    o.commit()
-                else:
+                if self.storage_error and self.keep_partial:  # cut short: never under the name asked for
+                    if o.keep_part():
+                        kept.append(o.part)
+                elif self.storage_error or unexpected:
                     o.discard()
+                else:
+                    o.commit()
+            kept += [p for s in self.sinks for p in getattr(s, "kept_parts", ())]  # e.g. a segment cut short
+            if kept:
+                how = ": `sniffer replay` reads it, `sniffer repair` finishes it" \
+                    if all(".mcap" in p for p in kept) else ""
+                self.error = f"{self.error or 'cannot write'}; what was written is kept as {', '.join(kept)} " \
+                             f"(not complete{how})"
 
     def _storage_text(self, e: Exception) -> str:
         """One line for an output that cannot be written, naming the user's file (not its part file)."""
-        if isinstance(e, CaptureStorageError) and self.keep_partial:
-            text = str(e)  # a capture: what it kept is what matters
+        if isinstance(e, CaptureStorageError) and (self.keep_partial or not self.outputs):
+            text = str(e)  # a capture (or its segments): what it kept is what matters
         else:
             reason = (e.strerror or str(e)) if isinstance(e, OSError) else (getattr(e, "reason", "") or str(e))
             where = ", ".join(o.path for o in self.outputs)

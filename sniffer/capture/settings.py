@@ -313,6 +313,13 @@ class CaptureSpec:
             foxglove_device=opt("foxglove_device"), logic=logic,
         )
 
+    def read_paths(self) -> list[str]:
+        """Every file (or folder, or port) the command reads: its capture files, ports, bus file and model
+        files -- what none of its outputs may be (sniffer.formats.outputs)."""
+        ports = [p for plan in self.links for p in plan.ports] or ([self.port] if self.port else [])
+        files = list(self.inputs) or ([self.input] if self.input else [])
+        return [p for p in (*files, *ports, self.bus_file, *self.model_files) if p]
+
     def with_(self, **changes) -> CaptureSpec:
         return replace(self, **changes)
 

@@ -32,7 +32,7 @@ import time
 
 from sniffer import codes
 from sniffer.events import Gap
-from sniffer.formats.outputs import write_json_atomic
+from sniffer.formats.outputs import OutputError, check_output, write_json_atomic
 from sniffer.stderr import say
 from sniffer.analysis.unitfigures import UnitBook
 
@@ -236,6 +236,18 @@ class PortNotices:
             if was_away and not away:
                 self.announce(f"{port}: port back; capturing again")
             self._seen[id(reader)] = (away, losses)
+
+
+def check_status(spec) -> None:
+    """OutputError unless --status names a file the capture may write (sniffer.formats.outputs.check_output): never
+    one of its inputs, never its --out, never anything but a regular file."""
+    if spec.status is not None:
+        try:
+            check_output(spec.status, inputs=spec.read_paths(), what="--status",
+                         outputs=[spec.out] if spec.out else [])
+        except OutputError as e:
+            text = str(e)
+            raise OutputError(text if text.startswith("--status") else f"--status {text}") from None
 
 
 def wait_for_ports(ports: list[str], stop: threading.Event, status_path: str | None, label: str,

@@ -14,6 +14,8 @@ def written(session) -> str:
     """'; MCAP cab3.mcap (123456 bytes)' for the files a session wrote, or ''."""
     parts = []
     for o in session.outputs:
+        if o.state != "committed":
+            continue
         try:
             size = os.path.getsize(o.path)
         except OSError:

@@ -40,7 +40,7 @@ def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
     try:
         if update:
             golden.parent.mkdir(parents=True, exist_ok=True)  # a new golden folder is part of --update-golden
-            out = Output(golden, inputs=[capture], what="--golden")
+            out = Output(golden, inputs=[capture, *(spec.read_paths() if spec else ())], what="--golden")
             sink = GoldenSink(out)
             err = "interrupted"
             try:

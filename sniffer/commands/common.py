@@ -34,8 +34,11 @@ def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=(), line
     """A capture's sinks: the stdout stream, the MCAP file (or its segments, --rotate), viewers on a
     socket (last: the file is closed before viewers are let go).  Outputs are checked (and the socket
     bound) now, before the port opens."""
+    from sniffer.capture.status import check_status
     from sniffer.processes.publish_sink import PublishSink
 
+    check_status(spec)  # before --rotate makes its folder
+    inputs = [*inputs, *spec.read_paths()]
     sinks = []
     if stream:
         s = stream_sink(spec, line_buffered=line_buffered)

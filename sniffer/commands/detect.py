@@ -33,7 +33,7 @@ def cmd_detect(spec: CaptureSpec, args) -> int:
     bauds = baud_order(parse_bauds(args.bauds))
     if not (args.max_time > 0 and args.quiet_time > 0 and args.units_time >= 0):
         raise UsageError("--max-time and --quiet-time must be more than 0 seconds, --units-time 0 or more")
-    out = Output(args.write_bus, inputs=[spec.port], what="--write-bus") if args.write_bus else None
+    out = Output(args.write_bus, inputs=spec.read_paths(), what="--write-bus") if args.write_bus else None
     port = spec.port
     serial = SerialPort(port)
     serial.configure(setting(bauds[0], "8N1"))  # a port that cannot be opened: one line, before anything else
@@ -57,8 +57,7 @@ def cmd_detect(spec: CaptureSpec, args) -> int:
         print("units seen:\n" + "\n".join(f"  {u}" for u in seen))
     if out is not None:
         try:
-            with open(out.part, "w", encoding="utf-8") as f:
-                f.write(bus_file(verdict, port))
+            out.write_text(bus_file(verdict, port))
             out.commit()
         except BaseException:
             out.discard()

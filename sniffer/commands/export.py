@@ -36,7 +36,7 @@ def cmd_export(spec: CaptureSpec, args) -> int:
     if args.link:
         raise UsageError("--link is for --to dataset")
     spec = spec.with_(input=files[0], inputs=(files[0],))  # a folder of segments is one capture (segset.py)
-    sink = FileSink(args.to, args.out, inputs=[spec.input])  # checked before the input is read
+    sink = FileSink(args.to, args.out, inputs=spec.read_paths())  # checked before the input is read
     source = file_source(spec)
     session = Session(spec, source, [sink])
     bar = None

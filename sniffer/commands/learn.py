@@ -23,7 +23,7 @@ def cmd_learn(spec: CaptureSpec, args) -> int:
 
     if not args.out.lower().endswith(".toml"):
         raise UsageError(f"--out {shown(args.out)}: the skeleton is a register map, give a .toml file name")
-    out = Output(args.out, inputs=[spec.input, *spec.model_files])  # checked before the input is read
+    out = Output(args.out, inputs=spec.read_paths())  # checked before the input is read
     model_id = os.path.splitext(os.path.basename(out.path))[0]
     learner = Learner()
     session = Session(spec, file_source(spec), [])
@@ -52,8 +52,7 @@ def cmd_learn(spec: CaptureSpec, args) -> int:
     regmap = learner.to_map(model_id, spec.input)
     text = learner.to_toml(model_id, spec.input, out.path, regmap)
     try:
-        with open(out.part, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        out.write_text(text)
         load_map(out.part)  # what we write must load (a bug here is ours, not the user's)
     except (OSError, MapError):
         out.discard()

@@ -1,7 +1,9 @@
 """`sniffer query DIR "SQL"` / `--preset NAME`: SQL over a fleet dataset with DuckDB (sniffer.dataset.query).
 
 The result goes to stdout as a table, CSV or JSON.  A missing dataset or SQL that DuckDB
-refuses is one line on stderr and exit code 2; a query stopped with Ctrl-C, 130.
+refuses is one line on stderr and exit code 2; a query stopped with Ctrl-C, 130.  The SQL runs with
+the user's rights; `--read-only` takes them away (no file opened or written by SQL, nothing
+installed: sniffer.dataset.query) for SQL that comes from elsewhere.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ def cmd_query(spec: CaptureSpec, args) -> int:
 
     con = None
     try:
-        con = connect(ds)
+        con = connect(ds, read_only=args.read_only)
         cursor = con.execute(sql)
         if cursor is None:  # DuckDB found no statement: only blanks, comments, semicolons
             raise UsageError("query: no SQL statement in it (only blanks or comments): "

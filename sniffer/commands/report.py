@@ -44,7 +44,7 @@ def cmd_report(spec: CaptureSpec, args) -> int:
         _check_input(spec, path)
     if golden:
         _check_input(spec, golden, "--compare")
-    out = Output(args.out, inputs=[*captures, *([golden] if golden else []), *spec.model_files])
+    out = Output(args.out, inputs=[*captures, *([golden] if golden else []), *spec.read_paths()])
     collector = Collector(compare=bool(golden))
     rc = EXIT_OK
     try:
@@ -74,8 +74,7 @@ def cmd_report(spec: CaptureSpec, args) -> int:
             data["compare"] = _compare(collector, golden, captures, spec)
         title = args.title or f"Bus report: {', '.join(os.path.basename(p) for p in captures)}"
         page = render(data, title)
-        with open(out.part, "w", encoding="utf-8") as fh:
-            fh.write(page)
+        out.write_text(page)
     except BaseException:
         out.discard()
         raise

@@ -30,7 +30,7 @@ import time
 from dataclasses import dataclass, field
 
 from sniffer.line import SettingsError
-from sniffer.formats.outputs import shown
+from sniffer.formats.outputs import make_folders, shown
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.dataset.sink import DatasetSink
@@ -92,7 +92,7 @@ def take_in(ds: Dataset, path: str, spec: CaptureSpec, known: Known, *, link: st
     shutil.rmtree(staging, ignore_errors=True)  # a killed run of this process id's
     lock = None
     try:
-        os.makedirs(staging)
+        make_folders(staging)
         lock = _hold(staging)
         sink = DatasetSink(staging, capture, link=link, source=os.path.abspath(path))
         session = Session(spec.with_(input=path), FileSource(path, spec.input_format), [sink], on_event=on_event)
@@ -270,5 +270,5 @@ def _move_in(ds: Dataset, staging: str, written) -> None:
     a run killed before its manifest entry wrote the same content)."""
     for rel, _, _ in written:
         dest = ds.path(rel)
-        os.makedirs(os.path.dirname(dest), exist_ok=True)
+        make_folders(os.path.dirname(dest))
         os.replace(os.path.join(staging, rel), dest)

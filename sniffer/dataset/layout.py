@@ -21,7 +21,7 @@ import time
 from dataclasses import dataclass
 
 from sniffer import __version__
-from sniffer.formats.outputs import shown
+from sniffer.formats.outputs import FILE_MODE, make_folders, shown
 from sniffer.formats.schemas import DATASET_TABLES, PARTITIONS, SCHEMA_VERSION, dataset_schemas, described
 from sniffer.events import CaptureError
 from sniffer.formats.reading import open_regular
@@ -87,7 +87,7 @@ def capture_name(path: str, sha256: str) -> str:
 def _write_json(path: str, doc: dict, *, exclusive: bool = False) -> bool:
     """Write `doc` under a temporary name and rename (or link, when `exclusive`: False if `path` exists)."""
     tmp = f"{path}.{os.getpid()}.tmp"
-    with open(tmp, "w", encoding="utf-8") as fh:
+    with open(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, FILE_MODE), "w", encoding="utf-8") as fh:
         json.dump(doc, fh, indent=1)
         fh.write("\n")
     try:
@@ -143,7 +143,7 @@ class Dataset:
 
     def record(self, entry: dict) -> None:
         """The capture's manifest entry, written last (the capture counts as taken in from then on)."""
-        os.makedirs(self.path(MANIFEST), exist_ok=True)
+        make_folders(self.path(MANIFEST))
         _write_json(self.path(MANIFEST, entry["capture"] + ".json"), entry)
 
 
@@ -187,7 +187,7 @@ def create_dataset(root: str) -> Dataset:
     if os.path.isdir(root) and any(n not in (*DATASET_TABLES, MANIFEST, STAGING) for n in os.listdir(root)):
         raise DatasetError(f"{shown(root)}: folder holds other files and no {META}: not making a dataset there")
     try:
-        os.makedirs(root, exist_ok=True)
+        make_folders(root)
         _write_json(os.path.join(root, META), describe(), exclusive=True)  # another sniffer may just have
     except OSError as e:
         raise DatasetError(f"{shown(root)}: cannot write: {e.strerror or e}") from None

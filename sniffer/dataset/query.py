@@ -7,6 +7,12 @@ The views read every file of a table under the hive partitions (`link` VARCHAR, 
 given, not guessed: a link named `7` stays text), by column name (`union_by_name`: files of
 an older schema version read beside newer ones).  A table no capture has rows for yet is an
 empty view with its columns, so every query runs on a new dataset.
+
+DuckDB runs with the user's rights: SQL may read any file, write one (`COPY ... TO`), attach a
+database or install an extension from the network.  `read_only=True` (query --read-only, for SQL
+that comes from elsewhere) reads the tables through pyarrow datasets handed to DuckDB, then turns
+DuckDB's external access off and locks its configuration: no file is opened by SQL, the dataset's
+included (nothing can be written into it), and no extension is installed or loaded.
 """
 
 from __future__ import annotations
@@ -160,22 +166,46 @@ def _fits(row: dict, schema) -> bool:
     return True
 
 
-def connect(ds: Dataset, *, threads: int | None = None):
-    """An in-memory DuckDB connection with the dataset's views (frames, points, annotations, captures)."""
+def _arrow_table(ds: Dataset, name: str, schema, files: list[str]):
+    """The table's files as a pyarrow dataset (the partitions from the folders, older files' missing
+    columns as nulls): what DuckDB scans with external access off."""
+    import pyarrow as pa
+    import pyarrow.dataset as pads
+
+    hive = pads.partitioning(pa.schema([pa.field(PARTITIONS[0], pa.string()), pa.field(PARTITIONS[1], pa.date32())]),
+                             flavor="hive")
+    return pads.dataset(files, schema=_partitioned(schema), format="parquet", partitioning=hive,
+                        partition_base_dir=os.path.join(ds.root, name))
+
+
+def connect(ds: Dataset, *, threads: int | None = None, read_only: bool = False):
+    """An in-memory DuckDB connection with the dataset's views (frames, points, annotations, captures);
+    `read_only`: SQL can open no file and install nothing (see the module doc)."""
     import duckdb
 
     con = duckdb.connect(config={"threads": threads} if threads else {})
     hive_types = "{" + ", ".join(f"{_literal(p)}: {_literal(t)}" for p, t in zip(PARTITIONS, ("VARCHAR", "DATE"))) + "}"
     for name, schema in dataset_schemas().items():
         pattern = os.path.join(glob.escape(ds.root), name, f"{PARTITIONS[0]}=*", f"{PARTITIONS[1]}=*", "*.parquet")
-        if next(glob.iglob(pattern), None) is None:
+        files = sorted(glob.glob(pattern)) if read_only else None
+        if not files and (read_only or next(glob.iglob(pattern), None) is None):
             con.register(f"_{name}_empty", _partitioned(schema).empty_table())
             con.execute(f"CREATE VIEW {name} AS SELECT * FROM _{name}_empty")
+            continue
+        if read_only:
+            con.register(f"_{name}_files", _arrow_table(ds, name, schema, files))
+            con.execute(f"CREATE VIEW {name} AS SELECT * FROM _{name}_files")
             continue
         con.execute(f"CREATE VIEW {name} AS SELECT * FROM read_parquet({_literal(pattern)}, hive_partitioning = true, "
                     f"hive_types = {hive_types}, union_by_name = true)")
     con.register("_captures", _captures(ds))
     con.execute("CREATE VIEW captures AS SELECT * FROM _captures")
+    if read_only:
+        for setting in ("SET enable_external_access = false", "SET autoinstall_known_extensions = false",
+                        "SET autoload_known_extensions = false",
+                        "SET python_enable_replacements = false",  # no Python variable is a table either
+                        "SET lock_configuration = true"):
+            con.execute(setting)
     return con
 
 

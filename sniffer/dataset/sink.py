@@ -23,6 +23,7 @@ from decoders.carry import KEY
 
 from sniffer.events import CaptureInfo
 from sniffer.frame import Frame
+from sniffer.formats.outputs import make_folders
 from sniffer.formats.parquet import BATCH, RowGroupFile
 from sniffer.formats.rows import annotation_rows, frame_row, point_rows
 from sniffer.formats.schemas import DATASET_TABLES, SCHEMA_VERSION, dataset_bases, dataset_schemas
@@ -182,7 +183,7 @@ class DatasetSink(TableSink):
 
             rel = os.path.join(partition(name, *part.key), self.capture + ".parquet")
             path = os.path.join(self.staging, rel)
-            os.makedirs(os.path.dirname(path), exist_ok=True)
+            make_folders(os.path.dirname(path))
             meta = {**self._meta, b"sniffer.decoder_state": msgspec.json.encode(part.state)}
             f = part.files[table] = RowGroupFile(path, schema.with_metadata(meta), self._pool, self.batch,
                                                   encodings(schema))

@@ -7,6 +7,9 @@ its partition files with too).
 
 from __future__ import annotations
 
+import os
+
+from sniffer.formats.outputs import FILE_MODE
 from sniffer.formats.tables import TableSink, schemas
 
 BATCH = 8_192  # rows per row group: with 32,768 a 256k-frame export peaked at 115 MB, with 8,192 at 96 MB
@@ -29,6 +32,7 @@ def _writer(path: str, schema, pool, options: dict | None = None):
     is used (test_export reads every file back with pyarrow.parquet).  `options` replace settings
     (compression, use_dictionary, column_encoding: the fleet dataset's, dataset/sink.py).
     """
+    os.close(os.open(path, os.O_WRONLY | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), FILE_MODE))  # at most 0644
     try:
         from pyarrow import _parquet
 

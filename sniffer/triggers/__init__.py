@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import os
 
-from sniffer.formats.outputs import OutputError, shown
+from sniffer.formats.outputs import FOLDER_MODE, OutputError, shown
 from sniffer.triggers.options import TriggerSpec
 from sniffer.triggers.window import read_trigger
 from sniffer.formats import stem_of
@@ -32,7 +32,7 @@ def windows_place(spec) -> tuple[str, str]:
     folder = t.windows or (os.path.dirname(spec.out) if spec.out else "") or "."
     if t.windows and not os.path.exists(folder) and os.path.isdir(os.path.dirname(os.path.abspath(folder))):
         try:  # a new folder for the windows, as --rotate makes its own (not a whole missing path: a typo)
-            os.mkdir(folder)
+            os.mkdir(folder, FOLDER_MODE)
         except OSError as e:
             raise OutputError(f"--windows {shown(folder)}: cannot create the folder ({e.strerror})") from None
     if not os.path.isdir(folder):

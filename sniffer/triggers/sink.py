@@ -212,8 +212,7 @@ class TriggerSink(Sink):
             self._drop(w, f, e)
 
     def _drop(self, w: Window, f: WindowFile, e: Exception) -> None:
-        f.discard()
-        self._lost(w, e)
+        self._lost(w, e, f.abandon())
 
     def _start(self, w: Window) -> tuple:
         """Where the window's raw events start (see the module doc): (the ring's first index to write, or per
@@ -276,10 +275,12 @@ class TriggerSink(Sink):
             elif t <= w.end_ns:
                 f.raw(t, log, data)
 
-    def _lost(self, w: Window, e: Exception) -> None:
+    def _lost(self, w: Window, e: Exception, kept: str | None = None) -> None:
         self.files[w.n] = None
         self.failed_windows += 1
-        self.report(f"error: trigger window {self._path(w)} not written: {getattr(e, 'strerror', None) or e}")
+        why = getattr(e, "reason", None) or getattr(e, "strerror", None) or e
+        self.report(f"error: trigger window {self._path(w)} not written: {why}"
+                    + (f"; what was written is kept as {kept} (not complete)" if kept else ""))
 
     def _finish(self, w: Window) -> None:
         f = self.files.pop(w.n, None)
@@ -289,7 +290,7 @@ class TriggerSink(Sink):
         try:
             path = f.finish(meta)
         except Exception as e:  # noqa: BLE001
-            self._lost(w, e)
+            self._lost(w, e, f.output.part if f.output.state == "kept" else None)
             return
         self.written.append(path)
         span = ((f.last_ns or 0) - (f.first_ns or 0)) / _NS

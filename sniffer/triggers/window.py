@@ -47,6 +47,7 @@ def window_path(folder: str, stem: str, n: int) -> str:
 class WindowFile:
     def __init__(self, path: str, info: CaptureInfo, first: dict, decoder_state: dict | None = None) -> None:
         self.output = Output(path, what="--windows")
+        self.output.claim()
         self.path = path
         copy = CaptureInfo.from_dict(info.to_dict())
         copy.extra = {**copy.extra, "trigger": first}
@@ -75,10 +76,19 @@ class WindowFile:
             self.sink.add_metadata(METADATA, {k: msgspec.json.encode(v).decode() for k, v in meta.items()})
             self.sink.close()
         except BaseException:
-            self.discard()
+            self.abandon()
             raise
         self.output.commit()
         return self.path
+
+    def abandon(self) -> str | None:
+        """It cannot be finished (a full disk): what reached the disk stays as the part file (its path), or
+        nothing does (None).  Never under the window's name: that is for a complete window."""
+        try:
+            self.sink.close()
+        except Exception:  # noqa: BLE001 - already failing
+            pass
+        return self.output.part if self.output.keep_part() else None
 
     def discard(self) -> None:
         try:

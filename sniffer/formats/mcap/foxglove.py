@@ -274,8 +274,9 @@ class Foxglove:
                 topic, n = f"{base}{short}_{address:04X}H_{n}", n + 1
         self.taken.add(topic)
         self.topics[key] = topic
-        self.channel_meta[topic] = {"name": name, "id": str(pid or ""), "address": str(address),
-                                    "unit": str(f.unit), "link": link, "model": f.model or ""}
+        meta = {"name": name, "id": str(pid or ""), "address": str(address), "unit": str(f.unit), "link": link,
+                "model": f.model or ""}
+        self.channel_meta[topic] = {k: v for k, v in meta.items() if v}  # repeated in every segment's summary
         self.new_topics.append(topic)
         return topic
 

@@ -19,6 +19,7 @@ import os
 from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
 
+from sniffer.formats.outputs import FILE_MODE
 from sniffer.events import CaptureError
 from sniffer.formats.mcap.scan import Hole, Scan, open_file
 
@@ -51,7 +52,8 @@ def repair(src: str | os.PathLike[str], dst: str | os.PathLike[str]) -> dict:
     fh, size, tail_ok = open_file(s)
     tmp = f"{d}.part"
     try:
-        with fh, open(tmp, "wb") as out:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_CLOEXEC", 0), FILE_MODE)
+        with fh, open(fd, "wb") as out:
             counts = _copy(fh, size, tail_ok, out)
         os.replace(tmp, d)
     except OSError as e:

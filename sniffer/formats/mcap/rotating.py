@@ -30,13 +30,15 @@ from decoders.carry import record
 
 from sniffer.events import CaptureInfo, Gap
 from sniffer.frame import Frame
-from sniffer.formats.outputs import Output, OutputError, shown
+from sniffer.formats.outputs import Output, OutputError, make_folders, shown
 from sniffer.formats.mcap.segments import (
     INDEX_NAME, LOCK_NAME, STATUS_NAME, Keep, Rotate, Segment, folder_for, read_index, segment_name, write_index,
 )
 from sniffer.sinks.base import Sink
 from sniffer.formats.mcap.sink import CaptureStorageError, McapSink
 
+_KNOWN_PACKING = 64 * 1024  # message bytes compressed so far before their ratio is trusted (not /capture's alone)
+MESSAGES_AT_LEAST = 4  # a segment closed for its size holds at least 1/4 of it in messages
 FORCE_AFTER_NS = (1_000_000_000, 5_000_000_000)  # overdue this long: a request may wait; then: cut anywhere
 
 
@@ -86,7 +88,7 @@ class SegmentPlan:
             if src and os.path.abspath(os.path.dirname(os.fspath(src)) or ".") == os.path.abspath(self.folder):
                 raise OutputError(f"{f}: holds an input of this command; write the segments to another folder")
         try:
-            os.makedirs(self.folder, exist_ok=True)
+            make_folders(self.folder)
             self.lock_fd = _take_lock(self.folder)
         except OutputError:
             raise
@@ -112,6 +114,7 @@ class SegmentSink(Sink):
         self.segments: list[Segment] = []  # closed (and killed) ones, oldest first, then the open one
         self.deleted = 0
         self.delete_errors: list[str] = []
+        self.kept_parts: list[str] = []  # segments cut short (a full disk), left as their part files
         self.rotate_due = False
         self._packing = (0, 0)  # how the segments so far compressed (McapSink.packing)
         self._info: CaptureInfo | None = None
@@ -150,10 +153,20 @@ class SegmentSink(Sink):
         self._cur.raw(event)
         if t > self._t_last:
             self._t_last = t
-        if not self.rotate_due and (
-                (self.rotate.span_ns and t >= self._boundary)
-                or (self.rotate.max_bytes and self._cur.size >= self.rotate.max_bytes)):
+        if not self.rotate_due and ((self.rotate.span_ns and t >= self._boundary) or self._full()):
             self.rotate_due, self._due_t = True, t
+
+    def _full(self) -> bool:
+        """The open segment holds --rotate's size, a quarter of it at least in messages: a capture whose
+        channels and index alone take most of that size (thousands of registers) gets larger segments,
+        never one per event."""
+        size = self.rotate.max_bytes
+        cur = self._cur
+        if not size or cur.size < size:
+            return False
+        if cur.packing[0] < _KNOWN_PACKING:
+            cur.flush()  # the capture's first chunk: written now, how its messages compress is known
+        return cur.message_bytes >= size // MESSAGES_AT_LEAST
 
     def frame(self, frame: Frame) -> None:
         if self._cur is None:
@@ -212,6 +225,7 @@ class SegmentSink(Sink):
         seq = max((s.seq for s in self.segments), default=0) + 1
         name = segment_name(self.prefix, self._wall(t_ns), seq)
         self._out = Output(os.path.join(self.folder, name), what="segment")
+        self._out.claim()
         seg_info = CaptureInfo.from_dict(info.to_dict())
         seg_info.extra = {**info.extra, "segment": seq, "segment_t_ns": t_ns}
         if self.decoder_state is not None:
@@ -239,15 +253,22 @@ class SegmentSink(Sink):
             self._packing = cur.packing
             seg.end_ns = self._wall(self._t_last)
             seg.t_end = (self._t_last - self._info.t0_ns) / 1e9
-            if (self._closed and seg.frames == 0 and seg.seq > self._first_seq) or not (
-                    cur.error is None or cur.bytes_written):
-                out.discard()  # the capture ended just after a rotation (silence), or nothing could be written
+            if cur.error is not None:  # cut short (a full disk): left as its part file, never under its name
+                if out.keep_part():
+                    seg.state = "killed"
+                    seg.extra["part"] = os.path.basename(out.part)
+                    self.kept_parts.append(out.part)
+                else:
+                    self.segments.remove(seg)
+            elif self._closed and seg.frames == 0 and seg.seq > self._first_seq:
+                out.discard()  # the capture ended just after a rotation (silence)
                 self.segments.remove(seg)
             else:
                 out.commit()
                 seg.state = "closed"
             try:
-                seg.bytes = os.path.getsize(out.path) if seg.state == "closed" else 0
+                seg.bytes = os.path.getsize(out.path if seg.state == "closed" else out.part) \
+                    if seg in self.segments else 0
             except OSError:
                 seg.bytes = 0
             self._apply_keep()

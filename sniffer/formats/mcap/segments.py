@@ -42,7 +42,7 @@ STATUS_NAME = "status.json"
 LOCK_NAME = ".sniffer.lock"
 INDEX_FORMAT = "sniffer.formats.mcap.segments/1"
 SEGMENT_RE = re.compile(r"(?P<prefix>.+)-(?P<time>\d{8}T\d{6}Z)-(?P<seq>\d{5,})\.mcap(?P<part>(?:\.\d+)?\.part)?\Z")
-MIN_ROTATE_BYTES = 64 * 1024
+MIN_ROTATE_BYTES = 10**6  # each segment carries its own schemas, channels (one per register) and index: tens of kB
 MIN_ROTATE_S = 1.0
 _SIZE = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*([kmgt]i?b|b)\Z", re.I)
 _SIZE_UNITS = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12,
@@ -85,7 +85,8 @@ class Rotate:
             n, s = parse_size(p), parse_span(p)
             if n is not None:
                 if n < MIN_ROTATE_BYTES:
-                    raise SettingsError(f"--rotate {p}: segments of at least {MIN_ROTATE_BYTES // 1024}KiB")
+                    raise SettingsError(f"--rotate {p}: segments of at least {size_text(MIN_ROTATE_BYTES)} (each "
+                                        f"carries its own schemas, channels and index: tens of kB)")
                 size = n
             elif s is not None:
                 if s < MIN_ROTATE_S * _NS:

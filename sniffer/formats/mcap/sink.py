@@ -43,6 +43,7 @@ from sniffer.formats.mcap.format import (
     CAPTURE_TOPIC, CHANNELS, FRAMES_TOPIC, METADATA_NAME, RAW_FORMAT, RAW_TOPIC, encode_event, info_to_metadata,
 )
 from sniffer.formats.mcap.writer import McapWriter
+from sniffer.formats.outputs import FILE_MODE
 from sniffer.formats.records import frame_json
 from sniffer.sinks.base import Sink
 
@@ -66,8 +67,8 @@ class _AppendFile:
     The writer hands each write() whole records, so the end of every
     write() is a record boundary.  Pieces wait here until flush(), which
     writes them with os.write.  If the OS refuses (disk full, EFBIG), the file
-    is cut back to the end of the last whole piece (ftruncate needs no space)
-    and nothing is written again.  A BufferedWriter gives no such promise:
+    is cut back to the end of the last piece written whole (ftruncate needs no
+    space) and nothing is written again.  A BufferedWriter gives no such promise:
     after a failed flush it may keep part of its buffer and write it later,
     after a gap, which would corrupt the file instead of shortening it.
     """
@@ -76,7 +77,7 @@ class _AppendFile:
 
     def __init__(self, path: str) -> None:
         flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_BINARY", 0) | getattr(os, "O_CLOEXEC", 0)
-        self._fd: int | None = os.open(path, flags, 0o666)
+        self._fd: int | None = os.open(path, flags, FILE_MODE)
         self._pending: deque[bytes] = deque()
         self._pending_len = 0
         self.on_disk = 0
@@ -100,7 +101,8 @@ class _AppendFile:
         if self.failed is not None:
             raise self.failed
         assert self._fd is not None, "file is closed"
-        start = self.on_disk  # a flush is whole or not at all: a chunk without its message index is not kept
+        # every piece is whole records (a chunk with its message indexes is one piece): the pieces written
+        # whole are kept, the file is cut back to the end of the last one
         while self._pending:
             piece = self._pending[0]
             view = memoryview(piece)
@@ -113,7 +115,6 @@ class _AppendFile:
                     done += n
             except OSError as e:
                 self.failed = e
-                self.on_disk = start
                 try:
                     os.ftruncate(self._fd, self.on_disk)
                 except OSError:
@@ -188,6 +189,12 @@ class McapSink(Sink):
         register: the summary repeats them)."""
         w = self._writer
         return self._file.tell() + (w.summary_bytes + w.open_chunk_bytes() if w is not None else 0)
+
+    @property
+    def message_bytes(self) -> int:
+        """Of `size`, the messages' own part: their chunks, written or open (estimated), without the
+        records every file carries (schemas, channels, metadata, indexes, the summary)."""
+        return self._writer.message_bytes() if self._writer is not None else 0
 
     def start(self, info: CaptureInfo) -> None:
         self._t0 = info.t0_ns

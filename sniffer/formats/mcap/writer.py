@@ -77,6 +77,7 @@ class McapWriter:
         self._open_messages = 0  # in the open chunk
         # of the chunks written, their compression so far (`packing`: a segment starts from the last one's)
         self._raw_bytes, self._packed_bytes = packing
+        self.chunk_bytes = 0  # compressed message bytes of this file's chunks written so far
         self._finished = False
 
     # ------------------------------------------------------------ definitions
@@ -171,6 +172,7 @@ class McapWriter:
         self.summary_bytes += len(self._chunk_indexes[-1])
         self._raw_bytes += len(raw)
         self._packed_bytes += len(data)
+        self.chunk_bytes += len(data)
         n = self._open_messages
         if n:
             self._start = self._c_start if self._start is None else min(self._start, self._c_start)
@@ -194,6 +196,12 @@ class McapWriter:
         if not n or not self._raw_bytes:
             return 0
         return n * self._packed_bytes // self._raw_bytes + 16 * self._open_messages + 25 * len(self._index) + 140
+
+    def message_bytes(self) -> int:
+        """The messages' compressed bytes in this file: its chunks written, and the open one estimated at the
+        compression so far (as it is, before a chunk was written)."""
+        n = len(self._chunk)
+        return self.chunk_bytes + (n * self._packed_bytes // self._raw_bytes if self._raw_bytes else n)
 
     # ------------------------------------------------------------ the end
     def finish(self) -> None:
