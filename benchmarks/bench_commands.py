@@ -265,6 +265,7 @@ def _rows(folder: Path, out: Path, meta: dict) -> list[Row]:
         Row("report", "report FILE.mcap --out report.html (the page holds the frame count)",
             lambda s: ["report", cap(s), "--out", o(f"report-{s}.html")], outputs=["report-{s}.html"],
             check=_report_check(out)),
+        Row("diagnose", "diagnose FILE.mcap (findings, text on stdout)", lambda s: ["diagnose", cap(s)]),
         Row("repair", "repair CUT.mcap (the MCAP cut at half its bytes) -o OUT",
             lambda s: ["repair", str(folder / f"{'full' if s == 'full' else 'quarter'}_cut.mcap"),
                        "-o", o("repaired.mcap")],

@@ -331,6 +331,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="timestamps per byte (logic analyzer) or per USB read (default usb)")
     s.add_argument("--param", action="append", metavar="KEY=VALUE",
                    help="change the scenario: a setting (poll_period_ms=50) or a unit's (unit2.rated_current_a=7.5)")
+    s.add_argument("--fault", action="append", metavar="KIND[:UNIT]",
+                   help="put a cause of trouble on the line (repeatable), one `sniffer diagnose` names: e.g. "
+                        "driver_enable_late:3, bus_unbiased, second_master:1 (docs/diagnose.md lists them)")
     serial_flags(s)
     g = s.add_argument_group("receiver (--out): record what a sniffer set to other settings than the line's receives")
     g.add_argument("--receiver-baud", type=_number(int, "--receiver-baud", 50, MAX_BAUD), metavar="BAUD")
@@ -341,6 +344,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("demo", help="live capture of a simulated bus over a pseudo-terminal")
     s.add_argument("--scenario", default="default", help=_SCENARIO_HELP)
+    s.add_argument("--fault", action="append", metavar="KIND[:UNIT]",
+                   help="put a cause of trouble on the line (repeatable; docs/diagnose.md): its verdict shows in "
+                        "the TUI's Verdicts tab (7)")
     s.add_argument("--seed", type=int, default=1)
     capture_out_flags(s, "demo.mcap", 15.0)
     s.add_argument("--headless", action="store_true", help="text stream instead of the TUI")
@@ -412,6 +418,9 @@ def build_parser() -> argparse.ArgumentParser:
     input_flags(s)
     s.add_argument("--golden", required=True, metavar="FILE.txt", help="the reviewed golden decode")
     s.add_argument("--update-golden", action="store_true", help="rewrite the golden (review the diff!)")
+    s.add_argument("--findings", action="store_true",
+                   help="the golden holds the capture's findings (`sniffer diagnose`'s verdicts) after its frames: "
+                        "written with --update-golden, compared whenever the golden holds them")
     s.add_argument("--time-tol-ms", type=float, default=1.0, help="frame time tolerance (default 1 ms)")
     s.add_argument("--latency-tol-ms", type=float, default=1.0, help="latency tolerance (default 1 ms)")
     serial_flags(s)
@@ -442,6 +451,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a reference capture: the page adds what changed against it (as `sniffer diff GOLDEN ...`)")
     s.add_argument("--title", help="the page's title (default: Bus report: the captures' names)")
     s.add_argument("--progress", action="store_true", help="a progress bar per capture on stderr")
+    serial_flags(s)
+    decode_flags(s)
+
+    s = sub.add_parser("diagnose", help="what is wrong on the line, why, and what to do: findings from a capture, "
+                                        "most severe first (docs/diagnose.md)")
+    input_flags(s)
+    s.add_argument("--format", choices=["text", "json"], default="text",
+                   help='text for people (default), or JSON {"findings": [...]} for scripts')
+    s.add_argument("--params", metavar="REFERENCE",
+                   help="a drive's saved parameter set (CSV: unit,register,value) or an earlier capture: "
+                        "parameters this capture reads otherwise are a finding")
+    s.add_argument("--progress", action="store_true", help="progress bar on stderr (frames/s, ETA)")
     serial_flags(s)
     decode_flags(s)
 
@@ -516,11 +537,12 @@ def _one_line(e: Exception) -> int | None:
     from decoders.tables import MapError
 
     from sniffer.capture.busfile import BusFileError
+    from sniffer.simulator.faults import FaultError
     from sniffer.simulator.overrides import OverrideError
     from sniffer.formats.mcap.sink import CaptureStorageError
 
     if isinstance(e, (UsageError, CaptureError, SettingsError, DeviceMapError, BusFileError, MapError,
-                      OverrideError)):
+                      OverrideError, FaultError)):
         _say(str(e))
         return EXIT_USAGE
     if isinstance(e, CaptureStorageError):

@@ -81,6 +81,10 @@ CRC_UNPROVEN = Code(
     "modbus.crc.unproven", ERROR,
     "the CRC (or LRC) matches, but over a byte received with a UART error: no proof, the frame is not taken as good",
 )
+CRC_ONE_BYTE = Code(
+    "modbus.crc.one_byte", INFO,
+    "one damaged byte explains the CRC mismatch: the first (address) byte or a CRC byte, and which value it had",
+)
 LENGTH_MISMATCH = Code(
     "modbus.length.mismatch", ERROR, "frame length does not match its function code / byte count"
 )
@@ -244,8 +248,8 @@ CORE_CODES: tuple[Code, ...] = (
 # the Modbus RTU framer's codes (LineBuffer's own are the UART, t1.5 and noise ones)
 LINE_CODES: tuple[Code, ...] = (UART_FRAMING, UART_PARITY, T15_VIOLATION, NOISE, CRC_UNPROVEN)
 RTU_CODES: tuple[Code, ...] = LINE_CODES + (
-    CRC_MISMATCH, LENGTH_MISMATCH, FUNCTION_UNKNOWN, FUNCTION_USER, UNIT_RESERVED, T35_SHORT, STRUCTURE_MISMATCH,
-    LENGTH_TRUNCATED,
+    CRC_MISMATCH, CRC_ONE_BYTE, LENGTH_MISMATCH, FUNCTION_UNKNOWN, FUNCTION_USER, UNIT_RESERVED, T35_SHORT,
+    STRUCTURE_MISMATCH, LENGTH_TRUNCATED,
 )
 
 

@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 
 from decoders.registry import default_registry
 from sniffer import protocols
+from sniffer.codes import Annotation
 from sniffer.framing.crc import crc_bytes, lrc
 from sniffer.events import CaptureInfo, Chunk, Tick
 from sniffer.frame import CAN_REQ, CAN_RSP, NOISE_ROLE, REQUEST, RESPONSE, UNKNOWN, Frame
@@ -127,8 +128,11 @@ def test_timeout_tick_settles_the_pending_request():
     assert notes(req) == [("pair.no_response", "no response: timeout tick after 1500.0 ms"),
                           ("pair.timeout", "unit 1: no response within 1000 ms")]
     rsp = frame(2, 1600, READ_RSP, CAN_RSP)
-    assert p.push(rsp) == [rsp] and rsp.pair is None  # too late: the tick settled its request
-    assert [c for c, _ in notes(rsp)] == ["pair.orphan_response"]
+    assert p.push(rsp) == [rsp] and req.pair is None  # the tick settled its request: it stays unanswered ...
+    assert rsp.pair == 0 and rsp.latency_ms == 1599.0  # ... and this is its late answer, not an orphan
+    assert [c for c, _ in notes(rsp)] == ["pair.late_response"]
+    assert p.push(lone := frame(3, 1700, READ_RSP, CAN_RSP)) == [lone]  # answered once: another is an orphan
+    assert [c for c, _ in notes(lone)] == ["pair.orphan_response"]
 
 
 def test_end_of_capture_while_waiting():
@@ -171,6 +175,71 @@ def test_late_response_is_paired_and_flagged():
     run([req, rsp])
     assert rsp.pair == 0 and rsp.latency_ms == 1500.0
     assert notes(rsp) == [("pair.late_response", "1500.0 ms after the request")]
+
+
+def test_late_answer_after_the_next_request_pairs_with_the_request_it_answers():
+    """The master gave up and sent its next request (another unit); the answer then comes alone: it is the
+    late answer of the request it answers (unit, function, shape), not an orphan of the pending one."""
+    a, b = frame(0, 0, READ, CAN_REQ), frame(1, 60, "0203000a0002", CAN_REQ)
+    late, b_rsp = frame(2, 70, READ_RSP, CAN_RSP), frame(3, 75, "020304000100ff", CAN_RSP)
+    out = run([a, b, late, b_rsp])
+    assert [f.index for f in out] == [0, 1, 2, 3]
+    assert late.pair == 0 and late.latency_ms == 69.0 and late.role == RESPONSE
+    assert [c for c, _ in notes(late)] == ["pair.late_response"] and "#0" in notes(late)[0][1]
+    assert (b.pair, b_rsp.pair) == (3, 1)  # the pending request still gets its own answer
+    # too long after it (more than LATE_WINDOW timeouts): an orphan
+    a, b, lone = frame(0, 0, READ, CAN_REQ), frame(1, 60, "0203000a0002", CAN_REQ), frame(2, 3500, READ_RSP, CAN_RSP)
+    run([a, b, lone])
+    assert lone.pair is None and [c for c, _ in notes(lone)] == ["pair.orphan_response"]
+
+
+def test_an_answer_whose_shape_fits_an_earlier_request_is_that_ones_late_answer():
+    """A second master's request (same unit and function, another quantity) came between a request and
+    its answer: the byte count says which request the answer belongs to."""
+    a = frame(0, 0, "010300000008", CAN_REQ)  # 8 registers
+    c = frame(1, 3, READ, CAN_REQ)  # 2 registers, the other master
+    ra = frame(2, 8, "010310" + "00" * 16, CAN_RSP)  # 16 bytes: answers a
+    rc = frame(3, 14, READ_RSP, CAN_RSP)
+    run([a, c, ra, rc])
+    assert (ra.pair, rc.pair, c.pair) == (0, 1, 3)
+    assert [code for code, _ in notes(ra)] == ["pair.late_response"] and "pair.mismatch" not in str(notes(rc))
+
+
+def test_answer_with_its_address_cut_pairs_with_the_pending_request():
+    """A transmitter that turns on late damages the first byte of its answers: a CRC-bad frame whose CRC
+    holds with the pending request's unit in byte 0 is that request's (damaged) answer, not unit 129's."""
+    req = frame(0, 0, "020300000002", CAN_REQ)
+    good = bytes.fromhex("02030400010002")
+    raw = bytes((0x81,)) + (good + crc_bytes(good))[1:]
+    rsp = Frame(1, 5 * MS, 6 * MS, raw, "modbus-rtu", unit=0x81, function=3, role_fits=CAN_RSP, crc_ok=False)
+    rsp.adu = raw[:-2]
+    run([req, rsp])
+    assert (req.pair, rsp.pair, rsp.role) == (1, 0, RESPONSE)
+    assert "pair.orphan_response" not in [c for c, _ in notes(rsp)] and notes(req) == []
+
+
+def test_a_crc_bad_burst_that_fits_no_length_is_never_a_request():
+    """Two transmitters at once make a burst no length of its header explains: it is not a request of the
+    unit its first byte names (the pending request keeps waiting for its answer)."""
+    req = frame(0, 0, READ, CAN_REQ)
+    burst = Frame(1, 3 * MS, 9 * MS, bytes.fromhex("0203ff00aa5512345678"), "modbus-rtu", unit=2, function=3,
+                  role_fits=BOTH, crc_ok=False)
+    burst.annotations.append(Annotation("modbus.length.mismatch", "error", "10 bytes do not fit function 0x03", 0, 10))
+    rsp = frame(2, 12, READ_RSP, CAN_RSP)
+    run([req, burst, rsp])
+    assert burst.role == UNKNOWN and burst.pair is None
+    assert (req.pair, rsp.pair) == (2, 0)
+    # of the pending request's unit and function, it answers it only if it starts as its answer would: a damaged
+    # repeat of the request (the master's retry, a stray byte glued on) does not
+    req = frame(0, 0, READ, CAN_REQ)
+    retry = Frame(1, 60 * MS, 65 * MS, bytes.fromhex(READ) + b"\x12\x34\x00", "modbus-rtu", unit=1, function=3,
+                  role_fits=BOTH, crc_ok=False)
+    retry.annotations.append(Annotation("modbus.length.mismatch", "error", "9 bytes do not fit function 0x03", 0, 9))
+    answer = Frame(2, 70 * MS, 75 * MS, bytes.fromhex("01030400010002") + b"\x00\x00\x00", "modbus-rtu", unit=1,
+                   function=3, role_fits=BOTH, crc_ok=False)
+    answer.annotations.append(Annotation("modbus.length.mismatch", "error", "10 bytes do not fit", 0, 10))
+    run([req, retry, answer])
+    assert retry.role == UNKNOWN and (answer.role, answer.pair, req.pair) == (RESPONSE, 0, 2)
 
 
 def test_pair_mismatch_from_response_mismatch():

@@ -350,3 +350,22 @@ def test_compare_adds_the_semantic_diff(tmp_path, capsys):
     assert "captures differ" in c["text"] and "Compared with" in out.read_text()
     assert cli(capsys, "report", before, "--compare", before, "--out", out)[0] == 0
     assert page_data(out)["compare"]["same"]
+
+
+def test_the_page_opens_with_the_verdicts_diagnose_gives(tmp_path, capsys):
+    """The report's first section is the findings of `sniffer diagnose` on the same capture: the same kinds,
+    units and order, each with its text, evidence and what to do."""
+    cap = tmp_path / "late.mcap"
+    assert cli(capsys, "simulate", "--duration", "10", "--fault", "driver_enable_late:2", "--out", cap)[0] == 0
+    out = tmp_path / "r.html"
+    assert cli(capsys, "report", cap, "--out", out)[0] == 0
+    assert main(["diagnose", str(cap), "--format", "json"]) == 0
+    said = json.loads(capsys.readouterr().out)["findings"]
+    d = page_data(out)
+    assert [(f["kind"], f["unit"]) for f in d["findings"]] == [(f["kind"], f["unit"]) for f in said]
+    assert d["findings"][0]["kind"] == "driver_enable_late" and d["findings"][0]["unit"] == 2
+    html = out.read_text()
+    sections = re.findall(r'<section id="([a-z]+)">', html)
+    assert sections[0] == "verdicts" and sections[1] == "captures"
+    verdicts = html[html.index('<section id="verdicts">'):html.index('<section id="captures">')]
+    assert "driver_enable_late" in verdicts and "what to do:" in verdicts and "frames to look at: #" in verdicts

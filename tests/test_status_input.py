@@ -19,7 +19,7 @@ import pytest
 from sniffer.cli import main
 
 STATUS = {
-    "format": "sniffer.capture.status/1", "state": "running", "pid": os.getpid(), "command": "live /dev/ttyUSB0",
+    "format": "sniffer.status/1", "state": "running", "pid": os.getpid(), "command": "live /dev/ttyUSB0",
     "source": "serial:/dev/ttyUSB0", "line": "19200 8E1 modbus-rtu", "started": "2026-11-25T10:41:00Z",
     "updated": "2026-11-25T11:41:00Z", "updated_ns": 0, "every_s": 2.0, "uptime_s": 3600.2,
     "frames": 81234, "bytes": 1620000,

@@ -672,3 +672,67 @@ def test_the_apps_process_is_readied_for_keys():
             "gc.get_threshold()[0] == GC_YOUNG, gc.get_freeze_count() > 0)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["True", "True", "True"]
+
+
+def test_verdicts_tab_shows_the_findings_and_goes_to_their_frames(tmp_path):
+    """7: sniffer diagnose's findings on the frames taken in so far, the same as the command's; Enter on one goes
+    to its first frame; a viewer that takes more frames sees the verdicts follow."""
+    from sniffer.cli import main
+    from sniffer.diagnose import Diagnosis
+
+    cap = str(tmp_path / "silent.mcap")
+    assert main(["simulate", "--duration", "8", "--fault", "unit_silent:5", "--out", cap]) == 0
+    info, frames, registry = replay_frames(cap)
+    engine = Diagnosis()
+    for f in frames:
+        engine.frame(f)
+    expected = [(f.kind, f.unit) for f in engine.findings()]
+    assert ("unit_silent", 5) in expected
+    sink = TuiSink()
+    sink.start(info)
+    half = len(frames) // 8
+    sink.frames(frames[:half])
+
+    async def go():
+        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0, poll_hz=0.001)
+        async with app.run_test(size=SIZE) as pilot:
+            app.poll()
+            await pilot.pause()
+            assert len(app.store) == half
+            await pilot.press("7")
+            await pilot.pause()
+            pane = app.query_one("#verdictspane")
+            early = [(f.kind, f.unit) for f in pane.findings]
+            sink.frames(frames[half:])  # the capture goes on: more frames, the verdicts follow
+            sink.close()
+            app.poll()
+            app.refresh_tables()
+            await pilot.pause()
+            assert [(f.kind, f.unit) for f in pane.findings] == expected != early
+            first = pane.findings[0]
+            assert (first.kind, first.unit) == ("unit_silent", 5)
+            assert "unit_silent" in str(pane.list.get_option_at_index(0).prompt)
+            await pilot.press("enter")
+            await pilot.pause()
+            assert app.tabs.active == "frames"
+            assert app.store.frame(app.frame_list.selected_row).index == first.frames[0]
+    run(go())
+
+
+def test_verdicts_of_a_live_capture(tmp_path):
+    """`sniffer demo --fault unit_silent:5` under the TUI: the capture runs in its own process (the fault goes
+    with it), the viewer gets records over the socket, and its Verdicts tab names the silent unit."""
+    async def go(app):
+        async with app.run_test(size=SIZE) as pilot:
+            assert await until(pilot, lambda: app.caught_up and len(app.store) == app.sink.frames_in, 300)
+            await pilot.press("7")
+            await pilot.pause()
+            app.refresh_tables()
+            await pilot.pause()
+            pane = app.query_one("#verdictspane")
+            assert ("unit_silent", 5) in [(f.kind, f.unit) for f in pane.findings]
+            await pilot.press("q")
+
+    with demo_viewer(tmp_path, "default", 3.0, faults=("unit_silent:5",)) as viewer:
+        run(go(viewer.app))
+    assert viewer.rc() == 0

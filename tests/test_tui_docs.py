@@ -25,6 +25,7 @@ SHOTS = [
     # output frequency (unit 1) and output current (unit 2): Hz on the left axis, A on the right
     ("tui-plot.svg", "a510.mcap", ["3"] + ["down"] * 6 + ["a"] + ["down"] * 21 + ["a", "5", "full_stop"]),
     ("tui-bytes.svg", "errors.mcap", ["home"] + ["down"] * 6 + ["6"]),
+    ("tui-verdicts.svg", "errors.mcap", ["7"]),  # sniffer diagnose's findings
 ]
 
 

@@ -105,3 +105,11 @@ def test_plot(snap_compare):
                           "plus", "plus")
 
     assert snap_compare(make_app("a510.mcap"), terminal_size=SIZE, run_before=before)
+
+
+def test_verdicts(snap_compare):
+    async def before(pilot):
+        await _load(pilot)
+        await pilot.press("7", "down")  # the second finding highlighted: its evidence below
+
+    assert snap_compare(make_app("errors.mcap"), terminal_size=SIZE, run_before=before)

@@ -8,6 +8,10 @@ A summary shows at most 6 points ("... (+N)"); v2 goldens add the rest after it
 (" | rest: name=value ..."), so a value changed in the 7th register of a read
 is a changed line too.  A v1 golden (no rest) is compared as v1.
 A capture of several links starts each line's content with `link=NAME`.
+A golden may hold the capture's findings too (`sniffer diagnose`'s verdicts, after the frames, one
+line each: `finding <severity> <kind> link=<link> unit=<unit>`): written with `--update-golden
+--findings`, and compared whenever the golden holds them (or --findings asks), so a change that
+makes a verdict appear or vanish is a changed golden; the findings' numbers are not held.
 Content is compared exactly; the two timing columns within tolerances
 (`Tolerances(time_ms=..., latency_ms=...)`), so a golden survives a rounding
 change in a clock model but not a changed verdict.  Exit codes: 0 same,
@@ -246,6 +250,9 @@ def golden_version(path: Path) -> int:
         return 1 if fh.readline().rstrip("\n") == GOLDEN_V1 else 2
 
 
+FINDING = "finding "  # a golden line holding a verdict (after the frames)
+
+
 def read_lines(path: Path) -> Iterator[str]:
     with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
@@ -259,6 +266,7 @@ class GoldenSink:
         self.out = out
         self._fh = None
         self._t0 = 0
+        self.session = None  # set when the golden holds the findings: they follow the frames
 
     def start(self, info) -> None:
         self._t0 = info.t0_ns
@@ -273,4 +281,9 @@ class GoldenSink:
 
     def close(self) -> None:
         if self._fh is not None:
+            diagnosis = getattr(self.session, "diagnosis", None)
+            if diagnosis is not None:
+                for f in diagnosis.findings():
+                    self._fh.write(f.golden_line() + "\n")
             self._fh.close()
+            self._fh = None

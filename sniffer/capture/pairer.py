@@ -31,10 +31,25 @@ Rules (one master; each has a test of its name in tests/test_pairer.py):
   * broadcast (unit 0) expects no answer (pair.broadcast, not held); a
     response right after it is pair.broadcast_response; a Modbus broadcast
     of a function that is not a write is pair.broadcast.function;
-  * a response with nothing pending, or for another unit or function, is an
-    orphan (pair.orphan_response);
+  * a response with nothing pending, or for another unit or function, is the
+    late answer to a request settled unanswered shortly before (`_late`: the
+    same unit and function, and a shape that answers it where both CRCs hold;
+    within LATE_WINDOW timeouts; no later request of that unit and function
+    that it fits as well, whose own answer it may be): paired to it and flagged pair.late_response
+    (the master had moved on: a timeout too short, or a second master's
+    request in between); otherwise an orphan (pair.orphan_response).  A
+    response whose shape does not answer the pending request but answers such
+    an earlier one is that one's late answer too;
   * a response past the unit's timeout is still paired, and flagged
     pair.late_response (no tick settled the request first);
+  * a CRC-bad frame whose first byte is the one damage (modbus.crc.one_byte:
+    a transmitter that turned on late cuts the address) and whose CRC holds
+    with the pending request's unit, of its function, is that request's
+    (damaged) response, not a frame of the unit its first byte names;
+  * a CRC-bad frame whose length fits no role of its header (modbus.length
+    .mismatch: a burst of two transmitters at once, or a frame cut short) is a
+    response only if it matches the pending request and starts as its answer
+    would (`_answer_head`); never a new request;
   * a CRC-good Modbus response that does not answer its CRC-good request
     (byte count, echo, address) is paired and flagged pair.mismatch
     (`response_mismatch`).
@@ -48,9 +63,15 @@ from sniffer import codes
 from sniffer.codes import note
 from sniffer.frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE, UNKNOWN, Frame
 from sniffer.protocols import PROTOCOLS
+from collections import deque
+
+from sniffer.framing.crc import damaged_byte
 from sniffer.framing.rtu_lengths import BROADCAST_FUNCTIONS, KNOWN_FUNCTIONS
 
 DEFAULT_TIMEOUT_MS = 1000.0
+LATE_WINDOW = 3  # an answer is paired to a request settled unanswered at most this many timeouts before it
+_RECENT = 8  # requests settled unanswered, kept for their late answers
+_CRC16 = frozenset(("modbus-rtu", "pd-rtu"))  # whose frames end in a CRC-16 (crc.damaged_byte)
 _MODBUS = frozenset(name for name, p in PROTOCOLS.items() if p.family == "modbus")  # Modbus echo/count rules
 _ROLES = CAN_REQ | CAN_RSP
 _ECHOES = frozenset((0x05, 0x06, 0x08, 0x16))  # request and response are the same shape and meaning
@@ -66,6 +87,8 @@ class Pairer:
         self.last_request: Frame | None = None  # for broadcast-response detection
         self.before: int | None = None  # Frame.index of the frame pushed before this one (on this line)
         self._last_index: int | None = None
+        self.recent: deque[tuple[Frame, str]] = deque(maxlen=_RECENT)  # (unanswered request, what ended its wait)
+        self.latest: dict[tuple[int, int], Frame] = {}  # (unit, function) -> its latest request
 
     def timeout_for(self, unit: int) -> int:
         """How long a request to `unit` waits for its answer (ns)."""
@@ -77,6 +100,8 @@ class Pairer:
         self.before, self._last_index = self._last_index, f.index
         if f.protocol == "noise" or f.function is None or f.unit is None:
             return self._pass_through(f)
+        if f.crc_ok is False and self._damaged(f):
+            return self._pass_through(f) if f.role != RESPONSE else self._response(f, repaired=True)
         can = f.role_fits
         if can == CAN_RSP:
             f.role = RESPONSE
@@ -118,6 +143,24 @@ class Pairer:
         f.role = REQUEST
         return self._request(f)
 
+    def _damaged(self, f: Frame) -> bool:
+        """A CRC-bad frame the bytes say more about: the pending request's response with its address cut
+        (role set to RESPONSE: True), or a length that fits no role, which is no request (True: passed through
+        unless it answers the pending request).  False: the ordinary rules decide."""
+        req = self.pending
+        fn = f.function
+        answers = req is not None and (fn == req.function or fn == req.function | 0x80)
+        if answers and f.unit != req.unit and f.protocol in _CRC16:
+            hit = damaged_byte(f.raw)
+            if hit is not None and hit == (0, req.unit):
+                f.role = RESPONSE
+                return True
+        if any(a.code == codes.LENGTH_MISMATCH.code for a in f.annotations):
+            if answers and f.unit == req.unit and f.role_fits & CAN_RSP and _answer_head(req.adu, f.raw):
+                f.role = RESPONSE
+            return True
+        return False
+
     def _pass_through(self, f: Frame) -> list[Frame]:
         """Not paired: settled now, or held behind the pending request to keep capture order."""
         if self.held:
@@ -137,9 +180,13 @@ class Pairer:
             return len(f.adu) == 6 and f.adu[2:6] == last.adu[2:6]
         return True
 
-    def _response(self, f: Frame) -> list[Frame]:
+    def _response(self, f: Frame, repaired: bool = False) -> list[Frame]:
         req = self.pending
-        if req is not None and req.unit == f.unit and (f.function == req.function or f.function == req.function | 0x80):
+        if req is not None and (req.unit == f.unit or repaired) and (
+                f.function == req.function or f.function == req.function | 0x80):
+            if self.recent and req.crc_ok and f.crc_ok and f.protocol in _MODBUS \
+                    and response_mismatch(req.adu, f.adu) and self._late(f, shape_only=True):
+                return self._pass_through(f)  # answers an earlier request, not this one: that one's late answer
             self.pending = None  # (_same_transaction, inline: every response passes here)
             f.pair = req.index
             req.pair = f.index
@@ -172,12 +219,42 @@ class Pairer:
                 note(codes.BROADCAST_RESPONSE, f"unit {f.unit} answered broadcast frame #{last.index}",
                      0, len(f.raw))
             )
-        else:
+        elif not self._late(f):
             why = "nothing pending" if req is None else (
                 f"pending request #{req.index} is for unit {req.unit} function 0x{req.function:02X}"
             )
             f.annotations.append(note(codes.ORPHAN_RESPONSE, why, 0, len(f.raw)))
         return self._pass_through(f)
+
+    def _late(self, f: Frame, shape_only: bool = False) -> bool:
+        """Pair `f` to the request it answers among those settled unanswered shortly before (the latest
+        first): the same unit and function, and where both CRCs hold a shape that answers it.  True if paired
+        (flagged pair.late_response, its latency from that request)."""
+        for k in range(len(self.recent) - 1, -1, -1):
+            req, ended = self.recent[k]
+            if req.unit != f.unit or not (f.function == req.function or f.function == req.function | 0x80):
+                continue
+            if f.t_ns - req.t_end_ns > LATE_WINDOW * self._timeout(req.unit):
+                continue
+            if req.crc_ok and f.crc_ok and f.protocol in _MODBUS and response_mismatch(req.adu, f.adu):
+                continue
+            if shape_only and not (req.crc_ok and f.crc_ok):
+                return False
+            newer = self.latest.get((req.unit, req.function))
+            if newer is not None and newer is not req and not (
+                    newer.crc_ok and f.crc_ok and f.protocol in _MODBUS and response_mismatch(newer.adu, f.adu)):
+                return False  # a later request of the unit (answered, or its answer lost) fits it as well
+            del self.recent[k]
+            f.role = RESPONSE
+            f.pair = req.index
+            f.peer = req  # decoded with its request (which was settled and decoded before it)
+            lat = f.t_ns - req.t_end_ns
+            if f.time_source != "none":
+                f.latency_ms = round(lat / 1e6, 3)
+            f.annotations.append(note(codes.LATE_RESPONSE, f"answers #{req.index} {lat / 1e6:.1f} ms after it; "
+                                                           f"the master had moved on ({ended})", 0, len(f.raw)))
+            return True
+        return False
 
     def _request(self, f: Frame) -> list[Frame]:
         req = self.pending
@@ -188,6 +265,8 @@ class Pairer:
         else:
             out = []
         self.last_request = f
+        if f.unit != 0 and f.crc_ok is not False:
+            self.latest[(f.unit, f.function)] = f
         if f.unit == 0:
             f.annotations.append(note(codes.BROADCAST, "no response expected", 0, 1))
             if f.protocol in _MODBUS and f.function not in BROADCAST_FUNCTIONS:
@@ -215,6 +294,8 @@ class Pairer:
                 note(codes.TIMEOUT, f"unit {req.unit}: no response within {limit / 1e6:.0f} ms", 0, len(req.raw))
             )
         self.pending = None
+        if code is codes.NO_RESPONSE:
+            self.recent.append((req, f"{ended_by}{after}"))
         out = self.held
         self.held = []
         return out
@@ -235,6 +316,20 @@ class Pairer:
         out = self.held
         self.held = []
         return out
+
+
+def _answer_head(req: bytes, raw: bytes) -> bool:
+    """Does a damaged frame start as an answer to `req` would (an exception; a read's byte count)?  A damaged
+    repeat of the request itself (the master's retry, a stray byte glued on) does not."""
+    if len(req) < 2 or len(raw) < 3:
+        return False
+    if raw[1] & 0x80:
+        return True
+    fc = req[1]
+    if fc in (0x01, 0x02, 0x03, 0x04) and len(req) >= 6:
+        qty = (req[4] << 8) | req[5]
+        return raw[2] == (2 * qty if fc >= 3 else (qty + 7) // 8)
+    return False
 
 
 def _same_transaction(req: Frame, f: Frame) -> bool:

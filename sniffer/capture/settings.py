@@ -235,6 +235,7 @@ class CaptureSpec:
     # export; export --to dataset: each file a segment of the dataset)
     input_format: str = "auto"
     scenario: str | None = None
+    faults: tuple[str, ...] = ()  # demo --fault KIND[:UNIT]: causes put on the simulated line (simulator.faults)
     seed: int = 1
     duration_s: float = 0.0
     # where it goes
@@ -303,7 +304,7 @@ class CaptureSpec:
             map_base=opt("map_base"),
             port=port, links=links, input=files[0] if files else None, inputs=tuple(files),
             input_format=opt("input_format", "auto") or "auto",
-            scenario=opt("scenario"), seed=opt("seed", 1) or 1,
+            scenario=opt("scenario"), seed=opt("seed", 1) or 1, faults=tuple(opt("fault") or ()),
             duration_s=finite(duration, "--duration", upper=MAX_DURATION_S),
             out=None if opt("no_out") else opt("out"),
             stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
@@ -388,6 +389,7 @@ class CaptureSpec:
             argv += ["--map-base", self.map_base]
         if command == "demo":
             argv += ["--scenario", self.scenario or "default", "--seed", str(self.seed)]
+            argv += [x for fault in self.faults for x in ("--fault", fault)]
         argv += ["--out", self.out] if self.out else ["--no-out"]
         argv += ["--duration", repr(self.duration_s)]
         if self.publish:

@@ -1,6 +1,6 @@
 """The capture's status file: what an engineer logged in remotely asks first, rewritten every few seconds.
 
-    {"format": "sniffer.capture.status/1", "state": "running", "pid": 4242, "command": "live /dev/ttyUSB0",
+    {"format": "sniffer.status/1", "state": "running", "pid": 4242, "command": "live /dev/ttyUSB0",
      "line": "19200 8E1 modbus-rtu", "started": "2026-11-25T10:41:00Z", "updated": "...", "uptime_s": 3600.2,
      "frames": 81234, "bytes": 1620000,
      "errors": {"crc": 2, "exceptions": 1, "timeouts": 4, "retries": 0, "faults": 0, "alarms": 0, "noise": 0,
@@ -36,7 +36,7 @@ from sniffer.formats.outputs import OutputError, check_output, write_json_atomic
 from sniffer.stderr import say
 from sniffer.analysis.unitfigures import UnitBook
 
-STATUS_FORMAT = "sniffer.capture.status/1"
+STATUS_FORMAT = "sniffer.status/1"
 STATUS_EVERY_S = 2.0
 _NS = 1_000_000_000
 _UART = codes.in_category(codes.UART_CAT)

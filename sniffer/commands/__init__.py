@@ -7,6 +7,7 @@
     learn.py     learn               detect.py   detect
     status.py    status              dataset.py  export --to dataset, ingest
     query.py     query               report.py   report
+    diagnose.py  diagnose
     common.py    what they share: the stdout stream, the capture's sinks, the end-of-run report
 
 cli.py parses the flags into a CaptureSpec and calls `COMMANDS[name](spec, args)`.
@@ -20,7 +21,7 @@ _WHERE = {
     "live": "capture", "demo": "capture", "replay": "replay", "decode": "replay", "simulate": "simulate",
     "export": "export", "check": "check", "diff": "diff", "repair": "repair", "attach": "view", "serve": "view",
     "learn": "learn", "detect": "detect", "status": "status", "ingest": "dataset", "query": "query",
-    "report": "report",
+    "report": "report", "diagnose": "diagnose",
 }
 NAMES = tuple(_WHERE)
 

@@ -78,7 +78,12 @@ def cmd_demo(spec: CaptureSpec, args) -> int:
 
     if args.no_out:
         spec = spec.with_(out=None)
-    scenario = scenario_named(spec.scenario or "default")
+    from sniffer.simulator.faults import apply
+
+    scenario = apply(scenario_named(spec.scenario or "default"), spec.faults)  # a bad --fault: one line, now
+    if any(kind == "wrong_line_settings" for kind, _ in scenario.faults):
+        raise UsageError("demo reads the line at its own settings: for wrong_line_settings use `sniffer simulate "
+                         "--fault wrong_line_settings`, or `simulate --pty` and `live` at other settings")
     if tui_wanted(spec):
         from sniffer.tui.run import run_capture_tui
 

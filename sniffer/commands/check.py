@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-import sys
-
 import os
+import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 from sniffer.analysis.check import (
     EXIT_DIFFERENT, EXIT_ERROR, EXIT_SAME, GoldenSink, Tolerances, compare_lines, golden_lines, golden_version,
-    read_lines,
+    read_lines, FINDING,
 )
 from sniffer.capture.settings import CaptureSpec
+from sniffer.diagnose import Diagnosis
 
 
 def cmd_check(spec: CaptureSpec, args) -> int:
@@ -19,14 +20,16 @@ def cmd_check(spec: CaptureSpec, args) -> int:
 
     tol = Tolerances(finite(args.time_tol_ms, "--time-tol-ms", upper=1e9),
                      finite(args.latency_tol_ms, "--latency-tol-ms", upper=1e9))
-    rc, text = check(spec.input, args.golden, spec=spec, update=args.update_golden, tolerances=tol)
+    rc, text = check(spec.input, args.golden, spec=spec, update=args.update_golden, tolerances=tol,
+                     findings=args.findings)
     (sys.stdout if rc == 1 else sys.stderr).write(text)
     return rc
 
 
 def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
-          update: bool = False) -> tuple[int, str]:
-    """(exit code, text): 0 same, 1 different (unified diff), 2 error (one line)."""
+          update: bool = False, findings: bool = False) -> tuple[int, str]:
+    """(exit code, text): 0 same, 1 different (unified diff), 2 error (one line).  `findings`: the golden holds
+    the capture's findings too (they are compared whenever the golden holds them)."""
     from decoders.registry import DeviceMapError
 
     from sniffer.line import SettingsError
@@ -45,7 +48,11 @@ def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
             err = "interrupted"
             try:
                 session = decode_capture(capture, spec, [sink])
-                new = golden_lines(session.info.t0_ns, session)
+                if findings:
+                    new = with_findings(session, golden_lines(session.info.t0_ns, diagnosed(session)))
+                    sink.session = session
+                else:
+                    new = golden_lines(session.info.t0_ns, session)
                 d = ""
                 if golden.exists():
                     d = compare_lines(read_lines(golden), new, Tolerances(0, 0), (name, os.fspath(capture)))
@@ -66,8 +73,11 @@ def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
             session.close()
             return EXIT_ERROR, (f"sniffer check: error: {golden}: no such golden file "
                                 "(create it with --update-golden, then review it)\n")
-        d = compare_lines(read_lines(golden), golden_lines(session.info.t0_ns, session, golden_version(golden)), tol,
-                          (name, os.fspath(capture)))
+        if findings or holds_findings(golden):
+            new = with_findings(session, golden_lines(session.info.t0_ns, diagnosed(session), golden_version(golden)))
+        else:
+            new = golden_lines(session.info.t0_ns, session, golden_version(golden))
+        d = compare_lines(read_lines(golden), new, tol, (name, os.fspath(capture)))
         err = _failed(session)
         if err:
             return EXIT_ERROR, f"sniffer check: error: {err}\n"
@@ -84,3 +94,23 @@ def _failed(session) -> str | None:
     if session.damage:
         return f"{session.damage[0]} (input damaged: {len(session.damage)} problem(s))"
     return None
+
+
+def holds_findings(path: Path) -> bool:
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        return any(line.startswith(FINDING) for line in fh)
+
+
+def with_findings(session, lines: Iterator[str]) -> Iterator[str]:
+    """The golden lines, then the findings of the frames they went through (sniffer.diagnose)."""
+    yield from lines
+    yield from (f.golden_line() for f in session.diagnosis.findings())
+
+
+def diagnosed(session):
+    """The session's frames, each through a diagnosis engine first (kept as `session.diagnosis`)."""
+    engine = session.diagnosis = Diagnosis()
+    engine.start_session(session)
+    for f in session:
+        engine.frame(f)
+        yield f

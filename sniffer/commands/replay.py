@@ -7,21 +7,8 @@ import sys
 from sniffer.events import CaptureInfo, Chunk
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
+from sniffer.sources.segset import replay_source as file_source  # noqa: F401 - the commands' name for it
 from sniffer.commands.common import UsageError, report, say, stream_sink
-
-
-def file_source(spec: CaptureSpec):
-    """The capture of a replay-like command: one file (a killed capture's part file when only that is
-    there), or a set read as one capture: several files, a rotated capture's folder or its index."""
-    from sniffer.formats.outputs import readable
-    from sniffer.sources.segset import capture_source, is_set
-
-    if is_set(spec.inputs or spec.input):
-        return capture_source(spec.inputs, spec.input_format)
-    path, note = readable(spec.input)
-    if note:
-        say(f"note: {note}")
-    return capture_source(path, spec.input_format, spec.logic)
 
 
 def cmd_replay(spec: CaptureSpec, args) -> int:

@@ -27,10 +27,11 @@ from sniffer.commands.common import UsageError, report, say
 
 
 def cmd_simulate(spec: CaptureSpec, args) -> int:
+    from sniffer.simulator import faults
     from sniffer.simulator.overrides import apply
     from sniffer.simulator.sources import SimulatedSource, scenario_named
 
-    scenario = apply(scenario_named(spec.scenario or "default"), args.param)
+    scenario = faults.apply(apply(scenario_named(spec.scenario or "default"), args.param), args.fault)
     base = scenario.line
     f = spec.flags
     line = LineSettings(f.baud or base.baud, f.parity or base.parity, f.stopbits or base.stopbits, base.databits)
@@ -50,10 +51,12 @@ def cmd_simulate(spec: CaptureSpec, args) -> int:
         raise UsageError("--duration must be more than 0 seconds")
     receiver = None
     if args.receiver_baud or args.receiver_parity or args.receiver_stopbits:
+        if any(k == "wrong_line_settings" for k, _ in scenario.faults):
+            raise UsageError("--fault wrong_line_settings sets the receiver: not with --receiver-*")
         receiver = LineSettings(args.receiver_baud or line.baud, args.receiver_parity or line.parity,
                                 args.receiver_stopbits or line.stopbits, line.databits)
     source = SimulatedSource(scenario, line, duration, spec.seed, args.adapter, receiver=receiver)
-    recorded = receiver or line
+    recorded = receiver or faults.receiver_for(scenario, line) or line
     if fmt == "segments":
         from sniffer.formats.mcap.rotating import SegmentPlan
 

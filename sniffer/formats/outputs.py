@@ -55,15 +55,14 @@ def _same_file(a: str, b: str) -> bool:
 
 
 def _reads(src: str) -> list[str]:
-    """The files a command reads for input `src`: itself, or a rotated capture folder's segments and index."""
+    """The files a command reads for input `src`: itself, or a rotated capture folder's segments, their part
+    files and its index (every .mcap, .part and .json file in it: formats/mcap/segments.py names them)."""
     if not os.path.isdir(src):
         return [src]
-    from sniffer.formats.mcap.segments import INDEX_NAME, set_files
-
     try:
-        return [os.path.join(src, INDEX_NAME), *set_files([src])]
+        return [os.path.join(src, n) for n in sorted(os.listdir(src)) if n.endswith((".mcap", ".part", ".json"))]
     except OSError:
-        return [os.path.join(src, INDEX_NAME)]
+        return []
 
 
 def check_output(path: str, *, inputs=(), what: str = "--out", outputs=()) -> None:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from sniffer import codes
 from sniffer.codes import Annotation, note
-from sniffer.framing.crc import crc_expected, crc_found
+from sniffer.framing.crc import crc_expected, crc_found, damaged_byte
 from sniffer.frame import Frame
 from sniffer.framing.linebuf import WAIT, HARD
 
@@ -157,6 +157,13 @@ class Crc16Framing:
                          f"CRC is 0x{crc_found(raw):04X}, expected 0x{exp:04X} (bytes {exp & 0xFF:02x} {exp >> 8:02x})",
                          len(raw) - 2, len(raw))
                 )
+                hit = damaged_byte(raw)
+                if hit is not None:  # which byte broke it, where one byte of the line-fault kind explains it
+                    at, was = hit
+                    what = ("the address" if at == 0 else "the CRC's low byte" if at == len(raw) - 2
+                            else "the last byte")
+                    fr.annotations.append(note(codes.CRC_ONE_BYTE, f"the CRC holds with byte {at} ({what}) = "
+                                               f"0x{was:02X} instead of 0x{raw[at]:02X}", at, at + 1))
         self._last_good = (fr.role_fits, raw) if crc_good else None
         idle = fr.idle_before_ns
         if fr.time_source == "byte" and idle is not None and idle < self.hard_ns:

@@ -55,7 +55,7 @@ from __future__ import annotations
 
 from fastcrc.crc16 import modbus as crc16_modbus  # incremental: `initial` = the running register
 
-from sniffer.codes import CRC_MISMATCH, LENGTH_TRUNCATED, LINE_CODES, note
+from sniffer.codes import CRC_MISMATCH, CRC_ONE_BYTE, LENGTH_TRUNCATED, LINE_CODES, note
 from sniffer.codes import PD_BAD_HEX as BAD_HEX
 from sniffer.codes import PD_FUNCTION_UNKNOWN as FUNCTION_UNKNOWN
 from sniffer.codes import PD_LEN_MISMATCH as LEN_MISMATCH
@@ -78,7 +78,8 @@ RESERVED = frozenset({0x06, 0x07})  # l.87-89
 ERRORS = frozenset({0x81, 0x83})  # error replies (l.111, l.125, l.153)
 KNOWN = FUNCTIONS | ERRORS
 
-RTU_CODES = LINE_CODES + (CRC_MISMATCH, LEN_MISMATCH, QUIET_SHORT, FUNCTION_UNKNOWN, WRITE_ERROR, LENGTH_TRUNCATED)
+RTU_CODES = LINE_CODES + (CRC_MISMATCH, CRC_ONE_BYTE, LEN_MISMATCH, QUIET_SHORT, FUNCTION_UNKNOWN,
+                          WRITE_ERROR, LENGTH_TRUNCATED)
 ASCII_CODES = LINE_CODES + (CRC_MISMATCH, LEN_MISMATCH, FUNCTION_UNKNOWN, WRITE_ERROR, NO_CRLF, BAD_HEX)
 
 

@@ -4,7 +4,7 @@
     c.begin(path, session)          # after session.open(): its settings, where it goes on the time axis
     for f in session: c.frame(f)
     c.end(session)                  # frames, bytes, damage; then the next capture, in order
-    data = c.to_data()              # JSON-ready: what sniffer.report.page draws
+    data = c.to_data()              # JSON-ready: what sniffer.report.page draws (its verdicts first)
 
 Several captures make one report on one time axis: each capture's frames are moved
 onto it as they pass (`Frame.t_ns` becomes ns from the report's start: nothing else
@@ -19,9 +19,9 @@ request type the poll period (polls.py), the register shadow's
 history through the TUI's RegisterBook (analysis/register_book.py: the same values, names and
 units the Registers tab shows, at most REGISTER_POINTS samples a register; a register
 whose values changed model, name or unit is one series per each, never one line
-across units), the
-writes and faults (timeline.py), and with `compare` the semantic summary `sniffer
-diff` makes (semdiff.Summary).
+across units), the writes and faults (timeline.py), the findings of `sniffer diagnose`
+(sniffer.diagnose: the page opens with them), and with `compare` the semantic summary
+`sniffer diff` makes (semdiff.Summary).
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ from collections import Counter
 
 from sniffer import codes as C
 from sniffer.frame import LinkUnit
+from sniffer.diagnose import Diagnosis
 from sniffer.analysis.diff import Summary
 from sniffer.analysis.register_book import RegisterBook
 from sniffer.report.buckets import TimeBuckets
@@ -105,6 +106,7 @@ class Collector:
         self.codes: Counter = Counter()
         self.time_sources: Counter = Counter()  # responses with a latency, by how their times were taken
         self.summary = Summary() if compare else None
+        self.diagnosis = Diagnosis()  # on the report's time axis: its findings' times are the page's
         self.clock = True  # the axis is the wall clock (every capture knows its start)
         self.origin_wall = 0
         self.end_ns = 0  # the latest time on the axis
@@ -131,6 +133,8 @@ class Collector:
                 note = "its clock overlaps the capture before: placed after it"
             start = max(start, at)
         self._shift = start - info.t0_ns
+        self.diagnosis.start_session(session)
+        self.diagnosis.t0_ns = 0
         self.polls.new_capture()
         self.timeline.new_capture()
         # several links: each its own line settings (sniffer.capture.links.LinkPipelines.resolved)
@@ -207,6 +211,7 @@ class Collector:
                 cols[col][b] += 1
         if self.summary is not None:
             self.summary.add(f)
+        self.diagnosis.frame(f)
         if f.unit is None or f.is_noise:
             return
         write = self.timeline.frame(f, self._capture)
@@ -244,6 +249,7 @@ class Collector:
         top = set(sorted((u for u in units if u.fig.latency.n), key=lambda u: -u.fig.latency.n)[:PLOTTED_UNITS])
         timed = [u for u in units if u in top]
         return {
+            "findings": [x.to_dict() for x in self.diagnosis.findings()],
             "axis": {"clock": self.clock and self.origin_wall > 0, "origin_wall_s": self.origin_wall / 1e9,
                      "end_s": self.end_ns / 1e9},
             "captures": self.captures,

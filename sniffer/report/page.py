@@ -14,7 +14,8 @@ from importlib import resources
 
 from sniffer import __version__
 
-SECTIONS = (("captures", "Captures"), ("units", "Units"), ("latency", "Latency"), ("polls", "Poll cycles"),
+SECTIONS = (("verdicts", "Verdicts"),
+            ("captures", "Captures"), ("units", "Units"), ("latency", "Latency"), ("polls", "Poll cycles"),
             ("line", "Line"), ("errors", "Errors"), ("timing", "Turnaround"), ("registers", "Registers"),
             ("timeline", "Writes and faults"), ("compare", "Compare"))
 TIME_SOURCES = {
@@ -65,7 +66,7 @@ def render(data: dict, title: str) -> str:
     """The whole page."""
     generated = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     data = dict(data, title=title, generated=generated, version=__version__)
-    parts = [_glance(data), _captures(data), _units(data), _latency(data), _polls(data), _line(data),
+    parts = [_glance(data), _verdicts(data), _captures(data), _units(data), _latency(data), _polls(data), _line(data),
              _errors(data), _timing(data), _registers(data), _timeline(data)]
     if data.get("compare") is not None:
         parts.append(_compare(data["compare"]))
@@ -102,6 +103,46 @@ def _glance(d: dict) -> str:
     html = "".join(f'<div class="card{" bad" if k in bad and v not in ("0", "–") else ""}"><b>{v}</b>{escape(k)}</div>'
                    for k, v in cards)
     return f'<section id="glance" class="cards">{html}</section>'
+
+
+def _verdicts(d: dict) -> str:
+    """What is wrong on the line, why, and what to do (sniffer diagnose's findings), most severe first."""
+    findings = d.get("findings") or []
+    if not findings:
+        return _section("verdicts", "Verdicts", "<p>No finding: nothing on the line looks wrong.</p>")
+    counts = {s: sum(1 for f in findings if f["severity"] == s) for s in ("error", "warning", "info")}
+    head = (f'<p class="note">{counts["error"]} error(s), {counts["warning"]} warning(s), {counts["info"]} note(s), '
+            f"most severe first (the same as <code>sniffer diagnose</code>; docs/diagnose.md says what each "
+            f"means).</p>")
+    items = []
+    for f in findings:
+        where = ("the line" if f["unit"] is None else f"unit {f['unit']}")
+        if f.get("link"):
+            where = f"{f['link']}: {where}"
+        span = "" if f["t_start"] is None else f" · {_n(f['t_start'])}-{_n(f['t_end'])} s"
+        ev = ", ".join(f"{escape(k.replace('_', ' '))} <b>{_ev(v)}</b>" for k, v in f["evidence"].items())
+        stat = ('<p class="stat">statistic: '
+                + ", ".join(f"{escape(str(k))} {_ev(v)}" for k, v in f["statistic"].items()) + "</p>"
+                if f.get("statistic") else "")
+        frames = " ".join(f"#{i}" for i in f["frames"])
+        items.append(
+            f'<div class="finding sev-{escape(f["severity"])}"><p class="what">'
+            f'<span class="sev">{escape(f["severity"])}</span> <b>{escape(f["kind"])}</b> · {escape(where)}{span}</p>'
+            f'<p>{escape(f["text"])}</p>'
+            f'<p class="evidence">{ev}</p>{stat}'
+            + (f'<p class="frames">frames to look at: {escape(frames)}</p>' if frames else "")
+            + f'<p class="todo">what to do: {escape(f["action"])}</p></div>')
+    return _section("verdicts", "Verdicts", head + "".join(items))
+
+
+def _ev(v) -> str:
+    if isinstance(v, float):
+        return escape(f"{v:.3g}" if v and (abs(v) < 0.001 or abs(v) >= 1e6) else _n(v))
+    if isinstance(v, dict):
+        return escape(", ".join(f"{k}: {x}" for k, x in list(v.items())[:8]))
+    if isinstance(v, (list, tuple)):
+        return escape(", ".join(str(x) for x in v[:8]))
+    return _n(v)
 
 
 def _dur(s: float) -> str:

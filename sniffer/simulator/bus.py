@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import random
 from collections.abc import Iterator
-from dataclasses import dataclass
 
 from sniffer.framing.crc import crc_bytes, lrc
 from sniffer.events import FLAG_FRAMING
@@ -29,48 +28,10 @@ from sniffer.simulator.pd_drive import PdDrive, data_method
 from sniffer.simulator.pd_master import PdMaster
 from sniffer.simulator.scenario import Scenario, UnitSpec
 from sniffer.simulator.drive import Drive
-
-KIND_REQUEST = "request"
-KIND_RESPONSE = "response"
-KIND_EXCEPTION = "exception"
-KIND_BROADCAST = "broadcast"
-KIND_NOISE = "noise"
-KIND_CORRUPTED = "corrupted"
-KINDS = (KIND_REQUEST, KIND_RESPONSE, KIND_EXCEPTION, KIND_BROADCAST, KIND_NOISE, KIND_CORRUPTED)
-
-# why a frame is special (WireFrame.fault)
-FAULT_CRC = "crc"  # a byte was hit on the wire; the CRC no longer matches
-FAULT_TIMEOUT = "timeout"  # request that got no answer at all
-FAULT_EXCEPTION = "exception"  # exception response (see exception_code)
-FAULT_BROADCAST_ANSWER = "broadcast_answer"  # a slave answered unit 0 (a firmware bug)
-FAULT_NOISE = "noise"
-
-
-@dataclass(frozen=True, slots=True)
-class WireFrame:
-    """One frame as it crossed the wire, plus what really happened."""
-
-    t_ns: int  # start bit of the first byte
-    t_end_ns: int  # end of the last byte's stop bit
-    raw: bytes  # as on the wire (CRC or LRC included, corrupted if kind == corrupted; ASCII: the characters)
-    byte_t_ns: tuple[int, ...]  # start bit of every byte
-    kind: str  # one of KINDS
-    unit: int | None = None  # address byte as sent (None for noise)
-    function: int | None = None
-    expects_answer: bool = False  # the master waits for a reply to it
-    answered: bool = False  # a reply (good or damaged) followed
-    txn: int = -1  # exchange number: a request, its retries and the reply share it
-    attempt: int = 0  # 0 = first try, 1.. = retries with the same bytes
-    role: str = ""  # what the frame was meant to be (differs from kind when corrupted)
-    fault: str = ""  # FAULT_*, "" for an ordinary frame
-    exception_code: int | None = None
-    turnaround_ns: int | None = None  # reply: silence after the request's last stop bit
-    late: bool = False  # reply drawn from the unit's slow turnaround range
-    flags: tuple[tuple[int, str], ...] = ()  # UART errors a logic analyzer would flag
-
-    @property
-    def crc_valid(self) -> bool:
-        return self.kind not in (KIND_CORRUPTED, KIND_NOISE)
+from sniffer.simulator.wire import (  # noqa: F401 - re-exported: the bus's vocabulary
+    FAULT_BROADCAST_ANSWER, FAULT_CRC, FAULT_EXCEPTION, FAULT_NOISE, FAULT_TIMEOUT, KIND_BROADCAST, KIND_CORRUPTED,
+    KIND_EXCEPTION, KIND_NOISE, KIND_REQUEST, KIND_RESPONSE, KINDS, WireFrame,
+)
 
 
 class _Bus:
@@ -104,6 +65,12 @@ class _Bus:
         self.timeout = max(int(sc.timeout_ms * 1e6), 2 * line.t35_ns)
         self.txn = 0
         self.now = int(sc.start_ms * 1e6)
+        self.busy_until: dict[int, int] = {}  # a unit still working on a late answer ignores requests
+        self.plan = None  # the scenario's faults that change what the bus does (faults.BusFaults)
+        if sc.faults:
+            from sniffer.simulator.faults import BusFaults
+
+            self.plan = BusFaults(self)
 
     # ---------------------------------------------------------------- wire
     def _encode(self, adu: bytes) -> bytes:
@@ -153,8 +120,11 @@ class _Bus:
         period = int(sc.poll_period_ms * 1e6)
         n = 0
         cycle_start = self.now
+        plan = self.plan
         while self.now < end_ns:
             self.now = max(self.now, cycle_start)
+            if plan is not None:
+                yield from plan.between(self.now, end_ns)
             self.master.operator(self.now)
             if sc.broadcast_every and n % sc.broadcast_every == sc.broadcast_every - 1:
                 yield from self._broadcast(self.master.broadcast())
@@ -162,6 +132,8 @@ class _Bus:
             for req in reqs:
                 if self.now >= end_ns:
                     return
+                if plan is not None:
+                    yield from plan.between(self.now, end_ns)
                 yield from self._exchange(req)
                 yield from self._idle()
             if not reqs:
@@ -212,8 +184,13 @@ class _Bus:
         adu = bytes((req.unit,)) + req.pdu
         raw = self._encode(adu)
         spec = self.specs.get(req.unit)
+        plan = self.plan
+        late: WireFrame | None = None  # an answer on its way after the master gave up on its request
+        late_payload = b""
         for attempt in range(sc.retries + 1):
-            hit = sc.request_corrupt_prob and self.rng.random() < sc.request_corrupt_prob
+            extra = plan.interference(self.now) if plan is not None else 0.0
+            p_hit = sc.request_corrupt_prob + extra
+            hit = p_hit and self.rng.random() < p_hit
             wire = self._corrupt(raw) if hit else raw
             reply = None if hit or spec is None else self._reply(spec, req, raw)
             kind = KIND_CORRUPTED if hit else KIND_REQUEST
@@ -223,6 +200,12 @@ class _Bus:
                 fault=FAULT_CRC if hit else ("" if reply is not None else FAULT_TIMEOUT),
             )
             yield fr
+            if late is not None and fr.t_end_ns <= late.t_ns < fr.t_end_ns + self.timeout:
+                # the answer to an earlier try comes alone after this one: the master takes it for this
+                # one's (the same unit, function and shape) and goes on
+                self.now = late.t_end_ns
+                self.master.observe(req, late_payload[1:], late.t_end_ns)
+                return
             if reply is None:
                 self.now = fr.t_end_ns + self.timeout
                 continue
@@ -230,7 +213,8 @@ class _Bus:
             rsp_raw = self._encode(payload)
             is_exc = bool(payload[1] & 0x80)
             role = KIND_EXCEPTION if is_exc else KIND_RESPONSE
-            damaged = spec.corrupt_prob and self.rng.random() < spec.corrupt_prob
+            p_dmg = spec.corrupt_prob + extra
+            damaged = p_dmg and self.rng.random() < p_dmg
             fault = FAULT_CRC if damaged else FAULT_EXCEPTION if is_exc else ""
             rsp = self._frame(
                 self._corrupt(rsp_raw) if damaged else rsp_raw, fr.t_end_ns + ta,
@@ -241,6 +225,11 @@ class _Bus:
                 turnaround_ns=ta, late=slow,
             )
             yield rsp
+            if ta > self.timeout:  # the master gave up before it came: it tries again, or goes on
+                self.busy_until[req.unit] = rsp.t_end_ns
+                late, late_payload = (None, b"") if damaged else (rsp, payload)
+                self.now = fr.t_end_ns + self.timeout
+                continue
             self.now = rsp.t_end_ns
             if not damaged:
                 self.master.observe(req, payload[1:], rsp.t_end_ns)
@@ -253,12 +242,21 @@ class _Bus:
         rng = self.rng
         if spec.no_answer_prob and rng.random() < spec.no_answer_prob:
             return None
+        if self.now < self.busy_until.get(spec.unit, 0):
+            return None  # still working on a late answer: this request is not heard
         slow = bool(spec.slow_prob) and rng.random() < spec.slow_prob
         ta = max(self._chars(spec.slow_turnaround_chars if slow else spec.turnaround_chars), self.quiet)
-        # a reply must start before the master gives up, or the line would collide
-        ta = min(ta, self.timeout - self.line.t35_ns)
+        if spec.turnaround_growth_per_min:
+            ta = int(ta * (1 + spec.turnaround_growth_per_min * self.now / 60e9))
+        if spec.late_prob and rng.random() < spec.late_prob:
+            ta = int(rng.uniform(*spec.late_timeouts) * self.timeout)  # after the master gave up (a fault)
+        else:
+            # a reply must start before the master gives up, or the line would collide
+            ta = min(ta, self.timeout - self.line.t35_ns)
         drive = self.drives[spec.unit]
         drive.advance(self.now)
+        if self.plan is not None and not self.plan.powered(spec.unit, self.now):
+            return None
         if spec.busy_prob and rng.random() < spec.busy_prob:
             pdu = bytes((req.pdu[0] | 0x80, drive.busy_code))
         else:
@@ -267,5 +265,13 @@ class _Bus:
 
 
 def simulate(scenario: Scenario, line: LineSettings, duration_s: float, seed: int) -> Iterator[WireFrame]:
-    """Frames of `duration_s` seconds of bus traffic (exchanges started before the end finish)."""
-    return _Bus(scenario, line, seed).run(int(duration_s * 1e9))
+    """Frames of `duration_s` seconds of bus traffic (exchanges started before the end finish).
+
+    A scenario with `faults` (faults.py) changes what the bus does (BusFaults) and then what the
+    wire carries: frames that overlap collide, and line faults reshape bytes (wire_faults)."""
+    frames = _Bus(scenario, line, seed).run(int(duration_s * 1e9))
+    if scenario.faults:
+        from sniffer.simulator.wirefaults import wire_faults
+
+        frames = wire_faults(frames, scenario, line, seed)
+    return frames

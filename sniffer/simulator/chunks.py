@@ -26,7 +26,7 @@ from bisect import bisect_right
 from collections.abc import Iterable, Iterator
 
 from sniffer.events import Chunk
-from sniffer.simulator.bus import WireFrame
+from sniffer.simulator.wire import WireFrame
 
 
 def wire_chunks(frames: Iterable[WireFrame], channel: str = "") -> Iterator[Chunk]:

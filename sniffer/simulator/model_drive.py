@@ -48,6 +48,15 @@ class ModelDrive(Drive):
         self.mode = "DRV" if model.mode_register else ""
         self.busy_until_ns = 0
         self.next_trip_ns: int | None = None
+        self.saved = dict(self.words)  # what the EEPROM holds: a power cycle comes back with it
+
+    def power_cycle(self) -> None:
+        """Power lost and back: the registers are what was last saved, the motor stopped, no trip."""
+        self.words = dict(self.saved)
+        self.run = False
+        self.fault = None
+        self.out_hz = self.current_a = 0.0
+        self.mode = "DRV" if self.model.mode_register else ""
 
     def code(self, situation: str) -> int:
         exc = self.p.exceptions
@@ -183,6 +192,9 @@ class ModelDrive(Drive):
                 if self.rng.random() < self.p.eeprom_fail_prob:
                     return self.code("eeprom")
                 self.busy_until_ns = (self.t_ns or 0) + int(self.p.busy_ms * 1e6)
+                self.words[a] = v
+                self.saved = dict(self.words)
+                continue
             self.words[a] = v
         return None
 

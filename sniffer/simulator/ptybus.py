@@ -22,7 +22,7 @@ import tty
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from sniffer.simulator.bus import WireFrame
+from sniffer.simulator.wire import WireFrame
 
 _POLL_S = 0.02  # how often a waiting play() looks at stop_event and drains
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from sniffer.events import FLAG_FRAMING, FLAG_PARITY
 from sniffer.line import LineSettings
 from sniffer.sources.parmrk import InputFlags, tty_bytes
-from sniffer.simulator.bus import WireFrame
+from sniffer.simulator.wire import WireFrame
 from sniffer.simulator.uart import Receiver, RxChar, Wire
 
 GRID_NS = 1_000_000  # the latency timer of the adapter a pty line plays: 1 ms

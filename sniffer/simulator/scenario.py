@@ -71,6 +71,12 @@ class UnitSpec:
     # a drive of a real model (Scenario.devices) trips with a fault from its own table after
     # this many seconds of bus time (uniform in the range), again after each reset; (0, 0) = never
     trip_every_s: tuple[float, float] = (0.0, 0.0)
+    # answers after the master's timeout now and then (faults.py: timeout_too_short): this share of
+    # the answers comes this many master timeouts after the request (no clamp to the timeout)
+    late_prob: float = 0.0
+    late_timeouts: tuple[float, float] = (1.1, 1.6)
+    # the turnaround grows by this share of itself per minute of bus time (faults.py: latency_drift)
+    turnaround_growth_per_min: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,6 +130,8 @@ class Scenario:
     # the protocol's minimum silence before every frame, kept by master and slaves alike
     # (PD-series: "more than 50 ms", l.203-206); 0 = none beyond gap_chars / turnaround_chars
     quiet_ms: float = 0.0
+    # causes of trouble on the line (faults.py, `simulate --fault KIND[:UNIT]`): (kind, unit or None)
+    faults: tuple[tuple[str, int | None], ...] = ()
 
 
 _READS = (

@@ -114,8 +114,14 @@ class SimulatedSource:
         self._stop = False
 
     def open(self) -> CaptureInfo:
+        if self.receiver is None:  # a wrong_line_settings fault: the device is set to something else
+            from sniffer.simulator.faults import receiver_for
+
+            self.receiver = receiver_for(self.scenario, self.line)
         sc, line = self.scenario, self.receiver or self.line
         extra = {"simulated_line": self.line.label()} if self.receiver else {}
+        if sc.faults:  # what was put on the line, for whoever reads the capture later
+            extra["simulated_faults"] = ",".join(k if u is None else f"{k}:{u}" for k, u in sc.faults)
         return CaptureInfo(
             source=f"simulator:{sc.name}:seed={self.seed}", port="(simulated)", baud=line.baud,
             parity=line.parity, stopbits=line.stopbits, databits=line.databits,

@@ -237,3 +237,18 @@ def _size(path: str) -> int:
 
 def _describe(info: CaptureInfo) -> str:
     return f"{info.baud} {info.databits}{info.parity}{info.stopbits} {info.protocol}"
+
+
+def replay_source(spec):
+    """The capture of a replay-like command: one file (a killed capture's part file when only that is
+    there), or a set read as one capture: several files, a rotated capture's folder or its index."""
+    from sniffer.formats.outputs import readable
+
+    if is_set(spec.inputs or spec.input):
+        return capture_source(spec.inputs, spec.input_format)
+    path, note = readable(spec.input)
+    if note:
+        from sniffer.stderr import say
+
+        say(f"note: {note}")
+    return capture_source(path, spec.input_format, spec.logic)

@@ -41,6 +41,7 @@ from sniffer.tui.sink import INTAKE_BUDGET_S, INTAKE_PERIOD_S, TuiSink
 from sniffer.tui.status import status_text
 from sniffer.tui.txlist import TransactionList, TransactionsPane
 from sniffer.tui.units import UnitsTable
+from sniffer.tui.verdicts import VerdictsPane
 
 HELP = """\
 [b]rs485-sniffer TUI[/b] — keys
@@ -73,6 +74,8 @@ HELP = """\
                filter applies (a transaction shows if its request or its response passes)
     in it:     [b]Enter[/b] / a click on the selected line: its request in Frames; [b]h[/b] histogram
                of all units / this unit; [b]n[/b] / [b]N[/b] next / previous problem; [b]u[/b] / [b]f[/b] its unit / fc
+  [b]7[/b]            verdicts: what is wrong on the line, why, what to do (`sniffer diagnose` on the frames so
+               far, updated as they come); Enter goes to a finding's first frame
   [b]5[/b]            plot; in Registers [b]a[/b] adds / removes the register, [b]Enter[/b] opens its change log
                (there [b]Enter[/b] goes to the change's frame, [b]Esc[/b] back)
   Plot:        [b]+ -[/b] zoom  [b]← →[/b] pan  [b]0[/b] all, follow  [b], .[/b] cursor  [b]Enter[/b] / click: go to the
@@ -146,6 +149,7 @@ class SnifferApp(App):
         Binding("3", "tab('registers')", "Registers"),
         Binding("4", "tab('transactions')", "Transactions", show=False),
         Binding("5", "tab('plot')", "Plot", show=False),
+        Binding("7", "tab('verdicts')", "Verdicts", show=False),
         Binding("p", "pair", "Pair"),
         Binding("n", "problem(1)", "Next err"),
         Binding("N", "problem(0)", "Prev err", show=False),
@@ -228,6 +232,8 @@ class SnifferApp(App):
                 yield PlotPane(self.store, plots, id="plotpane")
             with TabPane("Bytes", id="bytes"):
                 yield BytesPane(self.reads, self.store, id="bytespane")
+            with TabPane("Verdicts", id="verdicts"):
+                yield VerdictsPane(id="verdictspane")
         yield Static("", id="status")
         yield KeyBar()
 
@@ -311,6 +317,7 @@ class SnifferApp(App):
         if self.sink.info is not None and not len(self.store):
             self.store.t0_ns = self.sink.info.t0_ns
             self.store.time.wall_anchor_ns = self.sink.info.wall_anchor_ns
+            self.store.start_diagnosis(self.sink.info, self.registry)
         self.sink.drain_into(self.store.add, limit=self.max_batch, budget_s=budget_s)
         before = self._shown_rows  # frames _intake added count too
         if len(self.store) != before and (budget_s is None or self.frame_list.tail_due(len(self.store) - before)):
@@ -350,6 +357,8 @@ class SnifferApp(App):
             self.tx_pane.refresh_view()
         elif active == "plot":
             self.tabs.query_one("#plotpane", PlotPane).update_plot()
+        elif active == "verdicts":
+            self.tabs.query_one("#verdictspane", VerdictsPane).update_findings(self.store.diagnosis.findings())
 
     def capture_size(self) -> int | None:
         path = self.capture_path or self.sink.capture_path
@@ -404,6 +413,8 @@ class SnifferApp(App):
             self.tx_pane.list.focus()
         elif tab == "plot":  # the plot takes the keys (zoom, pan, cursor)
             self.query_one("#plotview").focus()
+        elif tab == "verdicts":
+            self.query_one("#verdict-list").focus()
         else:  # the tab's table takes the keys (arrows move in it at once)
             from textual.widgets import DataTable
 

@@ -22,7 +22,11 @@ import bisect
 from array import array
 from dataclasses import dataclass
 
+from types import SimpleNamespace
+
+from sniffer.diagnose import Diagnosis
 from sniffer.filterlang import Query, matches_text, register_cell, registers_of
+from sniffer.line import LineSettings, SettingsError
 from sniffer.frame import Frame
 from sniffer.analysis.flags import (  # the store's flag column (re-exported for the views)
     F_CRC, F_ERROR, F_EXC, F_FAULT, F_NOISE, F_PROBLEM, F_TIMEOUT, F_WARN, frame_flags,
@@ -111,6 +115,8 @@ class FrameStore:
         self.book = RegisterBook(history_cap)  # the frames' `writes` applied: the decoders' register shadow
         self.registers = self.book.values  # (unit, table, address) -> RegisterValue
         self.transactions = Transactions()  # request + response as one entry, per-unit latency
+        self.diagnosis = Diagnosis()  # sniffer diagnose's engine over the frames taken in (the Verdicts tab)
+        self._diagnosis_of = None  # the CaptureInfo it was started with
         self.bookmarks: set[int] = set()
         self.paused_at: int | None = None  # row count when the view was paused
         self.bytes_total = 0
@@ -202,6 +208,31 @@ class FrameStore:
             self.view.append(row)
         if self.units.frame(f) is not None:
             self.book.frame(f)
+        self.diagnosis.frame(f)
+
+    def start_diagnosis(self, info, registry=None) -> None:
+        """The diagnosis engine's settings: each link's line as the capture's metadata says it, the models of the
+        decoders' registry (None: a viewer attached to a capture has none: one is made from the models its
+        metadata names).  Once per capture (the App asks until the first frame comes)."""
+        if info is self._diagnosis_of:
+            return
+        self._diagnosis_of = info
+        resolved = {}
+        for name, d in [(str(x.get("name", "")), x) for x in info.links] or [("", info.to_dict())]:
+            try:
+                line = LineSettings(int(d.get("baud") or 9600), str(d.get("parity") or "N"),
+                                    int(d.get("stopbits") or 1), int(d.get("databits") or 8))
+            except (SettingsError, TypeError, ValueError):
+                continue
+            resolved[name] = SimpleNamespace(line=line)
+        if registry is None:  # a viewer of a capture running elsewhere: the models its metadata names
+            try:
+                from decoders.registry import default_registry
+
+                registry = default_registry(dict(info.devices))
+            except Exception:  # noqa: BLE001 - a model this side does not know: diagnose without the maps
+                registry = None
+        self.diagnosis.start(info, resolved, {name: registry for name in resolved} if registry is not None else {})
 
     # ------------------------------------------------------------- filters
     def set_filter(self, flt: Filter) -> None:

@@ -40,7 +40,7 @@ from sniffer.formats.outputs import write_json_atomic
 INDEX_NAME = "index.json"
 STATUS_NAME = "status.json"
 LOCK_NAME = ".sniffer.lock"
-INDEX_FORMAT = "sniffer.formats.mcap.segments/1"
+INDEX_FORMAT = "sniffer.segments/1"
 SEGMENT_RE = re.compile(r"(?P<prefix>.+)-(?P<time>\d{8}T\d{6}Z)-(?P<seq>\d{5,})\.mcap(?P<part>(?:\.\d+)?\.part)?\Z")
 MIN_ROTATE_BYTES = 10**6  # each segment carries its own schemas, channels (one per register) and index: tens of kB
 MIN_ROTATE_S = 1.0

@@ -1,0 +1,52 @@
+"""`sniffer diagnose CAPTURE... [--bus FILE] [--format text|json] [--params REFERENCE]`: findings, most severe first.
+
+The capture (a file, a rotated capture's folder, several files read as one, as `replay` reads them) runs
+through one capture session; the diagnosis engine (sniffer.diagnose) takes the frames as they pass, in
+flat memory, and gives its findings at the end: text for people, `{"findings": [...]}` for scripts.
+A damaged but readable capture is diagnosed (the findings say what was read) and the command ends with
+its error line and exit code 2, as replay does.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from sniffer.capture.session import Session
+from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.common import report
+from sniffer.commands.replay import note_unfinished, file_source
+
+
+def cmd_diagnose(spec: CaptureSpec, args) -> int:
+    from sniffer.diagnose import Diagnosis, summary, to_json, to_text
+    from sniffer.diagnose.reference import load
+
+    reference = load(args.params, spec.with_(input=None, inputs=())) if args.params else None
+    source = file_source(spec)
+    session = Session(spec, source, [])
+    bar = None
+    if args.progress:
+        from sniffer.capture.progress import ReplayProgress
+
+        bar = ReplayProgress(spec.input, source=source, frames=lambda: session.frames_out)
+        session.on_event = bar.update
+    engine = Diagnosis(reference)
+    try:
+        session.open()
+        note_unfinished(session)
+        engine.start_session(session)
+        frame = engine.frame
+        for f in session:
+            frame(f)
+    finally:
+        if bar is not None:
+            bar.close()
+    findings = engine.findings()
+    if args.format == "json":
+        sys.stdout.write(to_json(findings))
+    else:
+        what = " + ".join(spec.inputs or [spec.input])
+        head = (f"sniffer diagnose {what}: {session.frames_out:,} frames at {session.resolved.describe()}; "
+                f"{summary(findings)}\n")
+        sys.stdout.write(to_text(findings, head))
+    return report(session, label=spec.input)

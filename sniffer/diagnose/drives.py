@@ -1,0 +1,277 @@
+"""What the drives do, against what the line does: drive_fault, noise_correlated_with_load.
+
+* drive_fault: the drive's model reports a trip (model.fault: its fault register, with the manual's
+  text).  One trip is one episode: from the first answer that reports it to the first answer of the
+  same read that no longer does; meanwhile the master's writes to the drive are counted (a run command
+  written into a fault does nothing) and the last write before the episode ends is named (the reset);
+* noise_correlated_with_load: the line's damaged frames (CRC errors, UART flags, noise) counted against
+  a drive's decoded output frequency at the time (its last good reading): the rate of damage while
+  the drive runs above half its highest frequency seen, against the rate below, with a one-sided
+  two-proportion z test.  Only drives whose model names an "Output frequency" register take part.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from sniffer.codes import ERROR, WARNING
+from sniffer.diagnose.state import Group, Link, Unit
+from sniffer.diagnose.finding import Finding
+from sniffer.diagnose.stats import two_proportions
+
+if TYPE_CHECKING:
+    from sniffer.diagnose.engine import Diagnosis
+
+LOAD_NAME = "output frequency"
+LOAD_P = 1e-4
+MIN_BAD = 10
+_WRITES = frozenset((0x05, 0x06, 0x0F, 0x10))
+
+
+class _Episode:
+    __slots__ = ("text", "key", "start_ns", "end_ns", "first", "writes", "written", "last_write", "closed")
+
+    def __init__(self, text: str, key, t: int, index: int) -> None:
+        self.text = text
+        self.key = key
+        self.start_ns = t
+        self.end_ns = t
+        self.first = index
+        self.writes = 0
+        self.written: set[str] = set()
+        self.last_write: tuple[int, str] | None = None
+        self.closed = False
+
+
+class DrivesGroup(Group):
+    def __init__(self) -> None:
+        self.open: dict[tuple, dict[str, _Episode]] = {}  # (link, unit) -> fault text -> episode
+        self.done: dict[tuple, list[_Episode]] = {}  # (link, unit, text) -> episodes (first and last kept)
+        self.counts: dict[tuple, int] = {}
+        self.load_addr: dict[tuple, int | None] = {}  # (link, unit) -> its output frequency register
+        self.load_now: dict[str, dict[int, float]] = {}  # link -> unit -> last reading
+        self.bins: dict[tuple, dict[int, list]] = {}  # (link, unit) -> bucket -> [frames, damaged]
+        self.top: dict[tuple, float] = {}
+        self.examples: dict[tuple, list[int]] = {}  # (link, unit) -> damaged frames while it ran high
+        self.eng_unit: dict[tuple, str] = {}  # (link, unit) -> the output frequency's unit (Hz, or % of its maximum)
+
+    # ------------------------------------------------------------ frames
+    def noise(self, f, link: Link, codes: frozenset) -> None:
+        if self.load_now:
+            self._count(link, True, f.index)
+
+    def other(self, f, link: Link, unit: Unit | None, codes: frozenset) -> None:
+        if self.load_now:
+            self._count(link, _bad(f, codes), f.index)
+
+    def request(self, f, link: Link, unit: Unit, codes: frozenset, key: tuple) -> None:
+        if self.load_now:
+            self._count(link, _bad(f, codes), f.index)
+        if self.open and f.function in _WRITES:
+            eps = self.open.get((link.name, unit.unit))
+            if eps:
+                names = [p.get("name", "").split(" (")[0] for p in f.points[:4]] if f.points else []
+                for e in eps.values():
+                    e.writes += 1
+                    e.written.update(n for n in names if n)
+                    e.last_write = (f.index, _short(f.summary))
+
+    def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
+        if self.load_now:
+            self._count(link, _bad(f, codes), f.index)
+        if unit is None or not f.crc_ok or (f.model is None or f.model == "generic") and not self.open and not codes:
+            return
+        key = (link.name, unit.unit)
+        if codes and "model.fault" in codes:
+            self._faults(f, link, key, unit)
+        elif key in self.open:
+            self._maybe_close(f, link, key)
+        if f.writes and f.model and f.model != "generic" and self.load_addr.get(key, -1) is not None:
+            self._load(f, link, key)
+
+    def _faults(self, f, link: Link, key: tuple, unit: Unit) -> None:
+        got = link.request_of(f)
+        rk = got[2] if got is not None else None
+        eps = self.open.setdefault(key, {})
+        seen = set()
+        for a in f.annotations:
+            if a.code != "model.fault":
+                continue
+            text = _without_register(a.detail.removeprefix("fault: "))
+            seen.add(text)
+            e = eps.get(text)
+            if e is None:
+                e = eps[text] = _Episode(text, rk, f.t_ns, f.index)
+            e.end_ns = f.t_end_ns
+        for text in [t for t, e in eps.items() if t not in seen and e.key == rk]:
+            self._close(key, eps.pop(text), f.t_ns)
+
+    def _maybe_close(self, f, link: Link, key: tuple) -> None:
+        got = link.request_of(f)
+        if got is None:
+            return
+        rk = got[2]
+        eps = self.open[key]
+        for text in [t for t, e in eps.items() if e.key == rk]:
+            self._close(key, eps.pop(text), f.t_ns)
+
+    def _close(self, key: tuple, e: _Episode, t: int) -> None:
+        e.end_ns = t
+        e.closed = True
+        k = (*key, e.text)
+        self.counts[k] = self.counts.get(k, 0) + 1
+        lst = self.done.setdefault(k, [])
+        lst.append(e)
+        if len(lst) > 6:
+            del lst[3]  # the first three and the latest ones
+
+    def _load(self, f, link: Link, key: tuple) -> None:
+        addr = self.load_addr.get(key, -1)
+        if addr == -1:
+            addr = self.load_addr[key] = _load_register(link, key[1])
+        if addr is None or f.function not in (0x03, 0x04):
+            return
+        for p in f.points:
+            if p.get("address") == addr and isinstance(p.get("value"), (int, float)):
+                v = float(p["value"])
+                self.load_now.setdefault(link.name, {})[key[1]] = v
+                self.eng_unit[key] = p.get("unit") or ""
+                self.top[key] = max(self.top.get(key, 0.0), v)
+                return
+
+    def _count(self, link: Link, bad: bool, index: int = -1) -> None:
+        now = self.load_now.get(link.name)
+        if not now:
+            return
+        for unit, v in now.items():
+            if bad and v > self.top.get((link.name, unit), 0.0) / 2:
+                ex = self.examples.setdefault((link.name, unit), [])
+                if len(ex) < 6:
+                    ex.append(index)
+            b = self.bins.setdefault((link.name, unit), {})
+            x = b.get(int(v))
+            if x is None:
+                x = b[int(v)] = [0, 0]
+            x[0] += 1
+            x[1] += bad
+
+    # ------------------------------------------------------------ verdicts
+    def findings(self, d: Diagnosis) -> list[Finding]:
+        out = self._trips(d)
+        best = None
+        for key, bins in self.bins.items():
+            top = self.top.get(key, 0.0)
+            if top <= 0:
+                continue
+            level = top / 2
+            hi = [x for v, x in bins.items() if v > level]
+            lo = [x for v, x in bins.items() if v <= level]
+            n_hi, b_hi = sum(x[0] for x in hi), sum(x[1] for x in hi)
+            n_lo, b_lo = sum(x[0] for x in lo), sum(x[1] for x in lo)
+            if b_hi + b_lo < MIN_BAD or not n_hi or not n_lo:
+                continue
+            z, p = two_proportions(b_hi, n_hi, b_lo, n_lo)
+            r_hi, r_lo = b_hi / n_hi, b_lo / n_lo
+            if p < LOAD_P and r_hi >= 2 * r_lo + 0.01 and (best is None or p < best[0]):
+                best = (p, key, z, level, n_hi, b_hi, n_lo, b_lo)
+        if best is not None:
+            p, (name, unit), z, level, n_hi, b_hi, n_lo, b_lo = best
+            link = d.links[name]
+            eng = self.eng_unit.get((name, unit), "")
+            out.append(Finding(
+                "noise_correlated_with_load", WARNING, unit=unit, link=name, t_start=d.seconds(link.first_ns),
+                t_end=d.seconds(link.last_ns),
+                evidence={"level": round(level, 2), "level_unit": eng, "frames_above": n_hi, "damaged_above": b_hi,
+                          "frames_below": n_lo, "damaged_below": b_lo, "rate_above": round(b_hi / n_hi, 4),
+                          "rate_below": round(b_lo / n_lo, 4)},
+                statistic={"test": "two-proportion z test, one-sided", "z": round(z, 2), "p": p},
+                frames=self.examples.get((name, unit), []),
+                text=f"The line's errors follow unit {unit}'s output frequency: {b_hi / n_hi:.1%} of the frames are "
+                     f"damaged while it runs above {level:.1f} {eng}".rstrip() + f", {b_lo / n_lo:.1%} below: "
+                     f"interference from its motor side.",
+                action=f"Check unit {unit}'s motor cable and screen (360-degree clamp at the drive, away from the "
+                       f"RS-485 cable), its EMC filter and earthing; route the bus cable apart and earth its screen "
+                       f"at one end."))
+        return out
+
+    def _trips(self, d: Diagnosis) -> list[Finding]:
+        """One finding per drive: its faults (the manual's text), each episode from when to when, what the
+        master wrote meanwhile, and the write that reset it."""
+        by_unit: dict[tuple, list] = {}
+        for (name, unit, text), eps in self.done.items():
+            by_unit.setdefault((name, unit), []).append((text, list(eps), self.counts[(name, unit, text)]))
+        for (name, unit), eps in self.open.items():
+            for text, e in eps.items():
+                rows = by_unit.setdefault((name, unit), [])
+                row = next((r for r in rows if r[0] == text), None)
+                if row is None:
+                    rows.append((text, [e], 1))
+                else:
+                    row[1].append(e)
+                    rows[rows.index(row)] = (text, row[1], row[2] + 1)
+        out = []
+        for (name, unit), rows in sorted(by_unit.items(), key=str):
+            episodes = sorted((e for _, eps, _ in rows for e in eps), key=lambda e: e.start_ns)
+            n = sum(c for _, _, c in rows)
+            writes = sum(e.writes for e in episodes)
+            written = sorted({w for e in episodes for w in e.written})[:4]
+            resets = [e.last_write for e in episodes if e.closed and e.last_write]
+            still = [e for e in episodes if not e.closed]
+            faults = ", ".join(f"{t} ({c}x)" if c > 1 else t for t, _, c in sorted(rows, key=lambda r: -r[2]))
+            ev = {"trips": n, "faults": {t: c for t, _, c in rows},
+                  "tripped_s": round(sum(e.end_ns - e.start_ns for e in episodes) / 1e9, 2), "writes_during": writes,
+                  "episodes": [{"fault": e.text, "from_s": round(d.seconds(e.start_ns), 3),
+                                "to_s": round(d.seconds(e.end_ns), 3), "writes": e.writes,
+                                "reset": None if not (e.closed and e.last_write) else f"#{e.last_write[0]}"}
+                               for e in episodes[:3] + episodes[3:][-3:]]}
+            if written:
+                ev["written_during"] = written
+            tail = "; still tripped at the end of the capture" if still else ""
+            reset = f"; reset by writes such as #{resets[-1][0]} ({resets[-1][1]})" if resets else ""
+            during = f"; the master wrote to it {writes} times while tripped ({', '.join(written)})" if writes else ""
+            first, last = episodes[0], episodes[-1]
+            out.append(Finding(
+                "drive_fault", ERROR, unit=unit, link=name, t_start=d.seconds(first.start_ns),
+                t_end=d.seconds(last.end_ns), evidence=ev,
+                frames=[e.first for e in episodes[:4]] + [r[0] for r in resets[:2]],
+                text=f"Unit {unit} tripped {n} time(s): {faults}; first at {d.seconds(first.start_ns):.1f} s"
+                     f"{during}{reset}{tail}.",
+                action=f"Look up {rows[0][0].split(' (')[0]} (and the others) in the drive's manual and remove the "
+                       f"cause; a PLC that resets the drive and runs it again at once only repeats the trip."))
+        return out
+
+
+def _load_register(link: Link, unit: int) -> int | None:
+    """The address of the register the unit's model names 'Output frequency' (None: no such register)."""
+    reg = link.registry
+    if reg is None:
+        return None
+    try:
+        dec = reg.decoders.get(reg.model_for(unit))
+        rows = dec.map.registers.values()
+    except AttributeError:
+        return None
+    for r in rows:
+        if (r.name or "").strip().lower() == LOAD_NAME:
+            return r.addr
+    return None
+
+
+def _short(text: str, n: int = 60) -> str:
+    return text if len(text) <= n else text[: n - 3].rstrip() + "..."
+
+
+def _bad(f, codes: frozenset) -> bool:
+    return f.crc_ok is False or bool(codes) and ("uart.framing_error" in codes or "uart.parity_error" in codes)
+
+
+def _without_register(detail: str) -> str:
+    """'OL1 — Motor overload (Fault bits (low))' -> 'OL1 — Motor overload': the register's name goes."""
+    if not detail.endswith(")"):
+        return detail
+    depth = 0
+    for i in range(len(detail) - 1, -1, -1):
+        depth += {")": 1, "(": -1}.get(detail[i], 0)
+        if depth == 0:
+            return detail[:i].rstrip() or detail
+    return detail

@@ -1,0 +1,175 @@
+"""`sniffer diagnose --params REFERENCE`: a drive's parameter set to hold this capture's values against.
+
+REFERENCE is a CSV (a header `unit,register,value`; a register is the manual's id such as Cn-02, or an
+address: 769, 0x0301 or 0301H; a value as the sniffer shows it, in engineering units), or an earlier
+capture of the same line (any input `replay` reads, decoded with the same flags: the last value it read
+or wrote of each holding register with a manual id).  `Reference.compare` turns the differences into
+params_changed findings, one per unit.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+
+from sniffer.codes import WARNING
+from sniffer.events import CaptureError
+from sniffer.diagnose.finding import Finding
+
+MAX_ROWS = 100_000
+
+
+class ReferenceError(CaptureError):
+    """A --params file that cannot be read (one line, exit 2)."""
+
+
+def _address(text: str) -> int | None:
+    t = text.strip()
+    try:
+        if t.lower().startswith("0x"):
+            return int(t, 16)
+        if t.upper().endswith("H"):
+            return int(t[:-1], 16)
+        return int(t)
+    except ValueError:
+        return None
+
+
+class Reference:
+    """Values per (link, unit, register): a register by id until the unit's map resolves it."""
+
+    def __init__(self, source: str, rows: list[tuple[str, int, str, object]]) -> None:
+        self.source = source
+        self.rows = rows  # (link, unit, register id or address text, value)
+        self._resolved: dict[tuple, dict[int, tuple]] = {}  # (link, unit) -> addr -> (name, value)
+
+    def addresses(self, link, unit: int) -> dict[int, tuple]:
+        key = (link.name, unit)
+        got = self._resolved.get(key)
+        if got is None:
+            got = self._resolved[key] = self._resolve(link, unit)
+        return got
+
+    def _resolve(self, link, unit: int) -> dict[int, tuple]:
+        by_id = {}
+        reg = link.registry
+        if reg is not None:
+            dec = reg.decoders.get(reg.model_for(unit))
+            by_id = getattr(getattr(dec, "map", None), "by_id", None) or {}
+        out = {}
+        for ln, u, name, value in self.rows:
+            if u != unit or (ln and ln != link.name):
+                continue
+            r = by_id.get(name)
+            addr = r.addr if r is not None else _address(name)
+            if addr is not None:
+                out[addr] = (name if r is not None or not by_id else name, value)
+        return out
+
+    def compare(self, d, read: dict) -> list[Finding]:
+        out = []
+        for (name, unit), want in self._resolved.items():
+            got = read.get((name, unit), {})
+            diffs = []
+            frames = []
+            for addr, (pname, ref) in sorted(want.items()):
+                if addr not in got:
+                    continue
+                value, text, index, eng = got[addr]
+                if _same(ref, value):
+                    continue
+                diffs.append({"parameter": pname, "reference": ref, "now": value, "unit": eng, "frame": index})
+                frames.append(index)
+            if not diffs:
+                continue
+            listed = ", ".join(f"{x['parameter']} {x['reference']} -> {x['now']}{' ' + x['unit'] if x['unit'] else ''}"
+                               for x in diffs[:5])
+            more = f" and {len(diffs) - 5} more" if len(diffs) > 5 else ""
+            link = d.links.get(name)
+            out.append(Finding(
+                "params_changed", WARNING, unit=unit, link=name, frames=frames,
+                t_start=d.seconds(link.first_ns) if link else None, t_end=d.seconds(link.last_ns) if link else None,
+                evidence={"reference": self.source, "compared": sum(1 for a in want if a in got),
+                          "changed": len(diffs), "changes": diffs[:20]},
+                text=f"Unit {unit}'s parameters differ from {os.path.basename(self.source)}: {listed}{more}.",
+                action="Check who changed them and why (a replaced drive, a keypad change, the PLC's writes); put the "
+                       "reference values back, or update the reference if the change was meant."))
+        return out
+
+
+def _same(a, b) -> bool:
+    try:
+        x, y = float(a), float(b)
+    except (TypeError, ValueError):
+        return str(a).strip() == str(b).strip()
+    return math.isclose(x, y, rel_tol=1e-6, abs_tol=1e-9)
+
+
+def load_csv(path: str) -> Reference:
+    rows = []
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.DictReader(fh)
+            fields = {(h or "").strip().lower(): h for h in reader.fieldnames or ()}
+            if not {"unit", "register", "value"} <= set(fields):
+                raise ReferenceError(f"--params {path}: a CSV needs the columns unit, register, value "
+                                     f"(found: {', '.join(fields) or 'none'})")
+            for i, r in enumerate(reader, 2):
+                if len(rows) >= MAX_ROWS:
+                    break
+                unit_text = (r.get(fields["unit"]) or "").strip()
+                link, _, unit_text = unit_text.rpartition(":")
+                try:
+                    unit = int(unit_text, 0)
+                except ValueError:
+                    raise ReferenceError(f"--params {path}: line {i}: unit {unit_text[:20]!r} is not a number") \
+                        from None
+                value = (r.get(fields["value"]) or "").strip()
+                try:
+                    value = float(value)
+                except ValueError:
+                    pass
+                rows.append((link, unit, (r.get(fields["register"]) or "").strip(), value))
+    except OSError as e:
+        raise ReferenceError(f"--params {path}: {e.strerror or e}") from None
+    except (UnicodeDecodeError, csv.Error) as e:
+        raise ReferenceError(f"--params {path}: not a CSV ({e})") from None
+    return Reference(path, rows)
+
+
+def load_capture(path: str, spec) -> Reference:
+    """The last value of each holding register with a manual id, read or written in an earlier capture."""
+    from sniffer.sources.segset import replay_source as file_source
+    from sniffer.capture.session import Session
+
+    cspec = spec.with_(input=path, inputs=(path,))
+    session = Session(cspec, file_source(cspec), [])
+    last: dict[tuple, tuple] = {}
+    for f in session:
+        if f.role != "response" or not f.crc_ok or f.exception or not f.writes or f.unit is None:
+            continue
+        for pt in f.points:
+            if pt.get("id") and pt.get("address") is not None and pt.get("value") is not None:
+                last[(f.link, f.unit, pt["id"])] = pt["value"]
+    if session.error:
+        raise ReferenceError(f"--params {path}: {session.error}")
+    return Reference(path, [(ln, u, pid, v) for (ln, u, pid), v in last.items()])
+
+
+def load(path: str, spec) -> Reference:
+    if not os.path.exists(path):
+        raise ReferenceError(f"--params {path}: no such file")
+    if path.lower().endswith(".csv") and _looks_like_params(path):
+        return load_csv(path)
+    return load_capture(path, spec)
+
+
+def _looks_like_params(path: str) -> bool:
+    """A parameter CSV (unit,register,value), not a byte CSV capture."""
+    try:
+        with open(path, encoding="utf-8-sig") as fh:
+            head = fh.readline().lower()
+    except (OSError, UnicodeDecodeError):
+        return False
+    return any(word in head for word in ("unit", "register", "value"))

@@ -1,0 +1,277 @@
+"""`sniffer simulate --fault KIND[:UNIT]`: one cause of trouble on the simulated line, as it shows on the wire.
+
+    sc = apply(get_scenario("default"), ["driver_enable_late:2", "bus_unbiased"])
+    frames = simulate(sc, sc.line, 30.0, seed=1)      # the bus with those causes in it
+
+Each kind is what `sniffer diagnose` names (sniffer/diagnose); here it is put on the line the way
+it happens in a cabinet, so the tests, the demo and the report show it:
+
+* scenario changes (`apply`): unit_silent (the unit never answers), timeout_too_short (a third of
+  its answers come 1.1-1.6 master timeouts late: the master retries, the answer arrives alone after
+  the retry or collides with it), latency_drift (its turnaround grows through the capture),
+  drive_fault (a drive of a real model trips now and then), eeprom_wear (the PLC writes the save
+  register every cycle), params_not_saved (the PLC writes a parameter and never saves it; the drive
+  loses power half way and comes back with the saved value);
+* what the bus does (`BusFaults`, hooks the bus calls): second_master (a second PLC polls the unit
+  on its own schedule: mostly into a quiet line between the first master's exchanges, which waits
+  for it, and now and then over the first master's traffic: requests interleave and collide),
+  noise_correlated_with_load (interference that grows with the unit's output frequency, as a
+  motor cable next to the bus makes it), the power cycle of params_not_saved;
+* what the wire carries (wirefaults.py: `wire_faults`, after the bus): frames that overlap in time collide (the
+  two drivers' levels AND-ed, read by a UART at the line's settings: uart.py), driver_enable_late
+  (the unit's transmitter turns on after its first start bit began), driver_disable_early (it turns
+  off before its last stop bit ended), bus_unbiased (no fail-safe bias: the released line floats
+  and a receiver reads a character out of it after a transmission now and then);
+* what the capture device receives (sources.SimulatedSource): wrong_line_settings (the sniffer set
+  to another baud and parity than the line's; KIND:BAUD names the receiver's baud).
+
+A kind that needs a unit takes the scenario's first unit when none is given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+
+from sniffer.line import LineSettings
+from sniffer.simulator.wire import KIND_REQUEST, WireFrame
+from sniffer.simulator.scenario import PollSpec, Scenario
+
+
+class FaultError(ValueError):
+    """A --fault that cannot be applied to the scenario (one line, exit 2)."""
+
+
+@dataclass(frozen=True)
+class FaultKind:
+    name: str
+    about: str
+    unit: bool = True  # takes a unit (KIND:UNIT)
+
+
+KINDS: dict[str, FaultKind] = {k.name: k for k in (
+    FaultKind("driver_enable_late", "the unit's transmitter turns on after its first start bit began"),
+    FaultKind("driver_disable_early", "the unit's transmitter turns off before its last stop bit ended"),
+    FaultKind("bus_unbiased", "no fail-safe bias: the idle line floats and reads as stray characters", unit=False),
+    FaultKind("noise_correlated_with_load", "interference that grows with the unit's output frequency"),
+    FaultKind("timeout_too_short", "a third of the unit's answers come after the master's timeout"),
+    FaultKind("unit_silent", "the unit never answers"),
+    FaultKind("params_not_saved", "a parameter is written and never saved; the drive loses power half way"),
+    FaultKind("eeprom_wear", "the PLC writes the save register every cycle"),
+    FaultKind("drive_fault", "the drive (of a real model) trips every few seconds"),
+    FaultKind("wrong_line_settings", "the sniffer is set to another baud and parity than the line "
+                                     "(KIND:BAUD: that baud)", unit=False),
+    FaultKind("second_master", "a second PLC polls the unit on its own schedule"),
+    FaultKind("latency_drift", "the unit's turnaround grows through the capture"),
+)}
+
+SECOND_MASTER_PERIOD_MS = 270.0  # unrelated to any scenario's poll period
+M2_LISTENS = 0.6  # share of the second master's requests sent into a quiet line (the rest: when its timer says)
+POWER_OFF_S = 1.5  # params_not_saved: how long the drive is without power
+INTERFERENCE = 0.3  # noise_correlated_with_load: share of frames hit at full output frequency
+
+
+def parse(items: Iterable[str] | None) -> tuple[tuple[str, int | None], ...]:
+    """`KIND[:UNIT]` strings -> (kind, unit or None); FaultError for an unknown kind or a bad number."""
+    out = []
+    for item in items or ():
+        kind, sep, arg = item.partition(":")
+        kind = kind.strip().replace("-", "_")
+        if kind not in KINDS:
+            raise FaultError(f"--fault {item!r}: unknown kind; known: {', '.join(KINDS)}")
+        num = None
+        if sep:
+            try:
+                num = int(arg, 0)
+            except ValueError:
+                raise FaultError(f"--fault {item!r}: {arg!r} is not a unit number") from None
+            if KINDS[kind].unit and not 1 <= num <= 247:
+                raise FaultError(f"--fault {item!r}: unit {num} is outside 1..247")
+        out.append((kind, num))
+    return tuple(out)
+
+
+def apply(sc: Scenario, items: Iterable[str] | None) -> Scenario:
+    """The scenario with the faults `items` name (see the module doc); the faults travel in `sc.faults`."""
+    faults = []
+    for kind, num in parse(items):
+        unit = num if KINDS[kind].unit else None
+        if KINDS[kind].unit and unit is None:
+            if not sc.units:
+                raise FaultError(f"--fault {kind}: scenario {sc.name!r} has no unit")
+            unit = sc.units[0].unit
+        sc = _SCENARIO_CHANGES.get(kind, _no_change)(sc, unit)
+        faults.append((kind, unit if KINDS[kind].unit else num))
+    return dataclasses.replace(sc, faults=sc.faults + tuple(faults)) if faults else sc
+
+
+def receiver_for(sc: Scenario, line: LineSettings) -> LineSettings | None:
+    """wrong_line_settings: what the sniffer is set to instead of `line` (None without that fault)."""
+    for kind, num in sc.faults:
+        if kind == "wrong_line_settings":
+            baud = num or (line.baud // 2 if line.baud >= 19200 else line.baud * 2)
+            parity = {"N": "E", "E": "N", "O": "E"}[line.parity]
+            return LineSettings(baud, parity, 1, line.databits)
+    return None
+
+
+# ------------------------------------------------------------ scenario changes
+def _no_change(sc: Scenario, unit: int | None) -> Scenario:
+    return sc
+
+
+def _spec(sc: Scenario, unit: int, what: str):
+    for spec in sc.units:
+        if spec.unit == unit:
+            return spec
+    raise FaultError(f"--fault {what}:{unit}: scenario {sc.name!r} has no unit {unit} "
+                     f"(units: {', '.join(str(u.unit) for u in sc.units)})")
+
+
+def _with_unit(sc: Scenario, unit: int, what: str, **changes) -> Scenario:
+    spec = _spec(sc, unit, what)
+    units = tuple(dataclasses.replace(u, **changes) if u is spec else u for u in sc.units)
+    return dataclasses.replace(sc, units=units)
+
+
+def _model(sc: Scenario, unit: int, what: str, need_save: bool = False):
+    from sniffer.simulator.profiles import get_model
+
+    _spec(sc, unit, what)
+    model_id = sc.devices.get(unit)
+    models = ("tds-v8",) if need_save else ("tds-v8", "a510", "spl")
+    if model_id is None or (need_save and model_id not in models):
+        raise FaultError(f"--fault {what}:{unit}: needs a drive of a real model{' with a save register' * need_save} "
+                         f"(--scenario {' or '.join(models)})")
+    return get_model(model_id)
+
+
+def _unit_silent(sc: Scenario, unit: int) -> Scenario:
+    if any(u.unit == unit for u in sc.units):
+        return _with_unit(sc, unit, "unit_silent", no_answer_prob=1.0)
+    return dataclasses.replace(sc, polls=sc.polls + (PollSpec(0x03, sc.drive_map.monitor, 2, units=(unit,)),))
+
+
+def _timeout_too_short(sc: Scenario, unit: int) -> Scenario:
+    sc = _with_unit(sc, unit, "timeout_too_short", late_prob=0.35)
+    return dataclasses.replace(sc, retries=max(sc.retries, 1))
+
+
+def _latency_drift(sc: Scenario, unit: int) -> Scenario:
+    return _with_unit(sc, unit, "latency_drift", turnaround_growth_per_min=4.0)
+
+
+def _drive_fault(sc: Scenario, unit: int) -> Scenario:
+    _model(sc, unit, "drive_fault")
+    units = tuple(dataclasses.replace(u, trip_every_s=(4.0, 8.0) if u.unit == unit else (0.0, 0.0))
+                  for u in sc.units)
+    return dataclasses.replace(sc, units=units)
+
+
+def _save_address(sc: Scenario, unit: int, what: str) -> tuple[int, int]:
+    save = _model(sc, unit, what, need_save=True).eeprom_save
+    return save["addr"], save.get("value", 0)
+
+
+def _eeprom_wear(sc: Scenario, unit: int) -> Scenario:
+    addr, value = _save_address(sc, unit, "eeprom_wear")
+    return dataclasses.replace(sc, polls=sc.polls + (PollSpec(0x06, addr, value=value, units=(unit,)),))
+
+
+def _params_not_saved(sc: Scenario, unit: int) -> Scenario:
+    addr, _ = _save_address(sc, unit, "params_not_saved")
+    polls = tuple(p for p in sc.polls if not (p.function == 0x06 and p.address == addr and p.param == ""))
+    polls += (PollSpec(0x06, param="An-02", value=3000, every=25, phase=5, units=(unit,)),
+              PollSpec(0x03, param="An-02", every=25, phase=17, units=(unit,)))
+    return dataclasses.replace(sc, polls=polls)
+
+
+def _needs_unit(kind: str):
+    def check(sc: Scenario, unit: int) -> Scenario:
+        _spec(sc, unit, kind)
+        return sc
+    return check
+
+
+_SCENARIO_CHANGES = {
+    "unit_silent": _unit_silent, "timeout_too_short": _timeout_too_short, "latency_drift": _latency_drift,
+    "drive_fault": _drive_fault, "eeprom_wear": _eeprom_wear, "params_not_saved": _params_not_saved,
+    "driver_enable_late": _needs_unit("driver_enable_late"),
+    "driver_disable_early": _needs_unit("driver_disable_early"),
+    "noise_correlated_with_load": _needs_unit("noise_correlated_with_load"),
+    "second_master": _needs_unit("second_master"),
+}
+
+
+# ------------------------------------------------------------ what the bus does
+class BusFaults:
+    """The faults that change the bus's own behaviour, as hooks its loop calls (sans-I/O, its rng)."""
+
+    def __init__(self, bus) -> None:
+        self.bus = bus
+        faults = dict(bus.sc.faults)
+        self.load_unit = faults.get("noise_correlated_with_load")
+        self.m2_unit = faults.get("second_master")
+        self.m2_next = int(bus.sc.start_ms * 1e6) + int(0.4 * SECOND_MASTER_PERIOD_MS * 1e6)
+        self._m2_end = 0
+        self.power_unit = faults.get("params_not_saved")
+        self.power_off: tuple[int, int] | None = None  # (from, to) in bus time
+
+    def interference(self, now: int) -> float:
+        """Extra chance that a frame is hit: grows with the load unit's output frequency."""
+        drive = self.bus.drives.get(self.load_unit) if self.load_unit is not None else None
+        if drive is None:
+            return 0.0
+        drive.advance(now)
+        top = drive.max_hz() if hasattr(drive, "max_hz") else 60.0
+        return INTERFERENCE * min(1.0, drive.out_hz / top) ** 2
+
+    def powered(self, unit: int, now: int) -> bool:
+        off = self.power_off
+        return not (unit == self.power_unit and off is not None and off[0] <= now < off[1])
+
+    def between(self, now: int, end_ns: int) -> Iterator[WireFrame]:
+        """Called between two exchanges: the power loss, and the second master's exchanges that are due."""
+        bus = self.bus
+        if self.power_unit is not None and self.power_off is None and now >= 0.55 * end_ns:
+            self.power_off = (now, now + int(POWER_OFF_S * 1e9))
+            bus.drives[self.power_unit].power_cycle()
+        if self.m2_unit is None:
+            return
+        while self.m2_next <= now and self.m2_next < end_ns:
+            if bus.rng.random() < M2_LISTENS:
+                # it waits for a quiet line (between the first master's exchanges), and the first master,
+                # which also waits for silence before it sends, lets it finish
+                yield from self._second_master(now)
+                now = bus.now = max(bus.now, self._m2_end + bus.line.t35_ns + bus.char)
+            else:  # it sends when its timer says, over whatever is on the line
+                yield from self._second_master(self.m2_next)
+            self.m2_next += int(SECOND_MASTER_PERIOD_MS * 1e6) + bus.rng.randint(0, 4 * bus.char)
+
+    def _second_master(self, t: int) -> Iterator[WireFrame]:
+        """One exchange of the second PLC: a read of two registers of the unit's monitor block (it does not
+        listen before it talks: what it sends over the first master's traffic collides in wire_faults)."""
+        from sniffer.simulator.master import Request
+
+        bus, unit = self.bus, self.m2_unit
+        model = bus.master.models.get(unit)
+        first = model.profile.monitor[0] if model is not None else bus.sc.drive_map.monitor
+        req = Request(unit, bus.master.build(unit, PollSpec(0x03, first, 2)))
+        bus.txn += 1
+        adu = bytes((unit,)) + req.pdu
+        fr = bus._frame(bus._encode(adu), t, KIND_REQUEST, adu, expects_answer=True, answered=True, txn=bus.txn,
+                        role=KIND_REQUEST)
+        yield fr
+        self._m2_end = fr.t_end_ns
+        spec = bus.specs.get(unit)
+        drive = bus.drives.get(unit)
+        if spec is None or drive is None or not self.powered(unit, t):
+            return
+        ta = bus._chars(spec.turnaround_chars)
+        drive.advance(t)
+        payload = bytes((unit,)) + drive.handle(req.pdu)
+        rsp = bus._frame(bus._encode(payload), fr.t_end_ns + ta, "response", payload, txn=bus.txn,
+                         role="response", turnaround_ns=ta)
+        self._m2_end = rsp.t_end_ns
+        yield rsp
