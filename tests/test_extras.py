@@ -48,7 +48,7 @@ def _block(monkeypatch, extra: str) -> None:
             monkeypatch.setitem(sys.modules, ".".join(parts[:i]), None)
 
 
-def _inputs(tmp: Path) -> dict:
+def extra_inputs(tmp: Path) -> dict:
     cap = tmp / "in" / "a510.mcap"
     cap.parent.mkdir()
     shutil.copy(SIM, cap)
@@ -71,7 +71,7 @@ CASES = [
 
 @pytest.mark.parametrize("extra,argv,what", CASES, ids=[f"{c[0]}:{c[1].split()[0]}" for c in CASES])
 def test_missing_extra_is_one_line_naming_the_install(tmp_path, monkeypatch, capsys, extra, argv, what):
-    paths = _inputs(tmp_path)
+    paths = extra_inputs(tmp_path)
     (tmp_path / "out").mkdir()
     _block(monkeypatch, extra)
     import shlex
