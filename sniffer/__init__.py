@@ -44,15 +44,18 @@ class MissingExtra(Exception):
 
 def need(extra: str, what: str) -> None:
     """Raise MissingExtra ("WHAT needs the EXTRA extra (its packages): pip install ...") unless every module
-    of `extra` imports.  Called where a command or option first needs the extra, before any output exists."""
-    import importlib
+    of `extra` is installed.  Called where a command or option first needs the extra, before any output
+    exists.  The modules are found, not imported (a Parquet export does not load DuckDB)."""
+    from importlib.util import find_spec
 
     for module in EXTRAS[extra]:
         try:
-            importlib.import_module(module)
-        except ImportError:
+            found = find_spec(module) is not None
+        except ImportError:  # its parent package is missing
+            found = False
+        if not found:
             packages = ", ".join(EXTRAS[extra].values())
-            raise MissingExtra(f"{what} needs the {extra} extra ({packages}): {install_hint(extra)}") from None
+            raise MissingExtra(f"{what} needs the {extra} extra ({packages}): {install_hint(extra)}")
 
 
 def install_hint(extra: str) -> str:
