@@ -11,7 +11,7 @@ import argparse
 import os
 import sys
 
-from sniffer import __version__
+from sniffer import MissingExtra, __version__
 from sniffer.commands import command
 from sniffer.commands.common import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_USAGE, UsageError
 from sniffer.line import SettingsError
@@ -542,7 +542,7 @@ def _one_line(e: Exception) -> int | None:
     from sniffer.formats.mcap.sink import CaptureStorageError
 
     if isinstance(e, (UsageError, CaptureError, SettingsError, DeviceMapError, BusFileError, MapError,
-                      OverrideError, FaultError)):
+                      OverrideError, FaultError, MissingExtra)):
         _say(str(e))
         return EXIT_USAGE
     if isinstance(e, CaptureStorageError):

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import os
 
+from sniffer import need
+
 from ..tables import MapError, RegisterMap, load_map
 from .common import BASES, parse_base  # noqa: F401 - the flag's choices
 from .tomlout import to_toml  # noqa: F401 - re-exported
@@ -31,6 +33,7 @@ def load_model_file(path: str, base: str | None = None) -> list[RegisterMap]:
 
         return load_csv(path, base)
     if ext in (".yaml", ".yml"):
+        need("maps", f"--model-file {os.path.basename(path)} (a Home Assistant YAML map)")
         from .hayaml import load_ha_yaml
 
         return load_ha_yaml(path, base)

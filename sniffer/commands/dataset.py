@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 
+from sniffer import need
 from sniffer.dataset.ingest import Failed, Skipped, Taken, take_in, tidy
 from sniffer.dataset.layout import Known, create_dataset
 from sniffer.formats.outputs import shown
@@ -20,10 +21,12 @@ from sniffer.commands.common import EXIT_FAILED, EXIT_OK, EXIT_USAGE, UsageError
 
 def export_dataset(spec: CaptureSpec, args, files: list[str], root: str) -> int:
     """export --to dataset: the captures named, in the order given."""
+    need("fleet", "sniffer export --to dataset")
     return _take_in(spec, args, files, root)
 
 
 def cmd_ingest(spec: CaptureSpec, args) -> int:
+    need("fleet", "sniffer ingest")
     folder = args.folder
     if not os.path.isdir(folder):
         raise UsageError(f"{shown(folder)}: no such folder" if not os.path.exists(folder) else

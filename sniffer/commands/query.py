@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import sys
 
+from sniffer import need
 from sniffer.dataset.layout import open_dataset
 from sniffer.dataset.query import PRESETS, VIEWS, connect, write
 from sniffer.capture.settings import CaptureSpec
@@ -25,6 +26,7 @@ def cmd_query(spec: CaptureSpec, args) -> int:
     if args.show_sql:
         print(sql)
         return EXIT_OK
+    need("fleet", "sniffer query")
     ds = open_dataset(args.dataset)
     import duckdb
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from sniffer import need
 from sniffer.capture.settings import CaptureSpec
 from sniffer.commands.common import UsageError, tui_wanted
 
@@ -23,6 +24,7 @@ def cmd_attach(spec: CaptureSpec, args) -> int:
 
 
 def cmd_serve(spec: CaptureSpec, args) -> int:
+    need("web", "sniffer serve")
     from sniffer.processes.serve import ServeUsageError, run_serve
 
     if args.demo:

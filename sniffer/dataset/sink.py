@@ -27,7 +27,7 @@ from sniffer.formats.outputs import make_folders
 from sniffer.formats.parquet import BATCH, RowGroupFile
 from sniffer.formats.rows import annotation_rows, frame_row, point_rows
 from sniffer.formats.schemas import DATASET_TABLES, SCHEMA_VERSION, dataset_bases, dataset_schemas
-from sniffer.formats.tables import CONVERT, TableSink, to_batch
+from sniffer.formats.tables import CONVERT, TableSink, arrow_pool, to_batch
 
 NS = 1_000_000_000
 
@@ -70,6 +70,7 @@ class DatasetSink(TableSink):
     def __init__(self, staging: str, capture: str, link: str | None = None, source: str = "",
                  batch: int = BATCH) -> None:
         super().__init__()
+        self._pool = arrow_pool()
         self.batch = batch
         self.staging = staging
         self.capture = capture

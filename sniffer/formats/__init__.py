@@ -21,6 +21,7 @@ import importlib
 import os
 from dataclasses import dataclass
 
+from sniffer import need
 from sniffer.formats.outputs import Output
 from sniffer.sinks.base import Sink
 
@@ -32,12 +33,13 @@ class Format:
     writer: str | None = None  # "module:function" making its sink: (fmt, path, part paths) -> Sink
     reader: str | None = None  # "module" with `sniff(path)` and its source class `SOURCE`
     export: bool = False  # offered by `sniffer export --to`
+    extra: str | None = None  # the optional extra its writer needs (sniffer.EXTRAS)
 
 
 TABLE: tuple[Format, ...] = (
     Format("mcap", (".mcap",), "sniffer.formats.mcap.sink:open_sink", "sniffer.formats.mcap.reader", True),
     Format("csv", (".csv",), "sniffer.formats.csvexport:open_sink", None, True),
-    Format("parquet", (".parquet",), "sniffer.formats.parquet:open_sink", None, True),
+    Format("parquet", (".parquet",), "sniffer.formats.parquet:open_sink", None, True, extra="fleet"),
     Format("pcap", (".pcap",), "sniffer.formats.pcap.writer:open_sink", "sniffer.formats.pcap.reader", True),
     Format("pcapng", (".pcapng",), "sniffer.formats.pcap.writer:open_sink", None, True),
     Format("jsonl", (".jsonl",), "sniffer.formats.jsonl:open_sink", None, True),
@@ -83,6 +85,8 @@ class FileSink:
     def __init__(self, fmt: str, out: str | os.PathLike[str], *, inputs=(), what: str = "--out") -> None:
         if fmt not in WRITERS:
             raise ValueError(f"unknown output format {fmt!r}")
+        if WRITERS[fmt].extra:
+            need(WRITERS[fmt].extra, f"--to {fmt}")
         self.fmt = fmt
         self.path = os.fspath(out)
         if fmt in ("csv", "parquet"):

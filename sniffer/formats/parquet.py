@@ -1,6 +1,6 @@
 """Parquet export: OUT.parquet (frames) + OUT.points.parquet (points), written row group by row group.
 
-Record batches (tables.py) are gathered until a table has `batch` rows, then
+Rows (tables.py) become record batches, gathered until a table has `batch` rows, then
 written as one row group (`RowGroupFile`, which the fleet dataset's sink writes
 its partition files with too).
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 
 from sniffer.formats.outputs import FILE_MODE
-from sniffer.formats.tables import TableSink, schemas
+from sniffer.formats.tables import TableSink, arrow_pool, schemas, to_batch
 
 BATCH = 8_192  # rows per row group: with 32,768 a 256k-frame export peaked at 115 MB, with 8,192 at 96 MB
 
@@ -81,7 +81,8 @@ class RowGroupFile:
 class ParquetSink(TableSink):
     def __init__(self, frames_path: str, points_path: str, batch: int = BATCH) -> None:
         super().__init__()
-        fs, ps = self.schemas
+        self._pool = arrow_pool()
+        self.schemas = fs, ps = schemas()
         self._files = [RowGroupFile(frames_path, fs, self._pool, batch)]
         try:
             self._files.append(RowGroupFile(points_path, ps, self._pool, batch))
@@ -89,8 +90,8 @@ class ParquetSink(TableSink):
             self._files[0].close()
             raise
 
-    def _put(self, table: int, batch) -> None:
-        self._files[table].put(batch)
+    def _put(self, table: int, rows: list) -> None:
+        self._files[table].put(to_batch(rows, self.schemas[table], self._pool))
 
     def _end(self) -> None:
         try:

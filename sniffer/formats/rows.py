@@ -32,19 +32,28 @@ import msgspec
 
 from sniffer.frame import Frame
 
-FRAME_COLUMNS = (
-    "index", "t", "t_end", "t_wall_ns", "protocol", "role", "unit", "function", "crc_ok", "exception_code",
-    "model", "pair", "latency_ms", "n_points", "annotations", "summary", "raw", "channel", "time_source",
-    "noise_reason", "link",
+# Every column with its type, in row order: "int" (int64), "float" (float64), "str", "bool"; all nullable.
+# The Arrow schemas (schemas.py) and the CSV writer (csvexport.py) are made from these.
+FRAMES = (
+    ("index", "int"), ("t", "float"), ("t_end", "float"), ("t_wall_ns", "int"), ("protocol", "str"),
+    ("role", "str"), ("unit", "int"), ("function", "int"), ("crc_ok", "bool"), ("exception_code", "int"),
+    ("model", "str"), ("pair", "int"), ("latency_ms", "float"), ("n_points", "int"), ("annotations", "str"),
+    ("summary", "str"), ("raw", "str"), ("channel", "str"), ("time_source", "str"), ("noise_reason", "str"),
+    ("link", "str"),
 )
-POINT_COLUMNS = (
-    "frame", "t", "unit", "function", "role", "crc_ok", "model", "address", "name", "id", "raw", "value",
-    "value_text", "eng_unit", "link",
+POINTS = (
+    ("frame", "int"), ("t", "float"), ("unit", "int"), ("function", "int"), ("role", "str"), ("crc_ok", "bool"),
+    ("model", "str"), ("address", "int"), ("name", "str"), ("id", "str"), ("raw", "int"), ("value", "float"),
+    ("value_text", "str"), ("eng_unit", "str"), ("link", "str"),
 )
-ANNOTATION_COLUMNS = (
-    "frame", "t", "unit", "function", "role", "crc_ok", "model", "code", "severity", "detail", "span_start",
-    "span_end",
+ANNOTATIONS = (
+    ("frame", "int"), ("t", "float"), ("unit", "int"), ("function", "int"), ("role", "str"), ("crc_ok", "bool"),
+    ("model", "str"), ("code", "str"), ("severity", "str"), ("detail", "str"), ("span_start", "int"),
+    ("span_end", "int"),
 )
+FRAME_COLUMNS = tuple(name for name, _ in FRAMES)
+POINT_COLUMNS = tuple(name for name, _ in POINTS)
+ANNOTATION_COLUMNS = tuple(name for name, _ in ANNOTATIONS)
 
 
 def points_path(out: str | PathLike[str], suffix: str) -> Path:

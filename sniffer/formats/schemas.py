@@ -1,7 +1,7 @@
-"""Every Arrow schema the sniffer writes, in one place: the CSV/Parquet export's two tables and the
-fleet dataset's three (sniffer.dataset), with the dataset's schema version.
+"""Every Arrow schema the sniffer writes, in one place: the Parquet export's two tables (the CSV export's
+columns, written without Arrow) and the fleet dataset's three (sniffer.dataset), with the dataset's schema version.
 
-The export's columns are rows.py's (FRAME_COLUMNS, POINT_COLUMNS), typed here field by field.
+The export's columns and their types are rows.py's (FRAMES, POINTS, ANNOTATIONS), made Arrow types here.
 The dataset's tables are stable: a column is only ever added at the end (and SCHEMA_VERSION
 raised), never renamed, retyped or dropped, so files written by an older sniffer read beside
 newer ones (DuckDB's `union_by_name`, Dask's schema merge).  `link` and `date` are not in a
@@ -10,7 +10,7 @@ dataset file: they are its hive partition folders (`link=drives/date=2026-11-25/
 
 from __future__ import annotations
 
-from sniffer.formats.rows import ANNOTATION_COLUMNS, FRAME_COLUMNS, POINT_COLUMNS
+from sniffer.formats.rows import ANNOTATIONS, FRAMES, POINTS
 
 SCHEMA_VERSION = 1  # the dataset's tables (dataset.json and every file's metadata say which)
 PARTITIONS = ("link", "date")  # the dataset's hive partitions, in folder order
@@ -20,44 +20,23 @@ DATASET_TABLES = ("frames", "points", "annotations")
 DATASET_EXTRA = ("time", "capture")
 
 
-def _types():
+def _schema(columns):
+    """An Arrow schema of rows.py's (name, type) columns."""
     import pyarrow as pa
 
-    return pa.int64(), pa.float64(), pa.string(), pa.bool_()
+    types = {"int": pa.int64(), "float": pa.float64(), "str": pa.string(), "bool": pa.bool_()}
+    return pa.schema([(name, types[kind]) for name, kind in columns])
 
 
 def export_schemas():
     """The export's frames and points tables (plain types: int64, float64, bool, string); `link` last
     (null for one line): in the dataset it is the partition folder instead (`dataset_bases`)."""
-    import pyarrow as pa
-
-    i, f, s, b = _types()
-    frames = pa.schema([
-        ("index", i), ("t", f), ("t_end", f), ("t_wall_ns", i), ("protocol", s), ("role", s), ("unit", i),
-        ("function", i), ("crc_ok", b), ("exception_code", i), ("model", s), ("pair", i), ("latency_ms", f),
-        ("n_points", i), ("annotations", s), ("summary", s), ("raw", s), ("channel", s), ("time_source", s),
-        ("noise_reason", s), ("link", s),
-    ])
-    points = pa.schema([
-        ("frame", i), ("t", f), ("unit", i), ("function", i), ("role", s), ("crc_ok", b), ("model", s),
-        ("address", i), ("name", s), ("id", s), ("raw", i), ("value", f), ("value_text", s), ("eng_unit", s),
-        ("link", s),
-    ])
-    assert frames.names == list(FRAME_COLUMNS) and points.names == list(POINT_COLUMNS)
-    return frames, points
+    return _schema(FRAMES), _schema(POINTS)
 
 
 def annotation_schema():
     """One row per annotation (rows.annotation_rows): the frame it is on and what it says."""
-    import pyarrow as pa
-
-    i, f, s, b = _types()
-    schema = pa.schema([
-        ("frame", i), ("t", f), ("unit", i), ("function", i), ("role", s), ("crc_ok", b), ("model", s),
-        ("code", s), ("severity", s), ("detail", s), ("span_start", i), ("span_end", i),
-    ])
-    assert schema.names == list(ANNOTATION_COLUMNS)
-    return schema
+    return _schema(ANNOTATIONS)
 
 
 def dataset_bases() -> tuple:

@@ -1,10 +1,11 @@
-"""What the CSV and Parquet exports share: rows (rows.py) gathered into Arrow record batches.
+"""What the CSV and Parquet exports share: rows (rows.py) gathered a few thousand at a time.
 
 A table sink keeps at most CONVERT rows of each table (frames, points) as
-Python tuples, turns them into one Arrow record batch, and hands the batch to
-its writer (`_put`): memory stays flat however long the capture is, and the
-writing itself is Arrow's (C++), for CSV as for Parquet.  Arrays and writers
-use the system allocator (malloc): measured 121 against 134 MB peak RSS
+Python tuples and hands them to its writer (`_put`): memory stays flat however
+long the capture is.  The CSV writer turns them into text itself (csvexport.py:
+no pyarrow in the core install); the Parquet writers make one Arrow record
+batch of them (`to_batch`), and Arrow (C++) writes it.  Arrays and writers use
+the system allocator (`arrow_pool`, malloc): measured 121 against 134 MB peak RSS
 exporting 256k frames with Arrow's default pool.
 """
 
@@ -14,14 +15,22 @@ from sniffer.events import CaptureInfo
 from sniffer.frame import Frame
 from sniffer.sinks.base import Sink
 from sniffer.formats.rows import frame_row, point_rows
-from sniffer.formats.schemas import export_schemas
 
-CONVERT = 4_096  # rows held as Python tuples before they become an Arrow record batch
+CONVERT = 4_096  # rows held as Python tuples before they go to the writer
 
 
 def schemas():
     """Arrow schemas of the frames and points tables (sniffer.formats.schemas)."""
+    from sniffer.formats.schemas import export_schemas
+
     return export_schemas()
+
+
+def arrow_pool():
+    """Arrow's system memory pool (malloc), which the Parquet writers allocate from."""
+    import pyarrow as pa
+
+    return pa.system_memory_pool()
 
 
 def to_batch(rows: list, schema, pool):
@@ -33,13 +42,9 @@ def to_batch(rows: list, schema, pool):
 
 
 class TableSink(Sink):
-    """Frames and points as Arrow record batches; subclasses say where a batch goes (`_put`)."""
+    """Frames and points as lists of row tuples; subclasses say where the rows go (`_put`)."""
 
     def __init__(self) -> None:
-        import pyarrow as pa
-
-        self._pool = pa.system_memory_pool()
-        self.schemas = schemas()
         self._rows: tuple[list, list] = ([], [])
         self._t0 = 0
         self._anchor = 0
@@ -60,19 +65,20 @@ class TableSink(Sink):
             self._convert(1)
 
     def _convert(self, table: int) -> None:
-        """The waiting rows of table 0 (frames) or 1 (points) -> one record batch -> `_put`."""
+        """The waiting rows of table 0 (frames) or 1 (points) -> `_put`."""
         rows = self._rows[table]
         if not rows:
             return
-        batch = to_batch(rows, self.schemas[table], self._pool)
-        rows.clear()
-        self._put(table, batch)
+        try:
+            self._put(table, rows)
+        finally:
+            rows.clear()
 
-    def _put(self, table: int, batch) -> None:  # pragma: no cover - subclasses write
+    def _put(self, table: int, rows: list) -> None:  # pragma: no cover - subclasses write
         raise NotImplementedError
 
     def _end(self) -> None:
-        """Called by close() after the last rows were converted: finish the files."""
+        """Called by close() after the last rows were written: finish the files."""
 
     def close(self) -> None:
         try:

@@ -17,6 +17,7 @@ import ssl
 from dataclasses import dataclass
 from urllib.parse import unquote, urlsplit
 
+from sniffer import need
 from sniffer.line import SettingsError
 
 DEFAULT_QUEUE = 10_000
@@ -59,6 +60,7 @@ class MqttSpec:
                 if opt(f"mqtt_{flag}") not in (None, False):
                     raise SettingsError(f"--mqtt-{flag.replace('_', '-')} needs --mqtt URL (the broker to publish to)")
             return None
+        need("mqtt", "--mqtt")
         spec = parse_url(url)
         interval = opt("mqtt_interval")
         if interval is not None:
