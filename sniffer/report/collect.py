@@ -32,6 +32,7 @@ import math
 import os
 from collections import Counter
 
+from decoders.registry import code_book
 from sniffer import codes as C
 from sniffer.frame import LinkUnit
 from sniffer.analysis.diff import Summary
@@ -49,7 +50,7 @@ COLUMNS = ("frames", "busy_ns", "crc", "exceptions", "timeouts", "retries", "noi
 _COLUMN_OF = {C.TIMEOUT_CAT: "timeouts", C.RETRY_CAT: "retries", C.FAULT_CAT: "faults", C.ALARM_CAT: "faults",
               C.EXCEPTION_CAT: "exceptions", C.NOISE_CAT: "noise", C.GAP_CAT: "gaps", C.T15_CAT: "t15",
               C.T35_CAT: "t35"}
-CODE_COLUMN = {code: _COLUMN_OF[cat] for code, cat in C.CATEGORY.items() if cat in _COLUMN_OF}
+CODE_COLUMN = {code: _COLUMN_OF[cat] for code, cat in code_book().categories.items() if cat in _COLUMN_OF}
 _ONCE = frozenset({"timeouts", "retries", "faults", "exceptions"})
 PLOTTED_UNITS = 16  # units in the latency and turnaround plots (the most answers); all are in the units table
 REGISTER_POINTS = 1024  # history kept per register (tui.history thins beyond)
