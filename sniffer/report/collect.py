@@ -21,7 +21,7 @@ units the Registers tab shows, at most REGISTER_POINTS samples a register; a reg
 whose values changed model, name or unit is one series per each, never one line
 across units), the
 writes and faults (timeline.py), and with `compare` the semantic summary `sniffer
-diff` makes (semdiff.Summary).
+diff` makes (analysis.diff.Summary).
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ _COLUMN_OF = {C.TIMEOUT_CAT: "timeouts", C.RETRY_CAT: "retries", C.FAULT_CAT: "f
 CODE_COLUMN = {code: _COLUMN_OF[cat] for code, cat in code_book().categories.items() if cat in _COLUMN_OF}
 _ONCE = frozenset({"timeouts", "retries", "faults", "exceptions"})
 PLOTTED_UNITS = 16  # units in the latency and turnaround plots (the most answers); all are in the units table
-REGISTER_POINTS = 1024  # history kept per register (tui.history thins beyond)
+REGISTER_POINTS = 1024  # history kept per register (analysis.history thins beyond)
 REGISTER_RETIRED = 64  # earlier series of registers kept (a value named or scaled otherwise before)
 REGISTER_PLOTS = 40  # (unit, engineering unit) groups plotted; the rest are in the table
 SERIES_PER_PLOT = 8
