@@ -21,7 +21,10 @@ def _declared_in_tree() -> list[tuple[str, str]]:
     out = []
     for top in ("sniffer", "decoders"):
         for path in sorted((ROOT / top).rglob("*.py")):
-            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            text = path.read_text(encoding="utf-8")
+            if "Code(" not in text:
+                continue
+            for node in ast.walk(ast.parse(text)):
                 if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "Code"
                         and node.args and isinstance(node.args[0], ast.Constant)):
                     out.append((node.args[0].value, str(path.relative_to(ROOT))))
