@@ -61,6 +61,8 @@ class UnitState:
 
 class Decoder(Protocol):
     model: str
+    # the annotation codes it may emit, declared on the class (as sigrok's decoders declare their annotations):
+    # decoders.registry.code_book() assembles the code table from the classes without loading a map
     codes: tuple[Code, ...]
 
     def decode(self, frame: Frame, request: Frame | None, state: UnitState) -> None:

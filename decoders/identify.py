@@ -288,6 +288,21 @@ class Identifier:
                 self._rule_out(ev, mf.id, f"answered exception {code:02X}H, which {mf.id} does not define")
 
     def _answer(self, ev: UnitEvidence, req: Frame, rsp: Frame) -> None:
+        """Weigh one normal answer (with the request it answers) as evidence about each candidate model.
+
+        First what any answer says: a function code or a frame length the model cannot produce rules it
+        out.  Then, for a register read or write (03H/04H/06H/10H) whose address range is sane, the
+        request's signature (function, address, count) is kept for "polled like", and each candidate
+        still in the running is checked against its map's verdict on the range (`range_verdicts`,
+        cached per range): an address its map lacks, more registers than its manual allows, or an
+        echoed write to a read-only register rules it out.  A write stops there: any device echoes a
+        write, so it is evidence against a model, never for it.  A read adds "fits" (its map holds the
+        range), a "reg" item when only its map has these addresses, a misfit (-2) per value its map
+        rules out, a "shape" marker per non-zero enum or status value, and a "value" item per telling
+        register (only this map has it, a narrow rule) whose non-zero value fits.  Items are keyed, so
+        the same register read a thousand times counts once; `score` caps what bare reads and ranges
+        may add.  An answer whose data does not hold the registers the request names is no evidence.
+        """
         fc = rsp.function
         for mf in self.facts:
             if mf.functions is not None and fc not in mf.functions:

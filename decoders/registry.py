@@ -252,16 +252,43 @@ def builtin_decoders() -> dict[str, Decoder]:
     return dict(_builtin_decoders())
 
 
-@functools.lru_cache(maxsize=1)
-def _builtin_decoders() -> dict[str, Decoder]:
+def _shipped() -> tuple[tuple[type, tuple], ...]:
+    """The decoder classes that ship, each with the loaders of the models it serves (in --device order).
+
+    One table: `builtin_decoders` loads the models from it, `code_book` reads each class's declared
+    `codes` from it without loading a map.
+    """
     from .generic import GenericModbus
+    from .table_decoder import TableDecoder
     from . import pd_series, synplus_spl, tds_v8, teco_a510
 
-    decoders: dict[str, Decoder] = {"generic": GenericModbus()}
-    for load in (tds_v8.load, teco_a510.load, teco_a510.load_high_frequency, synplus_spl.load, pd_series.load):
-        d = load()
-        decoders[d.model] = d
+    return (
+        (GenericModbus, (GenericModbus,)),
+        (tds_v8.TdsV8Decoder, (tds_v8.load,)),
+        (teco_a510.A510Decoder, (teco_a510.load, teco_a510.load_high_frequency)),
+        (TableDecoder, (synplus_spl.load,)),  # and every user map (--model-file)
+        (pd_series.PdSeriesDecoder, (pd_series.load,)),
+    )
+
+
+@functools.lru_cache(maxsize=1)
+def _builtin_decoders() -> dict[str, Decoder]:
+    decoders: dict[str, Decoder] = {}
+    for _cls, loaders in _shipped():
+        for load in loaders:
+            d = load()
+            decoders[d.model] = d
     return decoders
+
+
+@functools.lru_cache(maxsize=1)
+def code_book() -> CodeBook:
+    """Every code the shipped stages may emit: the core ones, each protocol's framer's, each decoder class's
+    (user maps are TableDecoders: theirs are among them), assembled from their declarations.  What a view
+    that reads records (no decoder at hand) asks a code's category of.  Loads no map."""
+    from sniffer.protocols import all_codes
+
+    return CodeBook(all_codes(), *(cls.codes for cls, _ in _shipped()))
 
 
 def default_registry(devices: dict[int, str] | None = None, model_files: list[str] | None = None,

@@ -22,22 +22,7 @@ from __future__ import annotations
 
 import math
 
-from sniffer.codes import MODEL_BROADCAST_REG as BROADCAST_REG
-from sniffer.codes import MODEL_FRAME_LONG as FRAME_LONG
-from sniffer.codes import MODEL_NOT_AVAILABLE as NOT_AVAILABLE
-from sniffer.codes import MODEL_ALARM as ALARM
-from sniffer.codes import MODEL_FAULT as FAULT
-from sniffer.codes import MODEL_FUNCTION as FUNCTION
-from sniffer.codes import MODEL_SUBFUNCTION as SUBFUNCTION
-from sniffer.codes import MODEL_RANGE as RANGE
-from sniffer.codes import MODEL_READ_ONLY as READ_ONLY
-from sniffer.codes import MODEL_RESERVED as RESERVED
-from sniffer.codes import MODEL_SCALE_PENDING as SCALE_PENDING
-from sniffer.codes import MODEL_SPLIT as SPLIT
-from sniffer.codes import MODEL_TOO_MANY as TOO_MANY
-from sniffer.codes import MODEL_UNKNOWN_REG as UNKNOWN_REG
-from sniffer.codes import MODEL_VENDOR_EXCEPTION as VENDOR_EXCEPTION
-from sniffer.codes import Code, note
+from sniffer.codes import ALARM_CAT, ERROR, FAULT_CAT, INFO, WARNING, Code, note
 from sniffer.frame import REQUEST, RESPONSE, Frame
 from sniffer.protocols import MODBUS_TABLES, modbus_range_ok
 
@@ -47,6 +32,31 @@ from .generic.decoder import GenericModbus
 from .generic.names import EXCEPTION_NAMES
 from .tables import Register, RegisterMap
 
+# The codes a model described by its register map may emit beyond generic Modbus: what a manual's map lets
+# the decoder check.  Declared here, beside the decoder that emits them; the code book is assembled from
+# each decoder class's `codes` (sniffer.codes.CodeBook).
+READ_ONLY = Code("model.write.read_only", ERROR, "write to a read-only register")
+RESERVED = Code("model.write.reserved", ERROR, "write to a reserved register")
+UNKNOWN_REG = Code("model.register.unknown", WARNING, "register not in the model's register map")
+RANGE = Code("model.value.range", WARNING, "written value outside the manual's range")
+BROADCAST_REG = Code("model.broadcast.register", ERROR, "broadcast write to a register the manual does not allow")
+TOO_MANY = Code("model.request.too_many", ERROR, "more registers in one request than the manual allows")
+SCALE_PENDING = Code(
+    "model.scale.pending", INFO,
+    "scaled through a register not known yet: a provisional value, in %, under a name of its own"
+)
+VENDOR_EXCEPTION = Code("model.exception.vendor", WARNING, "vendor exception code")
+SPLIT = Code("model.register.split", WARNING, "a read or write covers only some registers of a multi-register value")
+FRAME_LONG = Code("model.frame.too_long", WARNING, "frame longer than the manual's maximum frame length")
+FAULT = Code("model.fault", ERROR, "the drive reports a fault (trip): its fault code or fault bits", FAULT_CAT)
+ALARM = Code("model.alarm", WARNING, "the drive reports an alarm (warning): its alarm code or alarm bits", ALARM_CAT)
+FUNCTION = Code("model.function.unsupported", WARNING, "function code the manual does not list for this model")
+SUBFUNCTION = Code(
+    "model.diagnostics.subfunction", WARNING, "diagnostics (08H) sub-function the manual does not allow"
+)
+NOT_AVAILABLE = Code(
+    "model.value.not_available", WARNING, "register holds a marker value, not a measurement: shown as not available"
+)
 MODEL_CODES = (READ_ONLY, RESERVED, UNKNOWN_REG, RANGE, BROADCAST_REG, TOO_MANY, SCALE_PENDING, VENDOR_EXCEPTION,
                SPLIT, FRAME_LONG, SUBFUNCTION, NOT_AVAILABLE, FUNCTION, FAULT, ALARM)
 _REGISTERS = ("holding", "input")
@@ -55,13 +65,14 @@ _DIGITS = {1.0: 0, 0.1: 1, 0.01: 2, 0.001: 3}
 
 
 class TableDecoder(GenericModbus):
-    extra_codes: tuple[Code, ...] = ()
+    # declared on the class (a model package adds its own: `codes = TableDecoder.codes + (...)`), so the code
+    # book is assembled without loading a map
+    codes: tuple[Code, ...] = GenericModbus.codes + MODEL_CODES
 
     def __init__(self, regmap: RegisterMap) -> None:
         self.map = regmap  # also the holding view: `registers` holds the holding and table-less rows
         self._imap = regmap.view("input")  # the input registers' rows (the same map unless a row says table)
         self.model = regmap.model_id
-        self.codes = GenericModbus.codes + MODEL_CODES + self.extra_codes
         self.max_regs = regmap.model.get("max_registers_per_request")
         bc = regmap.model.get("broadcast_registers")
         self.broadcast_regs = set(bc) if bc is not None else None

@@ -1,10 +1,15 @@
-"""Annotation codes: every one is declared here, once, and spoken by the JSONL, the TUI and the tests.
+"""Annotation codes: each declared once, beside the stage that emits it; the JSONL, the TUI and the tests speak them.
 
-Each code is a constant `Code`; stages create annotations from the constant,
-so a misspelt code is a NameError, not a silent new string.  Framers
-(`framer.codes`, collected by sniffer.protocols) and decoders (`Decoder.codes`)
-say which of them they may emit; `CodeBook` collects the core codes and those
-in one explicit instance, and a test checks that every code here is claimed.
+Each code is a constant `Code` (its dotted name, severity, sentence and the category it counts as);
+stages create annotations from the constant, so a misspelt code is a NameError, not a silent new
+string.  This module declares the core codes: Modbus framing and decoding, the line, pairing, the
+registry.  What is specific to a protocol or a drive model is declared next to its framer or decoder,
+as sigrok's decoders declare their annotations: sniffer/framing/pd.py (`pd.*` framing),
+decoders/pd_series (`pd.*`), decoders/table_decoder.py (`model.*` checks against a manual's map),
+decoders/tds_v8 (`tds.*`), decoders/teco_a510 (`a510.*`).  Framers (`framer.codes`, collected by
+sniffer.protocols) and decoders (`Decoder.codes`, on the class) say which codes they may emit, and
+`CodeBook` assembles the table from those declarations; tests/test_codes.py checks that every `Code`
+in the tree is in it.
 """
 
 from __future__ import annotations
@@ -20,7 +25,8 @@ SEVERITIES = (INFO, WARNING, ERROR)
 
 # What a code counts as in the per-unit figures (sniffer.analysis.unitfigures), the status file's error counts,
 # the report's error series, the frame flags the TUI colours and filters by, and the dataset's query
-# presets: each code says it here, beside its declaration, so no module keeps a list of codes.
+# presets: each code says it in its declaration (`Code.category`, wherever the code is declared), and the code
+# book (`CodeBook.categories`, `in_category`) gathers them, so no module keeps a list of codes.
 TIMEOUT_CAT = "timeout"  # the request got no response (whatever ended the wait, but the capture's end)
 END_OF_CAPTURE_CAT = "end_of_capture"  # the capture ended while the request waited: not a timeout
 LATE_CAT = "late"  # answered after the unit's response timeout: a response, not a timeout
@@ -155,89 +161,15 @@ MODEL_MISMATCH = Code("model.mismatch", WARNING, "traffic does not look like the
 ASCII_NO_CRLF = Code("modbus.ascii.no_crlf", WARNING, "ASCII frame not ended by CR LF")
 ASCII_BAD_HEX = Code("modbus.ascii.bad_hex", ERROR, "ASCII frame holds characters that are not hex digits")
 
-# --- PD-series framing (pd_framer) -------------------------------------------------
-PD_LEN_MISMATCH = Code("pd.len.mismatch", WARNING, "LEN does not count the frame's data bytes")
-PD_QUIET_SHORT = Code("pd.timing.quiet", INFO, "less than the manual's 50 ms of quiet before the frame")
-PD_FUNCTION_UNKNOWN = Code("pd.function.unknown", WARNING, "function code not defined by the PD-series protocol")
-PD_WRITE_ERROR = Code("pd.error.write", INFO, "81H error reply to a write parameter (02H): paired as 82H")
-PD_NO_CRLF = Code("pd.ascii.no_crlf", WARNING, "ASCII frame not ended by CR LF")
-PD_BAD_HEX = Code("pd.ascii.bad_hex", ERROR, "ASCII frame holds characters that are not hex digits")
-
 # --- generic Modbus decoding (decoders/generic) ------------------------------------
 COIL_VALUE = Code("modbus.coil.value", ERROR, "write single coil value must be FF00 or 0000")
 QUANTITY = Code("modbus.quantity.range", ERROR, "quantity outside the range the Modbus spec allows")
 
-# --- drive models from register maps (decoders/table_decoder.py, decoders/registry.py) ------
+# --- the decoder registry (decoders/registry.py) ------------------------------------
 MODEL_GUESS = Code("model.guess", INFO, "unit's model guessed from its traffic (no device map entry)")
 MODEL_GUESS_WITHDRAWN = Code(
     "model.guess.withdrawn", WARNING, "an earlier model guess withdrawn: the traffic rules that model out"
 )
-MODEL_READ_ONLY = Code("model.write.read_only", ERROR, "write to a read-only register")
-MODEL_RESERVED = Code("model.write.reserved", ERROR, "write to a reserved register")
-MODEL_UNKNOWN_REG = Code("model.register.unknown", WARNING, "register not in the model's register map")
-MODEL_RANGE = Code("model.value.range", WARNING, "written value outside the manual's range")
-MODEL_BROADCAST_REG = Code(
-    "model.broadcast.register", ERROR, "broadcast write to a register the manual does not allow"
-)
-MODEL_TOO_MANY = Code(
-    "model.request.too_many", ERROR, "more registers in one request than the manual allows"
-)
-MODEL_SCALE_PENDING = Code(
-    "model.scale.pending", INFO,
-    "scaled through a register not known yet: a provisional value, in %, under a name of its own"
-)
-MODEL_VENDOR_EXCEPTION = Code("model.exception.vendor", WARNING, "vendor exception code")
-MODEL_SPLIT = Code(
-    "model.register.split", WARNING, "a read or write covers only some registers of a multi-register value"
-)
-MODEL_FRAME_LONG = Code("model.frame.too_long", WARNING, "frame longer than the manual's maximum frame length")
-MODEL_FAULT = Code("model.fault", ERROR, "the drive reports a fault (trip): its fault code or fault bits", FAULT_CAT)
-MODEL_ALARM = Code(
-    "model.alarm", WARNING, "the drive reports an alarm (warning): its alarm code or alarm bits", ALARM_CAT
-)
-MODEL_FUNCTION = Code(
-    "model.function.unsupported", WARNING, "function code the manual does not list for this model"
-)
-MODEL_SUBFUNCTION = Code(
-    "model.diagnostics.subfunction", WARNING, "diagnostics (08H) sub-function the manual does not allow"
-)
-MODEL_NOT_AVAILABLE = Code(
-    "model.value.not_available", WARNING, "register holds a marker value, not a measurement: shown as not available"
-)
-TDS_PRG_ONLY = Code("tds.write.prg_only", ERROR, "Cn/Sn parameter written while the drive is in DRV mode")
-A510_ASSUMED = Code(
-    "a510.freq.resolution", INFO,
-    "frequency resolution assumed (0.1 Hz if the drive's maximum frequency is over 300 Hz)",
-)
-A510_SWITCHED = Code(
-    "a510.freq.high", WARNING,
-    "a frequency above 300.00 Hz: the drive must be set above 300 Hz, so 0.1 Hz resolution applies",
-)
-
-# --- PD-series decoding (decoders/pd_series) ---------------------------------------
-PD_DATA_SHORT = Code("pd.data.short", ERROR, "DATA too short for the function")
-PD_DATA_EXTRA = Code("pd.data.extra", WARNING, "more DATA bytes than the function's layout: the rest shown raw")
-PD_DATA_LONG = Code("pd.data.long", WARNING, "more than 25 DATA bytes (l.183: fifty ASCII characters at most)")
-PD_UNIT_RANGE = Code("pd.unit.range", WARNING, "address outside 0-250 (l.71-73)")
-PD_BROADCAST_READ = Code("pd.broadcast.read", WARNING, "broadcast read: the manual says no inverter answers")
-PD_ERROR_REPLY = Code("pd.error.reply", WARNING, "error reply (81H/83H)", EXCEPTION_CAT)
-PD_STATUS_CFG = Code("pd.status.cfg", WARNING, "status selector CFG outside 0-7 (l.165)")
-PD_NO_REQUEST = Code("pd.decode.no_request", INFO, "reply decoded without its request")
-PD_PARAM_UNKNOWN = Code("pd.param.unknown", INFO, "parameter not described in the manual: raw value")
-PD_READ_ONLY = Code("pd.write.read_only", ERROR, "write to a parameter the manual says cannot be set")
-PD_RANGE = Code("pd.value.range", WARNING, "written value outside the manual's set range")
-PD_RUNNING = Code("pd.write.running", WARNING, "parameter without ** written while the inverter runs (l.335)")
-PD_LOOP_ECHO = Code("pd.loop.echo", WARNING, "loop test reply is not an echo of its request")
-
-ALL_CODES: tuple[Code, ...] = tuple(v for v in list(globals().values()) if isinstance(v, Code))
-CATEGORY: dict[str, str] = {c.code: c.category for c in ALL_CODES if c.category}  # code -> its category
-
-
-def in_category(*categories: str) -> frozenset[str]:
-    """The codes that count as any of `categories`."""
-    return frozenset(code for code, cat in CATEGORY.items() if cat in categories)
-
-
 # what the stages outside framers and decoders emit (pipeline, pairer, registry); framers and
 # decoders declare their own in `codes` (protocols.py collects the framers')
 CORE_CODES: tuple[Code, ...] = (
@@ -254,7 +186,12 @@ RTU_CODES: tuple[Code, ...] = LINE_CODES + (
 
 
 class CodeBook:
-    """All codes a pipeline may emit: the core ones plus what each decoder declares."""
+    """Every code a set of stages may emit: the core ones plus what each framer and decoder declares.
+
+    Built from the declarations (a framer's or a decoder's `codes`), never from a list kept here:
+    `decoders.registry.code_book()` is the book of everything that ships, a registry's `codebook`
+    the book of its own decoders.  A code declared twice, differently, is refused.
+    """
 
     def __init__(self, *groups: tuple[Code, ...]) -> None:
         self._codes: dict[str, Code] = {}
@@ -264,6 +201,8 @@ class CodeBook:
                 if known is not None and known != c:
                     raise ValueError(f"annotation code {c.code} declared twice, differently")
                 self._codes[c.code] = c
+        # code -> what it counts as (the codes with a category only)
+        self.categories: dict[str, str] = {c.code: c.category for c in self._codes.values() if c.category}
 
     def __contains__(self, code: str) -> bool:
         return code in self._codes
@@ -273,3 +212,7 @@ class CodeBook:
 
     def all(self) -> list[Code]:
         return sorted(self._codes.values(), key=lambda c: c.code)
+
+    def in_category(self, *categories: str) -> frozenset[str]:
+        """The codes that count as any of `categories`."""
+        return frozenset(code for code, cat in self.categories.items() if cat in categories)

@@ -1,4 +1,5 @@
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -22,3 +23,74 @@ def mqtt_broker(tmp_path):
     b = Broker(tmp_path).start()
     yield b
     b.stop()
+
+
+# --- the fast lane (tests/fastlane.py): `pytest -m "not slow"` --------------------------------------
+_GUARD = None
+
+
+@pytest.hookimpl(tryfirst=True)  # before `-m` deselects by the marks
+def pytest_collection_modifyitems(config, items):
+    from fastlane import Rule, slow_reason
+
+    rule = Rule()
+    for item in items:
+        if item.get_closest_marker("slow") is None and slow_reason(item, rule):
+            item.add_marker(pytest.mark.slow)
+
+
+def pytest_sessionstart(session):
+    global _GUARD
+    from fastlane import Guard
+
+    _GUARD = Guard()
+    _GUARD.install()
+
+
+def pytest_sessionfinish(session):
+    if _GUARD is not None:
+        _GUARD.uninstall()
+
+
+_CPU: dict[str, float] = {}  # lane test -> CPU seconds of its setup and call
+
+
+def _guarded(item, phase: str):
+    """Run a phase of a test the lane keeps with the guard watching; fail it if it started a slow part."""
+    if _GUARD is None or item.get_closest_marker("slow") is not None:
+        return (yield)
+    _GUARD.used.clear()
+    _GUARD.watching = True
+    cpu = time.process_time()
+    try:
+        result = yield
+    finally:
+        _GUARD.watching = False
+        _CPU[item.nodeid] = _CPU.get(item.nodeid, 0.0) + time.process_time() - cpu
+    if _GUARD.used:
+        pytest.fail(f"{item.nodeid} {' and '.join(_GUARD.used)} in its {phase} but is not marked slow: the fast "
+                    f"lane (-m 'not slow') keeps no processes, ptys, Pilot, browsers or brokers.  Let the rule in "
+                    f"tests/fastlane.py see it (SLOW_NAMES, SLOW_FILES, SLOW_TESTS) or mark it "
+                    f"@pytest.mark.slow.", pytrace=False)
+    return result
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item):
+    return (yield from _guarded(item, "setup"))
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item):
+    return (yield from _guarded(item, "call"))
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Name the lane's tests that took more CPU than fastlane.CPU_NOTE_S: candidates for SLOW_TESTS."""
+    from fastlane import CPU_NOTE_S
+
+    heavy = sorted(((s, n) for n, s in _CPU.items() if s > CPU_NOTE_S), reverse=True)
+    if heavy:
+        terminalreporter.section("fast lane: tests over %.0f s of CPU (tests/fastlane.py SLOW_TESTS?)" % CPU_NOTE_S)
+        for s, n in heavy[:20]:
+            terminalreporter.write_line(f"{s:6.1f} s  {n}")

@@ -1,7 +1,6 @@
 """`--trigger` on the command line: a simulated capture replayed with triggers, `--on-trigger` with real
 commands (one that works, one that fails, one that hangs), and flags that cannot work."""
 
-import json
 import os
 import subprocess
 import sys
@@ -21,12 +20,12 @@ def run(*args, timeout=300, **kw):
 
 @pytest.fixture(scope="module")
 def tds(tmp_path_factory):
-    """Two simulated TDS-V8 drives for 120 s: they trip now and then (model.fault), the PLC resets them."""
+    """Two simulated TDS-V8 drives for 120 s: they trip now and then (model.fault), the PLC resets them; with
+    the capture's frame records (its /frames, as `simulate` decoded them: the reference no replay wrote)."""
     path = tmp_path_factory.mktemp("tds") / "tds.mcap"
     r = run("simulate", "--scenario", "tds-v8", "--duration", "120", "--seed", "3", "--out", path)
     assert r.returncode == 0, r.stderr
-    full = run("replay", path, "--format", "jsonl")
-    return path, [json.loads(x) for x in full.stdout.splitlines()]
+    return path, read_frames(str(path))
 
 
 def _check_windows(folder, records, pre, post):

@@ -40,7 +40,16 @@ def day(tmp_path_factory):
     return path
 
 
-def test_a_simulated_day_keeps_every_window_whole_with_flat_memory(day, tmp_path):
+@pytest.fixture(scope="module")
+def day_frames(day):
+    """(t in s from the capture's start, raw hex, a fault?) of every frame of the day, read from its /frames
+    records (what `simulate` decoded as it wrote them): the reference both tests hold the replays against,
+    read once instead of decoding the four hours again."""
+    return [(round(r["t"], 9), r["raw"], any(a["code"] == "model.fault" for a in r["annotations"]))
+            for r in read_frames(str(day))]
+
+
+def test_a_simulated_day_keeps_every_window_whole_with_flat_memory(day, day_frames, tmp_path):
     windows = tmp_path / "windows"
     windows.mkdir()
     proc = subprocess.Popen(SNIFFER + ["replay", str(day), "--quiet", "--ring", "--windows", str(windows),
@@ -65,16 +74,15 @@ def test_a_simulated_day_keeps_every_window_whole_with_flat_memory(day, tmp_path
     metas = [read_trigger(str(f)) for f in files]
     assert len(files) >= HOURS * 2 and all(m["pre_complete"] and m["post_complete"] for m in metas[1:-1])
     spans = [(m["start_t"], m["end_t"]) for m in metas]
-    # the capture's frames over each window's span, decoded again in this process
+    # the capture's frames over each window's span, as the simulator recorded them (`day_frames`: the day's
+    # /frames, which no replay wrote)
     want: list[list] = [[] for _ in files]
     faults = []
-    session = decode_capture(day)
-    for f in session:
-        t = (f.t_ns - session.info.t0_ns) / 1e9
+    for t, raw, fault in day_frames:
         for i, (lo, hi) in enumerate(spans):
             if lo - 1e-9 <= t <= hi + 1e-9:
-                want[i].append((round(t, 9), f.raw.hex()))
-        if any(a.code == "model.fault" for a in f.annotations):
+                want[i].append((t, raw))
+        if fault:
             faults.append(t)
     for path, m, w in zip(files, metas, want, strict=True):
         held = [(round(r["t"], 9), r["raw"]) for r in read_frames(str(path))]
@@ -89,7 +97,7 @@ def test_a_simulated_day_keeps_every_window_whole_with_flat_memory(day, tmp_path
     assert f"{len(files)} window files" in err
 
 
-def test_the_day_rotated_hourly_with_triggers_replays_whole(day, tmp_path):
+def test_the_day_rotated_hourly_with_triggers_replays_whole(day, day_frames, tmp_path):
     """The same four hours through `replay --rotate 1h --trigger fault`, the path a live capture left for the
     night takes: one segment an hour (each replays alone), the set replayed as one capture is the day, frame
     for frame, and the trigger windows are written beside it, each holding its fault."""
@@ -102,13 +110,16 @@ def test_the_day_rotated_hourly_with_triggers_replays_whole(day, tmp_path):
     segments = sorted(out.glob("*.mcap"))
     assert HOURS <= len(segments) <= HOURS + 1, [s.name for s in segments]
     assert (out / "index.json").exists()
-    day_frames = [(f.t_ns, f.raw) for f in decode_capture(day)]
+    opened = decode_capture(day)
+    t0 = opened.info.t0_ns  # the day's clock (its metadata: nothing decoded)
+    opened.close()
     whole = []
     for seg in segments:  # each alone: its frames are a run of the day's, in order
-        alone = [(f.t_ns, f.raw) for f in decode_capture(seg)]
+        alone = [(round((f.t_ns - t0) / 1e9, 9), f.raw.hex()) for f in decode_capture(seg)]
         assert alone, seg.name
         whole += alone
-    assert whole == day_frames  # the same bytes at the same times: one clock across the segments
+    # the same bytes at the same times: one clock across the segments
+    assert whole == [(t, raw) for t, raw, _ in day_frames]
     as_one = subprocess.run(SNIFFER + ["replay", str(out), "--format", "jsonl"], capture_output=True, text=True,
                             timeout=600)
     assert as_one.returncode == 0, as_one.stderr

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
+from sniffer.capture.session import decode_capture
 from sniffer.formats.mcap.segments import INDEX_NAME, STATUS_NAME
 
 SNIFFER = [sys.executable, "-m", "sniffer"]
@@ -73,10 +74,9 @@ def test_sigkill_leaves_closed_segments_whole_and_the_open_one_repairable(tmp_pa
     proc.stderr.close()
     closed = closed_segments(folder)
     assert len(closed) >= closed_before_kill
-    for seg in closed:
+    for seg in closed:  # each replays whole (in this process: a segment every second piles up under load)
         assert_complete(folder / seg["file"])
-        r = run("replay", folder / seg["file"], "--format", "jsonl")
-        assert r.returncode == 0 and len(r.stdout.splitlines()) == seg["frames"] > 0, r.stderr
+        assert sum(1 for _ in decode_capture(folder / seg["file"])) == seg["frames"] > 0, seg
     parts = sorted(folder.glob("*.mcap.part"))
     assert len(parts) <= 1  # the one open when killed (none if killed between two segments)
     whole = run("replay", folder, "--format", "jsonl")
@@ -211,14 +211,16 @@ def test_wait_for_the_port_and_survive_an_unplug(tmp_path):
 
 
 def test_memory_stays_flat_over_hundreds_of_segments():
-    """An hour of the simulated bus in 10 s segments (--keep 5: 355 deleted) through the session code,
-    in a process of its own: the objects alive and the RSS do not grow with the segments."""
+    """Twelve minutes of the simulated bus in 2 s segments (360 of them, --keep 5: 355 deleted) through the
+    session code, in a process of its own: the objects alive and the RSS do not grow with the segments.
+    (Segments of 2 s, not 10 s over an hour: the same 360 rotations, each opening, closing, indexing and
+    deleting a file, for a fifth of the frames to simulate and decode.)"""
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_unattended.py"), "--child", "rotated",
-                        "--duration", "3600", "--rotate", "10s", "--keep", "5", "--json"],
+                        "--duration", "720", "--rotate", "2s", "--keep", "5", "--json"],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     got = json.loads(r.stdout.strip().splitlines()[-1])
-    assert got["error"] is None and got["files"] == 5 and got["frames"] > 300_000
+    assert got["error"] is None and got["files"] == 5 and got["frames"] > 60_000
     samples = got["samples"]
     assert len(samples) >= 360
 

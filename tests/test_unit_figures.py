@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 from broker import retained
 
-from sniffer.codes import CATEGORY, Annotation
+from decoders.registry import code_book
+from sniffer.codes import Annotation
 from sniffer.frame import Frame, unit_key
 from sniffer.capture.session import decode_capture
 from sniffer.capture.settings import CaptureSpec
@@ -273,22 +274,26 @@ def test_quantiles_by_the_nearest_rank_exact_then_within_a_tenth_of_a_percent():
 
 
 def test_no_module_keeps_its_own_list_of_codes():
-    """What a code counts as is declared beside it (sniffer/codes.py: Code.category); no other module names
-    a categorised code in a string (a set, a dict, a comparison, an SQL list) to decide what it counts as.
-    Prose may name one (a message, a page's text)."""
+    """What a code counts as is declared with it (`Code.category`, gathered by decoders.registry.code_book); no
+    module names a categorised code in a string (a set, a dict, a comparison, an SQL list) to decide what it
+    counts as.  Prose may name one (a message, a page's text), and a declaration `Code("...", ...)` does."""
     import ast
 
-    categorised = set(CATEGORY)
+    categorised = set(code_book().categories)
     found = []
-    for path in sorted((ROOT / "sniffer").rglob("*.py")):
-        if path.name == "codes.py" and path.parent.name == "sniffer":
+    for path in sorted([*(ROOT / "sniffer").rglob("*.py"), *(ROOT / "decoders").rglob("*.py")]):
+        text = path.read_text(encoding="utf-8")
+        if not any(c in text for c in categorised):
             continue
-        tree = ast.parse(path.read_text(encoding="utf-8"))
+        tree = ast.parse(text)
         docstrings = {id(n.body[0].value) for n in ast.walk(tree)
                       if isinstance(n, (ast.Module, ast.FunctionDef, ast.ClassDef, ast.AsyncFunctionDef))
                       and n.body and isinstance(n.body[0], ast.Expr) and isinstance(n.body[0].value, ast.Constant)}
+        declared = {id(n.args[0]) for n in ast.walk(tree)
+                    if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "Code" and n.args}
         for node in ast.walk(tree):
-            if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings:
+            if (isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings
+                    and id(node) not in declared):
                 hits = [c for c in categorised if node.value == c or f"'{c}'" in node.value]
                 if hits:
                     found.append(f"{path.relative_to(ROOT)}:{node.lineno}: {sorted(hits)}")

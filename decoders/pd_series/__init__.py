@@ -21,20 +21,7 @@ in `schema.py`; our reading of the manual's contradictions is in NOTES.md.
 from __future__ import annotations
 
 from sniffer import codes as core
-from sniffer.codes import PD_DATA_SHORT as DATA_SHORT
-from sniffer.codes import PD_DATA_EXTRA as DATA_EXTRA
-from sniffer.codes import PD_DATA_LONG as DATA_LONG
-from sniffer.codes import PD_UNIT_RANGE as UNIT_RANGE
-from sniffer.codes import PD_BROADCAST_READ as BROADCAST_READ
-from sniffer.codes import PD_ERROR_REPLY as ERROR_REPLY
-from sniffer.codes import PD_STATUS_CFG as STATUS_CFG
-from sniffer.codes import PD_NO_REQUEST as NO_REQUEST
-from sniffer.codes import PD_PARAM_UNKNOWN as PARAM_UNKNOWN
-from sniffer.codes import PD_READ_ONLY as READ_ONLY
-from sniffer.codes import PD_RANGE as RANGE
-from sniffer.codes import PD_RUNNING as RUNNING
-from sniffer.codes import PD_LOOP_ECHO as LOOP_ECHO
-from sniffer.codes import Code, note_in
+from sniffer.codes import ERROR, EXCEPTION_CAT, INFO, WARNING, Code, note_in
 from sniffer.frame import REQUEST, RESPONSE, Frame
 from sniffer.protocols import PD_TABLES
 
@@ -44,6 +31,21 @@ from .schema import (
     bits_text, enum_text,
 )
 
+# The codes this decoder may emit, declared here (sigrok's decoders declare their annotations so): the
+# code book (sniffer.codes.CodeBook) is assembled from `PdSeriesDecoder.codes`.  "l.N": the manual's line.
+DATA_SHORT = Code("pd.data.short", ERROR, "DATA too short for the function")
+DATA_EXTRA = Code("pd.data.extra", WARNING, "more DATA bytes than the function's layout: the rest shown raw")
+DATA_LONG = Code("pd.data.long", WARNING, "more than 25 DATA bytes (l.183: fifty ASCII characters at most)")
+UNIT_RANGE = Code("pd.unit.range", WARNING, "address outside 0-250 (l.71-73)")
+BROADCAST_READ = Code("pd.broadcast.read", WARNING, "broadcast read: the manual says no inverter answers")
+ERROR_REPLY = Code("pd.error.reply", WARNING, "error reply (81H/83H)", EXCEPTION_CAT)
+STATUS_CFG = Code("pd.status.cfg", WARNING, "status selector CFG outside 0-7 (l.165)")
+NO_REQUEST = Code("pd.decode.no_request", INFO, "reply decoded without its request")
+PARAM_UNKNOWN = Code("pd.param.unknown", INFO, "parameter not described in the manual: raw value")
+READ_ONLY = Code("pd.write.read_only", ERROR, "write to a parameter the manual says cannot be set")
+RANGE = Code("pd.value.range", WARNING, "written value outside the manual's set range")
+RUNNING = Code("pd.write.running", WARNING, "parameter without ** written while the inverter runs (l.335)")
+LOOP_ECHO = Code("pd.loop.echo", WARNING, "loop test reply is not an echo of its request")
 DECODER_CODES = (DATA_SHORT, DATA_EXTRA, DATA_LONG, UNIT_RANGE, BROADCAST_READ, ERROR_REPLY, STATUS_CFG,
                  NO_REQUEST, PARAM_UNKNOWN, READ_ONLY, RANGE, RUNNING, LOOP_ECHO)
 

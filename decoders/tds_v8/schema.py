@@ -11,14 +11,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sniffer.codes import TDS_PRG_ONLY as PRG_ONLY
-from sniffer.codes import note
+from sniffer.codes import ERROR, Code, note
 from sniffer.frame import RESPONSE
 
 from decoders.table_decoder import TableDecoder
 from ..tables import load_map
 
 MAP_PATH = Path(__file__).with_name("registers.toml")
+# this model's own code, declared beside the rule that emits it (TdsV8Decoder.codes claims it)
+PRG_ONLY = Code("tds.write.prg_only", ERROR, "Cn/Sn parameter written while the drive is in DRV mode")
 
 
 def load():
@@ -26,7 +27,7 @@ def load():
 
 
 class TdsV8Decoder(TableDecoder):
-    extra_codes = (PRG_ONLY,)
+    codes = TableDecoder.codes + (PRG_ONLY,)
     carried_extra = ("mode",)
 
     def __init__(self, regmap) -> None:

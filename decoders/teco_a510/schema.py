@@ -21,9 +21,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sniffer.codes import A510_ASSUMED as ASSUMED
-from sniffer.codes import A510_SWITCHED as SWITCHED
-from sniffer.codes import note
+from sniffer.codes import INFO, WARNING, Code, note
 from sniffer.frame import RESPONSE
 
 from decoders.table_decoder import TableDecoder
@@ -31,6 +29,15 @@ from ..tables import Register, load_map
 
 RULE = "a510_fmax_over_300hz"
 MAP_PATH = Path(__file__).with_name("registers.toml")
+# this model's own codes, declared beside the rule that emits them (A510Decoder.codes claims them)
+ASSUMED = Code(
+    "a510.freq.resolution", INFO,
+    "frequency resolution assumed (0.1 Hz if the drive's maximum frequency is over 300 Hz)",
+)
+SWITCHED = Code(
+    "a510.freq.high", WARNING,
+    "a frequency above 300.00 Hz: the drive must be set above 300 Hz, so 0.1 Hz resolution applies",
+)
 
 
 def load() -> "A510Decoder":
@@ -42,7 +49,7 @@ def load_high_frequency() -> "A510Decoder":
 
 
 class A510Decoder(TableDecoder):
-    extra_codes = (ASSUMED, SWITCHED)
+    codes = TableDecoder.codes + (ASSUMED, SWITCHED)
     carried_extra = ("a510_hf",)
 
     def __init__(self, regmap, high_frequency: bool = False) -> None:

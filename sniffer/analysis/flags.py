@@ -7,7 +7,8 @@ the frame list colours rows by them, and `sniffer.filterlang` tests them (`err`,
 
 from __future__ import annotations
 
-from sniffer.codes import ALARM_CAT, CATEGORY, FAULT_CAT, TIMEOUT_CAT, in_category
+from decoders.registry import code_book
+from sniffer.codes import ALARM_CAT, FAULT_CAT, TIMEOUT_CAT
 from sniffer.frame import Frame
 
 F_ERROR = 1  # an error annotation or bad CRC
@@ -18,9 +19,9 @@ F_NOISE = 16
 F_FAULT = 32  # the drive reports a fault or an alarm (categories fault, alarm): a problem of the machine
 F_CRC = 64  # the CRC / LRC does not match (also F_ERROR)
 F_PROBLEM = F_ERROR | F_WARN | F_EXC | F_TIMEOUT | F_NOISE | F_FAULT
-FAULT_CODES = in_category(FAULT_CAT, ALARM_CAT)
-TIMEOUT_CODES = in_category(TIMEOUT_CAT)
-_FLAG = {code: F_FAULT if cat in (FAULT_CAT, ALARM_CAT) else F_TIMEOUT for code, cat in CATEGORY.items()
+FAULT_CODES = code_book().in_category(FAULT_CAT, ALARM_CAT)
+TIMEOUT_CODES = code_book().in_category(TIMEOUT_CAT)
+_FLAG = {code: F_FAULT if cat in (FAULT_CAT, ALARM_CAT) else F_TIMEOUT for code, cat in code_book().categories.items()
          if cat in (FAULT_CAT, ALARM_CAT, TIMEOUT_CAT)}
 
 

@@ -108,6 +108,19 @@ class RegisterBook:
             thin_queued(self.thin_queue, THIN_PER_FRAME)
 
     def _frame(self, f: Frame) -> None:
+        """Apply a frame's `writes` to the rows, each register named by the point that decodes its raw value.
+
+        A read response of unnamed registers goes the short way (`_block`: no point dicts to match).
+        A frame that wrote nothing (a write request) only remembers its points, so the response that
+        confirms the write can name the registers.  For each written register the naming point is the
+        frame's own at that address (same table) if it decodes this raw value (`_holds`), else the latest
+        remembered one that does, else none (the row shows the raw number).  A point that is half of a
+        multi-register value (`part`) marks that value's row stale instead of overwriting it; a point
+        with `words` takes its registers as one row at its first address and drops the rows its other
+        registers had.  The common case, a register polled again with the same raw value, is updated
+        inline (value, time, history) rather than through `set`: this runs for every frame a viewer
+        stores, so it is the hot path.  `version` is bumped once per frame that wrote.
+        """
         unit = unit_key(f)  # a unit of its link, in a capture of several links
         if unit is None:
             return

@@ -24,6 +24,7 @@ import bisect
 from collections import deque
 from fractions import Fraction
 
+from decoders.registry import code_book
 from sniffer import codes
 from sniffer.frame import REQUEST, RESPONSE, Frame, unit_key
 
@@ -35,7 +36,7 @@ _TIMEOUT, _END, _LATE, _RETRY, _EXC, _FAULT, _ALARM = (1 << i for i in range(7))
 _BIT_OF_CATEGORY = {codes.TIMEOUT_CAT: _TIMEOUT, codes.END_OF_CAPTURE_CAT: _END, codes.LATE_CAT: _LATE,
                     codes.RETRY_CAT: _RETRY, codes.EXCEPTION_CAT: _EXC, codes.FAULT_CAT: _FAULT,
                     codes.ALARM_CAT: _ALARM}
-_BIT = {code: _BIT_OF_CATEGORY[cat] for code, cat in codes.CATEGORY.items() if cat in _BIT_OF_CATEGORY}
+_BIT = {code: _BIT_OF_CATEGORY[cat] for code, cat in code_book().categories.items() if cat in _BIT_OF_CATEGORY}
 
 
 class Latencies:

@@ -30,6 +30,7 @@ import sys
 import threading
 import time
 
+from decoders.registry import code_book
 from sniffer import codes
 from sniffer.events import Gap
 from sniffer.formats.outputs import OutputError, check_output, write_json_atomic
@@ -39,7 +40,7 @@ from sniffer.analysis.unitfigures import UnitBook
 STATUS_FORMAT = "sniffer.status/1"
 STATUS_EVERY_S = 2.0
 _NS = 1_000_000_000
-_UART = codes.in_category(codes.UART_CAT)
+_UART = code_book().in_category(codes.UART_CAT)
 # the status file's error counts that are the units' figures added up (sniffer.analysis.unitfigures), by name
 _FROM_UNITS = {"crc": "crc_errors", "exceptions": "exceptions", "timeouts": "timeouts", "retries": "retries",
                "faults": "faults", "alarms": "alarms"}

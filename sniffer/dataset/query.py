@@ -26,6 +26,7 @@ import math
 import os
 from dataclasses import dataclass
 
+from decoders.registry import code_book
 from sniffer import codes as C
 from sniffer.formats.schemas import DATASET_TABLES, PARTITIONS, dataset_schemas
 from sniffer.analysis.unitfigures import QUANTILES
@@ -44,7 +45,7 @@ def _literal(text: str) -> str:
 
 def _codes(*categories: str) -> str:
     """The codes of `categories` (sniffer.codes: each code declares its own) as an SQL list."""
-    return "(" + ", ".join(_literal(c) for c in sorted(C.in_category(*categories))) + ")"
+    return "(" + ", ".join(_literal(c) for c in sorted(code_book().in_category(*categories))) + ")"
 
 
 # what a frame's annotations make it, one row a frame (the categories sniffer.analysis.unitfigures counts)

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from statistics import median
 
 from sniffer import codes
+from sniffer.framing import pd as pd_framing
 from sniffer.events import Chunk
 from sniffer.frame import REQUEST, RESPONSE
 from sniffer.line import LineSettings
@@ -36,8 +37,8 @@ from sniffer.detect.units import UnitPolls, UnitSeen
 
 # a good CRC/LRC on a frame whose shape these codes question is no evidence for the protocol
 MISFIT = frozenset(c.code for c in (
-    codes.LENGTH_MISMATCH, codes.STRUCTURE_MISMATCH, codes.FUNCTION_UNKNOWN, codes.PD_LEN_MISMATCH,
-    codes.PD_FUNCTION_UNKNOWN, codes.PAIR_MISMATCH, codes.ASCII_NO_CRLF, codes.PD_NO_CRLF,
+    codes.LENGTH_MISMATCH, codes.STRUCTURE_MISMATCH, codes.FUNCTION_UNKNOWN, pd_framing.LEN_MISMATCH,
+    pd_framing.FUNCTION_UNKNOWN, codes.PAIR_MISMATCH, codes.ASCII_NO_CRLF, pd_framing.NO_CRLF,
 ))
 # a silence between reads is sure beyond t3.5 plus this (covers a USB adapter's 16 ms latency timer; the
 # framers' 50 ms for live capture also covers a host that wakes late, and would hold decisions back here)

@@ -217,7 +217,17 @@ class CsvRowSource:
     def _rows(self, fh, log: DamageLog) -> Iterator[list[tuple]]:
         """Lists (up to BATCH) of (t_ns, seq, channel, byte, flag, lineno) in file order; channel None =
         bad rows before.  Lists, not rows one by one: each stage after this one loops over a list
-        instead of resuming a generator for every byte (a third of the reader's time)."""
+        instead of resuming a generator for every byte (a third of the reader's time).
+
+        The header is checked first (a bad one is fatal: CaptureError); after it no row is fatal.  Each
+        row goes through the format's `parse_row` (None: a row that carries no byte).  A row that does
+        not parse, a line that is not UTF-8 (`_Lines` hands an empty line in its place and notes its
+        number) and a csv.Error are damage: a sentence in `log`, and one marker row (channel None, byte =
+        the first bad line number) put before the next good row, or at the end, so the stages after this
+        one yield one Gap for a run of bad rows.  A csv.Error ends csv.reader's `for` loop: the `while`
+        resumes it at the next row.  An OSError ends the reading, what was read kept.  A short last row
+        is bad only where the file does not end with a newline (an export cut mid-row).  `t_offset`
+        (`first_time_offset`: a Saleae capture triggered before 0 starts at 0) is added here, once."""
         lines = _Lines(fh)
         self._lines = lines
         reader = csv.reader(lines)

@@ -55,13 +55,7 @@ from __future__ import annotations
 
 from fastcrc.crc16 import modbus as crc16_modbus  # incremental: `initial` = the running register
 
-from sniffer.codes import CRC_MISMATCH, CRC_ONE_BYTE, LENGTH_TRUNCATED, LINE_CODES, note
-from sniffer.codes import PD_BAD_HEX as BAD_HEX
-from sniffer.codes import PD_FUNCTION_UNKNOWN as FUNCTION_UNKNOWN
-from sniffer.codes import PD_LEN_MISMATCH as LEN_MISMATCH
-from sniffer.codes import PD_NO_CRLF as NO_CRLF
-from sniffer.codes import PD_QUIET_SHORT as QUIET_SHORT
-from sniffer.codes import PD_WRITE_ERROR as WRITE_ERROR
+from sniffer.codes import CRC_MISMATCH, CRC_ONE_BYTE, ERROR, INFO, LENGTH_TRUNCATED, LINE_CODES, WARNING, Code, note
 from sniffer.framing.crc import crc_ok
 from sniffer.framing.crc_rules import NEXT, Crc16Framing
 from sniffer.frame import CAN_REQ, CAN_RSP, Frame
@@ -78,8 +72,16 @@ RESERVED = frozenset({0x06, 0x07})  # l.87-89
 ERRORS = frozenset({0x81, 0x83})  # error replies (l.111, l.125, l.153)
 KNOWN = FUNCTIONS | ERRORS
 
-RTU_CODES = LINE_CODES + (CRC_MISMATCH, CRC_ONE_BYTE, LEN_MISMATCH, QUIET_SHORT, FUNCTION_UNKNOWN,
-                          WRITE_ERROR, LENGTH_TRUNCATED)
+# The PD-series framers' own codes, declared beside them (each framer's `codes` claims its own; the code book
+# gathers them through sniffer.protocols)
+LEN_MISMATCH = Code("pd.len.mismatch", WARNING, "LEN does not count the frame's data bytes")
+QUIET_SHORT = Code("pd.timing.quiet", INFO, "less than the manual's 50 ms of quiet before the frame")
+FUNCTION_UNKNOWN = Code("pd.function.unknown", WARNING, "function code not defined by the PD-series protocol")
+WRITE_ERROR = Code("pd.error.write", INFO, "81H error reply to a write parameter (02H): paired as 82H")
+NO_CRLF = Code("pd.ascii.no_crlf", WARNING, "ASCII frame not ended by CR LF")
+BAD_HEX = Code("pd.ascii.bad_hex", ERROR, "ASCII frame holds characters that are not hex digits")
+RTU_CODES = LINE_CODES + (CRC_MISMATCH, CRC_ONE_BYTE, LEN_MISMATCH, QUIET_SHORT, FUNCTION_UNKNOWN, WRITE_ERROR,
+                          LENGTH_TRUNCATED)
 ASCII_CODES = LINE_CODES + (CRC_MISMATCH, LEN_MISMATCH, FUNCTION_UNKNOWN, WRITE_ERROR, NO_CRLF, BAD_HEX)
 
 

@@ -8,7 +8,7 @@ the CPU until the viewer's thread blocks or the next tick (4 ms): no reschedule 
 viewer's priority (nice 19 or SCHED_IDLE alike).  The capture's read then comes late, holds the request and
 its answer together, and the answer loses its latency.  Any process that runs in ms-long bursts does the
 same, and a Textual redraw is such a burst; the same work cut into 0.2 ms slices keeps the flush work's
-wait that short (benchmarks/README.md has the figures).
+wait that short (benchmarks/HISTORY.md has the measurements).
 
 How: while frames come in and the App's loop works (not while it waits: watch_loop), an interval timer sends
 this process SIGALRM every GIVE_WAY_S; the kernel interrupts the running thread's CPU to deliver it, and the

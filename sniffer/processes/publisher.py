@@ -2,7 +2,7 @@
 
 Run as `python -m sniffer.processes.publisher` by PublishSink (processes/publish_sink.py),
 which hands it the listening socket (bound, not listening yet) and a pipe.
-The capture sends, over that pipe, length-prefixed pickles (childpipe.pipe_message):
+The capture sends, over that pipe, length-prefixed pickles (processes/pipes.pipe_message):
 
     ("start", info dict, label, capture path, t0_ns)   then it listens
     ("batch", frames, reads)            frames: (index, size, link, noise, JSON record); reads: Chunk's fields

@@ -5,7 +5,7 @@ process the decoding thread holds it most of the time, and when that thread lose
 holding it (preempted by anything else on a loaded machine: a TUI, a kworker, the publisher), the
 reader waits until it runs again.  A read that comes that late holds a request and its answer
 together, and the answer has no latency (a TUI open beside the capture makes such preemptions
-several times more frequent: benchmarks/README.md).
+several times more frequent: benchmarks/HISTORY.md).
 Here the readers (serial_live.SerialSource, several of them for serial_links.LinksSource) share an
 interpreter with nothing but each other: the process's main thread only waits for its pipe to end.
 

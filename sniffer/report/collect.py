@@ -21,7 +21,7 @@ units the Registers tab shows, at most REGISTER_POINTS samples a register; a reg
 whose values changed model, name or unit is one series per each, never one line
 across units), the writes and faults (timeline.py), the findings of `sniffer diagnose`
 (sniffer.diagnose: the page opens with them), and with `compare` the semantic summary
-`sniffer diff` makes (semdiff.Summary).
+`sniffer diff` makes (analysis.diff.Summary).
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ import math
 import os
 from collections import Counter
 
+from decoders.registry import code_book
 from sniffer import codes as C
 from sniffer.frame import LinkUnit
 from sniffer.diagnose import Diagnosis
@@ -50,10 +51,10 @@ COLUMNS = ("frames", "busy_ns", "crc", "exceptions", "timeouts", "retries", "noi
 _COLUMN_OF = {C.TIMEOUT_CAT: "timeouts", C.RETRY_CAT: "retries", C.FAULT_CAT: "faults", C.ALARM_CAT: "faults",
               C.EXCEPTION_CAT: "exceptions", C.NOISE_CAT: "noise", C.GAP_CAT: "gaps", C.T15_CAT: "t15",
               C.T35_CAT: "t35"}
-CODE_COLUMN = {code: _COLUMN_OF[cat] for code, cat in C.CATEGORY.items() if cat in _COLUMN_OF}
+CODE_COLUMN = {code: _COLUMN_OF[cat] for code, cat in code_book().categories.items() if cat in _COLUMN_OF}
 _ONCE = frozenset({"timeouts", "retries", "faults", "exceptions"})
 PLOTTED_UNITS = 16  # units in the latency and turnaround plots (the most answers); all are in the units table
-REGISTER_POINTS = 1024  # history kept per register (tui.history thins beyond)
+REGISTER_POINTS = 1024  # history kept per register (analysis.history thins beyond)
 REGISTER_RETIRED = 64  # earlier series of registers kept (a value named or scaled otherwise before)
 REGISTER_PLOTS = 40  # (unit, engineering unit) groups plotted; the rest are in the table
 SERIES_PER_PLOT = 8

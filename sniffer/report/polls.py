@@ -1,8 +1,8 @@
-"""Poll cycles: per request type (unit, function, first register, count: `semdiff.request_key`), the time
+"""Poll cycles: per request type (unit, function, first register, count: `analysis.diff.request_key`), the time
 from one request of that type to the next, i.e. the period the master polls it at, and how much it wanders.
 
-Per type a count, the gap's percentiles (`semdiff.Quantiles`: bounded), its mean and standard deviation
-(Welford), and the gaps over time (`tui.history.Series`, thinned).  Jitter is shown as p95 - p5 of the
+Per type a count, the gap's percentiles (`analysis.diff.Quantiles`: bounded), its mean and standard deviation
+(Welford), and the gaps over time (`analysis.history.Series`, thinned).  Jitter is shown as p95 - p5 of the
 gaps (a retry or a skipped cycle is an outlier it does not hide behind) and as the standard deviation.
 At most MAX_TYPES types are followed; requests of types beyond are counted, not timed.
 """

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections import Counter, deque
 
-from sniffer.codes import CATEGORY
+from decoders.registry import code_book
 from sniffer.frame import unit_key
 from sniffer.analysis.flags import FAULT_CODES
 from sniffer.protocols import of_frame
@@ -30,6 +30,7 @@ HEAD = 1000
 TAIL = 1000
 RECENT = 256  # requests remembered for their answers
 TEXT = 300  # characters of a summary kept
+_CATEGORY = code_book().categories  # code -> what it counts as ("fault", "alarm", ...)
 
 
 class Timeline:
@@ -115,7 +116,7 @@ class Timeline:
                 reported.add(k)
                 ev = self._open.get(k)
                 if ev is None:
-                    kind = CATEGORY[a.code]  # "fault" or "alarm" (sniffer.codes' categories)
+                    kind = _CATEGORY[a.code]  # "fault" or "alarm" (sniffer.codes' categories)
                     ev = self._open[k] = {"kind": kind, "unit": str(unit_key(f)), "t": f.t_ns, "t_end": f.t_ns,
                                           "n": 1, "text": a.detail[:TEXT], "frame": f.index, "capture": capture,
                                           "_key": key}

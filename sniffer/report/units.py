@@ -14,7 +14,7 @@ trust it depends on how the timestamps were taken (`Frame.time_source`): per byt
 from the read times and the baud rate.
 
 Memory per unit is bounded: log-spaced latency bins, `unitfigures.Latencies` for the
-quantiles, and the latency over time as a `tui.history.Series` (thinned into time
+quantiles, and the latency over time as an `analysis.history.Series` (thinned into time
 buckets, keeping each bucket's first, minimum, maximum and last: the spikes stay).
 """
 

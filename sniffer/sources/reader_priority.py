@@ -6,7 +6,7 @@ thread woken onto a CPU where another normal thread is running waits until that 
 kernel or the next tick (up to 4 ms at HZ=250), whatever their nice levels.  A SCHED_FIFO thread
 preempts it at once.  Traced with a TUI open, most long waits were the capture's reader behind the
 viewer; at SCHED_FIFO 1 fewer answers are glued, and headless capture is unchanged
-(benchmarks/bench_capture_timing.py, benchmarks/README.md).
+(benchmarks/bench_capture_timing.py; the traces are in benchmarks/HISTORY.md).
 
 The lowest real-time priority (1) is enough: it only has to come before normal work.  The reader's
 work per wake is small (a read, a timestamp, a queue push); Linux's real-time throttling still keeps

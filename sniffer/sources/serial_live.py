@@ -41,7 +41,7 @@ reader asks for a real-time priority (reader_priority.py: a woken normal thread
 waits for the CPU's running one).  With the reader real-time it never waits for a
 CPU (schedstat: 0 us), so what it still waits for is the interpreter: publishing
 to viewers glued more answers at a 0.5 ms switch interval than at 0.1 ms, with the capture's CPU
-unchanged (benchmarks/README.md).  Viewers are now served by a
+unchanged (benchmarks/HISTORY.md).  Viewers are now served by a
 process of its own (processes/publish_sink.py), so all the capture holds for them is a 16 us batch every 50 ms.
 And `sniffer live` runs its readers in a process of their own (processes/reader.py), where no decoding
 thread shares their interpreter: one preempted while holding it can no longer keep a read waiting.

@@ -96,7 +96,17 @@ class DetailPane(Vertical):
 
         `following`: f is the tail's newest frame (the list follows a capture), and the tail frame shown less
         than FOLLOW_EVERY_S ago stays until then (nobody reads a detail that changes 15 times a second;
-        building it took a third of the TUI's time).  A frame the user selects shows at once."""
+        building it took a third of the TUI's time).  A frame the user selects shows at once.
+
+        A tail frame that comes too soon is parked in `due` with one timer (`_show_due` shows the latest
+        parked frame when it fires); any direct call drops what was parked.  Before the tree is composed
+        only the frame is kept (on_mount shows it).  The tree is rebuilt from scratch: a root line
+        (index, role, time, size, link, unit, function, model), the wire facts (protocol, time source,
+        CRC, pair and latency, noise reason), the time in every base, the summary, the exception, the
+        decoder's fields, one node per point and one leaf per annotation.  Every node that stands for
+        bytes carries its span as `data`, as the decoders recorded it, so selecting it lights those bytes
+        up in the hex dump; `_entry` is the first point (else annotation), where the cursor lands when
+        the user enters the tree."""
         now = monotonic()
         if following:
             wait = self._shown_at + FOLLOW_EVERY_S - now

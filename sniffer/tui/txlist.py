@@ -20,6 +20,7 @@ from textual.containers import Vertical
 from textual.message import Message
 from textual.widgets import Static
 
+from decoders.registry import code_book
 from sniffer import codes
 from sniffer.frame import Frame, unit_key
 from sniffer.tui.framelist import S_CURSOR, row_mark, row_style
@@ -60,7 +61,7 @@ def header(time_title: str, cols: Columns) -> str:
     return (f"   {time_title:>{cols.time}} {link}{'unit':4} {model}{'fc':4} {'latency':>9} {'asked':<{cols.asked}}   "
             f"{'answer':<{cols.answer}}  [problems]")
 # what the answer column already says
-_SAID = codes.in_category(codes.TIMEOUT_CAT, codes.END_OF_CAPTURE_CAT, codes.ORPHAN_CAT)
+_SAID = code_book().in_category(codes.TIMEOUT_CAT, codes.END_OF_CAPTURE_CAT, codes.ORPHAN_CAT)
 
 
 def _clip(s: str, n: int) -> str:
