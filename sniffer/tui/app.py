@@ -25,12 +25,14 @@ from textual.widgets import Input, Static, TabbedContent, TabPane
 
 from sniffer.tui.byteview import BytesPane, ByteView, link_char_ns
 from sniffer.filterlang import register_ids
+from sniffer.analysis.linehealth import is_line_warning
 from sniffer.tui.detail import DetailPane
 from sniffer.tui.filters import filter_expr, parse_filter
 from sniffer.tui.footer import KeyBar
 from sniffer.tui.framelist import FrameList
 from sniffer.tui.goto import parse_goto, resolve
 from sniffer.tui.hangup import TerminalWatch
+from sniffer.tui.linenotice import LineNotice
 from sniffer.tui.gotobar import GotoBar
 from sniffer.tui.store import FrameStore
 from sniffer.tui.plot import JumpToFrame, PlotPane
@@ -207,6 +209,7 @@ class SnifferApp(App):
         self.notices: deque[str] = deque()  # lines a capture process said on stderr: shown as notifications
         self.export_status: str | None = None  # an export running on its worker: how far it is
         self.reads = ReadRing()  # the byte view's last reads (sniffer.analysis.reads)
+        self.line_notice = LineNotice(source_path)  # most frames bad: the line settings are probably wrong
 
     # ---------------------------------------------------------------- layout
     def compose(self) -> ComposeResult:
@@ -298,20 +301,22 @@ class SnifferApp(App):
 
     def _intake(self) -> None:
         """Between two polls, while frames wait: more of them into the store (the next poll shows them)."""
-        if not self.sink.drain_into(self.store.add, budget_s=INTAKE_BUDGET_S) or not self.sink.backlog:
+        if not self.sink.drain_into(self._take, budget_s=INTAKE_BUDGET_S) or not self.sink.backlog:
             self._more.pause()
 
     def poll(self, budget_s: float | None = None) -> None:
         """Frames into the store (at most max_batch, and for at most `budget_s` if given), then the view."""
         while self.notices:
             line = self.notices.popleft()
+            if is_line_warning(line):
+                continue  # the capture's own warning: the App says it from the frames it shows (_take)
             bad = "error" in line or "warning" in line or "lost" in line
             self.notify(line.removeprefix("sniffer: "), title="capture", severity="warning" if bad else "information",
                         timeout=8 if bad else 4)
         if self.sink.info is not None and not len(self.store):
             self.store.t0_ns = self.sink.info.t0_ns
             self.store.time.wall_anchor_ns = self.sink.info.wall_anchor_ns
-        self.sink.drain_into(self.store.add, limit=self.max_batch, budget_s=budget_s)
+        self.sink.drain_into(self._take, limit=self.max_batch, budget_s=budget_s)
         before = self._shown_rows  # frames _intake added count too
         if len(self.store) != before and (budget_s is None or self.frame_list.tail_due(len(self.store) - before)):
             self._shown_rows = len(self.store)
@@ -339,6 +344,12 @@ class SnifferApp(App):
         if text != self._status_text:
             self._status_text = text
             self.status.update(text, layout=False)  # one line, always: its text changing moves nothing else
+
+    def _take(self, frames: list) -> None:
+        """Frames into the store, and judged: a line whose frames are mostly bad is said once (linenotice.py)."""
+        self.store.add(frames)
+        for text in self.line_notice.take(frames, self.sink.info):
+            self.notify(text, title="line settings?", severity="warning", timeout=30, markup=False)
 
     def refresh_tables(self) -> None:
         active = self.tabs.active
