@@ -1,12 +1,15 @@
-"""The TUI says when most frames are bad (a notification and a mark in the status bar)."""
+"""The TUI says when most frames are bad (a notification and a mark in the status bar), and Ctrl-C in the TUI
+of a live capture asks before it stops it, as `q` does (not Textual's "press ctrl+q" notice)."""
 
 from __future__ import annotations
 
 import asyncio
 import itertools
+import sys
 
 from helpers import simulated
-from tui_helpers import replay_frames
+from terminal import Terminal
+from tui_helpers import demo_viewer, replay_frames
 
 from sniffer.analysis.linehealth import is_line_warning
 from sniffer.capture.session import CaptureSpec, Session
@@ -127,3 +130,71 @@ def _sim_default(path: str) -> str:
 
     assert main(["simulate", "--scenario", "default", "--duration", "30", "--out", path]) == 0
     return path
+
+
+# ---------------------------------------------------------------- Ctrl-C
+
+
+def test_ctrl_c_in_a_live_capture_asks_and_y_stops_it(tmp_path):
+    async def go(app, capture):
+        async with app.run_test(size=SIZE) as pilot:
+            assert await until(pilot, lambda: len(app.store) > 10)
+            await pilot.press("ctrl+c")
+            await pilot.pause(0.05)
+            assert type(app.screen).__name__ == "ConfirmQuit"  # not Textual's "press ctrl+q" notice
+            assert not any("ctrl+q" in str(n.message) for n in app._notifications)
+            await pilot.press("n")
+            await pilot.pause(0.05)
+            assert type(app.screen).__name__ != "ConfirmQuit" and app._thread.is_alive()
+            n = len(app.store)
+            assert await until(pilot, lambda: len(app.store) > n)  # still capturing
+            assert capture.returncode is None
+            await pilot.press("ctrl+c", "y")
+
+    with demo_viewer(tmp_path, "default", 60) as viewer:
+        run(go(viewer.app, viewer.capture))
+    assert viewer.rc() == 0 and not (tmp_path / "d.mcap.part").exists()
+    assert len(read_frames(str(tmp_path / "d.mcap"))) >= len(viewer.app.store.frames) > 10
+
+
+def test_ctrl_c_twice_stops_a_live_capture(tmp_path):
+    async def go(app):
+        async with app.run_test(size=SIZE) as pilot:
+            assert await until(pilot, lambda: len(app.store) > 10)
+            await pilot.press("ctrl+c", "ctrl+c")
+            await pilot.pause(0.1)
+            assert app._exit  # the App quits on its own (not when the test leaves it)
+
+    with demo_viewer(tmp_path, "default", 60) as viewer:
+        run(go(viewer.app))
+    assert viewer.rc() == 0 and (tmp_path / "d.mcap").exists() and not (tmp_path / "d.mcap.part").exists()
+
+
+def test_ctrl_c_in_a_replay_just_closes():
+    info, frames, registry = replay_frames("errors.mcap")
+
+    async def go():
+        sink = TuiSink()
+        sink.start(info)
+        sink.frames(frames[:50])
+        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            await pilot.press("ctrl+c")
+            await pilot.pause(0.1)
+            assert app._exit
+    run(go())
+
+
+def test_ctrl_c_on_a_real_terminal_asks_then_stops_and_closes_the_file(tmp_path):
+    out = tmp_path / "d.mcap"
+    term = Terminal([sys.executable, "-m", "sniffer", "demo", "--scenario", "default", "--duration", "120",
+                     "--out", str(out)])
+    try:
+        assert term.wait_for("Transactions"), term.screen[-2000:]  # a tab's label: the App runs
+        term.type("\x03")  # Ctrl-C, as the terminal sends it
+        assert term.wait_for("Stop the live capture"), term.screen[-2000:]
+        term.type("y")
+    finally:
+        rc = term.finish()
+    assert rc == 0, term.screen[-3000:]
+    assert out.exists() and not (tmp_path / "d.mcap.part").exists() and len(read_frames(str(out))) > 5

@@ -79,8 +79,8 @@ HELP = """\
                (there [b]Enter[/b] goes to the change's frame, [b]Esc[/b] back)
   Plot:        [b]+ -[/b] zoom  [b]← →[/b] pan  [b]0[/b] all, follow  [b], .[/b] cursor  [b]Enter[/b] / click: go to the
                nearest sample's frame  [b]↑ ↓[/b] choose  [b]d[/b] remove  (mouse wheel: zoom)
-  [b]?[/b]            this help;  [b]q[/b] quit: a live capture asks first (y stops it and closes
-               its file); a replay or a viewer of `sniffer attach` just closes (the capture goes on)
+  [b]?[/b]            this help;  [b]q[/b] / [b]Ctrl-C[/b] quit: a live capture asks first (y or Ctrl-C again stops
+               it and closes its file); a replay or a viewer of `sniffer attach` just closes (the capture goes on)
 
 Colours: [bold bright_red]!! errors / bad CRC[/], [bold magenta]E exceptions[/], [bold dark_orange]F drive faults &
 alarms[/] (OL1 — Motor overload), [yellow]T timeouts & warnings[/], [grey50 italic]noise[/].
@@ -114,7 +114,7 @@ class ConfirmQuit(ModalScreen[bool]):
 
     def compose(self) -> ComposeResult:
         yield Static(f"Stop the live capture{self.what}?\n\n"
-                     "[b]y[/b] stop it and quit    [b]n[/b] / Esc go on capturing")
+                     "[b]y[/b] / Ctrl-C stop it and quit    [b]n[/b] / Esc go on capturing")
 
     def action_answer(self, stop: bool) -> None:
         self.dismiss(stop)
@@ -165,6 +165,9 @@ class SnifferApp(App):
         Binding("enter", "focus_detail", "Detail", show=False),
         Binding("question_mark,f1", "help", "Help"),
         Binding("q", "quit", "Quit"),
+        # Ctrl-C stops, as on the command line (not Textual's "press ctrl+q" notice): priority, so a focused
+        # bar's copy does not take it
+        Binding("ctrl+c", "interrupt", "Stop", show=False, priority=True),
         # export / copy / raw bytes
         Binding("x", "export", "Export"),
         Binding("y", "copy_hex", "Copy hex", show=False),
@@ -268,6 +271,13 @@ class SnifferApp(App):
         self.sink.release()  # a replay waiting for the UI to drain would not see the stop
         if self._thread is not None:
             self._thread.join(timeout)
+
+    async def action_interrupt(self) -> None:
+        """Ctrl-C: quit as `q` does (a live capture asks first); Ctrl-C again while it asks stops it."""
+        if isinstance(self.screen, ConfirmQuit):
+            self.screen.dismiss(True)
+            return
+        await self.action_quit()
 
     async def action_quit(self) -> None:
         if self.live and not self.caught_up:  # a live capture is still running in this process
