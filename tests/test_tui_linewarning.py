@@ -65,6 +65,33 @@ def test_a_replay_at_the_wrong_baud_is_said_and_marked(tmp_path_factory):
     run(go())
 
 
+def test_a_live_capture_at_the_wrong_baud_is_said_once_and_marked(tmp_path, capsys):
+    """The real path: a pty line at 19200 8E1 captured at 9600 by its own process, the App attached to it.  The
+    capture says the warning on its stderr (held for the App, printed when it closes); the App says it once."""
+    from helpers import SimulatedLine
+
+    from sniffer.capture.settings import LineChoice
+    from sniffer.tui.run import CaptureViewer
+
+    async def go(app):
+        async with app.run_test(size=SIZE) as pilot:
+            assert await until(pilot, lambda: warnings_shown(app), 600)
+            await pilot.pause(0.5)
+            said = warnings_shown(app)
+            assert len(said) == 1 and f"run sniffer detect {line.path} " in said[0] and "(9600 8N1)" in said[0]
+            assert MARK in status_text(app, 200).plain
+            await pilot.press("q", "y")
+
+    with SimulatedLine(tmp_path, "default") as line:
+        spec = CaptureSpec(flags=LineChoice(baud=9600), port=line.path, out=str(tmp_path / "w.mcap"))
+        with CaptureViewer(spec, "live", line.path) as viewer:
+            assert viewer.start()
+            run(go(viewer.app))
+    assert viewer.rc() == 0
+    err = capsys.readouterr().err  # what the capture said, held while the App ran, printed once it closed
+    assert sum(is_line_warning(x) for x in err.splitlines()) == 1
+
+
 def test_a_healthy_capture_with_errors_is_neither_said_nor_marked():
     info, frames, registry = replay_frames("errors.mcap")
 
