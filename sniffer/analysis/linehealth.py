@@ -57,12 +57,12 @@ def badness(frame) -> int | None:
     """Why a frame is bad (NOISE, UART or CRC), or None for a good one."""
     if frame.protocol == "noise":
         return NOISE
+    if frame.crc_ok is not False and frame.crc_ok is not None:
+        return None  # a good CRC over bytes with a UART error is unproven (crc_ok False): no UART error here
     for a in frame.annotations:
         if a.code in _UART:
             return UART
-    if frame.crc_ok is False:
-        return CRC
-    return None
+    return CRC if frame.crc_ok is False else None
 
 
 @dataclass(frozen=True)
@@ -111,7 +111,8 @@ class LineHealth:
             self.bad += 1
             self.bad_bytes += nbytes
             self.kinds[bad] += 1
-        self._expire(t_ns)
+        if win[0][0] <= t_ns - self.window_ns:
+            self._expire(t_ns)
         return self.judge()
 
     def advance(self, t_ns: int) -> None:
@@ -145,16 +146,17 @@ class LineHealth:
         return self.bad <= RECOVERED_SHARE * self.frames and self.bad_bytes <= RECOVERED_SHARE * self.nbytes
 
     def judge(self) -> Change | None:
-        if not self.enough():
-            return None
-        if not self.broken and self.most_bad():
+        """The state after the last frame: a Change when it changed (the shares first: the common case ends there)."""
+        if not self.broken:
+            if not self.most_bad() or not self.enough():
+                return None
             self.broken = True
             self.warnings += 1
             return self._change()
-        if self.broken and self.mostly_good():
-            self.broken = False
-            return self._change()
-        return None
+        if not self.mostly_good() or not self.enough():
+            return None
+        self.broken = False
+        return self._change()
 
     def _change(self) -> Change:
         win = self._win
