@@ -230,3 +230,17 @@ def test_live_at_the_wrong_baud_names_detect_on_the_port(tmp_path):
     assert len(lines) == 1, r.stderr
     assert f"run sniffer detect {line.path} " in lines[0] and "(9600 8N1)" in lines[0]
     assert all(s in lines[0] for s in first_settings())
+
+
+def test_a_logic_capture_is_measured_by_detect(tmp_path):
+    """A sigrok .sr file (or a live analyzer) has the bits: detect measures them, a replay's flags are not the way."""
+    import zipfile
+
+    sr = tmp_path / "x.sr"
+    with zipfile.ZipFile(sr, "w") as z:
+        z.writestr("metadata", "[device 1]\nsamplerate=1 MHz\ntotal probes=1\nprobe1=rx\n")
+        z.writestr("version", "2")
+    info = CaptureInfo(source=f"sigrok:{sr}", baud=9600)
+    assert what_to_do(info, file=str(sr)).startswith(f"run sniffer detect {sr} (it measures the bits")
+    live = CaptureInfo(source="sigrok:fx2lafw", port="sigrok:fx2lafw", baud=9600)
+    assert what_to_do(live).startswith("run sniffer detect sigrok:fx2lafw (it measures the bits")
