@@ -74,12 +74,16 @@ Tries 1200 ... 921600 baud (the common rates, most common first; --bauds adds ot
 8N1 8E1 8O1 8N2 (and 7E1 7O1 7N2 for ASCII lines), Modbus RTU, Modbus ASCII and the
 PD-series protocol, and stops as soon as one candidate is certain.
 
+Several ports are listened to at once; --write-bus writes one bus file with a
+[[links]] table for each port that settled (named after the port).
+
 exit status: 0 the line is settled (printed; written with --write-bus), 1 no traffic
-or no candidate fits (nothing is guessed, no file written), 2 bad flags or a port
-that cannot be opened.
+or no candidate fits (nothing is guessed, no file written; several ports: one did not
+settle), 2 bad flags or a port that cannot be opened.
 
   sniffer detect /dev/ttyUSB0 --write-bus line.toml
-  sniffer live /dev/ttyUSB0 --bus line.toml"""
+  sniffer live /dev/ttyUSB0 --bus line.toml
+  sniffer detect /dev/ttyUSB0 /dev/ttyUSB1 --write-bus plant.toml && sniffer live --bus plant.toml"""
 
 
 def _number(kind, what: str, lo, hi):
@@ -391,8 +395,10 @@ def build_parser() -> argparse.ArgumentParser:
         "detect", formatter_class=argparse.RawDescriptionHelpFormatter,
         help="find an unknown line's baud rate, parity, stop bits and protocol by listening (read-only)",
         description=_DETECT_HELP, epilog=_DETECT_EPILOG)
-    s.add_argument("port", help="serial device, e.g. /dev/ttyUSB0; or a logic capture: a sigrok .sr file, or a live "
-                                "analyzer sigrok:DRIVER (bit widths from the samples: tells 8E1 from 8E2)")
+    s.add_argument("ports", nargs="+", metavar="port",
+                   help="serial device, e.g. /dev/ttyUSB0 (several: listened to at once, --write-bus writes a "
+                        "[[links]] table each); or a logic capture: a sigrok .sr file, or a live analyzer "
+                        "sigrok:DRIVER (bit widths from the samples: tells 8E1 from 8E2)")
     logic_flags(s, live=True)
     s.add_argument("--bauds", action="append", metavar="RATES",
                    help="more baud rates to try, first: 250000,31250 (repeatable)")

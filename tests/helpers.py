@@ -150,3 +150,32 @@ def read_mcap(path):
         attachments = {a.name: a for a in reader.iter_attachments()}
         msgs = [(ch, m.log_time, json.loads(m.data)) for _s, ch, m in reader.iter_messages()]
     return summary, meta, attachments, msgs
+
+
+class SimulatedLine:
+    """A simulated line served on a pty (sniffer/simulator/uartpty.py: what a UART at the settings the reader sets
+    receives), played in a thread, linked at DIR/NAME: `with SimulatedLine(tmp_path, "default") as line: line.path`."""
+
+    def __init__(self, folder, scenario: str, line: str | None = None, name: str = "line0", seed: int = 5):
+        import threading
+
+        from sniffer.detect.candidates import setting
+        from sniffer.simulator import get_scenario
+        from sniffer.simulator.uartpty import PtyLine
+
+        sc = get_scenario(scenario)
+        b, f = (line or f"{sc.line.baud} {sc.line.databits}{sc.line.parity}{sc.line.stopbits}").split()
+        self.pty = PtyLine(sc, setting(int(b), f), seed=seed)
+        self.path = str(folder / name)
+        self.pty.link(self.path)
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self.pty.play, args=(self.stop,), daemon=True)
+
+    def __enter__(self) -> "SimulatedLine":
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop.set()
+        self.thread.join(5)
+        self.pty.close()

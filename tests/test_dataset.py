@@ -344,3 +344,39 @@ def test_disk_full_leaves_the_dataset_as_it_was(tmp_path):
     assert r.returncode == 1, r.stderr
     assert "cannot write the dataset" in r.stderr and "Traceback" not in r.stderr
     assert files(ds) == before  # no half file, no staging folder, no manifest entry
+
+
+def test_export_of_a_rotated_folder_takes_its_segments(tmp_path, capsys):
+    """`export FOLDER --to dataset` of a rotated capture: each closed segment one capture of the dataset (as ingest
+    takes them), every frame in; a segment still open is a note and left for a later run."""
+    folder = tmp_path / "cab3"
+    assert main(["simulate", "--scenario", "default", "--duration", "7", "--rotate", "2s", "--out", str(folder)]) == 0
+    index = json.loads((folder / "index.json").read_text())["segments"]
+    assert len(index) >= 3
+    ds = tmp_path / "fleet"
+    capsys.readouterr()
+    assert main(["export", str(folder), "--to", "dataset", str(ds)]) == 0
+    err = capsys.readouterr().err
+    assert f"{len(index)} captures taken in ({sum(s['frames'] for s in index)} frames)" in err
+    assert sql(ds, "SELECT count(*) FROM frames") == [(sum(s["frames"] for s in index),)]
+    assert sql(ds, "SELECT count(DISTINCT capture) FROM frames") == [(len(index),)]
+    # its index names the folder as well; what is in already is skipped
+    assert main(["export", str(folder / "index.json"), "--to", "dataset", str(ds)]) == 0
+    assert f"0 captures taken in (0 frames), {len(index)} already there" in capsys.readouterr().err
+    # the last segment open (a running capture): the others go in, it is said and left for later
+    last = folder / index[-1]["file"]
+    last.rename(folder / (index[-1]["file"] + ".part"))
+    ds2 = tmp_path / "fleet2"
+    assert main(["export", str(folder), "--to", "dataset", str(ds2)]) == 0
+    err = capsys.readouterr().err
+    assert f"note: {folder / index[-1]['file']}.part: not closed" in err
+    assert f"{len(index) - 1} captures taken in" in err
+
+
+def test_export_of_a_folder_that_is_no_rotated_capture_says_ingest(tmp_path, capsys):
+    (tmp_path / "site" / "line3").mkdir(parents=True)
+    shutil.copy(A510, tmp_path / "site" / "line3" / "a510.mcap")
+    assert main(["export", str(tmp_path / "site"), "--to", "dataset", str(tmp_path / "fleet")]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line]
+    assert len(err) == 1 and "sniffer ingest FOLDER" in err[0]
+    assert not (tmp_path / "fleet").exists()

@@ -29,11 +29,11 @@ from sniffer.simulator.uartpty import PtyLine
 class Line:
     """A simulated line on a pty, played in a thread."""
 
-    def __init__(self, tmp_path, scenario: str, line: str | None = None, resync: str = "edge"):
+    def __init__(self, tmp_path, scenario: str, line: str | None = None, resync: str = "edge", name: str = "line0"):
         sc = get_scenario(scenario)
         b, f = (line or f"{sc.line.baud} {sc.line.databits}{sc.line.parity}{sc.line.stopbits}").split()
         self.pty = PtyLine(sc, setting(int(b), f), seed=5, resync=resync)
-        self.path = str(tmp_path / "line0")
+        self.path = str(tmp_path / name)
         self.pty.link(self.path)
         self.stop = threading.Event()
         self.thread = threading.Thread(target=self.pty.play, args=(self.stop,), daemon=True)
@@ -172,3 +172,101 @@ def test_help_says_what_it_tries_and_the_exit_status():
     for words in ("read-only", "921600", "8N2", "7E1", "PD-series", "exit status", "--write-bus", "--bauds",
                   "--units-time", "sniffer live /dev/ttyUSB0 --bus line.toml"):
         assert words in r.stdout
+
+
+class SimulatedPorts:
+    """`sniffer simulate --pty` lines, a process each (a line plays its UART bit by bit: several in one process
+    would share its interpreter and fall behind), linked in a folder; `said` holds what each said at its end."""
+
+    def __init__(self, folder, lines: list[tuple[str, list[str], str]]):
+        self.paths = [str(folder / name) for _, _, name in lines]
+        self.procs = [subprocess.Popen([sys.executable, "-m", "sniffer", "simulate", "--pty", path, "--scenario", sc,
+                                        *flags], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                      for (sc, flags, _), path in zip(lines, self.paths)]
+        self.said: list[str] = []
+
+    def __enter__(self) -> "SimulatedPorts":
+        deadline = time.monotonic() + 30
+        while not all(os.path.lexists(p) for p in self.paths) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for p in self.procs:
+            p.send_signal(signal.SIGTERM)
+        self.said = [p.communicate(timeout=30)[1] for p in self.procs]
+
+
+def test_several_ports_are_settled_at_once_into_one_bus_file_that_live_captures(tmp_path):
+    """Three lines at different settings: one bus file, a [[links]] table each (named after the port, the units
+    seen as comments); `live --bus` on it captures every link with good frames; nothing reaches any line."""
+    lines = [("tds-v8", [], "line0"), ("default", ["--baud", "9600", "--parity", "O"], "line1"),
+             ("a510-ascii", [], "line2")]
+    want = {"line0": (9600, "N", 2, 8, "modbus-rtu"), "line1": (9600, "O", 1, 8, "modbus-rtu"),
+            "line2": (9600, "E", 1, 7, "modbus-ascii")}
+    bus = tmp_path / "plant.toml"
+    with SimulatedPorts(tmp_path, lines) as sims:
+        r = run_sniffer("detect", *sims.paths, "--write-bus", str(bus), "--units-time", "0.5")
+        assert r.returncode == 0, r.stderr
+        b = load_bus_file(str(bus))
+        got = {x.name: (x.baud, x.parity, x.stopbits, x.databits or 8, x.protocol) for x in b.links}
+        if got.get("line0") == (9600, "N", 1, 8, "modbus-rtu") and "stop bits not told apart" in r.stdout:
+            want["line0"] = got["line0"]  # a loaded machine blurs the characters' spacing (see above)
+        assert got == want
+        assert [x.ports for x in b.links] == [(p,) for p in sims.paths] and not any(x.devices for x in b.links)
+        text = bus.read_text()
+        assert text.count("[[links]]") == 3 and text.count("# units = { 1 = ") == 3  # the units as comments
+        assert f"wrote {bus}" in r.stderr
+        assert all(f"{p} (" in r.stdout for p in sims.paths) and r.stdout.count("  line: ") == 3
+        live = run_sniffer("live", "--bus", str(bus), "--no-out", "--headless", "--duration", "3", "--format",
+                           "jsonl")
+        assert live.returncode == 0, live.stderr
+        recs = [json.loads(x) for x in live.stdout.splitlines()]
+        for name in want:  # every link captured, its frames good
+            assert sum(rec["link"] == name and rec.get("crc_ok") is True for rec in recs) >= 3, name
+        assert "probably wrong" not in live.stderr
+    assert all("0 bytes came from the other end" in err for err in sims.said), sims.said
+
+
+def test_several_ports_one_silent_writes_the_settled_and_says_the_other(tmp_path):
+    master, slave = os.openpty()  # a pty nobody writes to
+    silent = os.ttyname(slave)
+    bus = tmp_path / "plant.toml"
+    try:
+        with Line(tmp_path, "default") as sim:
+            r = run_sniffer("detect", sim.path, silent, "--write-bus", str(bus), "--quiet-time", "2", "-q")
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert r.returncode == 1
+    errors = [ln for ln in r.stderr.splitlines() if ln.startswith("sniffer: error:")]
+    assert len(errors) == 1 and f"no traffic on {silent}" in errors[0]
+    b = load_bus_file(str(bus))
+    assert [x.name for x in b.links] == ["line0"] and b.links[0].baud == 19200
+    assert f"{silent}: not settled, not in this file" in bus.read_text()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["PORT", "/nonexistent/ttyUSB9", "--write-bus", "BUS"], "no such port"),
+    (["PORT", "PORT"], "given twice"),
+    (["PORT", "SR"], "a logic capture is detected alone"),
+])
+def test_several_ports_bad_input_is_one_line_and_no_file(tmp_path, args, message):
+    master, slave = os.openpty()
+    sr = tmp_path / "x.sr"
+    import zipfile
+
+    with zipfile.ZipFile(sr, "w") as z:
+        z.writestr("metadata", "[device 1]\nsamplerate=1 MHz\ntotal probes=1\nprobe1=rx\n")
+        z.writestr("version", "2")
+    bus = tmp_path / "plant.toml"
+    try:
+        r = run_sniffer("detect", *[{"PORT": os.ttyname(slave), "SR": str(sr), "BUS": str(bus)}.get(a, a)
+                                    for a in args])
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.strip().count("\n") == 0 and message in r.stderr and "Traceback" not in r.stderr
+    assert not bus.exists()
+

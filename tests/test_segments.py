@@ -368,7 +368,7 @@ class _Triggers:
         pass
 
     def status(self) -> dict:
-        return {"triggers": {"fired": self.seen, "rules": {"crc": self.seen}}}
+        return {"counter": {"fired": self.seen, "rules": {"crc": self.seen}}}
 
 
 def test_a_sink_adds_its_section_and_status_shows_it(capsys, capture, tmp_path):
@@ -380,13 +380,13 @@ def test_a_sink_adds_its_section_and_status_shows_it(capsys, capture, tmp_path):
     trig = _Triggers()
     Session(spec, file_source(spec), [trig]).run()
     d = json.loads(path.read_text())
-    assert d["triggers"] == {"fired": trig.seen, "rules": {"crc": trig.seen}} and trig.seen > 0
+    assert d["counter"] == {"fired": trig.seen, "rules": {"crc": trig.seen}} and trig.seen > 0
     d["state"], d["pid"] = "running", os.getpid()  # as a running capture's file reads
     d["updated_ns"] = __import__("time").time_ns()
     path.write_text(json.dumps(d))
     rc, out, _err = _cli(capsys, "status", path)
     assert rc == 0
-    assert f"triggers  fired {trig.seen}, rules.crc {trig.seen}" in out.splitlines()
+    assert f"counter   fired {trig.seen}, rules.crc {trig.seen}" in out.splitlines()
     d["pid"] = 2**22 + 12345  # no such process: the capture is gone
     path.write_text(json.dumps(d))
     rc, out, _err = _cli(capsys, "status", path)

@@ -22,15 +22,20 @@ STATUS = {
     "format": "sniffer.status/1", "state": "running", "pid": os.getpid(), "command": "live /dev/ttyUSB0",
     "source": "serial:/dev/ttyUSB0", "line": "19200 8E1 modbus-rtu", "started": "2026-11-25T10:41:00Z",
     "updated": "2026-11-25T11:41:00Z", "updated_ns": 0, "every_s": 2.0, "uptime_s": 3600.2,
-    "frames": 81234, "bytes": 1620000,
+    "frames": 81234, "bytes": 1620000, "capture_s": 3599.99,
     "errors": {"crc": 2, "exceptions": 1, "timeouts": 4, "faults": 0, "noise": 0, "uart": 0, "gaps": 1},
     "last_frame": {"t": 3599.98, "wall": "2026-11-25T11:40:59Z"},
     "port": {"state": "lost", "since": "2026-11-25T11:40:00Z", "reason": "hang-up", "ports": ["/dev/ttyUSB0"]},
     "segments": {"folder": "/srv/cab3", "count": 3, "closed": 2, "killed": 1, "open": "cab3-1.mcap",
                  "bytes": 123456, "disk_free": 10**9, "deleted": 4, "rotate": "1h", "keep": "7d",
-                 "delete_errors": ["cab3-0.mcap: Permission denied"]},
+                 "delete_errors": ["cab3-0.mcap: Permission denied"], "written": 4_500_000,
+                 "limits": {"rotate_s": 3600.0, "rotate_bytes": 0, "keep_s": 604800.0, "keep_bytes": 0,
+                            "keep_count": 0}},
     "ended": "interrupted",
-    "triggers": {"fired": 3, "rules": {"crc": 3}},
+    "triggers": {"fired": 3, "windows": 2, "open": 1, "suppressed": 4, "failed_windows": 0, "ring_bytes": 123456,
+                 "last": {"rule": "fault", "t": 3500.5, "time": "2026-11-25T11:39:20.500Z", "frame": 80001,
+                          "summary": "u2 fc03 fault OL1", "window": "/srv/cab3.trigger-0002.mcap"},
+                 "on_trigger": {"ran": 2, "failed": 1, "timed_out": 0, "dropped": 0, "last_error": "exit 1"}},
 }
 # every field path the command reads
 FIELDS = [(k,) for k in STATUS] + [(s, k) for s in ("errors", "last_frame", "port", "segments", "triggers")

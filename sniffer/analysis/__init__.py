@@ -6,6 +6,7 @@
     unitfigures.py    per-unit figures, each defined once;  flags.py  a frame's problem bits
     register_book.py  each unit's registers: latest values, names, history;  history.py  a register's samples
     reads.py          reads as the port delivered them, with the frames their bytes went to
+    linehealth.py     most frames bad: the line settings are probably wrong (stderr and the TUI say it once)
 """
 
 from sniffer import face

@@ -42,7 +42,8 @@ units; [serial] and [units] above them are every link's defaults.
     baud = 9600
     protocol = "pd-rtu"
 
-`format_bus_file` writes one (`sniffer detect --write-bus`), `load_bus_file`
+`format_bus_file` writes one (`sniffer detect --write-bus`), `format_links` one of [[links]]
+(`sniffer detect P1 P2 --write-bus`), `load_bus_file`
 reads it.  Every field is checked before use; a bad one is BusFileError("<path>: <what>"),
 one line.  Unknown tables and keys are errors too, naming what was found: a
 typo such as `[unit]` or `buad = 9600` would otherwise be silently ignored
@@ -237,6 +238,24 @@ def format_bus_file(bus: BusFile, comments: list[str] = (), trailer: list[str] =
     if trailer:
         out += [""] + [f"# {c}" if c else "#" for c in trailer]
     return "\n".join(out) + "\n"
+
+
+def format_links(links: list[BusFile], comments: list[str] = (), notes: list[list[str]] = ()) -> str:
+    """The text of a bus file of [[links]] tables (each BusFile one link: its name, port or tap, settings and
+    units), comment lines before them and after each link's table (`notes[i]`), as load_bus_file reads it back."""
+    out = [f"# {c}" if c else "#" for c in comments]
+    for i, link in enumerate(links):
+        out += ["", "[[links]]", f"name = {_toml(link.name)}"]
+        if link.tap:
+            out.append(f"tap = [{', '.join(_toml(p) for p in link.ports)}]")
+        else:
+            out.append(f"port = {_toml(link.ports[0])}")
+        out += [f"{k} = {_toml(getattr(link, k))}" for k in SERIAL_KEYS if getattr(link, k) is not None]
+        for title, table in (("units", link.devices), ("timeouts_ms", link.timeouts_ms)):
+            if table:
+                out.append(f"{title} = {{ {', '.join(f'{u} = {_toml(v)}' for u, v in sorted(table.items()))} }}")
+        out += [f"# {c}" if c else "#" for c in (notes[i] if i < len(notes) else ())]
+    return "\n".join(out).lstrip("\n") + "\n"
 
 
 def _toml(v) -> str:

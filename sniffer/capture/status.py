@@ -2,7 +2,7 @@
 
     {"format": "sniffer.status/1", "state": "running", "pid": 4242, "command": "live /dev/ttyUSB0",
      "line": "19200 8E1 modbus-rtu", "started": "2026-11-25T10:41:00Z", "updated": "...", "uptime_s": 3600.2,
-     "frames": 81234, "bytes": 1620000,
+     "frames": 81234, "bytes": 1620000, "capture_s": 3599.99,
      "errors": {"crc": 2, "exceptions": 1, "timeouts": 4, "retries": 0, "faults": 0, "alarms": 0, "noise": 0,
                 "uart": 0, "gaps": 1},
      "units": {"1": {"requests": 40210, "responses": 40205, "timeouts": 4, ..., "lat_median": 4.77}, ...},
@@ -70,6 +70,7 @@ class StatusSink:
         self.units = UnitBook()
         self.errors = dict.fromkeys(("noise", "uart", "gaps"), 0)  # what names no unit (the rest: `units`)
         self.last_frame_t: int | None = None
+        self.last_event_t: int | None = None  # capture time covered: what rates are per (a replay's is not the clock's)
         self.info = None
         self.started_mono = time.monotonic_ns()
         self.started_wall = time.time_ns()
@@ -90,6 +91,9 @@ class StatusSink:
     def raw(self, event) -> None:
         if type(event) is Gap:
             self.errors["gaps"] += 1
+            self.last_event_t = event.t_end_ns
+        else:
+            self.last_event_t = event.t_ns
 
     def frame(self, f) -> None:
         self.frames += 1
@@ -138,6 +142,8 @@ class StatusSink:
             "frames": self.frames, "bytes": s.bytes_in, "errors": self.error_counts(),
             "units": self.units.to_dict(),
         }
+        if self.last_event_t is not None and info is not None:
+            d["capture_s"] = round((self.last_event_t - info.t0_ns) / _NS, 3)
         if self.last_frame_t is not None and info is not None:
             t = self.last_frame_t
             d["last_frame"] = {"t": round((t - info.t0_ns) / _NS, 6), "wall": iso(anchor + t - info.t0_ns)

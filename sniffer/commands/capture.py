@@ -13,7 +13,8 @@ import sys
 from sniffer.capture.session import Session, on_signals
 from sniffer.capture.settings import CaptureSpec
 from sniffer.commands.common import (
-    UsageError, capture_sinks, default_capture_name, destination, report, say, summary_line, tui_wanted,
+    UsageError, capture_sinks, default_capture_name, destination, line_warning, report, say, summary_line,
+    tui_wanted,
 )
 
 
@@ -102,7 +103,7 @@ def cmd_demo(spec: CaptureSpec, args) -> int:
 def capture_session(spec: CaptureSpec, source, label: str, *, inputs=(), status_label: str = "") -> Session:
     """The session of a capture: the stdout stream, the MCAP file, the viewers' socket; its files are kept
     whatever ends it.  Outputs are checked now; nothing is opened yet."""
-    sinks = capture_sinks(spec, label, stream=True, inputs=inputs)
+    sinks = [line_warning(), *capture_sinks(spec, label, stream=True, inputs=inputs)]
     return Session(spec, source, sinks, keep_partial=True, need_baud=False, label=status_label or label)
 
 

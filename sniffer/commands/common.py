@@ -57,6 +57,15 @@ def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=(), line
     return sinks
 
 
+def line_warning(file: str | None = None):
+    """The sink that says once on stderr when most frames are CRC errors, UART errors or noise, and what to do
+    (sniffer.analysis.linehealth): `detect` on the port read now, or for a capture `file` the settings to try."""
+    from sniffer.analysis.linehealth import LineWarning
+    from sniffer.detect.hint import what_to_do
+
+    return LineWarning(lambda info, link: what_to_do(info, link, file=file), say)
+
+
 def destination(spec: CaptureSpec, session: Session) -> str:
     """' -> cab3.mcap (written as cab3.mcap.part until the capture ends)', or the segments' folder, or ''."""
     if not spec.out:

@@ -20,9 +20,27 @@ from sniffer.commands.common import EXIT_FAILED, EXIT_OK, EXIT_USAGE, UsageError
 
 
 def export_dataset(spec: CaptureSpec, args, files: list[str], root: str) -> int:
-    """export --to dataset: the captures named, in the order given."""
+    """export --to dataset: the captures named, in the order given.  A rotated capture's folder (or its
+    index.json) is its closed segments, each a capture of the dataset as `ingest` takes them; a segment still
+    open (or one a killed capture left) is named in a note and left for a later run."""
     need("fleet", "sniffer export --to dataset")
-    return _take_in(spec, args, files, root)
+    return _take_in(spec, args, [f for path in files for f in _captures_of(path)], root)
+
+
+def _captures_of(path: str) -> list[str]:
+    from sniffer.formats.mcap.segments import INDEX_NAME, set_files
+
+    if not (os.path.isdir(path) or os.path.basename(path) == INDEX_NAME):
+        return [path]
+    segments = set_files([path])
+    if not segments:
+        raise UsageError(f"{shown(path)}: no capture files there (not a rotated capture's folder; "
+                         f"sniffer ingest FOLDER --to DIR takes every .mcap under a folder)")
+    for f in segments:
+        if not f.endswith(".mcap"):
+            say(f"note: {shown(f)}: not closed (the open segment, or one a killed capture left): not taken in; a "
+                f"later run takes it in once it is closed (`sniffer repair` finishes a killed one)")
+    return [f for f in segments if f.endswith(".mcap")]
 
 
 def cmd_ingest(spec: CaptureSpec, args) -> int:

@@ -1,11 +1,14 @@
-"""`sniffer detect PORT`: find an unknown line's baud rate, format and protocol by listening only.
+"""`sniffer detect PORT...`: find an unknown line's baud rate, format and protocol by listening only.
 
 The port is opened read-only as `live` opens it; see sniffer/detect/ for how the
 candidates are tried and judged.  Prints the verdict, the ranked table of what
 was heard and the units seen; `--write-bus FILE` writes the bus file `live --bus`
 takes.  Exit 0 when the line is settled, 1 when there was no traffic or no
 candidate fits (one line on stderr; nothing is guessed, no file written), 2 for
-bad flags or a port that cannot be opened.
+bad flags or a port that cannot be opened.  Several ports are listened to at once
+(a process each, sniffer/detect/ports.py), a report each; `--write-bus` then writes
+one bus file with a [[links]] table per port that settled (named after its port,
+the units seen as comments), exit 0 only when every port settled.
 """
 
 from __future__ import annotations
@@ -26,13 +29,16 @@ def cmd_detect(spec: CaptureSpec, args) -> int:
     from sniffer.sources.logic_options import is_device
     from sniffer.sources.srzip import sniff
 
-    if is_device(spec.port) or sniff(spec.port):
+    logic = [p for p in args.ports if is_device(p) or sniff(p)]
+    if len(args.ports) > 1:
+        if logic:
+            raise UsageError(f"{logic[0]}: a logic capture is detected alone (several ports: serial ports only)")
+        return _detect_ports(spec, args)
+    if logic:
         return _detect_logic(spec, args)
     if spec.logic is not None:
         raise UsageError(f"--rx is for a logic capture: a sigrok .sr file or sigrok:DRIVER, not {spec.port}")
-    bauds = baud_order(parse_bauds(args.bauds))
-    if not (args.max_time > 0 and args.quiet_time > 0 and args.units_time >= 0):
-        raise UsageError("--max-time and --quiet-time must be more than 0 seconds, --units-time 0 or more")
+    bauds = _bauds(args)
     out = Output(args.write_bus, inputs=spec.read_paths(), what="--write-bus") if args.write_bus else None
     port = spec.port
     serial = SerialPort(port)
@@ -67,10 +73,88 @@ def cmd_detect(spec: CaptureSpec, args) -> int:
     return EXIT_OK
 
 
-def _progress(ev: Evidence) -> None:
+def _bauds(args) -> tuple[int, ...]:
+    """The rates to try (--bauds first), once the listening times are checked."""
+    bauds = baud_order(parse_bauds(args.bauds))
+    if not (args.max_time > 0 and args.quiet_time > 0 and args.units_time >= 0):
+        raise UsageError("--max-time and --quiet-time must be more than 0 seconds, --units-time 0 or more")
+    return bauds
+
+
+def _detect_ports(spec: CaptureSpec, args) -> int:
+    """`detect P1 P2 ...`: every port listened to at once (sniffer/detect/ports.py), a report each, and with
+    --write-bus one bus file of a [[links]] table per port that settled.  Exit 0 when every port settled."""
+    from sniffer.capture.busfile import format_links
+    from sniffer.detect.ports import settle
+
+    bauds = _bauds(args)
+    out = Output(args.write_bus, inputs=spec.read_paths(), what="--write-bus") if args.write_bus else None
+    names = _link_names([plan.name for plan in spec.links])
+    opened = {}
+    try:
+        for name, port in zip(names, args.ports):  # a port that cannot be opened: one line, before any listening
+            opened[name] = SerialPort(port)
+            opened[name].configure(setting(bauds[0], "8N1"))
+    except BaseException:
+        for serial in opened.values():
+            serial.close()
+        raise
+    if not args.quiet:
+        say(f"listening on {len(opened)} ports at once (read-only, nothing is sent): up to {len(bauds)} baud rates "
+            f"each, at most {args.max_time:g} s")
+
+    def listen_one(serial: SerialPort):
+        on_window = None if args.quiet else (lambda ev: _progress(ev, f"{serial.path}: "))
+        return listen(serial, Search(bauds, quiet_s=args.quiet_time), max_s=args.max_time,
+                      follow_s=args.units_time, on_window=on_window)
+
+    results = settle(opened, listen_one)
+    for r in results:
+        print(f"{r.port} ({r.name}):")
+        if r.table:
+            print("\n".join(f"  {row}" for row in r.table))
+        if r.settled:
+            print(f"  line: {r.headline}")
+            print(f"  settled in {r.decided_s:.1f} s of listening ({r.tried} settings)")
+            if r.units:
+                print("  units seen:\n" + "\n".join(f"    {u}" for u in r.units))
+        print()
+    sys.stdout.flush()
+    settled = [r for r in results if r.settled]
+    for r in results:
+        if not r.settled:
+            say(f"error: {r.headline}" if r.headline.startswith(r.port) else f"error: {r.port}: {r.headline}")
+    if out is not None and settled:
+        comments = [f"written by `sniffer detect {' '.join(args.ports)}`"]
+        comments += [f"{r.name}: {r.headline}" if r.settled else f"{r.port}: not settled, not in this file "
+                     f"({r.headline})" for r in results]
+        try:
+            out.write_text(format_links([r.link for r in settled], comments, [r.notes for r in settled]))
+            out.commit()
+        except BaseException:
+            out.discard()
+            raise
+        left = len(results) - len(settled)
+        missing = f" ({left} of the ports not in it: said above)" if left else ""
+        say(f"wrote {out.path}: sniffer live --bus {out.path}{missing}")
+    return EXIT_OK if len(settled) == len(results) else EXIT_FAILED
+
+
+def _link_names(names: list[str]) -> list[str]:
+    """The links' names (a port's file name: ttyUSB0) as a bus file takes them: a word, without , : or \"."""
+    out = []
+    for name in names:
+        word = "".join("-" if c.isspace() or c in ',:"' else c for c in name) or "link"
+        while word in out:
+            word += "-2"
+        out.append(word)
+    return out
+
+
+def _progress(ev: Evidence, prefix: str = "") -> None:
     b = ev.best
     frames = f", {b.fit_frames} {b.protocol} frames fit, {b.pairs} pairs" if b else ""
-    say(f"{ev.rx.baud} {ev.fmt} ({ev.seconds:.1f} s): {ev.chars} bytes, {ev.errors} UART errors{frames}: "
+    say(f"{prefix}{ev.rx.baud} {ev.fmt} ({ev.seconds:.1f} s): {ev.chars} bytes, {ev.errors} UART errors{frames}: "
         f"{verdict_word(ev)}")
 
 

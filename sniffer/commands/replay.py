@@ -8,7 +8,7 @@ from sniffer.events import CaptureInfo, Chunk
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.sources.segset import replay_source as file_source  # noqa: F401 - the commands' name for it
-from sniffer.commands.common import UsageError, report, say, stream_sink
+from sniffer.commands.common import UsageError, line_warning, report, say, stream_sink
 
 
 def cmd_replay(spec: CaptureSpec, args) -> int:
@@ -31,7 +31,8 @@ def cmd_replay(spec: CaptureSpec, args) -> int:
         rc = run_session_tui(session, sink, source_label=spec.input, source_path=spec.input)
         return rc or report(session, label=spec.input)
     bar = None
-    session = Session(spec, source, [s for s in (stream_sink(spec, line_buffered=False),) if s is not None])
+    sinks = [s for s in (stream_sink(spec, line_buffered=False),) if s is not None]
+    session = Session(spec, source, [line_warning(file=spec.input), *sinks])
     if args.progress:
         from sniffer.capture.progress import ReplayProgress
 
@@ -54,7 +55,7 @@ def _rotate(spec: CaptureSpec, source) -> int:
     from sniffer.commands.common import capture_sinks, destination, summary_line
 
     sinks = capture_sinks(spec, spec.input, inputs=spec.inputs or [spec.input], line_buffered=False)
-    session = Session(spec, source, sinks, label=f"replay {spec.input}")
+    session = Session(spec, source, [line_warning(file=spec.input), *sinks], label=f"replay {spec.input}")
     session.open()
     say(f"replaying {spec.input}{destination(spec, session)}")
     session.run()

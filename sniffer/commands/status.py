@@ -19,14 +19,15 @@ import sys
 import time
 
 from sniffer.formats.outputs import shown
-from sniffer.formats.mcap.segments import STATUS_NAME, size_text
+from sniffer.formats.mcap.segments import STATUS_NAME, held, size_text
 from sniffer.capture.settings import CaptureSpec
 from sniffer.events import CaptureError
 from sniffer.formats.reading import open_regular
 from sniffer.commands.common import EXIT_FAILED, EXIT_OK, UsageError, say
 
 _KNOWN = {"format", "state", "pid", "command", "source", "line", "started", "updated", "updated_ns", "every_s",
-          "uptime_s", "frames", "bytes", "errors", "last_frame", "port", "segments", "ended", "units"}
+          "uptime_s", "capture_s", "frames", "bytes", "errors", "last_frame", "port", "segments", "ended", "units",
+          "triggers"}
 STALE_AFTER = 3  # status intervals without a write: the capture is not running
 GENERIC_WIDTH = 300
 UNITS_SHOWN = 32  # unit lines (`--json` has them all)
@@ -204,6 +205,9 @@ def lines(d: dict, state: str, st: Fields | None = None) -> list[tuple[str, str]
             if wall and st.get("updated_ns", "int") is not None:
                 when += f" ({_ago(_age_of(wall))} ago)"
         out.append(("frames", f"{_count(st.get('frames', 'int'))} ({_size(st.get('bytes', 'int'))} received){when}"))
+    rate = _rates(st)
+    if rate:
+        out.append(("rate", rate))
     errors = st.get("errors", "dict")
     if errors:
         out.append(("errors", _cut(", ".join(f"{_cut(k, 40)} {v:,}" if _is_int(v) else f"{_cut(k, 40)} {_generic(v)}"
@@ -237,9 +241,109 @@ def lines(d: dict, state: str, st: Fields | None = None) -> list[tuple[str, str]
         out.append(("segments", _cut(text)))
         for err in (g("delete_errors", "strs") or ())[:3]:
             out.append(("", _cut(f"could not delete {err}")))
+        keeps = _keeps(st, seg)
+        if keeps:
+            out.append(("keeps", _cut(keeps)))
+    triggers = st.get("triggers", "dict")
+    if triggers is not None:
+        out += _trigger_lines(st, triggers)
     for key, value in d.items():
         if key not in _KNOWN:
             out.append((_cut(key, 40), _generic(value)))
+    return out
+
+
+def _per_s(st: Fields, n) -> float | None:
+    """n bytes over the capture time it covers (a replay's is not its uptime; an older file: its uptime), a second
+    (None: not known)."""
+    span = st.get("capture_s", "num")
+    if span is None or span < 1:
+        span = st.get("uptime_s", "num")
+    return n / span if n is not None and span is not None and span >= 1 else None
+
+
+def _rates(st: Fields) -> str:
+    """`1.2 kB/s from the line, 9.8 kB/s into the segments (847MB a day)`, on average since the capture started."""
+    line = _per_s(st, st.get("bytes", "int"))
+    if line is None:
+        return ""
+    seg = st.section("segments")
+    disk = _per_s(st, st.get("written", "int", seg, "segments.written")) if seg else None
+    into = f", {_size(round(disk))}/s into the segments ({_size(round(disk * 86_400))} a day)" if disk else ""
+    return f"{_size(round(line))}/s from the line{into} (on average over the capture)"
+
+
+def _keeps(st: Fields, seg: dict) -> str:
+    """What --keep holds at the rate the segments grow: `about 3.0 d of capture: 20GB is reached before 14d`; with
+    no --keep, how long the disk's free space lasts."""
+    disk = _per_s(st, st.get("written", "int", seg, "segments.written"))
+    limit = st.get("limits", "dict", seg, "segments.limits")
+    if not disk or limit is None:
+        return ""
+    free = st.get("disk_free", "int", seg, "segments.disk_free")
+    fills = f"; the disk's {_size(free)} free fill in about {_ago(free / disk)}" if free is not None else ""
+    span = held(disk, limit)
+    if span is None:
+        return f"everything (no --keep){fills}"
+    seconds, which = span
+    keep = st.get("keep", "str", seg, "segments.keep") or which
+    first = f": {which} comes first" if keep != which else ""
+    short = fills if free is not None and free / disk < seconds else ""  # the disk runs out before --keep bites
+    return f"about {_ago(seconds)} of capture at {_size(round(disk))}/s (--keep {keep}{first}){short}"
+
+
+_TRIGGER_COUNTS = (("windows", "window{} written"), ("open", "open now"),
+                   ("suppressed", "match{es} fired nothing (the rule not quiet for --post since it fired)"),
+                   ("failed_windows", "window{} could not be written"))
+
+
+_TRIGGER_KNOWN = {"fired", "ring_bytes", "last", "on_trigger", *(key for key, _ in _TRIGGER_COUNTS)}
+
+
+def _times(n, what: str) -> str:
+    """`1 window written`, `2 windows written` (`{}`: s, `{es}`: es, when n is not 1)."""
+    many = n != 1
+    return f"{_count(n)} " + what.replace("{es}", "es" if many else "").replace("{}", "s" if many else "")
+
+
+def _trigger_lines(st: Fields, t: dict) -> list[tuple[str, str]]:
+    """The `triggers` section in words: what fired, the windows, the last event, the --on-trigger command."""
+    def g(key: str, kind: str, within: dict | None = None, name: str = ""):
+        return st.get(key, kind, t if within is None else within, name or f"triggers.{key}")
+
+    words = [f"fired {_times(g('fired', 'int'), 'time{}')}"]
+    words += [_times(v, text) for key, text in _TRIGGER_COUNTS if (v := g(key, "int")) or (key == "windows" and v == 0)]
+    ring = g("ring_bytes", "int")
+    if ring is not None:
+        words.append(f"{_size(ring)} held for --pre")
+    more = {k: v for k, v in t.items() if k not in _TRIGGER_KNOWN}
+    if more:  # what a later sniffer's trigger sink adds: as any section this command does not know
+        words.append(_generic(more))
+    out = [("triggers", _cut(", ".join(words)))]
+    last = g("last", "dict")
+    if last:
+        def lg(key: str, kind: str):
+            return st.get(key, kind, last, f"triggers.last.{key}")
+
+        t_rel = lg("t", "num")
+        when = lg("time", "str") or (f"{t_rel:.3f} s into the capture" if t_rel is not None else "?")
+        frame = lg("frame", "int")
+        text = f"last: {_cut(lg('rule', 'str') or '?', 80)!r} at {_cut(when, 40)}"
+        text += f", frame #{frame}" if frame is not None else ""
+        summary = lg("summary", "str")
+        text += f": {_cut(summary, 100)}" if summary else ""
+        window = lg("window", "str")
+        out.append(("", _cut(text + (f" -> {window}" if window else ""))))
+    cmd = g("on_trigger", "dict")
+    if cmd:
+        def cg(key: str):
+            return st.get(key, "int", cmd, f"triggers.on_trigger.{key}")
+
+        text = f"--on-trigger ran {_times(cg('ran'), 'time{}')}, {_count(cg('failed'))} failed"
+        text += "".join(f", {_count(v)} {what}" for what, v in (("timed out", cg("timed_out")),
+                                                                 ("dropped (too many waiting)", cg("dropped"))) if v)
+        err = st.get("last_error", "str", cmd, "triggers.on_trigger.last_error")
+        out.append(("", _cut(text + (f"; last error: {err}" if err else ""))))
     return out
 
 

@@ -7,4 +7,5 @@
     search.py      the order of the listens, when one has heard enough, the verdict
     listen.py      the port (read-only, as `live` opens it) set to each candidate in turn
     report.py      the ranked table, the units seen, the bus file
+    hint.py        what a capture whose frames are mostly bad says to do: detect on its port, what it tries first
 """

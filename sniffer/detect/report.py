@@ -103,6 +103,22 @@ def bus_file(v: Verdict, port: str) -> str:
     return format_bus_file(bus, comments, trailer if ev.units else [])
 
 
+def link_table(v: Verdict, name: str, port: str) -> tuple[BusFile, list[str]]:
+    """A settled port as one [[links]] table of a bus file (`sniffer detect P1 P2 --write-bus`), and the comment
+    lines after it: the units seen, as a `units = {...}` to name their models in."""
+    ev = v.best
+    line = ev.line
+    link = BusFile(line.baud, line.parity, line.stopbits, ev.best.protocol,
+                   line.databits if line.databits != 8 else None, name=name, ports=(port,))
+    notes = []
+    if ev.units:
+        model = _default_model(ev.best.protocol)
+        notes = ["units seen (name their models here, or leave them to be guessed from their answers):",
+                 "units = { " + ", ".join(f'{u.unit} = "{model}"' for u in ev.units) + " }"]
+        notes += [f"  {text}" for text in units(ev)]
+    return link, notes
+
+
 def _default_model(protocol: str) -> str:
     from sniffer.protocols import get
 

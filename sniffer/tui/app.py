@@ -25,12 +25,14 @@ from textual.widgets import Input, Static, TabbedContent, TabPane
 
 from sniffer.tui.byteview import BytesPane, ByteView, link_char_ns
 from sniffer.filterlang import register_ids
+from sniffer.analysis.linehealth import is_line_warning
 from sniffer.tui.detail import DetailPane
 from sniffer.tui.filters import filter_expr, parse_filter
 from sniffer.tui.footer import KeyBar
 from sniffer.tui.framelist import FrameList
 from sniffer.tui.goto import parse_goto, resolve
 from sniffer.tui.hangup import TerminalWatch
+from sniffer.tui.linenotice import LineNotice
 from sniffer.tui.gotobar import GotoBar
 from sniffer.tui.store import FrameStore
 from sniffer.tui.plot import JumpToFrame, PlotPane
@@ -80,8 +82,8 @@ HELP = """\
                (there [b]Enter[/b] goes to the change's frame, [b]Esc[/b] back)
   Plot:        [b]+ -[/b] zoom  [b]← →[/b] pan  [b]0[/b] all, follow  [b], .[/b] cursor  [b]Enter[/b] / click: go to the
                nearest sample's frame  [b]↑ ↓[/b] choose  [b]d[/b] remove  (mouse wheel: zoom)
-  [b]?[/b]            this help;  [b]q[/b] quit: a live capture asks first (y stops it and closes
-               its file); a replay or a viewer of `sniffer attach` just closes (the capture goes on)
+  [b]?[/b]            this help;  [b]q[/b] / [b]Ctrl-C[/b] quit: a live capture asks first (y or Ctrl-C again stops
+               it and closes its file); a replay or a viewer of `sniffer attach` just closes (the capture goes on)
 
 Colours: [bold bright_red]!! errors / bad CRC[/], [bold magenta]E exceptions[/], [bold dark_orange]F drive faults &
 alarms[/] (OL1 — Motor overload), [yellow]T timeouts & warnings[/], [grey50 italic]noise[/].
@@ -115,7 +117,7 @@ class ConfirmQuit(ModalScreen[bool]):
 
     def compose(self) -> ComposeResult:
         yield Static(f"Stop the live capture{self.what}?\n\n"
-                     "[b]y[/b] stop it and quit    [b]n[/b] / Esc go on capturing")
+                     "[b]y[/b] / Ctrl-C stop it and quit    [b]n[/b] / Esc go on capturing")
 
     def action_answer(self, stop: bool) -> None:
         self.dismiss(stop)
@@ -167,6 +169,9 @@ class SnifferApp(App):
         Binding("enter", "focus_detail", "Detail", show=False),
         Binding("question_mark,f1", "help", "Help"),
         Binding("q", "quit", "Quit"),
+        # Ctrl-C stops, as on the command line (not Textual's "press ctrl+q" notice): priority, so a focused
+        # bar's copy does not take it
+        Binding("ctrl+c", "interrupt", "Stop", show=False, priority=True),
         # export / copy / raw bytes
         Binding("x", "export", "Export"),
         Binding("y", "copy_hex", "Copy hex", show=False),
@@ -211,6 +216,7 @@ class SnifferApp(App):
         self.notices: deque[str] = deque()  # lines a capture process said on stderr: shown as notifications
         self.export_status: str | None = None  # an export running on its worker: how far it is
         self.reads = ReadRing()  # the byte view's last reads (sniffer.analysis.reads)
+        self.line_notice = LineNotice(source_path)  # most frames bad: the line settings are probably wrong
 
     # ---------------------------------------------------------------- layout
     def compose(self) -> ComposeResult:
@@ -272,6 +278,13 @@ class SnifferApp(App):
         if self._thread is not None:
             self._thread.join(timeout)
 
+    async def action_interrupt(self) -> None:
+        """Ctrl-C: quit as `q` does (a live capture asks first); Ctrl-C again while it asks stops it."""
+        if isinstance(self.screen, ConfirmQuit):
+            self.screen.dismiss(True)
+            return
+        await self.action_quit()
+
     async def action_quit(self) -> None:
         if self.live and not self.caught_up:  # a live capture is still running in this process
             what = f" into {self.capture_path}" if self.capture_path else ""
@@ -304,13 +317,15 @@ class SnifferApp(App):
 
     def _intake(self) -> None:
         """Between two polls, while frames wait: more of them into the store (the next poll shows them)."""
-        if not self.sink.drain_into(self.store.add, budget_s=INTAKE_BUDGET_S) or not self.sink.backlog:
+        if not self.sink.drain_into(self._take, budget_s=INTAKE_BUDGET_S) or not self.sink.backlog:
             self._more.pause()
 
     def poll(self, budget_s: float | None = None) -> None:
         """Frames into the store (at most max_batch, and for at most `budget_s` if given), then the view."""
         while self.notices:
             line = self.notices.popleft()
+            if is_line_warning(line):
+                continue  # the capture's own warning: the App says it from the frames it shows (_take)
             bad = "error" in line or "warning" in line or "lost" in line
             self.notify(line.removeprefix("sniffer: "), title="capture", severity="warning" if bad else "information",
                         timeout=8 if bad else 4)
@@ -318,7 +333,7 @@ class SnifferApp(App):
             self.store.t0_ns = self.sink.info.t0_ns
             self.store.time.wall_anchor_ns = self.sink.info.wall_anchor_ns
             self.store.start_diagnosis(self.sink.info, self.registry)
-        self.sink.drain_into(self.store.add, limit=self.max_batch, budget_s=budget_s)
+        self.sink.drain_into(self._take, limit=self.max_batch, budget_s=budget_s)
         before = self._shown_rows  # frames _intake added count too
         if len(self.store) != before and (budget_s is None or self.frame_list.tail_due(len(self.store) - before)):
             self._shown_rows = len(self.store)
@@ -346,6 +361,12 @@ class SnifferApp(App):
         if text != self._status_text:
             self._status_text = text
             self.status.update(text, layout=False)  # one line, always: its text changing moves nothing else
+
+    def _take(self, frames: list) -> None:
+        """Frames into the store, and judged: a line whose frames are mostly bad is said once (linenotice.py)."""
+        self.store.add(frames)
+        for text in self.line_notice.take(frames, self.sink.info):
+            self.notify(text, title="line settings?", severity="warning", timeout=30, markup=False)
 
     def refresh_tables(self) -> None:
         active = self.tabs.active

@@ -89,6 +89,9 @@ def status_text(app, width: int | None = None) -> Text:
     elif not getattr(app.frame_list, "follow", True) and not app.caught_up:
         # new frames arrive below the view (a filter, a move up or a go-to stopped following the tail)
         flags.append("  [not following the tail: End]", "bold")
+    mark = app.line_notice.mark() if getattr(app, "line_notice", None) is not None else ""
+    if mark:  # most frames bad (linenotice.py): always shown, as the view's state is
+        flags.append(mark, "bold white on red")
     if sink.error:
         flags.append(f"  [error: {sink.error}]", "bold")
     elif sink.closed.is_set():  # the feed is done; the view may still be taking in what it read

@@ -32,7 +32,8 @@ from sniffer.events import CaptureInfo, Gap
 from sniffer.frame import Frame
 from sniffer.formats.outputs import Output, OutputError, make_folders, shown
 from sniffer.formats.mcap.segments import (
-    INDEX_NAME, LOCK_NAME, STATUS_NAME, Keep, Rotate, Segment, folder_for, read_index, segment_name, write_index,
+    INDEX_NAME, LOCK_NAME, STATUS_NAME, Keep, Rotate, Segment, folder_for, limits, read_index, segment_name,
+    write_index,
 )
 from sniffer.sinks.base import Sink
 from sniffer.formats.mcap.sink import CaptureStorageError, McapSink
@@ -113,6 +114,7 @@ class SegmentSink(Sink):
         self.flush_interval_s = flush_interval_s
         self.segments: list[Segment] = []  # closed (and killed) ones, oldest first, then the open one
         self.deleted = 0
+        self.written = 0  # bytes of the segments this capture closed (deleted ones too): with the open one, its rate
         self.delete_errors: list[str] = []
         self.kept_parts: list[str] = []  # segments cut short (a full disk), left as their part files
         self.rotate_due = False
@@ -202,7 +204,8 @@ class SegmentSink(Sink):
                 self.lock_fd = None
 
     def status(self) -> dict:
-        """The `segments` section of the capture's status file."""
+        """The `segments` section of the capture's status file (`written` and `limits`: sniffer.commands.status
+        works out from them how much capture time --keep holds at the rate the segments grow)."""
         writing = self._cur is not None
         closed = [s for s in self.segments if not (writing and s is self._seg)]
         open_bytes = self._cur.size if writing else 0
@@ -213,6 +216,8 @@ class SegmentSink(Sink):
             "bytes": sum(s.bytes for s in closed) + open_bytes, "disk_free": _free(self.folder),
             "deleted": self.deleted,
             "rotate": self.rotate.describe(), "keep": self.keep.describe() if self.keep else None,
+            "written": self.written + open_bytes,  # by this capture: `sniffer status` works out what --keep holds
+            "limits": limits(self.rotate, self.keep),
             **({"delete_errors": self.delete_errors[-3:]} if self.delete_errors else {}),
         }}
 
@@ -271,6 +276,7 @@ class SegmentSink(Sink):
                     if seg in self.segments else 0
             except OSError:
                 seg.bytes = 0
+            self.written += seg.bytes
             self._apply_keep()
             self._write_index()
 

@@ -161,6 +161,43 @@ class Keep:
         return gone
 
 
+def limits(rotate: Rotate | None, keep: Keep | None) -> dict:
+    """--rotate and --keep as numbers, for the status file: seconds, bytes, segments (0: no such limit)."""
+    rotate, keep = rotate or Rotate(), keep or Keep()
+    return {"rotate_s": rotate.span_ns / _NS, "rotate_bytes": rotate.max_bytes,
+            "keep_s": keep.age_ns / _NS, "keep_bytes": keep.max_bytes, "keep_count": keep.count}
+
+
+def held(rate: float, limit: dict) -> tuple[float, str] | None:
+    """How much capture time the folder keeps when its segments grow by `rate` bytes a second (`limit`: limits()),
+    and the --keep limit that decides it (the first to bite): (seconds, `14d` | `20GB` | `48 segments`); None when
+    nothing is ever deleted (no --keep, or no rate to go by).  About: the open segment counts towards a size and
+    a number too, and is never deleted."""
+    def num(key: str) -> float:  # a limit read from a status file: a positive finite number, else none
+        v = limit.get(key)
+        if not isinstance(v, (int, float)) or isinstance(v, bool):
+            return 0.0
+        try:
+            v = float(v)
+        except OverflowError:
+            return 0.0
+        return v if 0 < v < float("inf") else 0.0
+
+    age, size, count = num("keep_s"), num("keep_bytes"), num("keep_count")
+    if rate <= 0:
+        return (age, span_text(int(age * _NS))) if age else None
+    spans = [num("rotate_s"), num("rotate_bytes") / rate]
+    segment = min((x for x in spans if x), default=0.0)  # a segment's capture time at this rate
+    out = []
+    if age:
+        out.append((age, span_text(int(age * _NS))))
+    if size:
+        out.append((size / rate, size_text(int(size))))
+    if count and segment:
+        out.append((count * segment, f"{int(count)} segments"))
+    return min(out) if out else None
+
+
 def span_text(ns: int) -> str:
     s = ns / _NS
     for unit, n in (("d", 86_400), ("h", 3_600), ("m", 60)):
