@@ -68,3 +68,24 @@ def test_code_comments_say_why_not_when():
             if HISTORY.search(line):
                 bad.append(f"{path.relative_to(ROOT)}:{i}: {line.strip()[:80]}")
     assert not bad, "\n".join(bad)
+
+
+def test_every_module_imports():
+    """A module that fails at import (a merge that renamed what it used) fails here, in the fast lane."""
+    import pkgutil
+
+    bad = []
+    for top in ("sniffer", "decoders"):
+        pkg = importlib.import_module(top)
+        for m in pkgutil.walk_packages(pkg.__path__, top + "."):
+            if m.name == "sniffer.commands.pytest_plugin" or m.name.endswith(".__main__"):
+                continue
+            try:
+                importlib.import_module(m.name)
+            except ImportError as e:
+                if e.name and e.name.split(".")[0] not in ("sniffer", "decoders"):
+                    continue  # an extra that is not installed: test_install checks those
+                bad.append(f"{m.name}: {e!r}")
+            except Exception as e:  # noqa: BLE001 - every kind of import failure is the finding
+                bad.append(f"{m.name}: {e!r}")
+    assert not bad, bad

@@ -35,6 +35,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from decoders.registry import code_book
 from sniffer import codes
 from sniffer.sinks.base import Sink
 
@@ -47,7 +48,7 @@ BROKEN_SHARE = 0.5  # more than this share bad: broken
 RECOVERED_SHARE = 0.25  # at most this share bad: recovered
 PROBABLY_WRONG = "are probably wrong; "  # in every warning (is_line_warning: the TUI knows the capture's by it)
 
-_UART = codes.in_category(codes.UART_CAT)
+_UART = code_book().in_category(codes.UART_CAT)
 _NS = 1_000_000_000
 CRC, UART, NOISE = 0, 1, 2  # what made a frame bad (a frame counts once, as the first that applies: noise, UART, CRC)
 KINDS = ("CRC", "UART", "noise")
