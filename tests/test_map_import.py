@@ -289,13 +289,13 @@ def test_bad_map_base_flag(capsys):
 
 
 def test_map_base_travels_to_the_capture_process():
-    """`serve` starts its capture as `sniffer live ...`: the CSV's address base goes with the map."""
+    """`serve` starts its capture as a process of its own: the CSV's address base goes with the map."""
     from sniffer.cli import build_parser
     from sniffer.capture.settings import CaptureSpec
 
     spec = CaptureSpec.from_args(build_parser().parse_args(
         ["live", "/dev/null", "--model-file", "m.csv", "--map-base", "modicon"]))
-    again = CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live")))
+    again = CaptureSpec.decode(spec.encode())
     assert (again.model_files, again.map_base) == (("m.csv",), "modicon")
 
 
