@@ -34,7 +34,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--latency-tol-ms", type=duration("--latency-tol-ms", bare="ms", unit="ms", upper_s=1e6),
                    default=1.0, metavar="TIME", help="latency tolerance, in ms or with a unit (default 1 ms)")
     serial_flags(p, "file")
-    decode_flags(p)
+    decode_flags(p, "file")
 
 
 def run(spec: CaptureSpec, args) -> int:

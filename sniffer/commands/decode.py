@@ -26,7 +26,7 @@ def add_parser(subparsers) -> None:
                    "also ':' and the frame's characters (:010300000001FB), the characters in hex "
                    "(3A30...0D0A), or the binary frame with its LRC in hex (010300000001FB)")
     p.add_argument("--baud", type=number(int, "baud rate", 1, MAX_BAUD), default=9600, help=argparse.SUPPRESS)
-    decode_flags(p)
+    decode_flags(p, "frames")
     stream_flags(p)
 
 

@@ -24,7 +24,7 @@ def add_parser(subparsers) -> None:
     scenario_flags(p)
     capture_out_flags(p, "demo.mcap", 15.0)
     headless_flag(p)
-    decode_flags(p, bus=False)
+    decode_flags(p, "sim")
     stream_flags(p, quiet="the MCAP file, --publish and --mqtt only")
     publish_flags(p)
     unattended_flags(p)

@@ -25,7 +25,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--format", choices=["text", "json"], default="text", help="output format")
     input_format_flag(p)
     serial_flags(p, "file")
-    decode_flags(p)
+    decode_flags(p, "file")
 
 
 def run(spec: CaptureSpec, args) -> int:

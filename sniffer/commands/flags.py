@@ -53,6 +53,15 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
         return f"{text} (default: %(default)s)" if text else "default: %(default)s"
 
 
+def help_text(action: argparse.Action, prog: str) -> str:
+    """An option's help as --help shows it (its default added, %(default)s and the like filled in)."""
+    text = HelpFormatter(prog)._get_help_string(action)
+    params = {k: v for k, v in dict(vars(action), prog=prog).items() if v is not argparse.SUPPRESS}
+    if params.get("choices") is not None:
+        params["choices"] = ", ".join(map(str, params["choices"]))
+    return text % params
+
+
 class Parser(argparse.ArgumentParser):
     def __init__(self, *a, **kw) -> None:
         kw.setdefault("formatter_class", HelpFormatter)
@@ -77,7 +86,8 @@ def prose(text: str) -> str:
     out = []
     for para in textwrap.dedent(text).strip("\n").split("\n\n"):
         lines = para.splitlines()
-        out.append(para if any(x.startswith("  ") for x in lines) else textwrap.fill(" ".join(lines), WIDTH))
+        kept = any(x.startswith("  ") for x in lines)
+        out.append(para if kept else textwrap.fill(" ".join(lines), WIDTH, break_on_hyphens=False))
     return "\n\n".join(out)
 
 
@@ -89,7 +99,7 @@ def command_parser(subparsers, name: str, *, help: str, examples: list[str], des
     tail = (prose(epilog) + "\n\n" if epilog else "") + f"examples:\n{lines}"
     p = subparsers.add_parser(name, help=help, description=prose(description or help[:1].upper() + help[1:] + "."),
                               epilog=tail, formatter_class=HelpFormatter)
-    p.examples = list(examples)  # the man page and the help test read them
+    p.summary, p.examples = help, list(examples)  # the man page and the help test read them
     return p
 
 
@@ -159,11 +169,8 @@ def scenario_help() -> str:
 
 def scenario_flags(p, *, seed: bool = True, what: str = "") -> None:
     p.add_argument("--scenario", default="default", help=scenario_help() + what)
-    if seed:
-        p.add_argument("--seed", type=int, default=1, help="the simulation's random seed: the same seed, "
-                       "the same traffic")
-    else:
-        p.add_argument("--seed", type=int, default=1, help=argparse.SUPPRESS)
+    p.add_argument("--seed", type=int, default=1,
+                   help="the simulation's random seed: the same seed, the same traffic" if seed else argparse.SUPPRESS)
 
 
 def port_flags(p, what: str = "") -> None:
@@ -209,28 +216,40 @@ def logic_flags(p, live: bool = False) -> None:
                        "(default 1M; at least 4 samples a bit): 1M, 4MHz, 24M")
 
 
-def decode_flags(p, bus: bool = True) -> None:
+_DECODE_DEFAULTS = {  # where --device, --protocol and --timeout-ms default from, by what the command reads
+    "live": ("the --bus file's units, else each unit's model as its traffic tells", "the --bus file's, else "
+             "modbus-rtu", "the --bus file's, else {} ms"),
+    "file": ("the --bus file's units, else what the capture recorded, else each unit's model as its traffic "
+             "tells", "the --bus file's, else what the capture says, else modbus-rtu", "the --bus file's, else {} ms"),
+    "sim": ("the scenario's drives", "the scenario's", "{} ms"),
+    "frames": ("each unit's model as its frames tell", "modbus-rtu", "{} ms"),
+}
+
+
+def decode_flags(p, source: str) -> None:
+    """--device, --bus, --timeout-ms, --model-file, --map-base, --protocol; `source`: what the command reads
+    ("live" a port, "file" a capture, "sim" a simulated bus, "frames" frames typed in), which says where their
+    defaults come from (and whether a bus file applies)."""
     from sniffer.capture.pairer import DEFAULT_TIMEOUT_MS
     from sniffer.capture.settings import MAX_TIMEOUT_MS
     from sniffer.protocols import NAMES as PROTOCOLS
 
+    device, protocol, timeout = _DECODE_DEFAULTS[source]
     g = p.add_argument_group("decoding")
     g.add_argument("--device", action="append", metavar="UNIT=MODEL",
-                   help="decode UNIT with MODEL (repeatable), e.g. --device 2=a510 (default: the --bus file's "
-                        "units, else what the capture recorded, else each unit's model told from its traffic)")
-    if bus:
+                   help=f"decode UNIT with MODEL (repeatable), e.g. --device 2=a510 (default: {device})")
+    if source in ("live", "file"):
         g.add_argument("--bus", metavar="FILE", help="bus file (TOML): serial settings, unit models, timeouts")
     g.add_argument("--timeout-ms", type=duration("--timeout-ms", bare="ms", unit="ms", upper_s=MAX_TIMEOUT_MS / 1e3),
-                   metavar="TIME", help=f"response timeout per unit, in ms or with a unit (250, 1.5s) (default: the "
-                                        f"--bus file's, else {DEFAULT_TIMEOUT_MS:.0f} ms)")
+                   metavar="TIME", help=f"response timeout per unit, in ms or with a unit (250, 1.5s) (default: "
+                                        f"{timeout.format(f'{DEFAULT_TIMEOUT_MS:.0f}')})")
     g.add_argument("--model-file", action="append", metavar="FILE",
                    help="a device's register map: TOML (docs/register-map-format.md), CSV or Home Assistant "
                         "modbus YAML; its model id (the file's stem unless it names one) becomes a model")
     g.add_argument("--map-base", choices=["0", "1", "modicon"], default=None,
                    help="how a CSV map counts its addresses: from 0, from 1, or Modicon 4xxxx/3xxxx (default: what "
                         "the file says, else 0)")
-    g.add_argument("--protocol", choices=PROTOCOLS, default=None,
-                   help="line protocol (default: the --bus file's, else what the capture says, else modbus-rtu)")
+    g.add_argument("--protocol", choices=PROTOCOLS, default=None, help=f"line protocol (default: {protocol})")
 
 
 def input_format_flag(p) -> None:
@@ -264,8 +283,8 @@ def headless_flag(p, what: str = "text stream instead of the TUI (default: the T
     p.add_argument("--headless", action="store_true", help=what)
 
 
-def capture_duration_flag(p, what: str) -> None:
-    p.add_argument("--duration", type=duration("--duration"), metavar="TIME", help=what)
+def capture_duration_flag(p, what: str, default: float | None = None) -> None:
+    p.add_argument("--duration", type=duration("--duration"), default=default, metavar="TIME", help=what)
 
 
 def capture_out_flags(p, default_out: str | None, duration_s: float) -> None:
@@ -273,9 +292,8 @@ def capture_out_flags(p, default_out: str | None, duration_s: float) -> None:
     g.add_argument("--out", default=default_out, metavar="FILE.mcap",
                    help="MCAP file to write" + ("" if default_out else " (default: sniffer-<time>.mcap)"))
     g.add_argument("--no-out", action="store_true", help="do not write an MCAP file")
-    g.add_argument("--duration", type=duration("--duration"), default=duration_s, metavar="TIME",
-                   help=f"stop after this long: 90 (seconds), 10min, 8h, 1d (default: "
-                        f"{f'{duration_s:g} s' if duration_s else '0: until Ctrl-C'})")
+    capture_duration_flag(g, f"stop after this long: 90 (seconds), 10min, 8h, 1d (default: "
+                             f"{f'{duration_s:g} s' if duration_s else '0: until Ctrl-C'})", duration_s)
 
 
 def unattended_flags(p, port: bool = False) -> None:
@@ -372,5 +390,5 @@ def dataset_flags(p, progress: str) -> None:
                    help="the link a one-line capture is filed under (default: its port's name, e.g. ttyUSB0, "
                         "or \"default\"); a capture of several links files each under its own name")
     serial_flags(p, "file")
-    decode_flags(p)
+    decode_flags(p, "file")
 

@@ -30,7 +30,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--out", required=True, metavar="FILE.toml",
                    help="the map to write; its stem is the model id (--model-file FILE.toml --device UNIT=STEM)")
     serial_flags(p, "file")
-    decode_flags(p)
+    decode_flags(p, "file")
 
 
 def run(spec: CaptureSpec, args) -> int:

@@ -35,7 +35,7 @@ def add_parser(subparsers) -> None:
     port_flags(p)
     serial_flags(p, "live")
     logic_flags(p, live=True)
-    decode_flags(p)
+    decode_flags(p, "live")
     stream_flags(p, quiet="the MCAP file, --publish and --mqtt only")
     capture_out_flags(p, None, 0)
     headless_flag(p)

@@ -28,7 +28,7 @@ def add_parser(subparsers) -> None:
     progress_flag(p)
     p.add_argument("--tui", action="store_true", help="browse the capture in the terminal UI")
     serial_flags(p, "file")
-    decode_flags(p)
+    decode_flags(p, "file")
     stream_flags(p, quiet="only what --trigger, --rotate or --mqtt write")
     p.add_argument("--out", metavar="FOLDER", help="with --rotate: write the capture again as segments in FOLDER")
     unattended_flags(p)

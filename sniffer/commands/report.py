@@ -41,7 +41,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--title", help="the page's title (default: Bus report: the captures' names)")
     progress_flag(p, "a progress bar per capture on stderr")
     serial_flags(p, "file")
-    decode_flags(p)
+    decode_flags(p, "file")
 
 
 def _check_input(spec: CaptureSpec, path: str, what: str = "") -> None:

@@ -24,7 +24,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--demo", action="store_true", help="capture the simulated bus of `sniffer demo` instead")
     scenario_flags(p, seed=False, what=" (with --demo)")
     serial_flags(p, "live")
-    decode_flags(p)
+    decode_flags(p, "live")
     capture_out_flags(p, None, 0)
     g = p.add_argument_group("serving")
     g.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1: this machine only)")
