@@ -64,7 +64,7 @@ def test_csv_map_fields(tmp_path):
     p = tmp_path / "meter.csv"
     p.write_text(CSV, encoding="utf-8")
     [m] = load_model_file(str(p))
-    assert m.model_id == "meter-a" and m.model["name"] == "ACME meter A"
+    assert m.model_id == "meter-a" and m.model.name == "ACME meter A"
     r = m.registers
     assert sorted(r) == [0, 2, 16, 17, 18, 32]
     assert (r[0].type, r[0].word_order, r[0].unit, r[0].access, r[0].note) == ("f32", "big", "V", "R",

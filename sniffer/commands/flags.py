@@ -222,7 +222,8 @@ _DECODE_DEFAULTS = {  # where --device, --protocol and --timeout-ms default from
     "file": ("the --bus file's units, else what the capture recorded, else each unit's model as its traffic "
              "tells", "the --bus file's, else what the capture says, else modbus-rtu", "the --bus file's, else {} ms"),
     "sim": ("the scenario's drives", "the scenario's", "{} ms"),
-    "frames": ("each unit's model as its frames tell", "modbus-rtu", "{} ms"),
+    "frames": ("the --bus file's units, else each unit's model as its frames tell", "the --bus file's, else "
+               "modbus-rtu", "the --bus file's, else {} ms"),
 }
 
 
@@ -238,7 +239,7 @@ def decode_flags(p, source: str) -> None:
     g = p.add_argument_group("decoding")
     g.add_argument("--device", action="append", metavar="UNIT=MODEL",
                    help=f"decode UNIT with MODEL (repeatable), e.g. --device 2=a510 (default: {device})")
-    if source in ("live", "file"):
+    if source != "sim":
         g.add_argument("--bus", metavar="FILE", help="bus file (TOML): serial settings, unit models, timeouts")
     g.add_argument("--timeout-ms", type=duration("--timeout-ms", bare="ms", unit="ms", upper_s=MAX_TIMEOUT_MS / 1e3),
                    metavar="TIME", help=f"response timeout per unit, in ms or with a unit (250, 1.5s) (default: "
