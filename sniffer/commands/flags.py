@@ -9,6 +9,7 @@ in its help (HelpFormatter), and every command's help ends with its examples.
 from __future__ import annotations
 
 import argparse
+import re
 import textwrap
 
 MAX_BAUD = 4_000_000
@@ -46,7 +47,7 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
     def _get_help_string(self, action):
         text = action.help or ""
         d = action.default
-        if "default" in text.lower() or d is None or d is False or d == [] or d is argparse.SUPPRESS:
+        if SAYS_DEFAULT.search(text) or d is None or d is False or d == [] or d is argparse.SUPPRESS:
             return text
         if not action.option_strings and action.nargs in ("*", "?"):
             return text
@@ -60,6 +61,9 @@ def help_text(action: argparse.Action, prog: str) -> str:
     if params.get("choices") is not None:
         params["choices"] = ", ".join(map(str, params["choices"]))
     return text % params
+
+
+SAYS_DEFAULT = re.compile(r"\(default\b|\bdefault:|\bdefault with\b", re.I)  # a help that says its default
 
 
 class Parser(argparse.ArgumentParser):
@@ -288,10 +292,11 @@ def capture_duration_flag(p, what: str, default: float | None = None) -> None:
     p.add_argument("--duration", type=duration("--duration"), default=default, metavar="TIME", help=what)
 
 
-def capture_out_flags(p, default_out: str | None, duration_s: float) -> None:
+def capture_out_flags(p, default_out: str | None, duration_s: float, *, named: str = "sniffer-<time>.mcap") -> None:
+    """--out, --no-out, --duration of a capture; without `default_out` the file is `named` when the capture starts."""
     g = p.add_argument_group("capture")
     g.add_argument("--out", default=default_out, metavar="FILE.mcap",
-                   help="MCAP file to write" + ("" if default_out else " (default: sniffer-<time>.mcap)"))
+                   help="MCAP file to write" + ("" if default_out else f" (default: {named})"))
     g.add_argument("--no-out", action="store_true", help="do not write an MCAP file")
     capture_duration_flag(g, f"stop after this long: 90 (seconds), 10min, 8h, 1d (default: "
                              f"{f'{duration_s:g} s' if duration_s else '0: until Ctrl-C'})", duration_s)

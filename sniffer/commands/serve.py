@@ -25,7 +25,7 @@ def add_parser(subparsers) -> None:
     scenario_flags(p, seed=False, what=" (with --demo)")
     serial_flags(p, "live")
     decode_flags(p, "live")
-    capture_out_flags(p, None, 0)
+    capture_out_flags(p, None, 0, named="sniffer-<time>.mcap; with --demo: demo.mcap")
     g = p.add_argument_group("serving")
     g.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1: this machine only)")
     g.add_argument("--http-port", type=number(int, "--http-port", 1, 65535), default=8000, help="HTTP port")
