@@ -54,6 +54,20 @@ def test_help_ends_with_two_to_four_examples_of_the_command(name):
 
 
 @pytest.mark.parametrize("name", sorted(COMMANDS))
+def test_every_example_parses(name):
+    """An example is a command line the parser takes (what the shell would pass: up to a pipe, a redirection,
+    `&&` or a comment)."""
+    import shlex
+
+    for line in COMMANDS[name].examples:
+        line = line.split("  #")[0].replace("source <(", "").replace(")", " ")
+        words = shlex.split(line, comments=True)
+        cut = next((i for i, w in enumerate(words) if w in ("|", ">", "&&")), len(words))
+        words = words[words.index("sniffer") + 1:cut]
+        PARSER.parse_args(words)  # a flag it lacks, a bad value: UsageError
+
+
+@pytest.mark.parametrize("name", sorted(COMMANDS))
 def test_help_shows_every_default(name):
     """An option with a default says it (argparse's own, or where it comes from: --baud's is the bus file's,
     the capture's, else 9600), in the words --help prints."""
