@@ -103,12 +103,11 @@ class ModelFacts:
         self.id = mid
         self.map = regmap
         info = regmap.model
-        fcs = info.get("function_codes")
-        self.functions = frozenset(fcs) | frozenset(info.get("vendor_function_codes") or ()) if fcs else None
-        self.max_regs = info.get("max_registers_per_request")
-        self.max_frame = info.get("max_frame_bytes")
-        units = info.get("unit_addresses") or info.get("unit_address_range")
-        self.units = tuple(units) if units and len(units) == 2 else None
+        fcs = info.function_codes
+        self.functions = frozenset(fcs) | frozenset(info.vendor_function_codes) if fcs else None
+        self.max_regs = info.max_registers_per_request
+        self.max_frame = info.max_frame_bytes
+        self.units = info.units
         self.exceptions = frozenset(regmap.exceptions)
         self._masks: dict[str, int] = {}
 

@@ -73,25 +73,25 @@ class TableDecoder(GenericModbus):
         self.map = regmap  # also the holding view: `registers` holds the holding and table-less rows
         self._imap = regmap.view("input")  # the input registers' rows (the same map unless a row says table)
         self.model = regmap.model_id
-        self.max_regs = regmap.model.get("max_registers_per_request")
-        bc = regmap.model.get("broadcast_registers")
+        info = regmap.model
+        self.max_regs = info.max_registers_per_request
+        bc = info.broadcast_registers
         self.broadcast_regs = set(bc) if bc is not None else None
-        self.complete_exceptions = regmap.model.get("exception_table") == "complete"
-        self.max_frame = regmap.model.get("max_frame_bytes")
-        subs = regmap.model.get("loopback_subfunctions")
+        self.complete_exceptions = info.exception_table == "complete"
+        self.max_frame = info.max_frame_bytes
+        subs = info.loopback_subfunctions
         self.loop_subfunctions = set(subs) if subs is not None else None
-        fcs = regmap.model.get("function_codes")  # the manual's list: another code is answered 01H
-        self.functions = (frozenset(fcs) | frozenset(regmap.model.get("vendor_function_codes") or ())
-                          if fcs else None)
+        fcs = info.function_codes  # the manual's list: another code is answered 01H
+        self.functions = frozenset(fcs) | frozenset(info.vendor_function_codes) if fcs else None
         # the exception the manual says answers an unknown function (SPL: 51H FUNCTION CODE ERROR), else 01H
         self.function_exception = next(
             (c for c, e in sorted(regmap.exceptions.items())
              if "function" in f"{e.get('name', '')} {e.get('text', '')}".lower()), 0x01)
         # registers whose non-zero value is a trip (fault) or a warning (alarm): model.fault / model.alarm
-        self.trips = {**{a: (ALARM, "alarm") for a in regmap.model.get("alarm_registers", [])},
-                      **{a: (FAULT, "fault") for a in regmap.model.get("fault_registers", [])}}
+        self.trips = {**{a: (ALARM, "alarm") for a in info.alarm_registers},
+                      **{a: (FAULT, "fault") for a in info.fault_registers}}
         # (address, raw) -> the marker's meaning: a raw value that is no measurement
-        self.markers = {(m["addr"], m["raw"]): m for m in regmap.model.get("not_available", [])}
+        self.markers = {(m.addr, m.raw): m for m in info.not_available}
         # the holding registers other rows are scaled through (TDS-V8 Cn-02): carried over (carried())
         self.scale_refs = tuple(sorted({r.scale_by["addr"] for m in (regmap, self._imap)
                                         for r in m.registers.values() if r.scale_by}))
@@ -192,7 +192,7 @@ class TableDecoder(GenericModbus):
         marker = self.markers.get((address, raw)) if self.markers else None
         if marker is not None:
             return {"name": r.name, "address": address, "raw": raw, "value": None, "unit": None, "id": r.id,
-                    "text": f"not available ({raw:04X}H)", "not_available": marker["text"]}
+                    "text": f"not available ({raw:04X}H)", "not_available": marker.text}
         value, unit, pending = self.value_of(r, raw, state)
         pt = {"name": self.provisional_name(r) if pending else r.name, "address": address, "raw": raw,
               "value": value, "unit": unit, "id": r.id}

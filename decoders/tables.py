@@ -7,14 +7,13 @@ One loader for the built-in drive models and for `--model-file`; the lint
 from __future__ import annotations
 
 import bisect
-import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from decoders.tomlfile import read_toml
 
 from . import regtypes
-from .model_keys import MAX_REGISTERS, MODEL_KEYS, MODEL_NOTES, is_int, is_number
+from .model_info import MAX_REGISTERS, ModelInfo, brief, is_int, is_number
 from .regtypes import ORDERS, TEXT, TYPES, WIDTH
 
 
@@ -86,7 +85,7 @@ class Register:
 
 @dataclass
 class RegisterMap:
-    model: dict
+    model: ModelInfo
     registers: dict[int, Register]
     enums: dict[str, dict[int, dict]]
     bits: dict[str, list[dict]]
@@ -119,7 +118,7 @@ class RegisterMap:
 
     @property
     def model_id(self) -> str:
-        return self.model["id"]
+        return self.model.id
 
     @property
     def parts(self) -> dict[int, tuple[Register, int]]:
@@ -183,16 +182,6 @@ _STR_FIELDS = ("id", "name", "unit", "enum", "bits", "scale_rule", "section", "n
 _INT_FIELDS = ("min", "max", "default")
 
 
-def brief(v, limit: int = 60) -> str:
-    """`v`'s repr for an error line, at most `limit` characters (never the whole of a huge value)."""
-    import reprlib
-
-    r = reprlib.Repr()
-    r.maxlevel, r.maxstring, r.maxother = 4, limit, limit
-    text = r.repr(v)
-    return text if len(text) <= limit else text[:limit] + "..."
-
-
 def _show(v) -> str:
     return brief(v, 60)
 
@@ -247,29 +236,10 @@ class _Check:
         if field in d and (not is_int(d[field]) or not lo <= d[field] <= hi):
             self.fail(where, f"{field} must be an integer in {lo}..{hi}, not {_show(d[field])}")
 
-    def model(self, model) -> dict:
-        """The [model] table: every key known (MODEL_KEYS), each value of its kind."""
-        if not isinstance(model, dict) or not model.get("id"):
-            raise MapError(f"{self.path}: no [model] table with an id")
-        for key in ("registers",) + tuple(k for k in TOP_LEVEL if k != "model"):
-            if key in model:  # TOML puts a key after a [table] header into that table
-                raise MapError(f"{self.path}: [model]: {key} sits under [model]; write `{key} = ...` before the "
-                               f"first [table] (TOML puts it in the table above it)")
-        unknown = sorted(str(k) for k in model if k not in MODEL_KEYS and k not in MODEL_NOTES)
-        if unknown:
-            near = difflib.get_close_matches(unknown[0], [*MODEL_KEYS, *MODEL_NOTES], n=1)
-            self.fail("[model]", f"unknown key {_show(unknown[0])}" + (f" (did you mean {near[0]}?)" if near else
-                                  " (docs/register-map-format.md lists the keys)"))
-        for f in ("word_order", "byte_order"):  # the defaults of the rows: said as a row's are
-            if model.get(f, "big") not in ORDERS:
-                self.fail("[model]", f"{f} {_show(model[f])} (big or little)")
-        if model.get("exception_table", "standard") not in ("standard", "complete"):
-            self.fail("[model]", f"exception_table {_show(model['exception_table'])} (standard or complete)")
-        for key, value in model.items():
-            rule = MODEL_KEYS.get(key)
-            if rule is not None and not rule[1](value):
-                self.fail("[model]", f"{key} must be {rule[0]}, not {_show(value)}")
-        return model
+    def model(self, table) -> ModelInfo:
+        """The [model] table: every key known, each value of its kind (decoders/model_info.py)."""
+        return ModelInfo.from_table(table, lambda text: MapError(f"{self.path}: {text}"),
+                                    top_level=tuple(k for k in TOP_LEVEL if k != "model"))
 
     def place(self, i: int) -> str:
         """How an error names register row `i` (an imported file names its own rows: "row 7")."""
@@ -386,43 +356,9 @@ def map_from_doc(doc: dict, path: str, places: list[str] | None = None) -> Regis
     if unknown:
         c.fail("top level", f"unknown keys {_show(unknown)} (known: {', '.join(TOP_LEVEL)})")
     model = c.model(doc.get("model"))
-    rows = doc.get("registers", [])
-    if not isinstance(rows, list):
-        c.fail("registers", f"must be an array of tables, not {_show(rows)}")
-    checked = [c.row(i, row) for i, row in enumerate(rows)]
-    total = sum(count for _row, count, _stride in checked)
-    if total > MAX_REGISTERS:
-        c.fail("registers", f"{total} registers: more than the {MAX_REGISTERS} addresses a unit has")
-    regs: dict[int, Register] = {}
-    inputs: dict[int, Register] = {}  # rows of table "input": the same address may be a holding row too
-    orders = {f: model[f] for f in ("word_order", "byte_order") if f in model}  # the model's defaults
-    row_of: dict[tuple[str, int], int] = {}
-    for i, (row, count, stride) in enumerate(checked):
-        row.setdefault("id", "")
-        for f, v in orders.items():
-            if not (f == "word_order" and row["type"] == TEXT):
-                row.setdefault(f, v)
-        for k in range(count):
-            r = Register(**{**row, "addr": row["addr"] + k * stride})
-            if count > 1:
-                r.name = f"{row['name']} [{k}]"
-            # a table-less row is in both tables: it clashes with a row of either
-            clash = [t for t in (("holding", "input") if not r.table else (r.table,)) if (t, r.addr) in row_of]
-            if clash:
-                also = f" (also {c.place(row_of[(clash[0], r.addr)])})" if places else ""
-                where = f"{places[i]}: " if places else ""
-                raise MapError(f"{path}: {where}register 0x{r.addr:04X} listed twice{also}")
-            (inputs if r.table == "input" else regs)[r.addr] = r
-            for t in ("holding", "input") if not r.table else (r.table,):
-                row_of[(t, r.addr)] = i
-    for t in ("holding", "input"):  # a value of several registers owns them all, in its table
-        rows_t = {a: r for a, r in (*regs.items(), *inputs.items()) if r.table in ("", t)}
-        for a, r in rows_t.items():
-            for k in range(1, r.words):
-                if a + k in rows_t:
-                    where = f"{places[row_of[(t, a + k)]]}: " if places else ""
-                    raise MapError(f"{path}: {where}register 0x{a + k:04X} is inside 0x{a:04X} ({r.name}, a "
-                                   f"{r.type} of {r.words} registers)")
+    rows = _Rows(c, model)
+    rows.add_all(doc.get("registers", []))
+    rows.check_inside()
     enums = {}
     for name, table in c.table(doc.get("enums") or {}, "[enums]").items():
         where = f"[enums.{name}]"
@@ -431,13 +367,70 @@ def map_from_doc(doc: dict, path: str, places: list[str] | None = None) -> Regis
     bits = {name: c.bits(name, table) for name, table in c.table(doc.get("bits") or {}, "[bits]").items()}
     exc = {c.key(k, "[exceptions]", 0, 255): c.entry(v, f"[exceptions] {k}", "name", False)
            for k, v in c.table(doc.get("exceptions") or {}, "[exceptions]").items()}
-    m = RegisterMap(model, regs, enums, bits, exc, path, inputs=inputs)
-    m.by_id = {r.id: r for r in (*inputs.values(), *regs.values()) if r.id}
+    m = RegisterMap(model, rows.regs, enums, bits, exc, path, inputs=rows.inputs)
+    m.by_id = {r.id: r for r in (*rows.inputs.values(), *rows.regs.values()) if r.id}
     problems = lint(m, sections=False)
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         raise MapError(f"{path}: {problems[0]}{more}")
     return m
+
+
+class _Rows:
+    """The register rows of one file, checked and expanded (count/stride) into its two tables: `regs` (holding
+    and table-less rows) and `inputs` (rows of table "input": the same address may be a holding row too)."""
+
+    def __init__(self, c: _Check, model: ModelInfo) -> None:
+        self.c = c
+        self.orders = {"word_order": model.word_order, "byte_order": model.byte_order}  # the rows' defaults
+        self.regs: dict[int, Register] = {}
+        self.inputs: dict[int, Register] = {}
+        self.row_of: dict[tuple[str, int], int] = {}  # (table, address) -> the row index that has it
+
+    def add_all(self, rows) -> None:
+        if not isinstance(rows, list):
+            self.c.fail("registers", f"must be an array of tables, not {_show(rows)}")
+        checked = [self.c.row(i, row) for i, row in enumerate(rows)]
+        total = sum(count for _row, count, _stride in checked)
+        if total > MAX_REGISTERS:
+            self.c.fail("registers", f"{total} registers: more than the {MAX_REGISTERS} addresses a unit has")
+        for i, (row, count, stride) in enumerate(checked):
+            self.add(i, row, count, stride)
+
+    def add(self, i: int, row: dict, count: int, stride: int) -> None:
+        row.setdefault("id", "")
+        for f, v in self.orders.items():
+            if not (f == "word_order" and row["type"] == TEXT):
+                row.setdefault(f, v)
+        for k in range(count):
+            r = Register(**{**row, "addr": row["addr"] + k * stride})
+            if count > 1:
+                r.name = f"{row['name']} [{k}]"
+            tables = ("holding", "input") if not r.table else (r.table,)  # a table-less row is in both
+            clash = [t for t in tables if (t, r.addr) in self.row_of]
+            if clash:
+                self._fail_at(i, f"register 0x{r.addr:04X} listed twice", also=self.row_of[(clash[0], r.addr)])
+            (self.inputs if r.table == "input" else self.regs)[r.addr] = r
+            for t in tables:
+                self.row_of[(t, r.addr)] = i
+
+    def check_inside(self) -> None:
+        """A value of several registers owns them all, in its table: no other row may sit inside it."""
+        for t in ("holding", "input"):
+            rows_t = {a: r for a, r in (*self.regs.items(), *self.inputs.items()) if r.table in ("", t)}
+            for a, r in rows_t.items():
+                for k in range(1, r.words):
+                    if a + k in rows_t:
+                        self._fail_at(self.row_of[(t, a + k)], f"register 0x{a + k:04X} is inside 0x{a:04X} "
+                                                               f"({r.name}, a {r.type} of {r.words} registers)")
+
+    def _fail_at(self, i: int, what: str, also: int | None = None):
+        """A file that names its rows (an import) says which; a TOML map's line is the register's address."""
+        places = self.c.places
+        if not places:
+            raise MapError(f"{self.c.path}: {what}")
+        more = f" (also {self.c.place(also)})" if also is not None else ""
+        raise MapError(f"{self.c.path}: {places[i]}: {what}{more}")
 
 
 def lint(m: RegisterMap, sections: bool = True) -> list[str]:
@@ -450,38 +443,52 @@ def lint(m: RegisterMap, sections: bool = True) -> list[str]:
     for a, r in sorted((*m.registers.items(), *m.inputs.items()), key=lambda ar: (ar[0], ar[1].table)):
         if sections and not r.section:
             problems.append(f"0x{a:04X} {r.name}: no manual section")
-        if r.scale == 0:
-            problems.append(f"0x{a:04X}: scale 0 makes every value 0")
-        if r.min is not None and r.max is not None and r.min > r.max:
-            problems.append(f"0x{a:04X}: min {r.min} > max {r.max}")
-        span = regtypes.raw_range(r.type)
-        for f in ("min", "max", "default"):
-            v = getattr(r, f)
-            if span is not None and v is not None and not span[0] <= v <= span[1]:
-                problems.append(f"0x{a:04X}: {f} {v} is outside a {r.type} ({span[0]}..{span[1]})")
-        if r.table == "input" and r.access in ("W", "RW"):
-            problems.append(f"0x{a:04X}: access {r.access} on an input register (Modbus input registers are "
-                            f"read-only)")
-        if r.access not in ACCESS:
-            problems.append(f"0x{a:04X}: access {r.access!r}")
-        for k in range(1, r.width):
-            if a + k in (m.inputs if r.table == "input" else m.registers):
-                problems.append(f"0x{a:04X} ({r.type}) overlaps 0x{a + k:04X}")
-        if r.enum and r.enum not in m.enums:
-            problems.append(f"0x{a:04X}: enum {r.enum!r} not defined")
-        if r.bits and r.bits not in m.bits:
-            problems.append(f"0x{a:04X}: bits {r.bits!r} not defined")
-        if r.type in regtypes.FLOATS or r.type == TEXT:  # a code or flags are integers; text has no scale
-            for f in ("enum", "bits") + (("scale_by", "scale") if r.type == TEXT else ()):
-                if getattr(r, f) not in (None, 1.0):
-                    problems.append(f"0x{a:04X}: a {r.type} takes no {f}")
-        for fdef in m.bits.get(r.bits or "", []):
-            if fdef["hi"] >= 16 * r.words:
-                problems.append(f"0x{a:04X}: bits {r.bits!r} field {fdef['name']!r} past bit {16 * r.words - 1}")
-        if r.scale_by and r.scale_by.get("addr") not in m.registers:
-            problems.append(f"0x{a:04X}: scale_by register not in the map")
+        problems += _value_problems(a, r) + _reference_problems(m, a, r)
         for rid in [x.strip() for x in r.id.split("/") if x.strip()]:
             if rid in ids and ids[rid] != a and not r.table:
                 problems.append(f"id {rid} used at 0x{ids[rid]:04X} and 0x{a:04X}")
             ids[rid] = a
     return problems
+
+
+def _value_problems(a: int, r: Register) -> list[str]:
+    """What one row says about its values that cannot be: scale 0, min > max, limits its type cannot hold, an
+    access an input register cannot have."""
+    out = []
+    if r.scale == 0:
+        out.append(f"0x{a:04X}: scale 0 makes every value 0")
+    if r.min is not None and r.max is not None and r.min > r.max:
+        out.append(f"0x{a:04X}: min {r.min} > max {r.max}")
+    span = regtypes.raw_range(r.type)
+    for f in ("min", "max", "default"):
+        v = getattr(r, f)
+        if span is not None and v is not None and not span[0] <= v <= span[1]:
+            out.append(f"0x{a:04X}: {f} {v} is outside a {r.type} ({span[0]}..{span[1]})")
+    if r.table == "input" and r.access in ("W", "RW"):
+        out.append(f"0x{a:04X}: access {r.access} on an input register (Modbus input registers are read-only)")
+    if r.access not in ACCESS:
+        out.append(f"0x{a:04X}: access {r.access!r}")
+    return out
+
+
+def _reference_problems(m: RegisterMap, a: int, r: Register) -> list[str]:
+    """What one row names that is not there or cannot apply, or runs into: the next rows, an enum, bits (a float
+    or a text takes neither), its scale register."""
+    out = []
+    for k in range(1, r.width):
+        if a + k in (m.inputs if r.table == "input" else m.registers):
+            out.append(f"0x{a:04X} ({r.type}) overlaps 0x{a + k:04X}")
+    if r.enum and r.enum not in m.enums:
+        out.append(f"0x{a:04X}: enum {r.enum!r} not defined")
+    if r.bits and r.bits not in m.bits:
+        out.append(f"0x{a:04X}: bits {r.bits!r} not defined")
+    if r.type in regtypes.FLOATS or r.type == TEXT:  # a code or flags are integers; text has no scale
+        for f in ("enum", "bits") + (("scale_by", "scale") if r.type == TEXT else ()):
+            if getattr(r, f) not in (None, 1.0):
+                out.append(f"0x{a:04X}: a {r.type} takes no {f}")
+    for fdef in m.bits.get(r.bits or "", []):
+        if fdef["hi"] >= 16 * r.words:
+            out.append(f"0x{a:04X}: bits {r.bits!r} field {fdef['name']!r} past bit {16 * r.words - 1}")
+    if r.scale_by and r.scale_by.get("addr") not in m.registers:
+        out.append(f"0x{a:04X}: scale_by register not in the map")
+    return out

@@ -84,6 +84,13 @@ def processes_with(needle: str) -> list[int]:
     return [pid for pid, cmd, _ in _live_processes() if needle in cmd]
 
 
+def captures_of(server_pid: int) -> list[int]:
+    """The capture processes `sniffer serve` (pid `server_pid`) started: `sniffer live|demo --spec-from-stdin`,
+    its CaptureSpec on their stdin (sniffer/processes/capture.py)."""
+    return [pid for pid, cmd, _ in _live_processes() if "--spec-from-stdin" in cmd
+            and (stat_fields(pid) or [None, None])[1] == str(server_pid)]
+
+
 def processes_in_session(sid: int) -> list[int]:
     """Live processes of session `sid` (what a process started with start_new_session=True left)."""
     return [pid for pid, _, session in _live_processes() if session == sid]

@@ -328,7 +328,7 @@ def test_a_toml_map_without_an_id_takes_its_file_stem(tmp_path, capsys):
     assert code == 0 and "pump" in out and "Speed=100 rpm" in out
 
 
-# -- [model]: every key checked as a row's fields are (decoders/model_keys.py) ---------------------
+# -- [model]: every key checked as a row's fields are (decoders/model_info.py) ---------------------
 MODEL_KEY_CASES = [
     ("function_codes = 3", "[model]: function_codes must be a list of integers 1..255, not 3"),
     ("function_codes = [0x103]", "[model]: function_codes must be a list of integers 1..255, not [259]"),
@@ -355,7 +355,7 @@ WRONG_KINDS = ["3", "-1", "1.5", '"x"', "true", '["a"]', "[3]", "[[1, 2]]", "[1,
 def test_every_model_key_read_by_the_code_is_checked_before_it_is_used(tmp_path, capsys):
     """Every key a decoder, the identifier or the simulator reads, given every kind of wrong value: the map
     loads (the value fits) and a decode, a replay and the identifier run; or one line naming the key."""
-    from decoders.model_keys import MODEL_KEYS
+    from decoders.model_info import KEYS as MODEL_KEYS
 
     seen = {"loaded": 0, "refused": 0}
     for key in MODEL_KEYS:

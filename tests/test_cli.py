@@ -147,7 +147,7 @@ def test_ctrl_c_closes_the_capture_cleanly(tmp_path):
 
 
 def test_simulate_help_names_every_scenario():
-    from sniffer.cli import _SCENARIO_HELP
+    from sniffer.commands.flags import scenario_help
     from sniffer.simulator.scenario import SCENARIOS
 
-    assert _SCENARIO_HELP.rsplit("): ", 1)[1].split(", ") == list(SCENARIOS)
+    assert scenario_help().split(": ", 1)[1].split(", ") == list(SCENARIOS)

@@ -133,7 +133,7 @@ def test_flags_make_links_and_serve_gets_them_back():
     assert spec.links == (LinkPlan("ttyUSB0", ("/dev/ttyUSB0",)), LinkPlan("ttyUSB1", ("/dev/ttyUSB1",)),
                           LinkPlan("ttyS0+ttyS0", ("/dev/a/ttyS0", "/dev/b/ttyS0"), True))
     assert spec.links[2].channels == (MASTER, SLAVES)
-    assert CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live"))) == spec
+    assert CaptureSpec.decode(spec.encode()) == spec
     one = CaptureSpec.from_args(build_parser().parse_args(["live", "/dev/ttyUSB0"]))
     assert one.links == () and one.port == "/dev/ttyUSB0"  # one port: a plain line, as before
     twin = CaptureSpec.from_args(build_parser().parse_args(["live", "/dev/a/ttyS0", "/dev/b/ttyS0"]))

@@ -64,7 +64,7 @@ def test_csv_map_fields(tmp_path):
     p = tmp_path / "meter.csv"
     p.write_text(CSV, encoding="utf-8")
     [m] = load_model_file(str(p))
-    assert m.model_id == "meter-a" and m.model["name"] == "ACME meter A"
+    assert m.model_id == "meter-a" and m.model.name == "ACME meter A"
     r = m.registers
     assert sorted(r) == [0, 2, 16, 17, 18, 32]
     assert (r[0].type, r[0].word_order, r[0].unit, r[0].access, r[0].note) == ("f32", "big", "V", "R",
@@ -289,13 +289,13 @@ def test_bad_map_base_flag(capsys):
 
 
 def test_map_base_travels_to_the_capture_process():
-    """`serve` starts its capture as `sniffer live ...`: the CSV's address base goes with the map."""
+    """`serve` starts its capture as a process of its own: the CSV's address base goes with the map."""
     from sniffer.cli import build_parser
     from sniffer.capture.settings import CaptureSpec
 
     spec = CaptureSpec.from_args(build_parser().parse_args(
         ["live", "/dev/null", "--model-file", "m.csv", "--map-base", "modicon"]))
-    again = CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live")))
+    again = CaptureSpec.decode(spec.encode())
     assert (again.model_files, again.map_base) == (("m.csv",), "modicon")
 
 

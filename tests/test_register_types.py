@@ -20,6 +20,7 @@ import pytest
 from helpers import bursts, export, fr, run_sniffer
 from refdata import VECTORS
 
+from decoders.model_info import ModelInfo
 from decoders.registry import default_registry
 from decoders.tables import MapError, Register, RegisterMap, lint, load_map
 from sniffer.events import CaptureInfo
@@ -244,7 +245,8 @@ def test_model_defaults_for_order_and_lint(tmp_path):
         load_map(bad)  # the loader lints every map, a user's too
     doc = tomllib.loads(Path(bad).read_text())
     doc["registers"] = [dict(r) for r in doc["registers"]]
-    m = RegisterMap(doc["model"], {r["addr"]: Register(**{"id": "", **r}) for r in doc["registers"]}, {}, {}, {})
+    rows = {r["addr"]: Register(**{"id": "", **r}) for r in doc["registers"]}
+    m = RegisterMap(ModelInfo.from_table(doc["model"], MapError), rows, {}, {}, {})
     m.enums = {"e": {1: {"text": "one"}}}
     m.bits = {"b": [{"lo": 20, "hi": 20, "name": "far"}]}
     assert lint(m) == ["0x0002: a f32 takes no enum",

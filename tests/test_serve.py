@@ -20,7 +20,7 @@ import urllib.request
 
 import pytest
 from helpers import ListSink
-from serve_helpers import HANG_S, processes_with, published, start_serve
+from serve_helpers import HANG_S, captures_of, processes_with, published, start_serve
 from serve_helpers import wait as _wait
 from terminal import stat_fields
 from tui_helpers import SIM, demo_viewer, replay_frames
@@ -321,6 +321,7 @@ def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
     pytest.importorskip("aiohttp")
     sock = tmp_path / "leak.sock"
     proc, port = start_serve(tmp_path, "--demo", "--socket", str(sock), "--no-out", log=tmp_path / "serve.log")
+    capture = None
     try:
         asyncio.run(_visits(port, 3))
         _wait(lambda: not processes_with(f"attach {sock} --tui"), "the ended visits' viewers to exit")
@@ -330,7 +331,7 @@ def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
         holder.start()
         _wait(seen.is_set, "the open visit's screen")
         viewers = processes_with(f"attach {sock} --tui")
-        capture = processes_with(f"--publish {sock}")
+        capture = captures_of(proc.pid)
         assert len(viewers) == 1 and len(capture) == 1
         publisher = [pid for pid in processes_with("sniffer.processes.publisher") if _parent(pid) == capture[0]]
         assert len(publisher) == 1  # the capture's viewers are served by a process of its own
@@ -339,12 +340,12 @@ def test_serve_leaves_no_viewer_or_capture_behind(tmp_path):
         proc.wait(HANG_S)
         stop.set()
         _wait(lambda: not processes_with(f"attach {sock} --tui"), "the viewer to end with the server")
-        _wait(lambda: not processes_with(f"--publish {sock}"), "the capture to end with the server")
+        _wait(lambda: not os.path.exists(f"/proc/{capture[0]}"), "the capture to end with the server")
         _wait(lambda: not os.path.exists(f"/proc/{publisher[0]}"), "the publisher to end with the capture")
     finally:
         if proc.poll() is None:
             proc.kill()
-        for pid in processes_with(str(sock)):
+        for pid in processes_with(str(sock)) + [p for p in (capture or ()) if os.path.exists(f"/proc/{p}")]:
             os.kill(pid, signal.SIGKILL)
 
 

@@ -17,7 +17,7 @@ import time
 
 import pytest
 from headless_chromium import BrowserError, Chromium
-from serve_helpers import HANG_S, processes_in_session, processes_with, start_serve, wait
+from serve_helpers import HANG_S, captures_of, processes_in_session, processes_with, start_serve, wait
 
 FRAME_ROW = re.compile(r"(->REQ|<-RSP|NOISE) u +(\d+|-)")
 
@@ -56,7 +56,7 @@ async def launch(profile: str) -> Chromium:
         pytest.skip(f"headless chromium could not be started: {e}")
 
 
-async def drive(browser: Chromium, url: str, sock: str) -> None:
+async def drive(browser: Chromium, url: str, sock: str, server: int) -> None:
     await browser.open(url)
     screen = await browser.wait_for(lambda s: len(frame_rows(s)) > 5, "frames in the frame list")
     assert "demo errors" in status_bar(screen)
@@ -88,7 +88,7 @@ async def drive(browser: Chromium, url: str, sock: str) -> None:
         assert asyncio.get_running_loop().time() < deadline, "the page never said the session ended"
         await asyncio.sleep(0.05)
     wait(lambda: not processes_with(f"attach {sock} --tui"), "the closed view's viewer to exit")
-    assert len(processes_with(f"--publish {sock}")) == 1
+    assert len(captures_of(server)) == 1
 
     # a new visit gets a new viewer of the same capture, with no filter
     await browser.open(url)
@@ -101,6 +101,7 @@ def test_serve_driven_by_keys_in_headless_chromium(tmp_path):
     pytest.importorskip("aiohttp")
     sock, profile = tmp_path / "browser.sock", tmp_path / "chromium-profile"
     browser_session = None
+    captures: list[int] = []
 
     async def go():
         nonlocal browser_session
@@ -110,7 +111,8 @@ def test_serve_driven_by_keys_in_headless_chromium(tmp_path):
             proc, port = start_serve(tmp_path, "--demo", "--scenario", "errors", "--no-out", "--socket", str(sock),
                                      log=tmp_path / "serve.log")
             try:
-                await drive(browser, f"http://127.0.0.1:{port}/", str(sock))
+                captures.extend(captures_of(proc.pid))
+                await drive(browser, f"http://127.0.0.1:{port}/", str(sock), proc.pid)
             finally:
                 await browser.close()
                 proc.send_signal(signal.SIGINT)
@@ -126,6 +128,7 @@ def test_serve_driven_by_keys_in_headless_chromium(tmp_path):
     finally:
         left = left_behind({"chromium": lambda: processes_in_session(browser_session) if browser_session else [],
                             "chromium (its profile)": lambda: processes_with(str(profile)),
-                            "viewer or capture": lambda: processes_with(str(sock))})
+                            "viewer or capture": lambda: processes_with(str(sock)) + [
+                                p for p in captures if os.path.exists(f"/proc/{p}")]})
     assert not any(left.values()), f"processes left behind: {left}"
     assert not sock.exists()

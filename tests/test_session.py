@@ -56,19 +56,19 @@ def test_resolve_refuses_what_cannot_work():
     assert CaptureSpec.of(baud=9600, protocol="pd-rtu", devices={2: "pd-series"}).resolve(None).devices
 
 
-def test_to_argv_runs_the_same_capture(tmp_path):
-    """serve starts its capture from spec.to_argv(): parsing those flags gives the same spec back."""
-    from sniffer.cli import build_parser
+def test_the_capture_process_gets_the_same_spec(tmp_path):
+    """serve and the TUI start their capture as a process of its own: the spec it decodes is the one sent."""
+    from sniffer.processes.capture import capture_input
 
     bus = tmp_path / "b.toml"
     bus.write_text("[serial]\nbaud = 9600\n")
     spec = CaptureSpec.of(baud=19200, parity="E", devices={1: "a510", 7: "spl"}, timeout_ms=250.0,
                           bus_file=str(bus), model_files=("m.toml",), port="/dev/ttyUSB0", out="x.mcap",
                           duration_s=30.0, publish="/tmp/s.sock", publish_backlog=5, headless=True, stream=None)
-    back = CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live")))
-    assert back == spec
+    assert CaptureSpec.decode(capture_input(spec, "/tmp/s.sock")) == spec
     demo = CaptureSpec(scenario="errors", seed=3, out="d.mcap", duration_s=2.0, stream="jsonl")
-    assert CaptureSpec.from_args(build_parser().parse_args(demo.to_argv("demo"))) == demo
+    assert CaptureSpec.decode(capture_input(demo, "/tmp/d.sock")) == demo.with_(publish="/tmp/d.sock", headless=True,
+                                                                                stream=None)
 
 
 # ---------------------------------------------------------------- the loop
@@ -160,12 +160,12 @@ def test_disk_full_during_an_export_keeps_the_old_file(tmp_path):
 
 # ---------------------------------------------------------------- bad input: one line, exit 2
 @pytest.mark.parametrize("argv, says", [
-    (["replay", str(A510), "--timeout-ms", "nan"], "--timeout-ms nan"),
-    (["replay", str(A510), "--timeout-ms", "inf"], "--timeout-ms inf"),
+    (["replay", str(A510), "--timeout-ms", "nan"], "--timeout-ms 'nan'"),
+    (["replay", str(A510), "--timeout-ms", "inf"], "--timeout-ms 'inf'"),
     (["replay", str(A510), "--timeout-ms", "1e308"], "--timeout-ms"),
     (["replay", str(A510), "--baud", "0"], "baud rate 0"),
-    (["simulate", "--duration", "nan", "--out", "x.mcap"], "--duration nan"),
-    (["demo", "--duration", "-1"], "--duration -1"),
+    (["simulate", "--duration", "nan", "--out", "x.mcap"], "--duration 'nan'"),
+    (["demo", "--duration", "-1"], "--duration '-1'"),
     (["live", "/dev/null", "--publish", "tcp:99999"], "99999"),
     (["replay", str(A510), "--tui"], "needs a terminal"),
     (["diff", str(A510), str(A510), "--device", "2=pd-series"], "pd-series"),

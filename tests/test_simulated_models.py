@@ -71,7 +71,7 @@ def test_scenarios_say_line_protocol_and_models():
     for name in ("default", "errors", "fast", "stress"):
         sc = SCENARIOS[name]
         assert sc.devices == {} and sc.protocol == "modbus-rtu"
-    assert get_scenario("tds-v8").line.baud in get_model("tds-v8").map.model["bauds"]
+    assert get_scenario("tds-v8").line.baud in get_model("tds-v8").map.model.bauds
 
 
 @pytest.mark.parametrize("model", sorted(PROFILES))

@@ -150,7 +150,7 @@ def test_the_sink_reports_its_triggers_for_a_status_file(tmp_path):
 
 
 def test_the_trigger_flags_travel_to_a_capture_process_unchanged():
-    """live with the TUI and serve start the capture as `sniffer live ...` built by CaptureSpec.to_argv."""
+    """live with the TUI and serve start the capture as a process of its own, its CaptureSpec whole."""
     from sniffer.cli import build_parser
 
     argv = ["live", "/dev/ttyUSB0", "--trigger", "fault", "--trigger", 'u:1 "Output frequency" > 55',
@@ -159,7 +159,7 @@ def test_the_trigger_flags_travel_to_a_capture_process_unchanged():
     spec = CaptureSpec.from_args(build_parser().parse_args(argv))
     assert spec.trigger == TriggerSpec(("fault", 'u:1 "Output frequency" > 55'), 90.0, 120.0, True, 8 << 20,
                                        1800.0, "/tmp", "echo $SNIFFER_TRIGGER_FILE", 5.0)
-    again = CaptureSpec.from_args(build_parser().parse_args(spec.to_argv("live")))
+    again = CaptureSpec.decode(spec.encode())
     assert again.trigger == spec.trigger
 
 

@@ -77,7 +77,7 @@ def to_toml(m: RegisterMap, header: str = "") -> str:
     out += [register_row(r) for _a, r in sorted((*m.registers.items(), *m.inputs.items()),
                                                key=lambda ar: (ar[0], ar[1].table))]
     out += ["]", "", "[model]"]
-    out += [f"{key(k)} = {value(v)}" for k, v in m.model.items()]
+    out += [f"{key(k)} = {value(v)}" for k, v in m.model.to_table().items()]
     if m.exceptions:
         out += ["", "[exceptions]"]
         out += [f'"0x{c:02X}" = {value(e)}' for c, e in sorted(m.exceptions.items())]

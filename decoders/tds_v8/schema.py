@@ -15,6 +15,7 @@ from sniffer.codes import ERROR, Code, note
 from sniffer.frame import RESPONSE
 
 from decoders.table_decoder import TableDecoder
+from ..model_info import ModeCommand, ModeRegister
 from ..tables import load_map
 
 MAP_PATH = Path(__file__).with_name("registers.toml")
@@ -33,11 +34,11 @@ class TdsV8Decoder(TableDecoder):
     def __init__(self, regmap) -> None:
         super().__init__(regmap)
         m = regmap.model
-        self.prg_ranges = [tuple(r) for r in m.get("prg_only_ranges", [])]
-        mr = m.get("mode_register", {"addr": 0x0020, "bit": 4})
-        self.mode_addr, self.mode_bit = mr["addr"], mr["bit"]
-        mc = m.get("mode_command", {"addr": 0x0000, "to_drv_bit": 8, "to_prg_bit": 9})
-        self.cmd_addr, self.drv_bit, self.prg_bit = mc["addr"], mc["to_drv_bit"], mc["to_prg_bit"]
+        self.prg_ranges = list(m.prg_only_ranges)
+        mr = m.mode_register or ModeRegister(0x0020, 4)
+        self.mode_addr, self.mode_bit = mr.addr, mr.bit
+        mc = m.mode_command or ModeCommand(0x0000, 8, 9)
+        self.cmd_addr, self.drv_bit, self.prg_bit = mc.addr, mc.to_drv_bit, mc.to_prg_bit
 
     def decode(self, f, request, state) -> None:
         super().decode(f, request, state)

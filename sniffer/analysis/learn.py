@@ -27,6 +27,7 @@ import math
 import struct
 from dataclasses import dataclass, field
 
+from decoders.model_info import ModelInfo
 from decoders.tables import Register, RegisterMap
 
 from sniffer.protocols import modbus_range_ok
@@ -328,7 +329,7 @@ class Learner:
                 if r.width > 1 and any(a + k in t for t in others for k in range(1, r.width)):
                     r.note = f"{r.type} guess dropped: {a + 1:04X}H is a register of its own elsewhere; " + r.note
                     r.type, r.word_order, r.words = "u16", "big", 1
-        model = {"id": model_id, "name": f"learned from {source}" if source else "learned from traffic"}
+        model = ModelInfo(id=model_id, name=f"learned from {source}" if source else "learned from traffic")
         return RegisterMap(model, rows, {}, {}, {}, "", inputs=inputs)
 
     def summary(self, source: str = "") -> str:

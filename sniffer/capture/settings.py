@@ -3,8 +3,9 @@
 A setting can come from four places; the first that says it wins:
 flags > bus file > the capture's own metadata > defaults (`layered`).  Device
 maps and per-unit timeouts merge unit by unit by the same rule.  `CaptureSpec`
-holds the flags and the bus file (built once, in cli.py, by `from_args`; the
-inverse, `to_argv`, gives `serve` the command line of its capture process);
+holds the flags and the bus file (built once, in cli.py, by `from_args`; a
+capture started as a process of its own, under the TUI or `serve`, gets it
+whole: `encode`, `decode`);
 `resolve(info)` adds what the capture says and the defaults and checks the
 result (baud known, a protocol we speak, models that speak it), giving
 `Resolved`: line settings, protocol, device map, timeouts, the units' known
@@ -368,55 +369,21 @@ class CaptureSpec:
                                     f"(give --protocol, or another model)")
         return resolved
 
-    def to_argv(self, command: str) -> list[str]:
-        """The `sniffer live|demo ...` arguments that run this capture (serve starts it as a process)."""
-        argv = [command]
-        if command == "live" and self.links and not self.bus_file:
-            for plan in self.links:
-                argv += ["--tap", *plan.ports] if plan.tap else list(plan.ports)
-        elif command == "live" and not self.links:
-            argv.append(self.port or "")
-        f = self.flags
-        for flag, value in (("--baud", f.baud), ("--parity", f.parity), ("--stopbits", f.stopbits),
-                            ("--protocol", f.protocol), ("--timeout-ms", f.timeout_ms), ("--bus", self.bus_file)):
-            if value is not None:
-                argv += [flag, str(value)]
-        for unit, model in sorted(f.devices.items()):
-            argv += ["--device", f"{unit}={model}"]
-        for path in self.model_files:
-            argv += ["--model-file", path]
-        if self.map_base is not None:
-            argv += ["--map-base", self.map_base]
-        if command == "demo":
-            argv += ["--scenario", self.scenario or "default", "--seed", str(self.seed)]
-            argv += [x for fault in self.faults for x in ("--fault", fault)]
-        argv += ["--out", self.out] if self.out else ["--no-out"]
-        argv += ["--duration", repr(self.duration_s)]
-        if self.publish:
-            argv += ["--publish", self.publish, "--publish-backlog", str(self.publish_backlog)]
-        if self.rotate is not None:
-            argv += ["--rotate", self.rotate.to_flag()]
-        if self.keep is not None:
-            argv += ["--keep", self.keep.to_flag()]
-        if self.status:
-            argv += ["--status", self.status]
-        if self.wait_port and command == "live":
-            argv.append("--wait-port")
-        if self.trigger is not None:
-            argv += self.trigger.to_argv()
-        if self.foxglove_device:
-            argv += ["--foxglove-device", self.foxglove_device]
-        if self.mqtt is not None:
-            argv += self.mqtt.to_argv()
-        if self.logic is not None:
-            argv += self.logic.to_argv()
-        if self.headless:
-            argv.append("--headless")
-        if self.stream is None:
-            argv.append("--quiet")
-        elif self.stream == "jsonl":
-            argv += ["--format", "jsonl"]
-        return argv
+    def encode(self) -> bytes:
+        """The whole spec as one JSON document: what a capture started as a process of its own gets (on its
+        stdin, so a password in it never shows in the process list); `decode` gives it back equal."""
+        import msgspec
+
+        return msgspec.json.encode(self)
+
+    @classmethod
+    def decode(cls, data: bytes) -> CaptureSpec:
+        import msgspec
+
+        try:
+            return msgspec.json.decode(data, type=cls)
+        except msgspec.DecodeError as e:  # not what `encode` wrote: another version's, or cut short
+            raise SettingsError(f"the capture's settings did not arrive whole: {e}") from None
 
 
 def _int(v, what: str) -> int:

@@ -12,14 +12,39 @@ from sniffer.analysis.check import (
     read_lines, FINDING,
 )
 from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.flags import command_parser, decode_flags, duration, input_flags, serial_flags
 from sniffer.diagnose import Diagnosis
 
 
-def cmd_check(spec: CaptureSpec, args) -> int:
-    from sniffer.capture.settings import finite
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "check", help="decode a capture and compare it with its golden text (exit 0 same, 1 diff)",
+        description="""\
+            Regression test for decoding: decode a capture and compare it, frame by frame, with its reviewed
+            golden text (one line a frame; with --findings, `sniffer diagnose`'s verdicts after them).  Exit 0
+            the same, 1 different (a unified diff on stdout), 2 an error.  --update-golden writes the golden:
+            review its diff before you commit it.""",
+        examples=["sniffer check captures/a510.mcap --golden captures/golden/a510.txt",
+                  "sniffer check cab3.mcap --golden cab3.txt --update-golden && git diff cab3.txt",
+                  "sniffer check cab3.mcap --golden cab3.txt --findings --update-golden",
+                  "sniffer check cab3.mcap --golden cab3.txt --time-tol-ms 5"])
+    input_flags(p)
+    p.add_argument("--golden", required=True, metavar="FILE.txt", help="the reviewed golden decode")
+    p.add_argument("--update-golden", action="store_true", help="rewrite the golden (review the diff!)")
+    p.add_argument("--findings", action="store_true",
+                   help="the golden holds the capture's findings (`sniffer diagnose`'s verdicts) after its frames: "
+                        "written with --update-golden, compared whenever the golden holds them")
+    tol = duration("--time-tol-ms", bare="ms", unit="ms", upper_s=1e6)
+    p.add_argument("--time-tol-ms", type=tol, default=1.0, metavar="TIME",
+                   help="frame time tolerance, in ms or with a unit (default 1 ms)")
+    p.add_argument("--latency-tol-ms", type=duration("--latency-tol-ms", bare="ms", unit="ms", upper_s=1e6),
+                   default=1.0, metavar="TIME", help="latency tolerance, in ms or with a unit (default 1 ms)")
+    serial_flags(p, "file")
+    decode_flags(p, "file")
 
-    tol = Tolerances(finite(args.time_tol_ms, "--time-tol-ms", upper=1e9),
-                     finite(args.latency_tol_ms, "--latency-tol-ms", upper=1e9))
+
+def run(spec: CaptureSpec, args) -> int:
+    tol = Tolerances(args.time_tol_ms, args.latency_tol_ms)
     rc, text = check(spec.input, args.golden, spec=spec, update=args.update_golden, tolerances=tol,
                      findings=args.findings)
     (sys.stdout if rc == 1 else sys.stderr).write(text)

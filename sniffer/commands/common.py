@@ -6,15 +6,30 @@ import sys
 
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.flags import UsageError  # noqa: F401 - the commands' usage error, re-exported
 from sniffer.formats import FileSink
 from sniffer.stderr import say  # noqa: F401 - the commands' one line on stderr
 from sniffer.capture.summary import default_capture_name, summary_line, written  # noqa: F401 - re-exported
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+POSIX_TTY = ("termios", "fcntl")  # what reading a serial port or a pseudo-terminal takes here
 
 
-class UsageError(Exception):
-    """A wrong flag or a combination that cannot work: one line, exit code 2."""
+def need_posix_tty(what: str) -> None:
+    """One line (exit 2) where `what` cannot run: no POSIX terminal interface (Windows, some containers).
+    The offline commands (replay, decode, export, report, check, diff, learn, query) need none."""
+    import importlib
+
+    missing = []
+    for name in POSIX_TTY:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            missing.append(name)
+    if missing:
+        raise UsageError(f"{what} needs a POSIX serial-port interface ({', '.join(missing)}: Linux, macOS, BSD), "
+                         f"which this Python does not have; the offline commands (replay, decode, export, report, "
+                         f"check, diff, learn, query) work here")
 
 
 def stream_sink(spec: CaptureSpec, line_buffered: bool):

@@ -1,4 +1,4 @@
-"""`sniffer export CAPTURE... --to dataset DIR` and `sniffer ingest FOLDER --to DIR`: captures into a fleet dataset.
+"""Captures into a fleet dataset: what `sniffer export CAPTURE... --to dataset DIR` and `sniffer ingest` share.
 
 Each capture is one segment: decoded by its own Session into its own files (sniffer.dataset.ingest),
 taken in whole or not at all; one line per capture on stderr, then a total.  A capture the
@@ -24,7 +24,7 @@ def export_dataset(spec: CaptureSpec, args, files: list[str], root: str) -> int:
     index.json) is its closed segments, each a capture of the dataset as `ingest` takes them; a segment still
     open (or one a killed capture left) is named in a note and left for a later run."""
     need("fleet", "sniffer export --to dataset")
-    return _take_in(spec, args, [f for path in files for f in _captures_of(path)], root)
+    return take_in_all(spec, args, [f for path in files for f in _captures_of(path)], root)
 
 
 def _captures_of(path: str) -> list[str]:
@@ -43,25 +43,8 @@ def _captures_of(path: str) -> list[str]:
     return [f for f in segments if f.endswith(".mcap")]
 
 
-def cmd_ingest(spec: CaptureSpec, args) -> int:
-    need("fleet", "sniffer ingest")
-    folder = args.folder
-    if not os.path.isdir(folder):
-        raise UsageError(f"{shown(folder)}: no such folder" if not os.path.exists(folder) else
-                         f"{shown(folder)}: not a folder (sniffer export FILE --to dataset DIR takes files)")
-    root = os.path.abspath(args.dataset)
-    files = []
-    for here, dirs, names in os.walk(folder):
-        dirs[:] = sorted(d for d in dirs if os.path.abspath(os.path.join(here, d)) != root)  # not the dataset
-        files += [os.path.join(here, n) for n in sorted(names) if n.endswith(".mcap")]
-    if not files:
-        create_dataset(args.dataset)
-        say(f"no MCAP files in {shown(folder)}")
-        return EXIT_OK
-    return _take_in(spec, args, files, args.dataset)
-
-
-def _take_in(spec: CaptureSpec, args, files: list[str], root: str) -> int:
+def take_in_all(spec: CaptureSpec, args, files: list[str], root: str) -> int:
+    """Each capture of `files` into the dataset at `root`, one line each, then the total; the exit code."""
     ds = create_dataset(root)
     for line in tidy(ds):  # what killed runs left
         say(f"note: {line}")

@@ -17,15 +17,58 @@ import sys
 
 from sniffer.detect.candidates import baud_order, parse_bauds, setting
 from sniffer.detect.evidence import Evidence
-from sniffer.detect.listen import SerialPort, listen
 from sniffer.detect.report import bus_file, headline, table, units, verdict_word
 from sniffer.detect.search import Search
 from sniffer.formats.outputs import Output
 from sniffer.capture.settings import CaptureSpec
-from sniffer.commands.common import EXIT_FAILED, EXIT_OK, UsageError, say
+from sniffer.commands.common import EXIT_FAILED, EXIT_OK, UsageError, need_posix_tty, say
+from sniffer.commands.flags import command_parser, duration, logic_flags
+
+_DESCRIPTION = """\
+    Listen to PORT (opened read-only: nothing is ever sent) at one setting after another and say which
+    baud rate, character format and protocol the line runs, with the evidence: frames with a good
+    CRC/LRC, request/response pairs, the UART's parity and framing errors (the tty marks them), and
+    whether the characters come as fast as the format allows."""
+_EPILOG = """\
+    Tries 1200 ... 921600 baud (the common rates, most common first; --bauds adds others), 8N1 8E1 8O1
+    8N2 (and 7E1 7O1 7N2 for ASCII lines), Modbus RTU, Modbus ASCII and the PD-series protocol, and
+    stops as soon as one candidate is certain.
+
+    Several ports are listened to at once; --write-bus writes one bus file with a [[links]] table for
+    each port that settled (named after the port).
+
+    exit status: 0 the line is settled (printed; written with --write-bus), 1 no traffic or no candidate
+    fits (nothing is guessed, no file written; several ports: one did not settle), 2 bad flags or a
+    port that cannot be opened."""
 
 
-def cmd_detect(spec: CaptureSpec, args) -> int:
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "detect",
+        help="find an unknown line's baud rate, parity, stop bits and protocol by listening (read-only)",
+        description=_DESCRIPTION, epilog=_EPILOG,
+        examples=["sniffer detect /dev/ttyUSB0 --write-bus line.toml",
+                  "sniffer live /dev/ttyUSB0 --bus line.toml          # then capture with what it found",
+                  "sniffer detect /dev/ttyUSB0 /dev/ttyUSB1 --write-bus plant.toml",
+                  "sniffer detect line.sr --write-bus line.toml        # a logic analyzer's capture"])
+    p.add_argument("ports", nargs="+", metavar="port",
+                   help="serial device, e.g. /dev/ttyUSB0 (several: listened to at once, --write-bus writes a "
+                        "[[links]] table each); or a logic capture: a sigrok .sr file, or a live analyzer "
+                        "sigrok:DRIVER (bit widths from the samples: tells 8E1 from 8E2)")
+    logic_flags(p, live=True)
+    p.add_argument("--bauds", action="append", metavar="RATES",
+                   help="more baud rates to try, first: 250000,31250 (repeatable)")
+    p.add_argument("--write-bus", metavar="FILE.toml", help="write the line's settings as a bus file for live --bus")
+    p.add_argument("--max-time", type=duration("--max-time", upper_s=86_400.0), default=60.0, metavar="TIME",
+                   help="give up after this much listening: 60 (seconds), 5min (default 60 s)")
+    p.add_argument("--quiet-time", type=duration("--quiet-time", upper_s=86_400.0), default=5.0, metavar="TIME",
+                   help="no byte in the first TIME: no traffic (default 5 s)")
+    p.add_argument("--units-time", type=duration("--units-time", upper_s=86_400.0), default=2.0, metavar="TIME",
+                   help="once certain, listen this much more for the units and their poll periods (default 2 s)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
+
+
+def run(spec: CaptureSpec, args) -> int:
     from sniffer.sources.logic_options import is_device
     from sniffer.sources.srzip import sniff
 
@@ -33,11 +76,15 @@ def cmd_detect(spec: CaptureSpec, args) -> int:
     if len(args.ports) > 1:
         if logic:
             raise UsageError(f"{logic[0]}: a logic capture is detected alone (several ports: serial ports only)")
+        need_posix_tty("detect (listening on a serial port)")
         return _detect_ports(spec, args)
     if logic:
         return _detect_logic(spec, args)
     if spec.logic is not None:
         raise UsageError(f"--rx is for a logic capture: a sigrok .sr file or sigrok:DRIVER, not {spec.port}")
+    need_posix_tty("detect (listening on a serial port)")
+    from sniffer.detect.listen import SerialPort, listen
+
     bauds = _bauds(args)
     out = Output(args.write_bus, inputs=spec.read_paths(), what="--write-bus") if args.write_bus else None
     port = spec.port
@@ -85,6 +132,7 @@ def _detect_ports(spec: CaptureSpec, args) -> int:
     """`detect P1 P2 ...`: every port listened to at once (sniffer/detect/ports.py), a report each, and with
     --write-bus one bus file of a [[links]] table per port that settled.  Exit 0 when every port settled."""
     from sniffer.capture.busfile import format_links
+    from sniffer.detect.listen import SerialPort, listen
     from sniffer.detect.ports import settle
 
     bauds = _bauds(args)
@@ -103,7 +151,7 @@ def _detect_ports(spec: CaptureSpec, args) -> int:
         say(f"listening on {len(opened)} ports at once (read-only, nothing is sent): up to {len(bauds)} baud rates "
             f"each, at most {args.max_time:g} s")
 
-    def listen_one(serial: SerialPort):
+    def listen_one(serial):
         on_window = None if args.quiet else (lambda ev: _progress(ev, f"{serial.path}: "))
         return listen(serial, Search(bauds, quiet_s=args.quiet_time), max_s=args.max_time,
                       follow_s=args.units_time, on_window=on_window)

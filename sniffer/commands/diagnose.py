@@ -14,10 +14,34 @@ import sys
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.commands.common import report
-from sniffer.commands.replay import note_unfinished, file_source
+from sniffer.commands.flags import command_parser, decode_flags, input_flags, progress_flag, serial_flags
+from sniffer.commands.replay import file_source, note_unfinished
 
 
-def cmd_diagnose(spec: CaptureSpec, args) -> int:
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "diagnose", help="what is wrong on the line, why, and what to do: findings from a capture, "
+                                     "most severe first (docs/diagnose.md)",
+        description="""\
+            Read a capture (a file, a rotated capture's folder, several files as one) and say what is wrong on
+            the line: each finding with its kind, severity, link and unit, the time span, the evidence in
+            numbers (the frames to look at by number), one sentence and what to do.  Text for people, JSON
+            {"findings": [...]} for scripts.""",
+        examples=["sniffer diagnose cabinet3.mcap",
+                  "sniffer diagnose /var/lib/sniffer/cab3 --bus plant.toml --format json",
+                  "sniffer diagnose today.mcap --params saved-params.csv"])
+    input_flags(p)
+    p.add_argument("--format", choices=["text", "json"], default="text",
+                   help='text for people, or JSON {"findings": [...]} for scripts (default: text)')
+    p.add_argument("--params", metavar="REFERENCE",
+                   help="a drive's saved parameter set (CSV: unit,register,value) or an earlier capture: "
+                        "parameters this capture reads otherwise are a finding")
+    progress_flag(p)
+    serial_flags(p, "file")
+    decode_flags(p, "file")
+
+
+def run(spec: CaptureSpec, args) -> int:
     from sniffer.diagnose import Diagnosis, summary, to_json, to_text
     from sniffer.diagnose.reference import load
 

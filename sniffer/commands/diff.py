@@ -8,9 +8,27 @@ import os
 
 from sniffer.analysis.diff import DiffReport, Summary, compare
 from sniffer.capture.settings import CaptureSpec
+from sniffer.commands.flags import command_parser, decode_flags, input_format_flag, serial_flags
 
 
-def cmd_diff(spec: CaptureSpec, args) -> int:
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "diff", help="what changed between two captures: units, polls, registers, errors, latency",
+        description="""\
+            What changed on a bus between two captures, said as a field engineer would: units that appeared or
+            went quiet, polls that changed, registers written to other values, error and latency figures.
+            Exit 0 nothing changed, 1 something did, 2 an error.""",
+        examples=["sniffer diff commissioning.mcap today.mcap",
+                  "sniffer diff before.mcap after.mcap --format json > changes.json"])
+    p.add_argument("a", metavar="BEFORE", help="the capture before (e.g. at commissioning)")
+    p.add_argument("b", metavar="AFTER", help="the capture after")
+    p.add_argument("--format", choices=["text", "json"], default="text", help="output format")
+    input_format_flag(p)
+    serial_flags(p, "file")
+    decode_flags(p, "file")
+
+
+def run(spec: CaptureSpec, args) -> int:
     import orjson
 
     report = diff(args.a, args.b, spec.with_(input=None))

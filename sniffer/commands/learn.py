@@ -13,17 +13,34 @@ from sniffer.formats.outputs import Output, shown
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.commands.common import EXIT_USAGE, UsageError, report, say
+from sniffer.commands.flags import command_parser, decode_flags, input_flags, serial_flags
 from sniffer.commands.replay import file_source
 
 
-def cmd_learn(spec: CaptureSpec, args) -> int:
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "learn", help="a skeleton register map (registers.toml) from a capture's traffic, to name",
+        description="""\
+            A register map for a device without one: every register the capture reads or writes, its block,
+            a guessed type (u16, s16, u32, float ...) and placeholder names, for you to fill in from the
+            manual (docs/register-map-format.md).  It decodes the same capture at once.""",
+        examples=["sniffer learn pump.mcap --out pump.toml",
+                  "sniffer replay pump.mcap --model-file pump.toml --device 3=pump"])
+    input_flags(p)
+    p.add_argument("--out", required=True, metavar="FILE.toml",
+                   help="the map to write; its stem is the model id (--model-file FILE.toml --device UNIT=STEM)")
+    serial_flags(p, "file")
+    decode_flags(p, "file")
+
+
+def run(spec: CaptureSpec, args) -> int:
     from decoders.tables import MapError, load_map
 
     from sniffer.analysis.learn import Learner
 
-    if not args.out.lower().endswith(".toml"):
-        raise UsageError(f"--out {shown(args.out)}: the skeleton is a register map, give a .toml file name")
-    out = Output(args.out, inputs=spec.read_paths())  # checked before the input is read
+    if not spec.out.lower().endswith(".toml"):
+        raise UsageError(f"--out {shown(spec.out)}: the skeleton is a register map, give a .toml file name")
+    out = Output(spec.out, inputs=spec.read_paths())  # checked before the input is read
     model_id = os.path.splitext(os.path.basename(out.path))[0]
     learner = Learner()
     session = Session(spec, file_source(spec), [])

@@ -15,9 +15,35 @@ from sniffer.dataset.layout import open_dataset
 from sniffer.dataset.query import PRESETS, VIEWS, connect, write
 from sniffer.capture.settings import CaptureSpec
 from sniffer.commands.common import EXIT_OK, UsageError
+from sniffer.commands.flags import command_parser, number
 
 
-def cmd_query(spec: CaptureSpec, args) -> int:
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "query", help="SQL over a fleet dataset with DuckDB: views frames, points, annotations, "
+                                  "captures (docs/fleet.md)",
+        description=f"""\
+            SQL over a fleet dataset (`sniffer export ... --to dataset DIR`, `sniffer ingest`) with DuckDB, or
+            a named query (--preset).  Views: {', '.join(VIEWS)}.""",
+        examples=["sniffer query /srv/fleet --preset units",
+                  "sniffer query /srv/fleet \"SELECT link, count(*) FROM frames GROUP BY link\"",
+                  "sniffer query /srv/fleet --preset faults --format csv > faults.csv"])
+    p.add_argument("dataset", metavar="DIR", help="the dataset folder")
+    p.add_argument("sql", nargs="?", help="a query, e.g. \"SELECT link, count(*) FROM frames GROUP BY link\"")
+    p.add_argument("--preset", choices=sorted(PRESETS), help="a named query instead: " + "; ".join(
+        f"{name}: {p.about}" for name, p in sorted(PRESETS.items())))
+    p.add_argument("--format", choices=["table", "csv", "json"], default="table",
+                   help="output: an aligned table, CSV, or JSON (an array of objects)")
+    p.add_argument("--max-rows", type=number(int, "--max-rows", 1, 10**9), default=100,
+                   help="rows a table shows (csv and json give every row)")
+    p.add_argument("--show-sql", action="store_true", help="print the preset's SQL instead of running it")
+    p.add_argument("--read-only", action="store_true",
+                   help="for SQL from elsewhere (a dashboard, a script): the SQL may read the dataset's views "
+                        "only, never open, write or attach a file, nor install an extension (without it, "
+                        "DuckDB runs with your rights)")
+
+
+def run(spec: CaptureSpec, args) -> int:
     if (args.sql is None) == (args.preset is None):
         raise UsageError("query needs SQL or --preset NAME (one of them): "
                          f"sniffer query DIR \"SELECT ... FROM frames\" (views: {', '.join(VIEWS)}), "

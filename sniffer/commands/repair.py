@@ -9,15 +9,29 @@ from sniffer.formats.outputs import Output, readable, shown
 from sniffer.capture.settings import CaptureSpec
 from sniffer.events import CaptureError
 from sniffer.commands.common import EXIT_OK, say
+from sniffer.commands.flags import command_parser
 
 
-def cmd_repair(spec: CaptureSpec, args) -> int:
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "repair", help="make a truncated (killed) or damaged capture readable by any MCAP reader",
+        description="""\
+            A clean copy of an MCAP capture that was cut short (power lost, process killed: FILE.part) or
+            damaged: every complete record kept, the summary and index written again.  `sniffer replay`
+            reads such a file without it; other MCAP readers (Foxglove) need the copy.""",
+        examples=["sniffer repair cabinet3.mcap.part              # writes cabinet3.mcap",
+                  "sniffer repair damaged.mcap -o fixed.mcap"])
+    p.add_argument("file", help="the capture (FILE.mcap, or FILE.mcap.part that a killed capture left)")
+    p.add_argument("-o", "--out", help="output file (default: FILE.repaired.mcap; NAME.mcap for NAME.mcap.part)")
+
+
+def run(spec: CaptureSpec, args) -> int:
     src, note = readable(args.file)
     if not os.path.exists(src):
         raise CaptureError(f"{shown(src)}: no such file")
     if note:
         say(f"note: {note}")
-    path = args.out or default_output(args.file)
+    path = spec.out or default_output(args.file)
     # a killed capture's NAME.part finished as NAME: its own name, not an input (the part file stays)
     own_name = os.path.abspath(path) + ".part" == os.path.abspath(src)
     out = Output(path, inputs=[] if own_name else [src], what="--out")

@@ -1,18 +1,46 @@
-"""`sniffer replay FILE` (a capture file, decoded again) and `sniffer decode HEX...` (frames typed in)."""
+"""`sniffer replay FILE...`: a capture file decoded again, with today's decoders and the flags given."""
 
 from __future__ import annotations
 
 import sys
 
-from sniffer.events import CaptureInfo, Chunk
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.sources.segset import replay_source as file_source  # noqa: F401 - the commands' name for it
 from sniffer.commands.common import UsageError, line_warning, report, say, stream_sink
+from sniffer.commands.flags import (
+    command_parser, decode_flags, foxglove_flags, input_flags, mqtt_flags, progress_flag, serial_flags, stream_flags,
+    trigger_flags, unattended_flags,
+)
 
 
-def cmd_replay(spec: CaptureSpec, args) -> int:
-    if (spec.rotate is None) != (args.out is None):
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap, sigrok .sr)",
+        description="""\
+            Decode a capture again, as `live` decoded it: frame lines on stdout, or the TUI (--tui).  An MCAP
+            says its own settings and drive models; flags override them (a byte CSV carries none: give
+            --baud).  With --trigger the windows are cut from the capture, as `live` would have cut them.""",
+        examples=["sniffer replay cabinet3.mcap",
+                  "sniffer replay cabinet3.mcap --tui",
+                  "sniffer replay capture.bytes.csv --baud 9600 --parity N --format jsonl",
+                  "sniffer replay /var/lib/sniffer/cab3 --quiet --trigger fault --pre 2m --windows faults/"])
+    input_flags(p)
+    progress_flag(p)
+    p.add_argument("--tui", action="store_true", help="browse the capture in the terminal UI")
+    serial_flags(p, "file")
+    decode_flags(p, "file")
+    stream_flags(p, quiet="only what --trigger, --rotate or --mqtt write")
+    p.add_argument("--out", metavar="FOLDER", help="with --rotate: write the capture again as segments in FOLDER")
+    unattended_flags(p)
+    trigger_flags(p)
+    foxglove_flags(p)
+    mqtt_flags(p)
+
+
+
+def run(spec: CaptureSpec, args) -> int:
+    if (spec.rotate is None) != (spec.out is None):
         raise UsageError("replay writes a capture again only as segments: give --rotate and --out FOLDER together "
                          "(one file: sniffer export --to mcap)")
     source = file_source(spec)
@@ -71,85 +99,3 @@ def note_unfinished(session: Session) -> None:
     for path in paths:
         say(f"note: {path} was not closed cleanly (capture killed, or still being written?); read up to its last "
             f"complete record. 'sniffer repair {path}' writes a clean copy.")
-
-
-class HexSource:
-    """Frames typed in, each one burst on the line with silence between.
-
-    The input has no time: the capture says time source "none", so nothing reports a
-    latency, a timeout or a short silence (the times only keep the frames apart: a gap longer
-    than any protocol's quiet time, PD's 50 ms included).
-    """
-
-    GAP_NS = 100_000_000
-
-    def __init__(self, frames: list[bytes], spec: CaptureSpec) -> None:
-        self.frames = frames
-        self.line = spec.resolve(None, need_baud=False).line
-
-    def open(self) -> CaptureInfo:
-        line = self.line
-        return CaptureInfo(source="decode", baud=line.baud, parity=line.parity, stopbits=line.stopbits,
-                           time_source="none")
-
-    def events(self):
-        line = self.line
-        t = 0
-        gap = max(10 * line.t35_ns, self.GAP_NS)
-        for data in self.frames:
-            times = tuple(t + i * line.char_ns for i in range(len(data)))
-            yield Chunk(t, data, times)
-            t = times[-1] + line.char_ns + gap
-
-
-_HEX_DIGITS = frozenset("0123456789abcdefABCDEF")
-
-
-def _hex_bytes(arg: str) -> bytes | None:
-    """The bytes an argument of hex digits (spaces allowed) writes, or None if it is not one."""
-    t = arg.replace(" ", "")
-    if not t or len(t) % 2 or not set(t) <= _HEX_DIGITS:
-        return None
-    return bytes.fromhex(t)
-
-
-def text_frame(arg: str) -> bytes:
-    """One argument of `decode` in a text (ASCII) protocol, as the characters on the wire.
-
-    * ':0103...' is the frame's characters (CR LF added if missing);
-    * hex digits without ':' are bytes: the wire characters in hex when they are printable
-      characters holding a ':' (3A3031...0D0A; several frames and junk as they were sent),
-      else the frame's binary content (unit, function, data, LRC), sent as ':' + its hex +
-      CR LF (so '010300000001FB' and ':010300000001FB' agree).
-    Anything else is a usage error (never decoded as garbage).
-    """
-    t = arg.strip()
-    if t.startswith(":"):
-        data = t.encode("ascii", "replace")
-        return data if data.endswith(b"\r\n") else data + b"\r\n"
-    b = _hex_bytes(t)
-    if b is None:
-        raise UsageError(f"not a frame: {arg[:60]!r} (give ':' and the frame's characters, or its bytes in hex)")
-    if b":" in b and all(0x20 <= c < 0x7F or c in b"\r\n" for c in b):
-        # the wire characters in hex: one frame or several, junk included, as they were sent
-        return b if b.endswith(b"\r\n") or b.count(b":") > 1 else b + b"\r\n"
-    return b":" + b.hex().upper().encode() + b"\r\n"
-
-
-def cmd_decode(spec: CaptureSpec, args) -> int:
-    text = spec.resolve(None, need_baud=False).protocol.text
-    frames = []
-    for h in args.hex:
-        if text:
-            data = text_frame(h)
-        else:
-            t = h.replace(" ", "").replace(":", "")
-            try:
-                data = bytes.fromhex(t)
-            except ValueError:
-                raise UsageError(f"not hex: {h[:60]!r}") from None
-        if data:
-            frames.append(data)
-    session = Session(spec, HexSource(frames, spec), [stream_sink(spec, line_buffered=False)], need_baud=False)
-    session.run()
-    return report(session)

@@ -17,7 +17,31 @@ from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.events import CaptureError
 from sniffer.commands.common import EXIT_OK, report, say
+from sniffer.commands.flags import command_parser, decode_flags, input_format_flag, progress_flag, serial_flags
 from sniffer.commands.replay import note_unfinished, file_source
+
+
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "report", help="a bus-health report of captures: one HTML file that opens offline",
+        description="""\
+            A bus-health report for the customer or the file: units and their poll rates, latency, errors and
+            faults over time, register values, in one HTML file with its scripts inside (it opens offline,
+            from a mail or a USB stick).  --compare adds what changed against a reference capture.""",
+        examples=["sniffer report cabinet3.mcap --out cabinet3.html",
+                  "sniffer report monday.mcap tuesday.mcap --compare commissioning.mcap --out week.html",
+                  "sniffer report /var/lib/sniffer/cab3 --out cab3.html --progress"])
+    p.add_argument("captures", nargs="+", metavar="CAPTURE",
+                   help="capture files (MCAP, byte CSV, Saleae CSV, pcap/pcapng) or rotated captures' folders, "
+                        "reported as one, in this order")
+    input_format_flag(p)
+    p.add_argument("--out", required=True, metavar="FILE.html", help="the report to write")
+    p.add_argument("--compare", metavar="GOLDEN",
+                   help="a reference capture: the page adds what changed against it (as `sniffer diff GOLDEN ...`)")
+    p.add_argument("--title", help="the page's title (default: Bus report: the captures' names)")
+    progress_flag(p, "a progress bar per capture on stderr")
+    serial_flags(p, "file")
+    decode_flags(p, "file")
 
 
 def _check_input(spec: CaptureSpec, path: str, what: str = "") -> None:
@@ -35,7 +59,7 @@ def _check_input(spec: CaptureSpec, path: str, what: str = "") -> None:
         source.close()
 
 
-def cmd_report(spec: CaptureSpec, args) -> int:
+def run(spec: CaptureSpec, args) -> int:
     from sniffer.report import Collector, render
 
     captures = list(args.captures)
@@ -44,7 +68,7 @@ def cmd_report(spec: CaptureSpec, args) -> int:
         _check_input(spec, path)
     if golden:
         _check_input(spec, golden, "--compare")
-    out = Output(args.out, inputs=[*captures, *([golden] if golden else []), *spec.read_paths()])
+    out = Output(spec.out, inputs=[*captures, *([golden] if golden else []), *spec.read_paths()])
     collector = Collector(compare=bool(golden))
     rc = EXIT_OK
     try:

@@ -23,10 +23,51 @@ from sniffer.line import LineSettings
 from sniffer.capture.session import Session, on_signals
 from sniffer.capture.settings import CaptureSpec
 from sniffer.formats import FileSink
-from sniffer.commands.common import UsageError, report, say
+from sniffer.commands.common import UsageError, need_posix_tty, report, say
+from sniffer.commands.flags import (
+    MAX_BAUD, capture_duration_flag, command_parser, fault_flag, foxglove_flags, number, scenario_flags, serial_flags,
+    unattended_flags,
+)
 
 
-def cmd_simulate(spec: CaptureSpec, args) -> int:
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "simulate", help="write a simulated capture (MCAP or byte CSV by extension), or serve a "
+                                     "simulated line on a pseudo-terminal (--pty)",
+        description="""\
+            Write what a sniffer on a simulated bus would have recorded (the scenario's PLC, drives, faults and
+            line errors), or serve that line on a pseudo-terminal for `sniffer detect` and `sniffer live`
+            without hardware.""",
+        examples=["sniffer simulate --out sample.mcap --scenario errors --duration 30 --seed 4",
+                  "sniffer simulate --out day.mcap --rotate 1h --duration 1d --scenario fast",
+                  "sniffer simulate --pty /tmp/line1 --scenario tds-v8 --baud 19200 --parity E"])
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--out", metavar="FILE", help="FILE.mcap or FILE.csv (a folder, with --rotate)")
+    g.add_argument("--pty", metavar="PATH",
+                   help="serve the line on a pseudo-terminal, linked at PATH, until stopped (Ctrl-C): what a "
+                        "UART at the settings a program sets there receives (`sniffer detect PATH`, `live PATH`)")
+    scenario_flags(p)
+    capture_duration_flag(p, "bus traffic to simulate: 30 (seconds), 10min, 1d (default: 10 s; with --pty: "
+                             "until stopped)")
+    p.add_argument("--adapter", choices=["wire", "usb"], default="usb",
+                   help="timestamps per byte (a logic analyzer: wire) or per USB read (usb)")
+    p.add_argument("--param", action="append", metavar="KEY=VALUE",
+                   help="change the scenario: a setting (poll_period_ms=50) or a unit's (unit2.rated_current_a=7.5)")
+    fault_flag(p, "put a cause of trouble on the line (repeatable), one `sniffer diagnose` names: e.g. "
+                  "driver_enable_late:3, bus_unbiased, second_master:1 (docs/diagnose.md lists them)")
+    serial_flags(p, "sim")
+    g = p.add_argument_group("receiver (--out): record what a sniffer set to other settings than the line's receives")
+    g.add_argument("--receiver-baud", type=number(int, "--receiver-baud", 50, MAX_BAUD), metavar="BAUD",
+                   help="the receiver's baud rate (default: the line's)")
+    g.add_argument("--receiver-parity", choices=["N", "E", "O"], type=str.upper,
+                   help="the receiver's parity (default: the line's)")
+    g.add_argument("--receiver-stopbits", type=int, choices=[1, 2], help="the receiver's stop bits (default: the "
+                   "line's)")
+    unattended_flags(p)
+    foxglove_flags(p)
+
+
+def run(spec: CaptureSpec, args) -> int:
     from sniffer.simulator import faults
     from sniffer.simulator.overrides import apply
     from sniffer.simulator.sources import SimulatedSource, scenario_named
@@ -36,8 +77,9 @@ def cmd_simulate(spec: CaptureSpec, args) -> int:
     f = spec.flags
     line = LineSettings(f.baud or base.baud, f.parity or base.parity, f.stopbits or base.stopbits, base.databits)
     if args.pty:
+        need_posix_tty("simulate --pty (a pseudo-terminal)")
         return _serve(scenario, line, spec.seed, spec.duration_s, args.pty)
-    out = args.out
+    out = spec.out
     if spec.rotate is not None:
         fmt = "segments"  # a simulated day as an unattended capture writes it (--rotate 1h --out FOLDER)
     elif out.endswith(".csv"):

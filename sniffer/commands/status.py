@@ -24,6 +24,7 @@ from sniffer.capture.settings import CaptureSpec
 from sniffer.events import CaptureError
 from sniffer.formats.reading import open_regular
 from sniffer.commands.common import EXIT_FAILED, EXIT_OK, UsageError, say
+from sniffer.commands.flags import command_parser
 
 _KNOWN = {"format", "state", "pid", "command", "source", "line", "started", "updated", "updated_ns", "every_s",
           "uptime_s", "capture_s", "frames", "bytes", "errors", "last_frame", "port", "segments", "ended", "units",
@@ -33,7 +34,21 @@ GENERIC_WIDTH = 300
 UNITS_SHOWN = 32  # unit lines (`--json` has them all)
 
 
-def cmd_status(spec: CaptureSpec, args) -> int:
+def add_parser(subparsers) -> None:
+    p = command_parser(
+        subparsers, "status", help="how an unattended capture is doing: uptime, frames, errors, segments, "
+                                   "disk use (its status file)",
+        description="""\
+            How an unattended capture (--rotate, --status) is doing, from the status file it keeps: running or
+            not, uptime, frames and errors, segments and disk use, triggers.  Exit 0 running, 1 ended or
+            stale (the process is gone), 2 no status file there.""",
+        examples=["sniffer status /var/lib/sniffer/cab3",
+                  "sniffer status cab3/status.json --json"])
+    p.add_argument("path", nargs="?", default=".", help="the capture's folder or its status file (default: .)")
+    p.add_argument("--json", action="store_true", help="print the status file as it is")
+
+
+def run(spec: CaptureSpec, args) -> int:
     path = args.path
     if os.path.isdir(path):
         path = os.path.join(path, STATUS_NAME)

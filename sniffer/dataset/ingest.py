@@ -23,14 +23,14 @@ first frame) is added.
 
 from __future__ import annotations
 
-import fcntl
+import errno
 import os
 import shutil
 import time
 from dataclasses import dataclass, field
 
 from sniffer.line import SettingsError
-from sniffer.formats.outputs import make_folders, shown
+from sniffer.formats.outputs import lock_file, make_folders, shown
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.dataset.sink import DatasetSink
@@ -164,7 +164,9 @@ def _changed(path: str, before: tuple[int, int]) -> str | None:
 def _hold(staging: str) -> int:
     """The staging folder's lock, held (flock) until the run ends: `tidy` leaves a folder whose lock is held."""
     fd = os.open(os.path.join(staging, LOCK), os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o600)
-    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    if not lock_file(fd):  # a fresh folder of this run's own: nobody else knows it yet
+        os.close(fd)
+        raise OSError(errno.EAGAIN, "staging folder locked by another run", staging)
     return fd
 
 
@@ -183,9 +185,8 @@ def _abandoned(folder: str) -> bool:
     except OSError:
         return False
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        return True
-    except OSError:  # held: a run is writing it
+        return lock_file(fd)  # False: held, a run is writing it
+    except OSError:
         return False
     finally:
         os.close(fd)

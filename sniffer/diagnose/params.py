@@ -207,11 +207,11 @@ def _bind(p: _UnitParams, link: Link, unit: int) -> None:
         regmap = dec.map
     except AttributeError:
         return
-    save = regmap.model.get("eeprom_save")
-    if not save:
+    save = regmap.model.eeprom_save
+    if save is None:
         return
-    p.save = save["addr"]
-    groups = set(save.get("saves_in_drv", [])) | set(save.get("saves_in_prg", []))
+    p.save = save.addr
+    groups = set(save.saves_in_drv) | set(save.saves_in_prg)
     p.groups = tuple(sorted(groups))
     p.ids = {r.addr: r.id for r in regmap.registers.values() if r.id}
 

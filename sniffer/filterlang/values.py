@@ -53,19 +53,24 @@ def parse_number(s: str) -> tuple[float | int, str] | None:
 
 
 _TIME_UNITS = {"ns": 1, "us": 1_000, "µs": 1_000, "ms": 1_000_000, "s": 1_000_000_000, "sec": 1_000_000_000,
-               "m": 60_000_000_000, "min": 60_000_000_000, "h": 3_600_000_000_000}
+               "m": 60_000_000_000, "min": 60_000_000_000, "h": 3_600_000_000_000, "d": 86_400_000_000_000,
+               "w": 604_800_000_000_000}
+TIME_UNITS_TEXT = "ns, us, ms, s, min, h, d"
 
 
-def parse_duration(s: str, default: str) -> float:
-    """Nanoseconds of 20ms, 1.5s, 300us, 2min, 1h; a bare number is in `default` units ("s" or "ms").
-    Decimal only: 2h is two hours, not the manuals' hex 2H."""
+def parse_duration(s: str, default: str | None) -> float:
+    """Nanoseconds of 20ms, 1.5s, 300us, 2min, 1h, 7d: the one grammar of a time, in a filter and in every
+    flag that takes one (`--duration`, `--pre`, `--rotate` ...).  A bare number is in `default` units
+    ("s" or "ms"; None: a unit is required).  Decimal only: 2h is two hours, not the manuals' hex 2H."""
     m = _NUM.match(s)
     got = None if m is None or not math.isfinite(float(m.group(1))) else (float(m.group(1)), m.group(2))
     if got is None or (got[1] and got[1].lower() not in _TIME_UNITS):
         if got is None:
             raise BadValue(f"not a time: {s!r} (e.g. 20ms, 1.5s, 300us)")
-        raise BadValue(f"unknown time unit {got[1]!r} (ns, us, ms, s, min, h)", len(s) - len(got[1]))
+        raise BadValue(f"unknown time unit {got[1]!r} ({TIME_UNITS_TEXT})", len(s) - len(got[1]))
     v, unit = got
+    if not unit and default is None:
+        raise BadValue(f"a time needs its unit: {s!r} ({TIME_UNITS_TEXT}, e.g. {s.strip()}s)")
     return v * _TIME_UNITS[unit.lower() or default]
 
 

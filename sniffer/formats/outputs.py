@@ -244,3 +244,31 @@ def write_json_atomic(path: str, obj, mode: int = FILE_MODE) -> None:
         except OSError:
             pass
         raise
+
+
+def lock_file(fd: int) -> bool:
+    """Take fd's exclusive lock without waiting: True taken (held until fd closes), False another process holds
+    it.  flock where the system has it; Windows locks the file's first byte (msvcrt); a system with neither has
+    no locks between processes, and every lock is taken (one sniffer at a time is then the user's to keep)."""
+    try:
+        import fcntl
+    except ImportError:
+        fcntl = None
+    if fcntl is not None:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as e:
+            if e.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                return False
+            raise
+        return True
+    try:
+        import msvcrt
+    except ImportError:
+        return True
+    try:
+        os.lseek(fd, 0, os.SEEK_SET)
+        msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)
+    except OSError:
+        return False
+    return True

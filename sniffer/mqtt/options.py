@@ -28,7 +28,7 @@ _PREFIX_OK = re.compile(r"[^#+\x00]+\Z")
 
 @dataclass(frozen=True)
 class MqttSpec:
-    url: str  # as given (to_argv passes it on)
+    url: str  # as given
     host: str
     port: int
     prefix: str  # topic prefix: no leading/trailing '/', no wildcards
@@ -107,22 +107,6 @@ class MqttSpec:
             what = f"--mqtt-cert {self.cert}" + (f" / --mqtt-key {self.key}" if self.key else "")
             raise SettingsError(f"{what}: not a certificate and its private key (PEM): {_reason(e)}") from None
         return ctx
-
-    def to_argv(self) -> list[str]:
-        """The flags that give this spec again (a capture started as a process of its own)."""
-        argv = ["--mqtt", self.url]
-        if self.interval_s:
-            argv += ["--mqtt-interval", f"{self.interval_s!r}s"]
-        if self.changes:
-            argv.append("--mqtt-changes")
-        if self.ha_prefix:
-            argv += ["--mqtt-ha", "--mqtt-ha-prefix", self.ha_prefix]
-        if self.queue != DEFAULT_QUEUE:
-            argv += ["--mqtt-queue", str(self.queue)]
-        for flag, path in (("--mqtt-ca", self.ca), ("--mqtt-cert", self.cert), ("--mqtt-key", self.key)):
-            if path:
-                argv += [flag, os.path.abspath(path)]
-        return argv
 
 
 def parse_url(url: str) -> MqttSpec:

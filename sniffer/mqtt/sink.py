@@ -61,7 +61,7 @@ class MqttSink(Sink):
 
     def _model_name(self, model: str) -> str | None:
         regmap = self._map(model)
-        return (getattr(regmap, "model", None) or {}).get("name") if regmap is not None else None
+        return getattr(getattr(regmap, "model", None), "name", None)  # a register map's ModelInfo
 
     def _shared_names(self, model: str | None) -> frozenset:
         got = self._shared.get(model)

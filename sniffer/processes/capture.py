@@ -4,8 +4,10 @@ Why a process: a viewer in the capture's interpreter takes the interpreter from
 the reader thread, so reads come late and frames glue (a late read holds a
 request and its answer together: the answer loses its latency).  So `sniffer live`
 / `sniffer demo` with the TUI, and `sniffer serve`, start the capture as
-`python -m sniffer live|demo ... --publish SOCKET --headless --quiet` and view
-it over the socket like `sniffer attach`.  The child:
+`python -m sniffer live|demo` publishing on SOCKET, headless and quiet, and view
+it over the socket like `sniffer attach`.  The child's whole CaptureSpec comes
+on its stdin (`sniffer live|demo --spec-from-stdin`, CaptureSpec.encode): the
+flags are parsed once, in the command the user typed.  The child:
 
 * runs in a session of its own (a Ctrl-C typed at the terminal reaches the
   viewer, which decides), and gets SIGINT from the kernel if its parent dies
@@ -32,10 +34,14 @@ WAIT_FOR_CAPTURE_S = 30.0
 STOP_WAIT_S = 15.0
 
 
-def capture_argv(spec, command: str, sock: str) -> list[str]:
-    """The command line of the capture process: the spec's own flags (CaptureSpec.to_argv), publishing on sock."""
-    spec = spec.with_(publish=sock, headless=True, stream=None)
-    return [sys.executable, "-m", "sniffer", *spec.to_argv(command)]
+def capture_argv(command: str) -> list[str]:
+    """The command line of the capture process; its CaptureSpec follows on stdin (capture_input)."""
+    return [sys.executable, "-m", "sniffer", command, "--spec-from-stdin"]
+
+
+def capture_input(spec, sock: str) -> bytes:
+    """What the capture process reads on stdin: `spec`, publishing on `sock`, with no stream and no TUI."""
+    return spec.with_(publish=sock, headless=True, stream=None).encode()
 
 
 def publishing(sock: str) -> bool:
@@ -96,19 +102,25 @@ class StderrRelay:
 
 
 class CaptureProcess:
-    """`argv` started as the capture: wait_publishing(), then view `sock`; stop() as Ctrl-C would."""
+    """`sniffer COMMAND` started as the capture of `spec`, publishing on `sock`: wait_publishing(), then view
+    `sock`; stop() as Ctrl-C would."""
 
-    def __init__(self, argv: list[str], sock: str, *, relay_stderr: bool = False) -> None:
+    def __init__(self, spec, command: str, sock: str, *, relay_stderr: bool = False) -> None:
         from sniffer.processes.parent_death import die_with_parent
 
         self.sock = sock
-        self.argv = argv
+        self.argv = capture_argv(command)
         # its own session: the terminal's Ctrl-C is the viewer's to handle; SIGINT if we die (closes its MCAP)
-        self.child = subprocess.Popen(argv, stdin=subprocess.DEVNULL,
+        self.child = subprocess.Popen(self.argv, stdin=subprocess.PIPE,
                                       stdout=subprocess.DEVNULL if relay_stderr else None,
                                       stderr=subprocess.PIPE if relay_stderr else None,
                                       start_new_session=relay_stderr,
                                       preexec_fn=lambda: die_with_parent(signal.SIGINT))
+        try:  # the spec, then end of file: the child reads it whole before it starts (never the terminal)
+            self.child.stdin.write(capture_input(spec, sock))
+            self.child.stdin.close()
+        except BrokenPipeError:  # it died at once: wait_publishing() says so, and it said why on stderr
+            pass
         self.stderr = StderrRelay(self.child.stderr) if relay_stderr else None
 
     @property

@@ -3,7 +3,7 @@
 textual-serve starts one app process per browser connection, so the capture
 cannot live in the UI: `serve` starts it as a process of its own (processes/capture.py)
 (`sniffer live PORT ... --publish SOCKET` or `sniffer demo ... --publish
-SOCKET`), waits until it publishes, then serves `sniffer attach SOCKET --tui`
+SOCKET`, its CaptureSpec on stdin), waits until it publishes, then serves `sniffer attach SOCKET --tui`
 to browsers.  Terminal users attach to the same socket.  Ctrl-C stops the
 web server, then the capture (which closes its MCAP file).
 """
@@ -19,7 +19,7 @@ import sys
 import tempfile
 import threading
 
-from sniffer.processes.capture import CaptureProcess, capture_argv
+from sniffer.processes.capture import CaptureProcess
 
 
 class ServeUsageError(Exception):
@@ -114,7 +114,7 @@ def run_serve(spec, args) -> int:
         print(f"sniffer: note: serving on {args.host}: anyone who reaches port {args.http_port} there sees the "
               f"bus traffic (the viewers cannot write to the port)", file=sys.stderr)
     signal.signal(signal.SIGTERM, _interrupt)  # as Ctrl-C until the web server takes the signals over
-    capture = CaptureProcess(capture_argv(spec, "demo" if args.demo else "live", sock), sock)
+    capture = CaptureProcess(spec, "demo" if args.demo else "live", sock)
     child = capture.child
     stopping = threading.Event()
     try:

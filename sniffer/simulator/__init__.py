@@ -20,12 +20,12 @@ truth.
 
 from __future__ import annotations
 
+from sniffer import face
 from sniffer.simulator.bus import (
     FAULT_BROADCAST_ANSWER, FAULT_CRC, FAULT_EXCEPTION, FAULT_NOISE, FAULT_TIMEOUT, KIND_BROADCAST, KIND_CORRUPTED,
     KIND_EXCEPTION, KIND_NOISE, KIND_REQUEST, KIND_RESPONSE, KINDS, WireFrame, simulate,
 )
 from sniffer.simulator.chunks import usb_chunks, wire_chunks
-from sniffer.simulator.ptybus import PlayStats, PtyBus
 from sniffer.simulator.profiles import PROFILES, ModelProfile, get_model
 from sniffer.simulator.scenario import SCENARIOS, DriveMap, PollSpec, Scenario, UnitSpec, get_scenario
 
@@ -36,3 +36,5 @@ __all__ = [
     "PtyBus", "Scenario", "UnitSpec", "WireFrame", "get_model", "get_scenario", "simulate", "usb_chunks",
     "wire_chunks",
 ]
+# the pseudo-terminal bus needs termios: imported when used, so the rest simulates where there is none
+__getattr__ = face(__name__, {"PlayStats": "sniffer.simulator.ptybus", "PtyBus": "sniffer.simulator.ptybus"})

@@ -105,7 +105,7 @@ class ModelDrive(Drive):
         word = sum(1 << bit for name, bit in self.p.status_bits.items() if flags.get(name))
         mr = self.model.mode_register
         if mr and self.mode == "DRV":
-            word |= 1 << mr["bit"]
+            word |= 1 << mr.bit
         return word
 
     def _measure(self, addr: int, what: str) -> int:
@@ -188,7 +188,7 @@ class ModelDrive(Drive):
                 v = self._command(v)
             elif a == self.p.frequency:
                 self.setpoint_hz = m.decode(a, v, self.words)
-            elif save and a == save["addr"]:
+            elif save and a == save.addr:
                 if self.rng.random() < self.p.eeprom_fail_prob:
                     return self.code("eeprom")
                 self.busy_until_ns = (self.t_ns or 0) + int(self.p.busy_ms * 1e6)
@@ -207,11 +207,11 @@ class ModelDrive(Drive):
         self.reverse = bool(v >> bits["reverse"] & 1)
         mc = self.model.mode_command
         if mc:
-            if v >> mc["to_prg_bit"] & 1:
+            if v >> mc.to_prg_bit & 1:
                 self.mode = "PRG"
-            elif v >> mc["to_drv_bit"] & 1:
+            elif v >> mc.to_drv_bit & 1:
                 self.mode = "DRV"
-            v &= ~(1 << mc["to_prg_bit"] | 1 << mc["to_drv_bit"])
+            v &= ~(1 << mc.to_prg_bit | 1 << mc.to_drv_bit)
         return v
 
     # -------------------------------------------------------------- Modbus

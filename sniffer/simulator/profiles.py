@@ -157,13 +157,14 @@ class Model:
             if addr not in regs:
                 raise ValueError(f"{p.model}: register {addr:04X}H is not in the map")
         self.params = {self.map.by_id[k].addr: v for k, v in p.params.items()}
-        self.functions = frozenset(self.map.model.get("function_codes", (0x03, 0x06, 0x10)))
-        self.max_regs: int | None = self.map.model.get("max_registers_per_request")
-        self.max_frame: int | None = self.map.model.get("max_frame_bytes")
-        self.prg_only = [tuple(r) for r in self.map.model.get("prg_only_ranges", [])]
-        self.mode_register = self.map.model.get("mode_register")  # {"addr", "bit"}
-        self.mode_command = self.map.model.get("mode_command")  # {"addr", "to_drv_bit", "to_prg_bit"}
-        self.eeprom_save = self.map.model.get("eeprom_save")  # {"addr", "value"}
+        info = self.map.model
+        self.functions = frozenset(info.function_codes if info.function_codes is not None else (0x03, 0x06, 0x10))
+        self.max_regs: int | None = info.max_registers_per_request
+        self.max_frame: int | None = info.max_frame_bytes
+        self.prg_only = list(info.prg_only_ranges)
+        self.mode_register = info.mode_register
+        self.mode_command = info.mode_command
+        self.eeprom_save = info.eeprom_save
         self.trips = self._resolve_trips()
 
     # ------------------------------------------------------------ values

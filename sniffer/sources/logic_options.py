@@ -105,18 +105,6 @@ class LogicSpec:
         """The wire name of the bytes sent while DE was high: the slave's line (TX, else the bus) plus the DE."""
         return f"{self.tx or self.rx}+{self.de}"
 
-    def to_argv(self) -> list[str]:
-        """The flags that give this spec again (serve and the TUI start the capture as a process)."""
-        argv = ["--rx", self.rx]
-        for flag, value in (("--tx", self.tx), ("--de", self.de)):
-            if value is not None:
-                argv += [flag, value]
-        if self.invert:
-            argv.append("--invert")
-        if self.samplerate is not None:
-            argv += ["--samplerate", str(self.samplerate)]
-        return argv
-
     def to_dict(self) -> dict:
         return {"rx": self.rx, "tx": self.tx, "de": self.de, "invert": self.invert}
 

@@ -19,11 +19,15 @@ _SIZE_UNIT = {"": 1, "b": 1, "kb": 10**3, "kib": 2**10, "mb": 10**6, "mib": 2**2
 
 
 def seconds(text, flag: str) -> float:
-    """Seconds of `5m`, `90s`, `1.5h`, `300ms` or a bare number of seconds; SettingsError otherwise."""
-    try:
-        v = parse_duration(str(text), "s") / 1e9
-    except BadValue as e:
-        raise SettingsError(f"{flag} {str(text)[:40]!r}: {e}") from None
+    """Seconds of `5m`, `90s`, `1.5h`, `300ms` or a bare number of seconds (the command line gives a number
+    already: commands/flags.py duration); SettingsError otherwise."""
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        v = float(text)
+    else:
+        try:
+            v = parse_duration(str(text), "s") / 1e9
+        except BadValue as e:
+            raise SettingsError(f"{flag} {str(text)[:40]!r}: {e}") from None
     if not 0 <= v <= MAX_SPAN_S:
         raise SettingsError(f"{flag} {str(text)[:40]!r}: from 0 to 24h")
     return v
@@ -70,37 +74,25 @@ class TriggerSpec:
         if not rules:
             for flag, name in (("--ring", "ring"), ("--on-trigger", "on_trigger"), ("--pre", "pre"), ("--post", "post"),
                                ("--windows", "windows")):
-                if opt(name):
+                if opt(name) is not None and opt(name) is not False and opt(name) != "":
                     raise SettingsError(f"{flag} needs --trigger (a rule that says when to keep a window)")
             return None
         for r in rules:
             check_rule(r)
-        post = seconds(opt("post") or DEFAULT_POST_S, "--post")
+        def given(name, default):
+            v = opt(name)
+            return default if v is None or v == "" else v
+
+        post = seconds(given("post", DEFAULT_POST_S), "--post")
         max_window = None if opt("max_window") is None else seconds(opt("max_window"), "--max-window")
         if max_window is not None and max_window < post:
-            raise SettingsError(f"--max-window {opt('max_window')} is shorter than --post")
+            raise SettingsError(f"--max-window {max_window:g}s is shorter than --post ({post:g}s)")
         ring_bytes = size_bytes(opt("ring_max") or DEFAULT_RING_BYTES, "--ring-max")
         if ring_bytes < 1 << 20:
             raise SettingsError(f"--ring-max {opt('ring_max')}: at least 1MiB")
-        return cls(rules, seconds(opt("pre") or DEFAULT_PRE_S, "--pre"), post, bool(opt("ring")), ring_bytes,
+        return cls(rules, seconds(given("pre", DEFAULT_PRE_S), "--pre"), post, bool(opt("ring")), ring_bytes,
                    max_window, opt("windows"), opt("on_trigger"),
-                   seconds(opt("on_trigger_timeout") or DEFAULT_COMMAND_TIMEOUT_S, "--on-trigger-timeout"))
-
-    def to_argv(self) -> list[str]:
-        """The flags that give this spec again (a capture started as a process of its own)."""
-        argv = []
-        for r in self.rules:
-            argv += ["--trigger", r]
-        argv += ["--pre", f"{self.pre_s!r}s", "--post", f"{self.post_s!r}s", "--ring-max", str(self.ring_bytes)]
-        if self.ring:
-            argv.append("--ring")
-        if self.max_window_s is not None:
-            argv += ["--max-window", f"{self.max_window_s!r}s"]
-        if self.windows:
-            argv += ["--windows", self.windows]
-        if self.on_trigger:
-            argv += ["--on-trigger", self.on_trigger, "--on-trigger-timeout", f"{self.on_trigger_timeout_s!r}s"]
-        return argv
+                   seconds(given("on_trigger_timeout", DEFAULT_COMMAND_TIMEOUT_S), "--on-trigger-timeout"))
 
 
 __all__ = ["TriggerSpec", "check_rule", "seconds", "size_bytes"]

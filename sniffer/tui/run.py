@@ -144,11 +144,11 @@ class CaptureViewer:
     in one line, and `rc()` is its exit status."""
 
     def __init__(self, spec, command: str, label: str) -> None:
-        from sniffer.processes.capture import CaptureProcess, capture_argv, private_socket
+        from sniffer.processes.capture import CaptureProcess, private_socket
 
         self.label = label
         self.sock, self._cleanup = (spec.publish, lambda: None) if spec.publish else private_socket()
-        self.capture = CaptureProcess(capture_argv(spec, command, self.sock), self.sock, relay_stderr=True)
+        self.capture = CaptureProcess(spec, command, self.sock, relay_stderr=True)
         self.app: SnifferApp | None = None
         self.attachment = None
 

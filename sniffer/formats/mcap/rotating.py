@@ -21,7 +21,6 @@ capture did.
 
 from __future__ import annotations
 
-import errno
 import os
 import shutil
 import uuid
@@ -30,7 +29,7 @@ from decoders.carry import record
 
 from sniffer.events import CaptureInfo, Gap
 from sniffer.frame import Frame
-from sniffer.formats.outputs import Output, OutputError, make_folders, shown
+from sniffer.formats.outputs import Output, OutputError, lock_file, make_folders, shown
 from sniffer.formats.mcap.segments import (
     INDEX_NAME, LOCK_NAME, STATUS_NAME, Keep, Rotate, Segment, folder_for, limits, read_index, segment_name,
     write_index,
@@ -44,20 +43,19 @@ FORCE_AFTER_NS = (1_000_000_000, 5_000_000_000)  # overdue this long: a request 
 
 
 def _take_lock(folder: str) -> int:
-    import fcntl
-
     path = os.path.join(folder, LOCK_NAME)
     fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError as e:
+        taken = lock_file(fd)
+    except OSError:
+        os.close(fd)
+        raise
+    if not taken:
         try:
             other = os.pread(fd, 32, 0).decode(errors="replace").strip()
         finally:
             os.close(fd)
-        if e.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-            raise OutputError(f"{shown(folder)}: another capture writes there (pid {other or '?'})") from None
-        raise
+        raise OutputError(f"{shown(folder)}: another capture writes there (pid {other or '?'})")
     os.ftruncate(fd, 0)
     os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
     return fd

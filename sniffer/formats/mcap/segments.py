@@ -32,7 +32,6 @@ import os
 import re
 import time
 from dataclasses import asdict, dataclass, field
-from decimal import Decimal
 
 from sniffer.line import SettingsError
 from sniffer.formats.outputs import write_json_atomic
@@ -48,9 +47,6 @@ _SIZE = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*([kmgt]i?b|b)\Z", re.I)
 _SIZE_UNITS = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12,
                "kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}
 _NS = 1_000_000_000
-_SPAN = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*(ns|ms|s|sec|m|min|h|d|w)\Z", re.I)
-_SPAN_UNITS = {"ns": 1, "ms": 10**6, "s": _NS, "sec": _NS, "m": 60 * _NS, "min": 60 * _NS, "h": 3600 * _NS,
-               "d": 86_400 * _NS, "w": 7 * 86_400 * _NS}
 
 
 # ---------------------------------------------------------------- the flags
@@ -61,9 +57,15 @@ def parse_size(text: str) -> int | None:
 
 
 def parse_span(text: str) -> int | None:
-    """Nanoseconds of `90s`, `30m`, `1.5h`, `7d`, `2w` (also ms, min); None if not a time span (a unit is required)."""
-    m = _SPAN.fullmatch(text.strip())
-    return None if m is None else int(Decimal(m.group(1)) * _SPAN_UNITS[m.group(2).lower()])
+    """Nanoseconds of `90s`, `30m`, `1.5h`, `7d`, `2w` (the flags' one time grammar: ns ... d, w); None if not a
+    time span (a unit is required: a bare number is a size or a count here) or a negative one."""
+    from sniffer.filterlang.values import BadValue, parse_duration
+
+    try:
+        ns = parse_duration(text.strip(), None)
+    except BadValue:
+        return None
+    return int(round(ns)) if ns >= 0 else None
 
 
 def _pieces(values) -> list[str]:
@@ -96,10 +98,6 @@ class Rotate:
                 raise SettingsError(f"--rotate {p[:40]!r}: a size (100MB, 2GB) or a time (30m, 1h, 1d)")
         return cls(span, size) if span or size else None
 
-    def to_flag(self) -> str:
-        return ",".join(([f"{self.span_ns}ns"] if self.span_ns else []) + ([f"{self.max_bytes}B"]
-                                                                           if self.max_bytes else []))
-
     def describe(self) -> str:
         parts = ([span_text(self.span_ns)] if self.span_ns else []) + ([size_text(self.max_bytes)]
                                                                          if self.max_bytes else [])
@@ -130,11 +128,6 @@ class Keep:
             else:
                 raise SettingsError(f"--keep {p[:40]!r}: an age (7d, 12h), a size (20GB) or a number of segments")
         return cls(age, size, count) if age or size or count else None
-
-    def to_flag(self) -> str:
-        return ",".join(([f"{self.age_ns}ns"] if self.age_ns else []) + ([f"{self.max_bytes}B"] if self.max_bytes
-                                                                         else [])
-                        + ([str(self.count)] if self.count else []))
 
     def describe(self) -> str:
         parts = [f"{span_text(self.age_ns)}"] if self.age_ns else []
