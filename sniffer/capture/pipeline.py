@@ -153,6 +153,21 @@ class Pipeline:
             return 0
         return 1 if self.pairer.pending is not None or self.pairer.held else 2
 
+    def numbered(self) -> int:
+        """How many frames have been numbered so far (the next frame's number)."""
+        return self.framer.index
+
+    def cut_state(self, offset: int | None = None) -> tuple:
+        """What crosses a cut between two events (sniffer.parallel: a capture decoded in parts), frame numbers
+        counted from `offset` (default: the next one): two pipelines with equal cut states (and decoders that
+        know the same) give the same frames from there on.  The decoders' part is theirs (DecoderRegistry)."""
+        offset = self.numbered() if offset is None else offset
+        gap = self._gap_pending
+        de = self.driver_enable
+        return (self.framer.cut_state(), self.pairer.cut_state(offset),
+                None if gap is None else (gap.t_ns, gap.t_end_ns, gap.reason, gap.link, repr(gap.state)),
+                None if de is None else repr(sorted(vars(de).items())), self.link, self.directions)
+
     def flush(self) -> list[Frame]:
         """End of input: every pending byte becomes a frame, every held request is settled."""
         out = self.paired(self.framed_flush())

@@ -8,18 +8,21 @@ spreadsheets read it as it is.
 
 from __future__ import annotations
 
+import os
+
 from sniffer.formats.tables import TableSink
 
 
 class CsvSink(TableSink):
-    def __init__(self, frames_path: str, points_path: str) -> None:
+    def __init__(self, frames_path, points_path) -> None:
+        """Paths, or binary files (closed with the sink)."""
         import pyarrow.csv as pc
 
         super().__init__()
         options = pc.WriteOptions(quoting_style="needed")
-        self._files = [open(frames_path, "wb")]
+        self._files = [_open(frames_path)]
         try:
-            self._files.append(open(points_path, "wb"))
+            self._files.append(_open(points_path))
             self._writers = [pc.CSVWriter(fh, schema, write_options=options)
                              for fh, schema in zip(self._files, self.schemas)]
         except BaseException:
@@ -42,6 +45,10 @@ class CsvSink(TableSink):
         finally:
             for fh in self._files:
                 fh.close()
+
+
+def _open(out):
+    return open(out, "wb") if isinstance(out, (str, os.PathLike)) else out
 
 
 def open_sink(fmt: str, path: str, parts: list[str]) -> CsvSink:

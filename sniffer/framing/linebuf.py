@@ -144,6 +144,25 @@ class LineBuffer:
     def pending_bytes(self) -> int:
         return self.base + len(self.buf) - self.pos
 
+    def cut_state(self) -> tuple:
+        """What this framer carries past a cut where no byte is pending (sniffer.parallel): every field, byte
+        positions counted from `pos`, the frame counter left out (each part numbers its own).  Two framers
+        with equal cut states frame what follows alike; a field a framing adds is compared as it is."""
+        pos = self.pos
+        out = []
+        for k, v in sorted(vars(self).items()):
+            if k in ("index", "base", "pos", "buf"):
+                continue
+            if k == "segs":
+                v = tuple((start - pos, c) for start, c in v)
+            elif k in ("bounds", "flags"):
+                v = tuple((at - pos, what) for at, what in v)
+            elif k == "_need":
+                v = max(0, v - pos)
+            out.append((k, v))
+        out.append(("pending", bytes(self.buf[pos - self.base:])))
+        return tuple(out)
+
     def pending_since(self) -> int | None:
         """When the first byte no frame holds yet began (the next frame starts there), or None."""
         return self._time_of(self.pos) if self.pos < self.base + len(self.buf) else None

@@ -1,0 +1,338 @@
+"""The coordinator: reads the capture, hands parts to worker processes, and takes them back in order.
+
+    engine = Engine(spec, session, plans, jobs=4)     # session: opened (settings resolved), not run
+    for part in engine.parts():                        # in capture order, each checked
+        part.pieces                                     # one per plan: what its sink writes of the part
+
+Reading.  The coordinator reads the source's events (one reader: a file's damage,
+a folder's holes and gaps are found once, as in one process) and packs them into
+tasks of `part_events` events, each with `warm_events` before its nominal start
+(the warm-up) and up to `over_events` after its nominal end (where its closing
+quiet point is looked for).  At most `jobs` + 1 tasks are read ahead, and pieces
+wait for their turn only while the parts before them are in work: memory stays
+flat.
+
+Checking (sniffer.parallel.truth).  A part is decoded from the latest state known
+for certain when it was handed out.  When its turn comes it is checked against the
+truth at its cut; if it fails (the units were still being named, a register that
+scales others changed, its warm-up did not reach the state the part before ended
+with), the coordinator decodes it again itself from the exact state (a worker may
+be waiting for its number, so none is free to take it), warming up from the
+accepted start of the part before.  A part with no quiet point to end at in its
+events (a line that is never quiet: every request unanswered, endless noise)
+ends the parallel run: the coordinator decodes the rest in order, in its own
+process, from that part's cut (`_tail`).
+
+Numbering.  A part's frames are numbered from 0 until it is checked: its first
+number is the sum of the frames before it, sent back as "base"; then the worker
+renumbers, encodes, and sends the pieces.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import pickle
+from collections import deque
+from dataclasses import dataclass
+from itertools import islice
+from multiprocessing.connection import wait
+
+from sniffer.events import CaptureError
+from sniffer.parallel.part import Counted, Runner, Task, encode, pack, run_part, unpack
+from sniffer.parallel.truth import Truth
+from sniffer.parallel.worker import recv, send, serve
+
+PART_EVENTS = 4096
+WARM_EVENTS = 256
+OVER_EVENTS = 2048
+READ_BATCH = 512  # events read between two looks at the workers' pipes
+
+
+class WorkerError(RuntimeError):
+    """A worker failed (a bug, or it was killed): the run stops."""
+
+
+@dataclass
+class Part:
+    """A part in capture order, checked: its counts and one piece per plan."""
+
+    counted: Counted
+    pieces: list
+    redone: bool = False
+
+
+class _Worker:
+    def __init__(self, ctx, setup: bytes) -> None:
+        self.conn, child = ctx.Pipe(duplex=True)
+        self.proc = ctx.Process(target=serve, args=(child,), daemon=True, name="sniffer-part")
+        self.proc.start()
+        child.close()
+        self.conn.send_bytes(setup)
+        self.part: int | None = None  # the part it works on (None: free)
+
+
+class Engine:
+    def __init__(self, spec, session, plans, jobs: int, *, part_events: int | None = None,
+                 warm_events: int | None = None, over_events: int | None = None) -> None:
+        self.spec, self.session, self.plans = spec, session, list(plans)
+        self.jobs = max(1, jobs)
+        self.part_events = part_events or PART_EVENTS
+        self.warm = WARM_EVENTS if warm_events is None else warm_events
+        self.over = over_events or OVER_EVENTS
+        p = session.pipeline
+        self.truth = Truth(dict(getattr(p, "registries", None) or {"": session.registry}))
+        self.info = session.info
+        self.redone = 0  # parts the coordinator decoded again
+        self.tail = False  # the rest was decoded in order (no quiet point to cut at)
+        self.on_event = None  # called with each event read (a progress bar)
+        self._workers: list[_Worker] = []
+        self._it = None
+        self._events: deque = deque()  # packed events from number self._first on
+        self._first = 0
+        self._read = 0  # events read so far
+        self._ended = False
+        self._error: str | None = None  # the source's error (it ended there)
+        self._next_start: int | None = 0  # the nominal start of the next task (None: the last is made)
+        self._made = 0
+        self._tasks: deque[Task] = deque()  # made, not handed out
+        self._given: dict[int, Task] = {}  # part -> its task, until checked
+        self._counted: dict[int, tuple] = {}  # part -> (Counted, its worker): decoded, not checked
+        self._results: dict[int, tuple] = {}  # part -> (Counted, pieces or None): checked, not handed on
+        self._check = 0  # the next part to check
+        self._merge = 0  # the next part to hand on
+        self._started: dict[int, int] = {}  # part -> the first event its accepted run was fed
+
+    # ------------------------------------------------------------ reading
+    def _read_some(self, n: int) -> None:
+        if self._ended:
+            return
+        events, on_event, it = self._events, self.on_event, self._it
+        try:
+            for _ in range(n):
+                ev = next(it, None)
+                if ev is None:
+                    self._ended = True
+                    return
+                events.append(pack(ev))
+                self._read += 1
+                if on_event is not None:
+                    on_event(ev)
+        except CaptureError as e:  # as a session: everything read before is decoded, then it ends
+            self._ended = True
+            self._error = str(e)
+
+    def _make_tasks(self) -> None:
+        """Tasks for what has been read: a part once its overrun is read too (or the source ended)."""
+        while self._next_start is not None and len(self._tasks) <= self.jobs:
+            start = self._next_start
+            end = start + self.part_events
+            if not self._ended and self._read < end + self.over:
+                self._read_some(min(end + self.over - self._read, READ_BATCH))
+                if not self._ended:
+                    return  # a look at the pipes first
+            last = self._ended and self._read <= end + self.over
+            hi = self._read if last else end + self.over
+            lo = max(0, start - self.warm)
+            task = Task(self._made, self._slice(lo, hi), lo, start, None if last else end, {},
+                        error=self._error if last else None)
+            self._made += 1
+            self._tasks.append(task)
+            self._next_start = None if last else end
+
+    def _slice(self, lo: int, hi: int) -> list:
+        return list(islice(self._events, max(0, lo - self._first), max(0, hi - self._first)))
+
+    def _trim(self) -> None:
+        """Drop the events no task can need again (a redo warms up from the accepted start of the part
+        before it)."""
+        keep = self._started.get(self._check - 1, 0)
+        for t in (*self._tasks, *self._given.values()):
+            keep = min(keep, t.first)
+        while self._first < keep and self._events:
+            self._events.popleft()
+            self._first += 1
+
+    # ------------------------------------------------------------ the run
+    def parts(self):
+        """Every part, in capture order, checked (see the module doc)."""
+        self._it = iter(self.session.source.events())
+        try:
+            yield from self._run()
+        finally:
+            self.close()
+
+    def _run(self):
+        ctx = multiprocessing.get_context("fork" if hasattr(os, "fork") else "spawn")
+        setup = pickle.dumps(("setup", self.spec, self.info, self.plans), protocol=pickle.HIGHEST_PROTOCOL)
+        while True:
+            self._make_tasks()
+            self._trim()
+            for w in self._workers:
+                if w.part is None and self._tasks:
+                    self._give(w, self._tasks.popleft())
+            while self._tasks and len(self._workers) < self.jobs:
+                w = _Worker(ctx, setup)
+                self._workers.append(w)
+                self._give(w, self._tasks.popleft())
+            while (got := self._turn()) is not None:
+                if got == "tail":
+                    yield from self._tail()
+                    return
+                yield got
+                if got.counted.end is None:
+                    return
+            busy = [w.conn for w in self._workers if w.part is not None]
+            reading = self._next_start is not None and not self._ended
+            if not busy and not reading and not self._tasks:
+                raise WorkerError("the parts ran out before the capture's end")  # a bug: nothing left to wait for
+            for conn in wait(busy, timeout=0 if reading else None) if busy else ():
+                self._message(next(w for w in self._workers if w.conn is conn))
+
+    def _give(self, w: _Worker, task: Task) -> None:
+        task.guess = self.truth.guess()
+        w.part = task.part
+        self._given[task.part] = task
+        send(w.conn, ("part", task))
+        task.guess = {}
+
+    def _message(self, w: _Worker) -> None:
+        try:
+            msg = recv(w.conn)
+        except (EOFError, OSError):
+            raise WorkerError(f"a worker process ended unexpectedly (exit code {w.proc.exitcode})") from None
+        if msg[0] == "error":
+            raise WorkerError(msg[1])
+        if msg[0] == "counted":
+            c = msg[1]
+            holds = c.cut is not None and not c.no_end
+            self._counted[c.part] = (c, w if holds else None)
+            if not holds:
+                w.part = None
+        elif msg[0] == "pieces":
+            part = msg[1]
+            c, _ = self._results[part]
+            self._results[part] = (c, msg[2])
+            w.part = None
+
+    def _turn(self):
+        """Take what can be taken; the next part in order if its pieces are here, "tail", or None."""
+        while (got := self._counted.get(self._check)) is not None:
+            k = self._check
+            c, w = got
+            if c == "tail":  # no quiet point follows this part's cut: the rest in order, once it is its turn
+                return "tail" if self._merge == k else None
+            del self._counted[k]
+            if w is not None:
+                base = self.truth.base
+                if self.truth.take(c) is None:
+                    self._results[k] = (c, None)
+                    send(w.conn, ("base", base))
+                    self._taken(k)
+                    continue
+                send(w.conn, ("drop",))  # decoded from a wrong guess
+                w.part = None
+            redo = self._redo(k)
+            if redo is None:
+                self._counted[k] = ("tail", None)
+                return "tail" if self._merge == k else None
+            self._results[k] = redo
+        k = self._merge
+        got = self._results.get(k)
+        if got is None or got[1] is None:
+            return None
+        del self._results[k]
+        self._merge = k + 1
+        return Part(got[0], got[1])
+
+    def _taken(self, k: int) -> None:
+        self._started[k] = self._given.pop(k).first
+        self._check = k + 1
+
+    def _redo(self, k: int):
+        """Part k again, in this process, from the truth at its cut (warming up from where the part before
+        started, so the pipeline reaches the cut as the whole capture does): (counted, pieces), or None if
+        it has no quiet point to end at in the events read for it."""
+        task = self._given[k]
+        first = self._started.get(k - 1, 0)
+        redo = Task(k, self._slice(first, task.first + len(task.events)), first, task.start, task.end,
+                    self.truth.guess(), exact=(self.truth.cut, self.truth.guess()), error=task.error)
+        result = run_part(self.spec, self.info, self.plans, redo)
+        c = result.counted
+        if c.no_end:
+            return None
+        base = self.truth.base
+        why = self.truth.take(c)
+        if why is not None:
+            raise WorkerError(f"part {k} decoded again from the exact state still differs: {why}")
+        self.redone += 1
+        self._given[k] = redo
+        self._taken(k)
+        return c, result.pieces(base)
+
+    def _tail(self):
+        """From the cut of the part being checked to the end, in order, in this process (no quiet point left
+        to cut at): the workers stop; the rest streams in pieces of about `part_events` events."""
+        k = self._check
+        for w in self._workers:
+            send(w.conn, ("stop",))
+        self.close()
+        self.tail = True
+        first = self._started.get(k - 1, 0)
+        r = Runner(self.spec, self.info, self.plans, self.truth.guess())
+        p = r.pipeline
+        events = self._slice(first, self._read)
+        for ev in events[:self.truth.cut - first]:
+            p.feed(unpack(ev))
+        g = self.truth.cut
+        rest = deque(events[self.truth.cut - first:])
+        self._events.clear()
+        c = Counted(k, None)
+        r.cut(c, g, self.truth.guess())
+        delta = self.truth.base - r.offset
+        first_piece = self.truth.base == 0
+        done = 0
+        while True:
+            if rest:
+                ev = unpack(rest.popleft())
+            else:
+                self._read_some(1)
+                ev = unpack(self._events.popleft()) if self._events else None
+            if ev is None:
+                try:
+                    p.flush()
+                finally:
+                    c.error = self._error
+                    r.end(c, None)
+                c.frames -= done
+                yield Part(c, encode(r.info, self.plans, r.take(), delta, first_piece))
+                return
+            try:
+                p.feed(ev)
+            except CaptureError as e:
+                self._error = str(e)
+                rest.clear()
+                self._ended = True
+                continue
+            g += 1
+            if len(r.rec.calls) >= self.part_events:
+                calls = r.take()
+                n = sum(1 for x in calls if type(x) is not tuple)
+                piece = Counted(k, g, end=g, frames=n)
+                done += n
+                yield Part(piece, encode(r.info, self.plans, calls, delta, first_piece))
+                first_piece = False
+
+    def close(self) -> None:
+        for w in self._workers:
+            try:
+                send(w.conn, ("stop",))
+            except OSError:
+                pass
+        for w in self._workers:
+            w.proc.join(timeout=2)
+            if w.proc.is_alive():
+                w.proc.terminate()
+                w.proc.join(timeout=2)
+            w.conn.close()
+        self._workers = []
