@@ -21,6 +21,7 @@ from sniffer.dataset.query import PRESETS
 from sniffer.formats import EXPORT_FORMATS
 from sniffer.events import CaptureError
 from sniffer.sources.files import FORMATS as INPUT_FORMATS
+from sniffer.parallel.options import add_jobs_flag
 
 MAX_BAUD = 4_000_000
 
@@ -250,6 +251,7 @@ def mqtt_flags(p: argparse.ArgumentParser) -> None:
 def dataset_flags(p: argparse.ArgumentParser, progress: str) -> None:
     """export's and ingest's: --progress, --link, and the line and decoding flags a capture is read with."""
     p.add_argument("--progress", action="store_true", help=progress)
+    add_jobs_flag(p)
     g = p.add_argument_group("fleet dataset")
     g.add_argument("--link", metavar="NAME",
                    help="the link a one-line capture is filed under (default: its port's name, e.g. ttyUSB0, "
@@ -296,6 +298,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("replay", help="decode a capture file (MCAP, byte CSV, Saleae CSV, pcap, sigrok .sr)")
     input_flags(s)
+    add_jobs_flag(s)
     s.add_argument("--progress", action="store_true", help="progress bar on stderr (frames/s, ETA)")
     s.add_argument("--tui", action="store_true", help="browse the capture in the terminal UI")
     serial_flags(s)
@@ -414,6 +417,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--update-golden", action="store_true", help="rewrite the golden (review the diff!)")
     s.add_argument("--time-tol-ms", type=float, default=1.0, help="frame time tolerance (default 1 ms)")
     s.add_argument("--latency-tol-ms", type=float, default=1.0, help="latency tolerance (default 1 ms)")
+    add_jobs_flag(s)
     serial_flags(s)
     decode_flags(s)
 
@@ -442,6 +446,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a reference capture: the page adds what changed against it (as `sniffer diff GOLDEN ...`)")
     s.add_argument("--title", help="the page's title (default: Bus report: the captures' names)")
     s.add_argument("--progress", action="store_true", help="a progress bar per capture on stderr")
+    add_jobs_flag(s)
     serial_flags(s)
     decode_flags(s)
 
@@ -525,6 +530,11 @@ def _one_line(e: Exception) -> int | None:
         return EXIT_USAGE
     if isinstance(e, CaptureStorageError):
         _say(str(e))
+        return EXIT_FAILED
+    from sniffer.parallel.engine import WorkerError
+
+    if isinstance(e, WorkerError):  # a part's process failed: its last line (the traceback is on stderr above)
+        _say(f"--jobs: {str(e).strip().splitlines()[0]}")
         return EXIT_FAILED
     if isinstance(e, OSError):  # e.g. an output that cannot be written
         _say(f"{e.filename + ': ' if isinstance(e.filename, str) else ''}{e.strerror or e}")

@@ -119,6 +119,20 @@ class Pipeline:
                 self.driver_enable.mark(frames)
         return frames
 
+    def close_before(self, ev) -> list[Frame]:
+        """The frames feed(ev) would hand on first, before any of ev's own bytes, if the silence before ev
+        (a Chunk) closes every byte the framer holds; handed on now ([] if it does not).  feed(ev) then gives
+        the rest: the same frames in the same order as feed(ev) alone, but before ev reaches the sinks' raw
+        (sniffer.parallel cuts a capture there, where nothing else is pending)."""
+        if type(ev) is not Chunk or not self.framer.pending_bytes() or not self.framer.closes_before(ev):
+            return []
+        frames = self.framer.close_now()
+        if frames:
+            self._mark(frames)
+            if self.driver_enable is not None:
+                self.driver_enable.mark(frames)
+        return self.paired(frames)
+
     def carry_in(self, state: dict) -> None:
         """A Gap's `state` (the decoder state recorded where the next file starts), once the frames before the
         gap are paired and decoded."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.formats import FileSink
-from sniffer.commands.common import UsageError, report, say
+from sniffer.commands.common import UsageError, jobs_for, report, say
 from sniffer.commands.replay import file_source
 
 
@@ -36,8 +36,17 @@ def cmd_export(spec: CaptureSpec, args) -> int:
     if args.link:
         raise UsageError("--link is for --to dataset")
     spec = spec.with_(input=files[0], inputs=(files[0],))  # a folder of segments is one capture (segset.py)
-    sink = FileSink(args.to, args.out, inputs=spec.read_paths())  # checked before the input is read
+    # checked before the input is read; written as it fills, never by the clock: the same bytes every time
+    sink = FileSink(args.to, args.out, inputs=spec.read_paths(), timed_flush=False)
     source = file_source(spec)
+    jobs = jobs_for(spec, args)
+    if jobs > 1:
+        from sniffer.commands.common import parallel_run, run_with_bar
+        from sniffer.parallel.outputs import file_output
+
+        run = parallel_run(spec, source, [file_output(sink)], jobs, spec.input if args.progress else None)
+        run_with_bar(run)
+        return _done(run, spec)
     session = Session(spec, source, [sink])
     bar = None
     if args.progress:
@@ -51,6 +60,10 @@ def cmd_export(spec: CaptureSpec, args) -> int:
     finally:
         if bar is not None:
             bar.close()
+    return _done(session, spec)
+
+
+def _done(session, spec: CaptureSpec) -> int:
     rc = report(session, label=spec.input)
     if rc == 0:
         say(f"wrote {', '.join(o.path for o in session.outputs)} ({session.frames_out} frames)")

@@ -7,7 +7,7 @@ import sys
 from sniffer.events import CaptureInfo, Chunk
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
-from sniffer.commands.common import UsageError, report, say, stream_sink
+from sniffer.commands.common import UsageError, jobs_for, report, say, stream_sink
 
 
 def file_source(spec: CaptureSpec):
@@ -43,6 +43,9 @@ def cmd_replay(spec: CaptureSpec, args) -> int:
         note_unfinished(session)
         rc = run_session_tui(session, sink, source_label=spec.input, source_path=spec.input)
         return rc or report(session, label=spec.input)
+    jobs = jobs_for(spec, args)
+    if jobs > 1:
+        return _parallel(spec, source, args, jobs)
     bar = None
     session = Session(spec, source, [s for s in (stream_sink(spec, line_buffered=False),) if s is not None])
     if args.progress:
@@ -60,6 +63,22 @@ def cmd_replay(spec: CaptureSpec, args) -> int:
     if getattr(source, "unfinished", None):
         note_unfinished(session)  # a set's segments are read only as the replay reaches them
     return report(session, label=spec.input)
+
+
+def _parallel(spec: CaptureSpec, source, args, jobs: int) -> int:
+    """replay --jobs N: the capture decoded by parts in N processes (sniffer.parallel), the same lines."""
+    from sniffer.commands.common import parallel_run, run_with_bar
+    from sniffer.parallel.outputs import StreamPlan, StreamWriter, stdout_for
+
+    outputs = [(StreamPlan(spec.stream), StreamWriter(stdout_for(spec.stream)))] \
+        if spec.stream in ("text", "jsonl") else []
+    run = parallel_run(spec, source, outputs, jobs, spec.input if args.progress else None)
+    run.open()
+    note_unfinished(run.session)
+    run_with_bar(run)
+    if getattr(source, "unfinished", None):
+        note_unfinished(run.session)
+    return report(run, label=spec.input)
 
 
 def _rotate(spec: CaptureSpec, source) -> int:

@@ -167,6 +167,9 @@ class Engine:
         setup = pickle.dumps(("setup", self.spec, self.info, self.plans), protocol=pickle.HIGHEST_PROTOCOL)
         while True:
             self._make_tasks()
+            if not self._workers and self._next_start is None and len(self._tasks) == 1 and not self._given:
+                yield self._alone(self._tasks.popleft())  # a capture of one part: no process to start
+                return
             self._trim()
             for w in self._workers:
                 if w.part is None and self._tasks:
@@ -183,11 +186,22 @@ class Engine:
                 if got.counted.end is None:
                     return
             busy = [w.conn for w in self._workers if w.part is not None]
-            reading = self._next_start is not None and not self._ended
+            reading = self._next_start is not None and not self._ended and len(self._tasks) <= self.jobs
             if not busy and not reading and not self._tasks:
                 raise WorkerError("the parts ran out before the capture's end")  # a bug: nothing left to wait for
             for conn in wait(busy, timeout=0 if reading else None) if busy else ():
                 self._message(next(w for w in self._workers if w.conn is conn))
+
+    def _alone(self, task: Task) -> Part:
+        task.guess = self.truth.guess()
+        self._given[task.part] = task
+        result = run_part(self.spec, self.info, self.plans, task)
+        base = self.truth.base
+        why = self.truth.take(result.counted)
+        if why is not None:
+            raise WorkerError(f"a capture of one part decoded from its start differs: {why}")
+        self._taken(task.part)
+        return Part(result.counted, result.pieces(base))
 
     def _give(self, w: _Worker, task: Task) -> None:
         task.guess = self.truth.guess()
@@ -221,7 +235,9 @@ class Engine:
             k = self._check
             c, w = got
             if c == "tail":  # no quiet point follows this part's cut: the rest in order, once it is its turn
-                return "tail" if self._merge == k else None
+                if self._merge == k:
+                    return "tail"
+                break
             del self._counted[k]
             if w is not None:
                 base = self.truth.base
@@ -235,7 +251,7 @@ class Engine:
             redo = self._redo(k)
             if redo is None:
                 self._counted[k] = ("tail", None)
-                return "tail" if self._merge == k else None
+                continue
             self._results[k] = redo
         k = self._merge
         got = self._results.get(k)
@@ -286,6 +302,8 @@ class Engine:
             p.feed(unpack(ev))
         g = self.truth.cut
         rest = deque(events[self.truth.cut - first:])
+        if rest:
+            r.quiet_before(unpack(rest[0]))  # as the part before ended there
         self._events.clear()
         c = Counted(k, None)
         r.cut(c, g, self.truth.guess())

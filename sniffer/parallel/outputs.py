@@ -205,9 +205,7 @@ class _Frames(Sink):
         self.frames.append(f)
 
     def piece(self):
-        from sniffer.parallel.framelist import FrameList
-
-        return FrameList(self.frames)
+        return self.frames  # pickled as their slots (Frame.__reduce__)
 
 
 def file_output(file_sink) -> tuple:

@@ -95,39 +95,65 @@ class Counted:
 
 
 class _Recorder(Sink):
-    """The pipeline's one sink in a part: keeps the part's calls, in order, once recording."""
+    """The pipeline's one sink in a part: keeps the part's calls, in order, once recording.
+
+    Frames handed on while `deferring` (closed by the silence before the next event, ahead of it:
+    Pipeline.close_before) wait until that event's raw call, where one process hands them on; still
+    waiting at the part's end, they close its calls as ("after", frames): a writer of raw events puts
+    them after the next part's first event."""
 
     def __init__(self, raw: bool) -> None:
         self.on = False
         self.want_raw = raw
-        self.calls: list = []  # Frame, or ("raw", event)
+        self.deferring = False
+        self.calls: list = []  # Frame, ("raw", event), or ("after", [Frame, ...]) last
+        self.deferred: list = []
 
     def raw(self, event) -> None:
-        if self.on and self.want_raw:
-            self.calls.append(("raw", event))
+        if self.on:
+            if self.want_raw:
+                self.calls.append(("raw", event))
+            if self.deferred:
+                self.calls += self.deferred
+        self.deferred = []
 
     def frame(self, frame) -> None:
         if self.on:
-            self.calls.append(frame)
+            if self.deferring:
+                self.deferred.append(frame)
+            else:
+                self.calls.append(frame)
+
+    def ending(self) -> None:
+        """The part ends: frames still deferred go last, marked."""
+        if self.on and self.deferred:
+            self.calls.append(("after", self.deferred))
+        self.deferred = []
 
 
 def encode(info: CaptureInfo, plans, calls: list, delta: int, first_part: bool) -> list:
     """The plans' pieces of a part's calls, its frames moved `delta` numbers on (one piece per plan)."""
     from sniffer.capture.pairer import renumber
 
-    renumber([c for c in calls if type(c) is not tuple], delta)
+    renumber([f for c in calls for f in (c[1] if type(c) is tuple and c[0] == "after" else
+                                         () if type(c) is tuple else (c,))], delta)
     sinks = [plan.part_sink(info, first_part) for plan in plans]
     for s in sinks:
         s.start(info)
     raws = [s.raw for s in sinks if getattr(s, "wants_raw", False)]
     feeds = [s.frame for s in sinks]
     for c in calls:
-        if type(c) is tuple:
-            for raw in raws:
-                raw(c[1])
-        else:
+        if type(c) is not tuple:
             for feed in feeds:
                 feed(c)
+        elif c[0] == "raw":
+            for raw in raws:
+                raw(c[1])
+        else:  # ("after", frames): they follow the next part's first event
+            for s in sinks:
+                after = getattr(s, "after", None)
+                for f in c[1]:
+                    (after or s.frame)(f)
     out = []
     for s in sinks:
         s.close()
@@ -168,10 +194,26 @@ class Runner:
         self.rec.on = True
         self._bytes0, self._noise0 = p.bytes_in, p.noise_bytes
 
+    def quiet_before(self, ev) -> bool:
+        """Is the point before event `ev` quiet (nothing pending), once the silence before it has closed
+        what it closes (Pipeline.close_before; a one-line capture: the links' merge waits on its own)?"""
+        p = self.pipeline
+        if p.settled() == 2:
+            return True
+        if self.regs.keys() != {""}:
+            return False
+        self.rec.deferring = True
+        try:
+            p.close_before(ev)
+        finally:
+            self.rec.deferring = False
+        return p.settled() == 2
+
     def end(self, counted: Counted, event: int | None) -> None:
         """The part ends before event number `event` (None: the capture ended, everything flushed)."""
         p = self.pipeline
         counted.end = event
+        self.rec.ending()
         if event is not None:
             counted.end_state = p.cut_state()
         counted.frames = p.numbered() - self.offset
@@ -211,12 +253,15 @@ def run_part(spec, info: CaptureInfo, plans, task: Task) -> PartResult:
         while k < n and first + k < (start if exact_cut is None else exact_cut):
             p.feed(unpack(events[k]))
             k += 1
-        if exact_cut is None:
-            while p.settled() != 2:
+        if exact_cut is not None:
+            if k < n:
+                r.quiet_before(unpack(events[k]))  # as the part before ended there
+        else:
+            while k >= n or not r.quiet_before(ev := unpack(events[k])):
                 if k >= n:
                     counted.why = "no quiet point in the events it was given"
                     return PartResult(counted)
-                p.feed(unpack(events[k]))
+                p.feed(ev)
                 k += 1
     except CaptureError as e:
         counted.why = f"error in the warm-up: {e}"
@@ -225,9 +270,6 @@ def run_part(spec, info: CaptureInfo, plans, task: Task) -> PartResult:
     end = task.end
     try:
         while True:
-            if end is not None and first + k >= end and p.settled() == 2:
-                r.end(counted, first + k)
-                break
             if k >= n:
                 if end is not None:
                     counted.no_end = True
@@ -236,7 +278,11 @@ def run_part(spec, info: CaptureInfo, plans, task: Task) -> PartResult:
                 p.flush()
                 r.end(counted, None)
                 break
-            p.feed(unpack(events[k]))
+            ev = unpack(events[k])
+            if end is not None and first + k >= end and r.quiet_before(ev):
+                r.end(counted, first + k)
+                break
+            p.feed(ev)
             k += 1
     except CaptureError as e:  # as a session: what is pending is flushed and the capture ends here
         counted.error = str(e)

@@ -56,6 +56,11 @@ class ParallelRun:
     def registry(self):
         return self.session.registry
 
+    @property
+    def pipeline(self):
+        """The coordinator's pipeline: never fed, its registries follow the parts taken (their naming)."""
+        return self.session.pipeline
+
     def open(self):
         if self.info is None:
             self.info = self.session.open()
@@ -131,9 +136,14 @@ class ParallelRun:
                     pass
 
 
-def cores() -> int:
-    """The cores this process may run on (the default of --jobs)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
+def decode_capture(path, spec, jobs: int) -> ParallelRun:
+    """An opened ParallelRun over a capture file (as sniffer.capture.session.decode_capture): its `parts(plans)`
+    give the pieces in order."""
+    from sniffer.capture.settings import CaptureSpec
+    from sniffer.sources.segset import capture_source
+
+    spec = spec or CaptureSpec()
+    whole = spec.inputs if spec.inputs and spec.input == os.fspath(path) else os.fspath(path)  # check's set
+    run = ParallelRun(spec, capture_source(whole, spec.input_format, spec.logic), jobs=jobs)
+    run.open()
+    return run

@@ -32,6 +32,7 @@ class _Messages(Sink):
 
     def __init__(self) -> None:
         self.messages: list = []
+        self.trailer: list = []  # frames one process writes after the next part's first event
         self.t0 = 0
 
     def start(self, info) -> None:
@@ -47,8 +48,13 @@ class _Messages(Sink):
 
         self.messages.append((False, f.t_ns, frame_json(f, self.t0)))
 
+    def after(self, f) -> None:
+        from sniffer.formats.records import frame_json
+
+        self.trailer.append((False, f.t_ns, frame_json(f, self.t0)))
+
     def piece(self):
-        return self.messages
+        return self.messages, self.trailer
 
 
 class McapWriter:
@@ -57,14 +63,23 @@ class McapWriter:
     def __init__(self, file_sink) -> None:
         self.outputs = file_sink.outputs
         self.sink = file_sink.open()
+        self.held: list = []  # the part before's trailer: after this part's first event
 
     def begin(self, info) -> None:
         self.sink.start(info)
 
     def add(self, piece) -> None:
         put = self.sink.encoded
-        for raw, t_ns, data in piece:
+        messages, trailer = piece
+        held, self.held = self.held, trailer
+        for k, (raw, t_ns, data) in enumerate(messages):
             put("raw" if raw else "frame", t_ns, data)
+            if k == 0 and held:
+                for _raw, t2, data2 in held:
+                    put("frame", t2, data2)
+                held = []
+        for _raw, t_ns, data in held:  # no event followed (cannot happen: a part ends before an event)
+            put("frame", t_ns, data)
 
     def close(self) -> None:
         self.sink.close()

@@ -58,8 +58,9 @@ def serve(conn) -> None:
                 send(conn, ("pieces", task.part, result.pieces(answer[1])))
             elif answer[0] == "stop":
                 return
-    except Exception as e:  # noqa: BLE001 - a bug: the coordinator reports it and stops
+    except Exception as e:  # noqa: BLE001 - a bug: the coordinator says it in one line, the traceback here
+        traceback.print_exc()
         try:
-            send(conn, ("error", f"{type(e).__name__}: {e}\n{traceback.format_exc()}"))
+            send(conn, ("error", f"a worker failed: {type(e).__name__}: {e}"))
         except OSError:
             pass
