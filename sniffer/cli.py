@@ -21,7 +21,7 @@ from sniffer.dataset.query import PRESETS
 from sniffer.formats import EXPORT_FORMATS
 from sniffer.events import CaptureError
 from sniffer.sources.files import FORMATS as INPUT_FORMATS
-from sniffer.parallel.options import add_jobs_flag
+from sniffer.parallel.options import add_dask_flag, add_jobs_flag
 
 MAX_BAUD = 4_000_000
 
@@ -469,6 +469,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("folder", help="the folder of captures (*.mcap, in subfolders too; *.part files are left out)")
     s.add_argument("--to", required=True, metavar="DIR", dest="dataset", help="the dataset folder (made if new)")
     dataset_flags(s, "show a progress bar per capture on stderr")
+    add_dask_flag(s)
 
     s = sub.add_parser("query", help="SQL over a fleet dataset with DuckDB: views frames, points, annotations, "
                                      "captures (docs/fleet.md)")

@@ -232,3 +232,30 @@ def test_what_a_part_cannot_carry_keeps_one_process_and_says_so(capfd, tmp_path,
 def test_jobs_takes_a_number_of_processes(capfd, captures):
     rc, _out, err = _cli(capfd, "replay", captures["errors"], "--jobs", "0")
     assert rc == 2 and "--jobs 0 is outside 1..256" in err
+
+
+@pytest.mark.parametrize("fmt", ["csv", "pcap", "mcap", "parquet"])
+def test_a_file_that_cannot_be_made_fails_before_any_part_as_in_one_process(tmp_path, captures, fmt):
+    """A full disk at the start (a file size limit of 0): one line, exit 2, nothing left, with --jobs 2 too."""
+    import subprocess
+    import sys
+
+    code = ("import resource,sys; resource.setrlimit(resource.RLIMIT_FSIZE,(0,0));"
+            "import signal; signal.signal(signal.SIGXFSZ, signal.SIG_IGN);"
+            "from sniffer.cli import main; sys.exit(main(sys.argv[1:]))")
+    got = []
+    for jobs in ("1", "2"):
+        r = subprocess.run([sys.executable, "-c", code, "export", captures["errors"], "--to", fmt, "--out",
+                            f"x.{fmt}", "--jobs", jobs], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+        assert os.listdir(tmp_path) == []
+        got.append(r.stderr)
+    assert got[0] == got[1]
+
+
+def test_a_missing_input_leaves_the_old_output_as_in_one_process(capfd, tmp_path):
+    keep = tmp_path / "keep.pcap"
+    keep.write_text("precious")
+    rc, _out, err = _cli(capfd, "export", tmp_path / "nosuch.mcap", "--to", "pcap", "--out", keep, "--jobs", "2")
+    assert rc == 2 and "no such file" in err
+    assert keep.read_text() == "precious" and not list(tmp_path.glob("*.part"))

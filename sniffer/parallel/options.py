@@ -41,6 +41,12 @@ def add_jobs_flag(p: argparse.ArgumentParser) -> None:
                         "the same as with one (docs/parallel.md)")
 
 
+def add_dask_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--dask", metavar="ADDRESS",
+                   help="decode the captures on a Dask cluster (its scheduler, e.g. tcp://host:8786), one capture "
+                        "per task; its workers must see the captures and the dataset at the same paths")
+
+
 def jobs_of(args) -> int:
     """The number of processes asked for (default: the cores this process may use)."""
     n = getattr(args, "jobs", None)

@@ -26,8 +26,8 @@ from sniffer.sinks.base import Sink
 
 
 class _Bytes(Sink):
-    """A file sink of one format writing into memory; the piece is its bytes, less the file's header after
-    the first part (the header is what start() alone writes)."""
+    """A file sink of one format writing into memory; the piece is its bytes, less the file's header (what
+    start() alone writes) unless `first`."""
 
     def __init__(self, make, first: bool, files: int = 1) -> None:
         self.bufs = [_Keep() for _ in range(files)]
@@ -117,32 +117,48 @@ class FilePlan:
     def __init__(self, fmt: str, path: str) -> None:
         self.fmt, self.path = fmt, path
 
-    def part_sink(self, info, first: bool):
+    def part_sink(self, info, first: bool, header: bool = False):
+        """The part's bytes, without the file's header (the writer writes it first: `header`)."""
         fmt = self.fmt
         if fmt in ("pcap", "pcapng"):
             from sniffer.formats.pcap.writer import PcapSink
 
-            return _Bytes(lambda b: PcapSink(b, ng=fmt == "pcapng" or self.path.endswith(".pcapng")), first)
+            return _Bytes(lambda b: PcapSink(b, ng=fmt == "pcapng" or self.path.endswith(".pcapng")), header)
         if fmt == "csv":
             from sniffer.formats.csvexport import CsvSink
 
-            return _Bytes(lambda a, b: CsvSink(a, b), first, files=2)
+            return _Bytes(lambda a, b: CsvSink(a, b), header, files=2)
         if fmt in ("jsonl", "text"):
             return StreamPlan(fmt).part_sink(info, first)
         raise ValueError(f"no part sink for {fmt}")
+
+    def header(self, info) -> list:
+        """What the file's sink writes before any frame (its start()), per file."""
+        s = self.part_sink(info, True, header=True)
+        s.start(info)
+        s.close()
+        got = s.piece()
+        return got if isinstance(got, list) else [got]
 
 
 class FileWriter:
     """The pieces of a FilePlan into the output's part files (sniffer.formats.outputs: renamed when complete)."""
 
-    def __init__(self, file_sink) -> None:
+    def __init__(self, file_sink, plan: FilePlan) -> None:
         self.outputs = file_sink.outputs
-        binary = file_sink.fmt != "text"
-        self._files = [open(o.part, "wb" if binary else "w", encoding=None if binary else "utf-8",
-                            buffering=1 << 16) for o in self.outputs]
+        self.plan = plan
+        self.text = file_sink.fmt == "text"
+        self._files: list = []
 
     def begin(self, info) -> None:
-        pass
+        """The part files made and the header written and flushed (a full disk fails now, as in one process)."""
+        for o in self.outputs:
+            self._files.append(open(o.part, "w" if self.text else "wb", encoding="utf-8" if self.text else None,
+                                    buffering=1 << 16))
+        if self.plan.fmt in ("pcap", "pcapng", "csv"):
+            for fh, head in zip(self._files, self.plan.header(info)):
+                fh.write(head)
+                fh.flush()
 
     def add(self, piece) -> None:
         pieces = piece if isinstance(piece, list) else [piece]
@@ -219,7 +235,8 @@ def file_output(file_sink) -> tuple:
         from sniffer.parallel.whole import ParquetPlan, ParquetWriter
 
         return ParquetPlan(), ParquetWriter(file_sink)
-    return FilePlan(fmt, file_sink.path), FileWriter(file_sink)
+    plan = FilePlan(fmt, file_sink.path)
+    return plan, FileWriter(file_sink, plan)
 
 
 def stdout_for(kind: str):

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import os
 
-from sniffer.capture.session import Session
+from sniffer.capture.session import Session, storage_text
+from sniffer.events import CaptureError
 from sniffer.formats.mcap.sink import CaptureStorageError
 from sniffer.parallel.engine import Engine
 
@@ -62,10 +63,31 @@ class ParallelRun:
         return self.session.pipeline
 
     def open(self):
+        """Open the source and resolve the settings (Session.open), then the writers' files: a file that cannot
+        be made fails now, in one line (CaptureError), with nothing left behind."""
         if self.info is None:
-            self.info = self.session.open()
-            self.resolved = self.session.resolved
+            info = self.session.open()
+            try:
+                for w in self.writers:
+                    w.begin(info)
+            except (CaptureStorageError, OSError) as e:
+                self._abandon()
+                raise CaptureError(storage_text(e, self.outputs)) from None
+            except BaseException:
+                self._abandon()
+                raise
+            self.info, self.resolved = info, self.session.resolved
         return self.info
+
+    def _abandon(self) -> None:
+        for w in self.writers:
+            try:
+                w.close()
+            except Exception:  # noqa: BLE001 - already failing: the first error is the one to report
+                pass
+        for o in self.outputs:
+            o.discard()
+        self.session.close()
 
     def parts(self, plans=None):
         """The checked parts in order (sniffer.parallel.engine.Part), counted into the run's totals."""
@@ -91,23 +113,19 @@ class ParallelRun:
         completed = False
         try:
             try:
-                for w in self.writers:
-                    w.begin(self.open())
+                self.open()
                 for part in self.parts():
                     for w, piece in zip(self.writers, part.pieces):
                         w.add(piece)
                 completed = True
             except BrokenPipeError:
                 raise
-            except (CaptureStorageError, OSError) as e:
+            except (CaptureStorageError, OSError) as e:  # an output cannot be written (disk full, I/O error)
                 self.storage_error = True
-                self.error = self.error or f"{self._where()}: cannot write: {getattr(e, 'strerror', None) or e}"
+                self.error = self.error or f"{storage_text(e, self.outputs)} (stopped there)"
         finally:
             self._end(completed)
         return self
-
-    def _where(self) -> str:
-        return ", ".join(o.path for o in self.outputs) or "output"
 
     def _end(self, completed: bool) -> None:
         first = None
@@ -118,7 +136,7 @@ class ParallelRun:
                 first = first or e
         if first is not None and not self.storage_error:
             self.storage_error = True
-            self.error = self.error or f"{self._where()}: cannot write: {getattr(first, 'strerror', None) or first}"
+            self.error = self.error or storage_text(first, self.outputs)
         unexpected = not completed and not self.interrupted and self.error is None
         for o in self.outputs:
             if self.storage_error or unexpected:

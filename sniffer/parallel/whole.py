@@ -62,10 +62,12 @@ class McapWriter:
 
     def __init__(self, file_sink) -> None:
         self.outputs = file_sink.outputs
-        self.sink = file_sink.open()
+        self.file_sink = file_sink
+        self.sink = None
         self.held: list = []  # the part before's trailer: after this part's first event
 
     def begin(self, info) -> None:
+        self.sink = self.file_sink.open()
         self.sink.start(info)
 
     def add(self, piece) -> None:
@@ -82,7 +84,8 @@ class McapWriter:
             put("frame", t_ns, data)
 
     def close(self) -> None:
-        self.sink.close()
+        if self.sink is not None:
+            self.sink.close()
 
 
 class ParquetPlan:
@@ -150,13 +153,14 @@ class ParquetWriter:
 
         self.outputs = file_sink.outputs
         self.convert = CONVERT
-        pool = pa.system_memory_pool()
         self.schemas = schemas()
-        self.files = [RowGroupFile(o.part, s, pool) for o, s in zip(self.outputs, self.schemas)]
+        self.files: list = []
         self.carry = [None, None]  # rows not in a batch yet (a Table), per file
+        self._row_group_file, self._pool = RowGroupFile, pa.system_memory_pool()
 
     def begin(self, info) -> None:
-        pass
+        for o, schema in zip(self.outputs, self.schemas):
+            self.files.append(self._row_group_file(o.part, schema, self._pool))
 
     def _table(self, k: int, more):
         import pyarrow as pa
