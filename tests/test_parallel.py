@@ -124,10 +124,23 @@ def captures(tmp_path_factory):
     data = open(out["errors"], "rb").read()
     cut.write_bytes(data[: len(data) * 3 // 5])  # killed mid-capture: damage at its end
     out["cut"] = str(cut)
+    out["damaged"] = _damaged(out["errors"], d / "damaged.mcap")
     return out
 
 
-ALL = ["errors", "identified", "scaling", "dead", "links", "rotated", "cut"]
+def _damaged(path, out) -> str:
+    """A finished capture with a byte of a chunk in its middle flipped: the chunk fails its CRC."""
+    from sniffer.formats.mcap.ranges import raw_index
+
+    index = raw_index(path)
+    _first, _n, offset, length, _at = index.chunks[len(index.chunks) // 2]
+    data = bytearray(open(path, "rb").read())
+    data[offset + length - 20] ^= 0x55
+    out.write_bytes(data)
+    return str(out)
+
+
+ALL = ["errors", "identified", "scaling", "dead", "links", "rotated", "cut", "damaged"]
 
 
 def _same(capfd, args1: list, args2: list, files=()) -> None:
@@ -214,6 +227,18 @@ def test_a_part_decoded_from_a_stale_scale_is_decoded_again(capsys, small_parts,
     run, data = _run(captures["scaling"])
     assert run.engine.redone >= 1
     assert data == _one(capsys, captures["scaling"])
+
+
+def test_a_finished_file_is_read_by_the_workers_and_a_damaged_chunk_by_the_reader(capsys, small_parts, captures):
+    """The workers read a finished MCAP's chunks themselves; where a chunk fails its CRC the coordinator reads
+    the rest with the file's reader, which skips the chunk and says so, as one process does."""
+    run, data = _run(captures["errors"])
+    assert not run.engine.switched and isinstance(run.engine._store, type(run.engine._store))  # noqa: SLF001
+    capsys.readouterr()
+    run, data = _run(captures["damaged"])
+    assert run.engine.switched and run.damage
+    rc = main(["replay", captures["damaged"], "--format", "jsonl", "--jobs", "1"])
+    assert rc == 2 and data == capsys.readouterr().out.encode()
 
 
 def test_a_line_never_quiet_is_decoded_in_order_from_its_last_quiet_point(capsys, small_parts, captures):

@@ -1,16 +1,16 @@
-"""The coordinator: reads the capture, hands parts to worker processes, and takes them back in order.
+"""The coordinator: hands parts of the capture to worker processes and takes them back in order.
 
     engine = Engine(spec, session, plans, jobs=4)     # session: opened (settings resolved), not run
     for part in engine.parts():                        # in capture order, each checked
         part.pieces                                     # one per plan: what its sink writes of the part
 
-Reading.  The coordinator reads the source's events (one reader: a file's damage,
-a folder's holes and gaps are found once, as in one process) and packs them into
-tasks of `part_events` events, each with `warm_events` before its nominal start
-(the warm-up) and up to `over_events` after its nominal end (where its closing
-quiet point is looked for).  At most `jobs` + 1 tasks are read ahead, and pieces
-wait for their turn only while the parts before them are in work: memory stays
-flat.
+Events (sniffer.parallel.events).  A finished MCAP file is read by the workers
+themselves, each its own part's chunks (Indexed); any other source is read here and
+its events packed into the tasks (Stream).  A task has `part_events` events from its
+nominal start, `warm_events` before it (the warm-up) and up to `over_events` after
+its nominal end (where its closing quiet point is looked for).  At most `jobs` + 1
+tasks wait for a worker, and pieces wait for their turn only while the parts before
+them are in work: memory stays flat.
 
 Checking (sniffer.parallel.truth).  A part is decoded from the latest state known
 for certain when it was handed out.  When its turn comes it is checked against the
@@ -21,7 +21,9 @@ be waiting for its number, so none is free to take it), warming up from the
 accepted start of the part before.  A part with no quiet point to end at in its
 events (a line that is never quiet: every request unanswered, endless noise)
 ends the parallel run: the coordinator decodes the rest in order, in its own
-process, from that part's cut (`_tail`).
+process, from that part's cut (`_tail`).  An indexed file a part cannot read by
+number (a damaged chunk) is read here from then on: the parts after it are made
+again from the Stream.
 
 Numbering.  A part's frames are numbered from 0 until it is checked: its first
 number is the sum of the frames before it, sent back as "base"; then the worker
@@ -35,16 +37,15 @@ import os
 import pickle
 from collections import deque
 from dataclasses import dataclass
-from itertools import islice
 from multiprocessing.connection import wait
 
-from sniffer.events import CaptureError
-from sniffer.parallel.part import Counted, Runner, Task, encode, pack, run_part, unpack
+from sniffer.parallel.events import Indexed, NotIndexed, RawRange, Stream
+from sniffer.parallel.part import Counted, Runner, Task, encode, run_part
 from sniffer.parallel.truth import Truth
 from sniffer.parallel.worker import recv, send, serve
 
 PART_EVENTS = 4096
-WARM_EVENTS = 256
+WARM_EVENTS = 64
 OVER_EVENTS = 2048
 READ_BATCH = 512  # events read between two looks at the workers' pipes
 
@@ -59,7 +60,6 @@ class Part:
 
     counted: Counted
     pieces: list
-    redone: bool = False
 
 
 class _Worker:
@@ -70,6 +70,22 @@ class _Worker:
         child.close()
         self.conn.send_bytes(setup)
         self.part: int | None = None  # the part it works on (None: free)
+        self.stale = False  # its part was made again (its answer is dropped)
+
+
+def event_store(session, on_event=None):
+    """Indexed for a finished MCAP file nobody watches the reading of (a progress bar), else Stream."""
+    from sniffer.sources.files import FileSource
+
+    source = session.source
+    if on_event is None and isinstance(source, FileSource) and source.format == "mcap" \
+            and not session.info.extra.get("mcap_unfinished"):
+        from sniffer.formats.mcap.ranges import raw_index
+
+        index = raw_index(source.path)
+        if index is not None:
+            return Indexed(index)
+    return Stream(source.events(), on_event)
 
 
 class Engine:
@@ -85,14 +101,10 @@ class Engine:
         self.info = session.info
         self.redone = 0  # parts the coordinator decoded again
         self.tail = False  # the rest was decoded in order (no quiet point to cut at)
+        self.switched = False  # an indexed file turned out not to be (read here from then on)
         self.on_event = None  # called with each event read (a progress bar)
+        self._store = None
         self._workers: list[_Worker] = []
-        self._it = None
-        self._events: deque = deque()  # packed events from number self._first on
-        self._first = 0
-        self._read = 0  # events read so far
-        self._ended = False
-        self._error: str | None = None  # the source's error (it ended there)
         self._next_start: int | None = 0  # the nominal start of the next task (None: the last is made)
         self._made = 0
         self._tasks: deque[Task] = deque()  # made, not handed out
@@ -103,45 +115,24 @@ class Engine:
         self._merge = 0  # the next part to hand on
         self._started: dict[int, int] = {}  # part -> the first event its accepted run was fed
 
-    # ------------------------------------------------------------ reading
-    def _read_some(self, n: int) -> None:
-        if self._ended:
-            return
-        events, on_event, it = self._events, self.on_event, self._it
-        try:
-            for _ in range(n):
-                ev = next(it, None)
-                if ev is None:
-                    self._ended = True
-                    return
-                events.append(pack(ev))
-                self._read += 1
-                if on_event is not None:
-                    on_event(ev)
-        except CaptureError as e:  # as a session: everything read before is decoded, then it ends
-            self._ended = True
-            self._error = str(e)
-
+    # ------------------------------------------------------------ tasks
     def _make_tasks(self) -> None:
         """Tasks for what has been read: a part once its overrun is read too (or the source ended)."""
+        store = self._store
         while self._next_start is not None and len(self._tasks) <= self.jobs:
             start = self._next_start
             end = start + self.part_events
-            if not self._ended and self._read < end + self.over:
-                self._read_some(min(end + self.over - self._read, READ_BATCH))
-                if not self._ended:
+            if not store.ended and store.read < end + self.over:
+                store.read_some(min(end + self.over - store.read, READ_BATCH))
+                if not store.ended:
                     return  # a look at the pipes first
-            last = self._ended and self._read <= end + self.over
-            hi = self._read if last else end + self.over
+            last = store.ended and store.read <= end + self.over
+            hi = store.read if last else end + self.over
             lo = max(0, start - self.warm)
-            task = Task(self._made, self._slice(lo, hi), lo, start, None if last else end, {},
-                        error=self._error if last else None)
+            self._tasks.append(Task(self._made, store.slice(lo, hi), lo, start, None if last else end, {},
+                                    error=store.error if last else None))
             self._made += 1
-            self._tasks.append(task)
             self._next_start = None if last else end
-
-    def _slice(self, lo: int, hi: int) -> list:
-        return list(islice(self._events, max(0, lo - self._first), max(0, hi - self._first)))
 
     def _trim(self) -> None:
         """Drop the events no task can need again (a redo warms up from the accepted start of the part
@@ -149,14 +140,32 @@ class Engine:
         keep = self._started.get(self._check - 1, 0)
         for t in (*self._tasks, *self._given.values()):
             keep = min(keep, t.first)
-        while self._first < keep and self._events:
-            self._events.popleft()
-            self._first += 1
+        self._store.trim(keep)
+
+    def _switch(self, k: int) -> None:
+        """Part k's events cannot be read by number: read the capture here from the accepted start of the part
+        before it on (the reader's numbers are the messages' up to there), and make the parts from k again."""
+        first = self._started.get(k - 1, 0)
+        keep = min(first, max(0, self.truth.cut - self.warm))
+        self._store = Stream(self.session.source.events(), self.on_event, skip=keep)
+        self.switched = True
+        for w in self._workers:
+            if w.part is not None and w.part >= k:
+                w.stale = True
+        self._tasks.clear()
+        for part in [p for p in self._given if p >= k]:
+            del self._given[part]
+        for part in [p for p in self._counted if p >= k]:
+            c, w = self._counted.pop(part)
+            if w is not None and not isinstance(c, str):
+                send(w.conn, ("drop",))
+                w.part, w.stale = None, False
+        self._made, self._next_start = k, self.truth.cut
 
     # ------------------------------------------------------------ the run
     def parts(self):
         """Every part, in capture order, checked (see the module doc)."""
-        self._it = iter(self.session.source.events())
+        self._store = event_store(self.session, self.on_event)
         try:
             yield from self._run()
         finally:
@@ -168,8 +177,11 @@ class Engine:
         while True:
             self._make_tasks()
             if not self._workers and self._next_start is None and len(self._tasks) == 1 and not self._given:
-                yield self._alone(self._tasks.popleft())  # a capture of one part: no process to start
-                return
+                got = self._alone(self._tasks.popleft())  # a capture of one part: no process to start
+                if got is not None:
+                    yield got
+                    return
+                continue
             self._trim()
             for w in self._workers:
                 if w.part is None and self._tasks:
@@ -186,16 +198,21 @@ class Engine:
                 if got.counted.end is None:
                     return
             busy = [w.conn for w in self._workers if w.part is not None]
-            reading = self._next_start is not None and not self._ended and len(self._tasks) <= self.jobs
-            if not busy and not reading and not self._tasks:
+            store = self._store
+            reading = self._next_start is not None and not store.ended and len(self._tasks) <= self.jobs
+            if not busy and not reading and not self._tasks and self._next_start is None:
                 raise WorkerError("the parts ran out before the capture's end")  # a bug: nothing left to wait for
             for conn in wait(busy, timeout=0 if reading else None) if busy else ():
                 self._message(next(w for w in self._workers if w.conn is conn))
 
-    def _alone(self, task: Task) -> Part:
+    def _alone(self, task: Task) -> Part | None:
         task.guess = self.truth.guess()
         self._given[task.part] = task
-        result = run_part(self.spec, self.info, self.plans, task)
+        try:
+            result = run_part(self.spec, self.info, self.plans, task)
+        except NotIndexed:
+            self._switch(task.part)
+            return None
         base = self.truth.base
         why = self.truth.take(result.counted)
         if why is not None:
@@ -220,13 +237,17 @@ class Engine:
         if msg[0] == "counted":
             c = msg[1]
             holds = c.cut is not None and not c.no_end
+            if w.stale:  # made again from the Stream: this answer is for nothing
+                if holds:
+                    send(w.conn, ("drop",))
+                w.part, w.stale = None, False
+                return
             self._counted[c.part] = (c, w if holds else None)
             if not holds:
                 w.part = None
         elif msg[0] == "pieces":
-            part = msg[1]
-            c, _ = self._results[part]
-            self._results[part] = (c, msg[2])
+            c, _ = self._results[msg[1]]
+            self._results[msg[1]] = (c, msg[2])
             w.part = None
 
     def _turn(self):
@@ -249,7 +270,9 @@ class Engine:
                 send(w.conn, ("drop",))  # decoded from a wrong guess
                 w.part = None
             redo = self._redo(k)
-            if redo is None:
+            if redo is None:  # made again from the Stream
+                break
+            if redo[0] == "tail":
                 self._counted[k] = ("tail", None)
                 continue
             self._results[k] = redo
@@ -267,16 +290,21 @@ class Engine:
 
     def _redo(self, k: int):
         """Part k again, in this process, from the truth at its cut (warming up from where the part before
-        started, so the pipeline reaches the cut as the whole capture does): (counted, pieces), or None if
-        it has no quiet point to end at in the events read for it."""
+        started, so the pipeline reaches the cut as the whole capture does): (counted, pieces); ("tail", c)
+        if it has no quiet point to end at in the events read for it; None if its events cannot be read by
+        number (the parts from k on are made again from the Stream)."""
         task = self._given[k]
         first = self._started.get(k - 1, 0)
-        redo = Task(k, self._slice(first, task.first + len(task.events)), first, task.start, task.end,
+        redo = Task(k, self._store.slice(first, task.first + len(task.events)), first, task.start, task.end,
                     self.truth.guess(), exact=(self.truth.cut, self.truth.guess()), error=task.error)
-        result = run_part(self.spec, self.info, self.plans, redo)
+        try:
+            result = run_part(self.spec, self.info, self.plans, redo)
+        except NotIndexed:
+            self._switch(k)
+            return None
         c = result.counted
         if c.no_end:
-            return None
+            return "tail", c
         base = self.truth.base
         why = self.truth.take(c)
         if why is not None:
@@ -286,60 +314,76 @@ class Engine:
         self._taken(k)
         return c, result.pieces(base)
 
+    def _rest(self, start: int):
+        """The events from number `start` on, in order (an indexed file that cannot be read so from some point
+        on is read from the source there)."""
+        store, pos = self._store, start
+        if isinstance(store, Indexed):
+            try:
+                for lo in range(start, store.read, self.part_events):
+                    hi = min(lo + self.part_events, store.read)
+                    yield from RawRange(store.index, lo, hi).load()
+                    pos = hi
+                return
+            except NotIndexed:
+                self._store = store = Stream(self.session.source.events(), self.on_event, skip=pos)
+                self.switched = True
+        yield from store.rest(pos)
+
     def _tail(self):
         """From the cut of the part being checked to the end, in order, in this process (no quiet point left
         to cut at): the workers stop; the rest streams in pieces of about `part_events` events."""
         k = self._check
-        for w in self._workers:
-            send(w.conn, ("stop",))
         self.close()
         self.tail = True
         first = self._started.get(k - 1, 0)
         r = Runner(self.spec, self.info, self.plans, self.truth.guess())
         p = r.pipeline
-        events = self._slice(first, self._read)
-        for ev in events[:self.truth.cut - first]:
-            p.feed(unpack(ev))
-        g = self.truth.cut
-        rest = deque(events[self.truth.cut - first:])
-        if rest:
-            r.quiet_before(unpack(rest[0]))  # as the part before ended there
-        self._events.clear()
+        events = self._rest(first)
+        g = first
+        pending = None
+        for ev in events:
+            if g == self.truth.cut:
+                pending = ev
+                break
+            p.feed(ev)
+            g += 1
+        if pending is not None:
+            r.quiet_before(pending)  # as the part before ended there
         c = Counted(k, None)
         r.cut(c, g, self.truth.guess())
-        delta = self.truth.base - r.offset
-        first_piece = self.truth.base == 0
-        done = 0
-        while True:
-            if rest:
-                ev = unpack(rest.popleft())
-            else:
-                self._read_some(1)
-                ev = unpack(self._events.popleft()) if self._events else None
-            if ev is None:
-                try:
-                    p.flush()
-                finally:
-                    c.error = self._error
-                    r.end(c, None)
-                c.frames -= done
-                yield Part(c, encode(r.info, self.plans, r.take(), delta, first_piece))
-                return
+        delta, first_piece, done = self.truth.base - r.offset, self.truth.base == 0, 0
+        error = None
+        for ev in self._chain(pending, events):
             try:
                 p.feed(ev)
-            except CaptureError as e:
-                self._error = str(e)
-                rest.clear()
-                self._ended = True
-                continue
+            except Exception as e:  # noqa: BLE001 - a CaptureError: as a session, the capture ends here
+                from sniffer.events import CaptureError
+
+                if not isinstance(e, CaptureError):
+                    raise
+                error = str(e)
+                break
             g += 1
             if len(r.rec.calls) >= self.part_events:
                 calls = r.take()
                 n = sum(1 for x in calls if type(x) is not tuple)
-                piece = Counted(k, g, end=g, frames=n)
                 done += n
-                yield Part(piece, encode(r.info, self.plans, calls, delta, first_piece))
+                yield Part(Counted(k, g, end=g, frames=n), encode(r.info, self.plans, calls, delta, first_piece))
                 first_piece = False
+        p.flush()
+        c.error = error or self._store.error
+        r.end(c, None)
+        c.frames -= done
+        for link, reg in self.truth.regs.items():  # the naming the capture ends with (the report reads it)
+            reg.restore({"states": {}, **r.regs[link].identity_state()})
+        yield Part(c, encode(r.info, self.plans, r.take(), delta, first_piece))
+
+    @staticmethod
+    def _chain(first, rest):
+        if first is not None:
+            yield first
+        yield from rest
 
     def close(self) -> None:
         for w in self._workers:
@@ -354,3 +398,6 @@ class Engine:
                 w.proc.join(timeout=2)
             w.conn.close()
         self._workers = []
+
+
+__all__ = ["Engine", "Part", "WorkerError", "event_store"]

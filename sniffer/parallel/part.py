@@ -25,41 +25,23 @@ may also be exact (`Task.exact`): the cut and the decoders' state at it are know
 `Runner` is the same run one step at a time, for the coordinator's streaming tail
 (a capture with no quiet point left: the rest decoded in order, in its process).
 
-Events cross the pipe as plain tuples (`pack` / `unpack`): pickling the event
-dataclasses costs several times as much.
+A task's events are the packed events the coordinator read, or a range of an
+indexed file the runner reads itself (sniffer.parallel.events).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from sniffer.events import CaptureError, CaptureInfo, Chunk, Gap, Tick, read_fields
+from sniffer.events import CaptureError, CaptureInfo
+from sniffer.parallel.events import events_of, unpack
 from sniffer.sinks.base import Sink
-
-
-def pack(ev) -> tuple:
-    """An event as a tuple of plain values (`unpack` gives it back)."""
-    kind = type(ev)
-    if kind is Chunk:
-        return (0, *read_fields(ev))
-    if kind is Tick:
-        return (1, ev.t_ns, ev.link)
-    return (2, ev.t_ns, ev.t_end_ns, ev.reason, ev.link, ev.state)
-
-
-def unpack(t: tuple):
-    kind = t[0]
-    if kind == 0:
-        return Chunk(*t[1:])
-    if kind == 1:
-        return Tick(t[1], t[2])
-    return Gap(t[1], t[2], t[3], t[4], t[5])
 
 
 @dataclass
 class Task:
-    """A part to decode: `events` (packed) are events first, first + 1, ...; the part cuts at the first quiet
-    point at or after event `start` and ends at the first at or after `end` (None: at the end of the
+    """A part to decode: `events` (packed, or a RawRange) are events first, first + 1, ...; the part cuts at the
+    first quiet point at or after event `start` and ends at the first at or after `end` (None: at the end of the
     capture, where everything pending is flushed).  `guess`: {link: registry snapshot} to decode with.
     `exact`: (cut, {link: registry snapshot}) when the cut and the decoders' state there are known."""
 
@@ -240,10 +222,12 @@ class PartResult:
 
 
 def run_part(spec, info: CaptureInfo, plans, task: Task) -> PartResult:
-    """Decode one part (see the module doc); the pieces wait for the part's first frame number."""
+    """Decode one part (see the module doc); the pieces wait for the part's first frame number.  NotIndexed
+    (sniffer.parallel.events) if its events are an indexed file's that cannot be read by number."""
+    events = events_of(task.events)
     r = Runner(spec, info, plans, task.guess)
     p = r.pipeline
-    events, n = task.events, len(task.events)
+    n = len(events)
     k = 0  # events[k] is event number task.first + k
     first, start = task.first, task.start
     counted = Counted(task.part, None)

@@ -32,7 +32,8 @@ def recv(conn):
 
 def serve(conn) -> None:
     """The worker's main loop (a multiprocessing.Process target)."""
-    from sniffer.parallel.part import run_part
+    from sniffer.parallel.events import NotIndexed
+    from sniffer.parallel.part import Counted, run_part
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     spec = info = plans = None
@@ -49,7 +50,11 @@ def serve(conn) -> None:
                 _, spec, info, plans = msg
                 continue
             task = msg[1]
-            result = run_part(spec, info, plans, task)
+            try:
+                result = run_part(spec, info, plans, task)
+            except NotIndexed as e:  # the coordinator reads these events itself
+                send(conn, ("counted", Counted(task.part, None, why=str(e))))
+                continue
             send(conn, ("counted", result.counted))
             if result.counted.cut is None or result.counted.no_end:
                 continue  # it holds nothing: the coordinator decodes the part itself
