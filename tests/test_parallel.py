@@ -284,3 +284,44 @@ def test_a_missing_input_leaves_the_old_output_as_in_one_process(capfd, tmp_path
     rc, _out, err = _cli(capfd, "export", tmp_path / "nosuch.mcap", "--to", "pcap", "--out", keep, "--jobs", "2")
     assert rc == 2 and "no such file" in err
     assert keep.read_text() == "precious" and not list(tmp_path.glob("*.part"))
+
+
+class _Calls:
+    """A sink that keeps every call as one process makes it (raw events and frames, encoded)."""
+
+    outputs = ()
+
+    def __init__(self) -> None:
+        self.calls: list = []
+        self.t0 = 0
+
+    def start(self, info) -> None:
+        self.t0 = info.t0_ns
+
+    def raw(self, ev) -> None:
+        from sniffer.formats.mcap.format import encode_event
+
+        self.calls.append(("raw", encode_event(ev)))
+
+    def frame(self, f) -> None:
+        from sniffer.formats.records import frame_json
+
+        self.calls.append(("frame", frame_json(f, self.t0)))
+
+    def close(self) -> None:
+        self.calls.append("closed")
+
+
+@pytest.mark.parametrize("name", ["scaling", "errors", "links", "rotated"])
+def test_any_sink_run_in_the_coordinator_gets_the_calls_one_process_makes(small_parts, captures, name):
+    """CallsPlan + SinkWriter: how a command runs a sink the parts cannot split (a diagnosis of the whole capture)."""
+    from sniffer.capture.session import CaptureSpec, Session
+    from sniffer.parallel.outputs import CallsPlan, SinkWriter
+    from sniffer.parallel.run import ParallelRun
+    from sniffer.sources.segset import capture_source
+
+    one, two = _Calls(), _Calls()
+    Session(CaptureSpec(), capture_source(captures[name]), [one]).run()
+    run = ParallelRun(CaptureSpec(), capture_source(captures[name]), [(CallsPlan(raw=True), SinkWriter(two))], jobs=2)
+    run.run()
+    assert one.calls == two.calls

@@ -11,8 +11,10 @@ byte what one process writes:
     pcap, pcapng    the packets of the part (the first part with the file's header)
     csv             the rows of the part, per file (the first part with the header)
     golden          `sniffer check`'s lines of the part
-    frames          the frames themselves (FrameList), for a sink that must see every frame in
-                    one process (the report's collector, a diagnosis): it runs there, on them
+    frames          the frames themselves, for a sink that must see every frame in one process
+                    (the report's collector): it runs there, on them
+    calls           the frames and raw events, in one process's order, fed to any sink there
+                    (SinkWriter): the way to run a sink set the workers cannot split
 
 MCAP and Parquet (formats/mcap, formats/parquet) need one writer over the whole
 capture (chunks, indexes, row groups): their plans are in sniffer.parallel.whole.
@@ -224,6 +226,80 @@ class _Frames(Sink):
         return self.frames  # pickled as their slots (Frame.__reduce__)
 
 
+class CallsPlan:
+    """The part's sink calls themselves, for any sink run in the coordinator (SinkWriter): its frames, and with
+    `raw` its raw events, in the order one process gives them."""
+
+    def __init__(self, raw: bool = False) -> None:
+        self.wants_raw = raw
+
+    def part_sink(self, info, first: bool):
+        return _Calls(self.wants_raw)
+
+
+class _Calls(Sink):
+    def __init__(self, raw: bool) -> None:
+        self.wants_raw = raw
+        self.calls: list = []
+        self.trailer: list = []  # frames one process hands on after the next part's first event
+
+    def raw(self, event) -> None:
+        from sniffer.parallel.events import pack
+
+        self.calls.append(pack(event))
+
+    def frame(self, f) -> None:
+        f.peer = None
+        self.calls.append(f)
+
+    def after(self, f) -> None:
+        f.peer = None
+        self.trailer.append(f)
+
+    def piece(self):
+        return self.calls, self.trailer
+
+
+class SinkWriter:
+    """Any pipeline sink (sniffer.sinks.base.Sink) fed a CallsPlan's pieces in order: start, every raw event and
+    frame as one process calls them, close.  What a command runs in the coordinator when it must see every
+    frame in one place (a diagnosis over the whole capture)."""
+
+    def __init__(self, sink) -> None:
+        self.sink = sink
+        self.outputs = tuple(getattr(sink, "outputs", ()))
+        self.held: list = []
+
+    def begin(self, info) -> None:
+        self.sink.start(info)
+
+    def add(self, piece) -> None:
+        from sniffer.parallel.events import unpack
+
+        calls, trailer = piece
+        held, self.held = self.held, trailer
+        raw, frame = self.sink.raw, self.sink.frame
+        for c in calls:
+            if type(c) is tuple:
+                raw(unpack(c))
+                for f in held:  # the part before's last frames: after this part's first event
+                    frame(f)
+                held = []
+            else:
+                for f in held:  # (no raw events asked for: they simply follow)
+                    frame(f)
+                held = []
+                frame(c)
+        for f in held:
+            frame(f)
+
+    def close(self) -> None:
+        for f in self.held:
+            self.sink.frame(f)
+        self.held = []
+        self.sink.close()
+
+
 def file_output(file_sink) -> tuple:
     """(plan, writer) of a planned output file (sniffer.formats.FileSink) of any export format."""
     fmt = file_sink.fmt
@@ -245,5 +321,5 @@ def stdout_for(kind: str):
     return sys.stdout.buffer if kind == "jsonl" else sys.stdout
 
 
-__all__ = ["FilePlan", "FileWriter", "FramesPlan", "GoldenPlan", "StreamPlan", "StreamWriter", "file_output",
-           "stdout_for"]
+__all__ = ["CallsPlan", "FilePlan", "FileWriter", "FramesPlan", "GoldenPlan", "SinkWriter", "StreamPlan",
+           "StreamWriter", "file_output", "stdout_for"]
