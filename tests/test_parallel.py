@@ -325,3 +325,53 @@ def test_any_sink_run_in_the_coordinator_gets_the_calls_one_process_makes(small_
     run = ParallelRun(CaptureSpec(), capture_source(captures[name]), [(CallsPlan(raw=True), SinkWriter(two))], jobs=2)
     run.run()
     assert one.calls == two.calls
+
+
+@pytest.mark.parametrize("name", ["scaling", "errors", "dead"])
+def test_closing_before_an_event_hands_on_what_the_event_would_have_first(captures, name):
+    """Pipeline.close_before(ev) then feed(ev) give the frames feed(ev) alone gives, in the same order, at every
+    event, and leave the pipelines alike wherever a part may start (the cut where a silence closes the framer's
+    bytes)."""
+    from decoders.registry import default_registry
+
+    from sniffer.capture.session import CaptureSpec, Session
+    from sniffer.formats.records import frame_record
+    from sniffer.sources.segset import capture_source
+
+    session = Session(CaptureSpec(), capture_source(captures[name]), [])
+    info = session.open()
+    res = session.resolved
+
+    def pipeline():
+        return res.pipeline(info, [], default_registry(res.devices))
+
+    a, b = pipeline(), pipeline()
+    closed = 0
+    for ev in session.source.events():
+        early = b.close_before(ev)
+        closed += bool(early)
+        got_a, got_b = a.feed(ev), early + b.feed(ev)
+        assert [frame_record(f, 0) for f in got_a] == [frame_record(f, 0) for f in got_b]
+        assert a.settled() == b.settled()
+        if a.settled() == 2:  # where a part may start: nothing tells the two apart
+            assert a.cut_state() == b.cut_state()
+    if name != "errors":  # per-read times: a silence that closes bytes is rare there
+        assert closed
+
+
+def test_renumbering_moves_the_frames_and_the_numbers_the_notes_name():
+    from sniffer import codes
+    from sniffer.capture.pairer import renumber
+    from sniffer.codes import note
+    from sniffer.frame import Frame
+
+    f = Frame(3, 0, 1, b"\x01\x03", "modbus-rtu", 1, 3)
+    f.pair = 2
+    f.annotations = [note(codes.RETRY, "repeats frame #1", 0, 2), note(codes.ORPHAN_RESPONSE, "nothing pending", 0, 2),
+                     note(codes.ROLE_AMBIGUOUS, "taken as the response to #2 though x; as a request it would leave "
+                                                "#2 unanswered", 0, 2)]
+    renumber([f], 100)
+    assert (f.index, f.pair) == (103, 102)
+    assert [a.detail for a in f.annotations] == [
+        "repeats frame #101", "nothing pending",
+        "taken as the response to #102 though x; as a request it would leave #102 unanswered"]
