@@ -58,6 +58,80 @@ class UnitState:
         """{(table, address): raw} of the whole shadow (tests compare it with what frames recorded)."""
         return {(t, a): v for t, d in self.tables.items() for a, v in d.items()}
 
+    # ---- a part of a capture decoded ahead of the parts before it (sniffer.parallel) ----------------
+    def dump(self) -> dict:
+        """The unit's memory as plain data: {"holding": {addr: raw}, ..., "extra": {...}} (`load` takes it)."""
+        return {name: {**getattr(d, "base", {}), **_own(d)}
+                for name, d in (*self.tables.items(), ("extra", self.extra))}
+
+    def load(self, d: dict) -> None:
+        """Start from `dump()` of a unit (what it knew where a part of the capture starts)."""
+        self._set({name: dict(d.get(name) or {}) for name in (*self.tables, "extra")})
+
+    def track(self, reads: dict) -> None:
+        """From now on writes land in fresh tables and a read of what the part has not written yet goes to
+        the memory as it is now (a guess of what the unit knew at the cut), recorded in `reads`:
+        {(unit, table, key): (known, value)}.  `written()` gives what the part wrote."""
+        u = self.unit
+        self._set({name: Overlay(dict(d), reads, (u, name))
+                   for name, d in (*self.tables.items(), ("extra", self.extra))})
+
+    def written(self) -> dict:
+        """What was written since `track()`: {table or "extra": {key: final value}} (tables written to only)."""
+        out = {}
+        for name, d in (*self.tables.items(), ("extra", self.extra)):
+            own = _own(d)
+            if own:
+                out[name] = own
+        return out
+
+    def _set(self, d: dict) -> None:
+        self.holding, self.input, self.coils, self.discrete = d["holding"], d["input"], d["coil"], d["discrete"]
+        self.extra = d["extra"]
+        self.tables = {"holding": self.holding, "input": self.input, "coil": self.coils, "discrete": self.discrete}
+
+
+def _own(d: dict) -> dict:
+    """A table's own items (an Overlay's: what the part wrote, without its base)."""
+    return {k: dict.__getitem__(d, k) for k in dict.keys(d)}
+
+
+class Overlay(dict):
+    """One table of a tracked unit (UnitState.track): its own items are what the part wrote; a read of any
+    other key falls through to `base` and is recorded once, (known, value), in `reads` under `where` + key.
+
+    Only reads go through Python (get, [], in); writes stay the plain dict's.  A decoder reads the shadow
+    rarely (a register that scales others, a mask write's old value, a setting the traffic showed)."""
+
+    __slots__ = ("base", "reads", "where")
+
+    def __init__(self, base: dict, reads: dict, where: tuple) -> None:
+        super().__init__()
+        self.base, self.reads, self.where = base, reads, where
+
+    def _fall(self, key):
+        known = key in self.base
+        value = self.base[key] if known else None
+        self.reads.setdefault((*self.where, key), (known, value))
+        return known, value
+
+    def get(self, key, default=None):
+        if dict.__contains__(self, key):
+            return dict.__getitem__(self, key)
+        known, value = self._fall(key)
+        return value if known else default
+
+    def __getitem__(self, key):
+        if dict.__contains__(self, key):
+            return dict.__getitem__(self, key)
+        known, value = self._fall(key)
+        if not known:
+            raise KeyError(key)
+        return value
+
+    def __contains__(self, key) -> bool:
+        return dict.__contains__(self, key) or self._fall(key)[0]
+
 
 class Decoder(Protocol):
     model: str

@@ -44,7 +44,8 @@ a guess that contradicts it.  After SETTLED answers a unit's verdict stands
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import copy
+from dataclasses import asdict, dataclass, field
 from typing import NamedTuple
 
 from sniffer.frame import RESPONSE, Frame
@@ -72,6 +73,17 @@ class Verdict(NamedTuple):
     evidence: str
 
 
+def canonical(x):
+    """Dicts and sets as tuples sorted by repr, recursively: equal content, equal value."""
+    if isinstance(x, dict):
+        return tuple(sorted(((canonical(k), canonical(v)) for k, v in x.items()), key=repr))
+    if isinstance(x, (set, frozenset)):
+        return tuple(sorted((canonical(v) for v in x), key=repr))
+    if isinstance(x, (list, tuple)):
+        return tuple(canonical(v) for v in x)
+    return x
+
+
 def confidence_of(score: float) -> float:
     return round(min(0.99, 1 - 2 ** (-score / 2)), 2)
 
@@ -94,6 +106,19 @@ def _unused_mask(regmap, bits_name: str) -> int:
 
 def _rule(r) -> str:
     return "enum" if r.enum else "status bits" if r.bits else f"range {r.min}..{r.max}"
+
+
+class Seen:
+    """What `Identifier.observe` reads of a frame (and of its request), kept to observe it again elsewhere: a
+    part of a capture decoded ahead is checked by observing its frames again from the true state."""
+
+    __slots__ = ("role", "crc_ok", "unit", "protocol", "adu", "function", "raw", "peer", "annotations")
+
+    def __init__(self, f, peer: bool = True) -> None:
+        self.role, self.crc_ok, self.unit, self.protocol = f.role, f.crc_ok, f.unit, f.protocol
+        self.adu, self.function, self.raw = f.adu, f.function, f.raw
+        self.peer = Seen(f.peer, False) if peer and f.peer is not None else None
+        self.annotations: list = []
 
 
 class ModelFacts:
@@ -228,6 +253,24 @@ class Identifier:
         if self.direct.get(unit) != model:
             self.direct[unit] = model
             self._direct_version += 1
+
+    # ---- a part of a capture decoded ahead of the parts before it (sniffer.parallel) --------------
+    def snapshot(self) -> dict:
+        """What the frames so far taught, as plain data: `restore` starts another identifier there."""
+        return {"units": copy.deepcopy(self.units), "direct": dict(self.direct),
+                "direct_version": self._direct_version}
+
+    def restore(self, snap: dict) -> None:
+        self.units = copy.deepcopy(snap["units"])
+        self.direct = dict(snap["direct"])
+        self._direct_version = snap["direct_version"]
+
+    @staticmethod
+    def fingerprint(snap: dict) -> tuple:
+        """`snapshot()` in a canonical form: two identifiers with equal fingerprints name every unit the same
+        way from here on, whatever they are shown (the caches of what the maps say aside)."""
+        units = tuple((u, canonical(asdict(ev))) for u, ev in sorted(snap["units"].items()))
+        return units, tuple(sorted(snap["direct"].items())), snap["direct_version"]
 
     def ruled_out(self, unit: int, model: str) -> str | None:
         ev = self.units.get(unit)

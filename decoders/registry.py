@@ -52,6 +52,8 @@ class DecoderRegistry:
         self.guesses: dict[int, tuple[str, float, str]] = {}  # unit -> (model, confidence, evidence)
         self._contradicted: set[int] = set()
         self._version = 0  # changes of the guesses (UnitState.version counts the rest: version())
+        self._tracking: dict | None = None  # the reads of a part decoded ahead (track())
+        self._observed: list | None = None  # and the frames it observed
         self.identifier = None
         if identify:
             from .identify import Identifier
@@ -88,6 +90,16 @@ class DecoderRegistry:
     def _identify(self, f: Frame) -> None:
         if self.identifier is None:
             return
+        if self._observed is not None:  # a part decoded ahead: what it observed, to observe again (replay)
+            from .identify import Seen
+
+            n0 = len(f.annotations)
+            self._verdict(f)
+            self._observed.append(("seen", Seen(f), tuple(f.annotations[n0:])))
+            return
+        self._verdict(f)
+
+    def _verdict(self, f) -> None:
         got = self.identifier.observe(f)
         if got is None:
             return
@@ -132,6 +144,8 @@ class DecoderRegistry:
     def carry_in(self, units: dict) -> None:
         """Start from what a part of the capture before knew (`carried()` of that registry); a model the
         user's map gives for a unit wins over the one carried.  Bad entries are skipped: metadata is input."""
+        if self._observed is not None:
+            self._observed.append(("carry", units))
         for key, d in (units or {}).items():
             try:
                 unit = int(key)
@@ -157,6 +171,68 @@ class DecoderRegistry:
                     st.remember(str(k), v)
             self._routes.pop(unit, None)
 
+    # ---- a part decoded ahead of the parts before it (sniffer.parallel) ----------------------------
+    # A part of a capture can be decoded in another process before the parts before it are: it starts
+    # from a guess of what the registry knows at its cut (`restore`), records every read of a unit's
+    # memory it has not written itself and every frame the identifier observed (`track`), and is kept
+    # only if the guess was right where it mattered: the same `naming()` at the cut, every read equal to
+    # the true value, and every observed frame noted the same from the true state (`replay`).
+    def snapshot(self) -> dict:
+        """Everything the registry learnt from the traffic, as plain data (`restore` takes it)."""
+        return {"states": {u: st.dump() for u, st in self.states.items()}, **self.identity_state()}
+
+    def identity_state(self) -> dict:
+        """What names the units (the guesses, the contradicted maps, the identifier's evidence)."""
+        return {"guesses": dict(self.guesses), "contradicted": sorted(self._contradicted),
+                "identifier": self.identifier.snapshot() if self.identifier is not None else None}
+
+    def restore(self, snap: dict) -> None:
+        """Start from `snapshot()` (or `identity_state()` and "states" from elsewhere) of a registry."""
+        self._tracking = self._observed = None
+        self.states = {}
+        for unit, d in (snap.get("states") or {}).items():
+            self.state(unit).load(d)
+        self.guesses = dict(snap["guesses"])
+        self._contradicted = set(snap["contradicted"])
+        if self.identifier is not None and snap.get("identifier") is not None:
+            self.identifier.restore(snap["identifier"])
+        self._routes.clear()
+
+    def naming(self) -> tuple:
+        """What routes a frame to its model now, beside the identifier's evidence: the guesses and the maps
+        a guess contradicted."""
+        from .identify import canonical
+
+        return canonical(self.guesses), tuple(sorted(self._contradicted))
+
+    def track(self) -> None:
+        """Record from now on every read of a unit's memory not written since (UnitState.track), and every
+        frame the identifier observes, with the notes it gave (`replay` observes them again)."""
+        self._tracking = {}
+        self._observed = []
+        for st in self.states.values():
+            st.track(self._tracking)
+
+    def tracked(self) -> tuple[dict, dict, list]:
+        """(reads, writes, observed) since `track()`: {(unit, table, key): (known, value)},
+        {unit: UnitState.written()}, [("seen", Seen, notes) or ("carry", units)]."""
+        writes = {u: w for u, st in self.states.items() if (w := st.written())}
+        return dict(self._tracking or {}), writes, list(self._observed or ())
+
+    def replay(self, observed: list) -> str | None:
+        """Observe again, in order, what a part decoded ahead observed (`tracked`); None if every frame got
+        the same notes here, else why not (this registry then holds what it learnt up to there)."""
+        for entry in observed:
+            if entry[0] == "carry":
+                self.carry_in(entry[1])
+                continue
+            _, seen, notes = entry
+            seen.annotations = []
+            self._verdict(seen)
+            if tuple(seen.annotations) != notes:
+                return f"unit {seen.unit} named otherwise than the part guessed"
+        return None
+
     def preset(self, params: dict[int, dict]) -> None:
         """A bus file's [parameters]: per unit, values the bus may never show (`{1: {"Cn-02": 60}}`), put in
         the unit's shadow through its model (the one the user's map gives); DeviceMapError (one line)."""
@@ -176,6 +252,8 @@ class DecoderRegistry:
         st = self.states.get(unit)
         if st is None:
             st = self.states[unit] = UnitState(unit)
+            if self._tracking is not None:
+                st.track(self._tracking)
         return st
 
     def decode(self, f: Frame) -> None:

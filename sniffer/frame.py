@@ -164,8 +164,25 @@ class Frame:
                 worst = a.severity
         return worst
 
+    def __reduce__(self):
+        """Pickled as its slots' values, without `peer` and the cached record (a frame decoded in a worker
+        process crosses to the one that writes it: sniffer.parallel)."""
+        return _rebuild, tuple([getattr(self, s) for s in _STATE])
+
     def __repr__(self) -> str:  # pragma: no cover - debugging aid
         return (
             f"Frame(#{self.index} t={self.t_ns} {self.protocol} {self.role} "
             f"unit={self.unit} fc={self.function} raw={self.raw.hex()} crc_ok={self.crc_ok})"
         )
+
+
+_STATE = tuple(s for s in Frame.__slots__ if s not in ("peer", "encoded"))
+
+
+def _rebuild(*values) -> Frame:
+    f = Frame.__new__(Frame)
+    for name, v in zip(_STATE, values):
+        setattr(f, name, v)
+    f.peer = None
+    f.encoded = None
+    return f

@@ -119,6 +119,11 @@ class RegisterBlock:
     def __len__(self) -> int:
         return len(self.values)
 
+    def __reduce__(self):
+        """Pickled as what makes it (a frame crossing to another process: sniffer.parallel)."""
+        sh = self.shape
+        return RegisterBlock, (sh.space, sh.addr, self.values, sh.offset)
+
     def points(self) -> list[dict]:
         sh, n = self.shape, len(self.values)
         return [

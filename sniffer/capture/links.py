@@ -298,6 +298,24 @@ class LinkPipelines:
         s = self.pipelines[name].settled()
         return 1 if s == 2 and self._queues[name] else s
 
+    def numbered(self) -> int:
+        """How many frames have been numbered so far (the next frame's number)."""
+        return self._numbered
+
+    def cut_state(self, offset: int | None = None) -> tuple:
+        """As Pipeline.cut_state, of every link and of the merge (its queues, the links it went on without,
+        how far back each link's reads reach, the clock)."""
+        offset = self._numbered if offset is None else offset
+
+        def item(x):
+            return (x.index - offset, x.t_ns, x.raw) if type(x) is Frame else repr(x)
+
+        return (tuple((n, p.cut_state(offset), tuple(item(x) for x in self._queues[n]))
+                      for n, p in self.pipelines.items()),
+                tuple(sorted(self._reach.items())), tuple(sorted(self._stalled)),
+                tuple(i - offset for i, _ in sorted(self._ready, key=lambda r: r[0])),
+                self._next_out - offset, self._clock)
+
     def flush(self) -> list[Frame]:
         """End of input: every link's pending bytes and held requests settled, every frame handed on in order."""
         for name, p in self.pipelines.items():

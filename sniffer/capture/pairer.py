@@ -59,6 +59,8 @@ function, adu, crc_ok or `can` bits.
 
 from __future__ import annotations
 
+import re
+
 from sniffer import codes
 from sniffer.codes import note
 from sniffer.frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE, UNKNOWN, Frame
@@ -234,7 +236,7 @@ class Pairer:
             req, ended = self.recent[k]
             if req.unit != f.unit or not (f.function == req.function or f.function == req.function | 0x80):
                 continue
-            if f.t_ns - req.t_end_ns > LATE_WINDOW * self._timeout(req.unit):
+            if f.t_ns - req.t_end_ns > LATE_WINDOW * self.timeout_for(req.unit):
                 continue
             if req.crc_ok and f.crc_ok and f.protocol in _MODBUS and response_mismatch(req.adu, f.adu):
                 continue
@@ -300,6 +302,19 @@ class Pairer:
         self.held = []
         return out
 
+    def cut_state(self, offset: int) -> tuple:
+        """What this pairer carries past a cut (sniffer.parallel), frame numbers counted from `offset` (the
+        first number after the cut): the pending request and what it holds, and the last request only while
+        it is the frame just before (a broadcast an answer may follow: `_answers_broadcast`)."""
+        def ref(f):
+            return (f.index - offset, f.t_ns, f.t_end_ns, f.raw, f.protocol, f.unit, f.function, f.crc_ok, f.role,
+                    f.adu, f.time_source)
+
+        last = self.last_request
+        last = ref(last) if last is not None and last.index == self._last_index else None
+        return (None if self.pending is None else ref(self.pending), tuple(ref(f) for f in self.held), last,
+                self.timeout_ns, tuple(sorted(self.unit_timeouts.items())))
+
     def would_time_out(self, t_ns: int) -> bool:
         """True if tick(t_ns) would settle the pending request (used to record effective ticks)."""
         req = self.pending
@@ -330,6 +345,28 @@ def _answer_head(req: bytes, raw: bytes) -> bool:
         qty = (req[4] << 8) | req[5]
         return raw[2] == (2 * qty if fc >= 3 else (qty + 7) // 8)
     return False
+
+
+# the annotations whose text names other frames by number ("#N": `_ref`), renumbered with them
+_NAMING_CODES = frozenset({codes.ROLE_AMBIGUOUS.code, codes.BROADCAST_RESPONSE.code, codes.ORPHAN_RESPONSE.code,
+                           codes.RETRY.code})
+_NUMBER = re.compile(r"#(\d+)")
+
+
+def renumber(frames, delta: int) -> None:
+    """Move frames decoded as a part of their own to their numbers in the whole capture (sniffer.parallel):
+    index and pair by `delta`, and the frame numbers the pairer's notes name."""
+    def shift(m):
+        return f"#{int(m.group(1)) + delta}"
+
+    for f in frames:
+        f.index += delta
+        if f.pair is not None:
+            f.pair += delta
+        anns = f.annotations
+        for k, a in enumerate(anns):
+            if a.code in _NAMING_CODES and "#" in a.detail:
+                anns[k] = a._replace(detail=_NUMBER.sub(shift, a.detail))
 
 
 def _same_transaction(req: Frame, f: Frame) -> bool:

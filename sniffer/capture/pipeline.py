@@ -119,6 +119,20 @@ class Pipeline:
                 self.driver_enable.mark(frames)
         return frames
 
+    def close_before(self, ev) -> list[Frame]:
+        """The frames feed(ev) would hand on first, before any of ev's own bytes, if the silence before ev
+        (a Chunk) closes every byte the framer holds; handed on now ([] if it does not).  feed(ev) then gives
+        the rest: the same frames in the same order as feed(ev) alone, but before ev reaches the sinks' raw
+        (sniffer.parallel cuts a capture there, where nothing else is pending)."""
+        if type(ev) is not Chunk or not self.framer.pending_bytes() or not self.framer.closes_before(ev):
+            return []
+        frames = self.framer.close_now()
+        if frames:
+            self._mark(frames)
+            if self.driver_enable is not None:
+                self.driver_enable.mark(frames)
+        return self.paired(frames)
+
     def carry_in(self, state: dict) -> None:
         """A Gap's `state` (the decoder state recorded where the next file starts), once the frames before the
         gap are paired and decoded."""
@@ -152,6 +166,21 @@ class Pipeline:
         if self.framer.pending_bytes():
             return 0
         return 1 if self.pairer.pending is not None or self.pairer.held else 2
+
+    def numbered(self) -> int:
+        """How many frames have been numbered so far (the next frame's number)."""
+        return self.framer.index
+
+    def cut_state(self, offset: int | None = None) -> tuple:
+        """What crosses a cut between two events (sniffer.parallel: a capture decoded in parts), frame numbers
+        counted from `offset` (default: the next one): two pipelines with equal cut states (and decoders that
+        know the same) give the same frames from there on.  The decoders' part is theirs (DecoderRegistry)."""
+        offset = self.numbered() if offset is None else offset
+        gap = self._gap_pending
+        de = self.driver_enable
+        return (self.framer.cut_state(), self.pairer.cut_state(offset),
+                None if gap is None else (gap.t_ns, gap.t_end_ns, gap.reason, gap.link, repr(gap.state)),
+                None if de is None else repr(sorted(vars(de).items())), self.link, self.directions)
 
     def flush(self) -> list[Frame]:
         """End of input: every pending byte becomes a frame, every held request is settled."""

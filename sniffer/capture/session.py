@@ -353,18 +353,7 @@ class Session:
                              f"(not complete{how})"
 
     def _storage_text(self, e: Exception) -> str:
-        """One line for an output that cannot be written, naming the user's file (not its part file)."""
-        if isinstance(e, CaptureStorageError) and (self.keep_partial or not self.outputs):
-            text = str(e)  # a capture (or its segments): what it kept is what matters
-        else:
-            reason = (e.strerror or str(e)) if isinstance(e, OSError) else (getattr(e, "reason", "") or str(e))
-            where = ", ".join(o.path for o in self.outputs)
-            if not where and isinstance(e, OSError) and isinstance(e.filename, str):
-                where = e.filename
-            text = f"{where or 'output'}: cannot write: {reason}"
-        for o in self.outputs:
-            text = text.replace(o.part, o.path)
-        return text
+        return storage_text(e, self.outputs, self.keep_partial)
 
     def _close_source(self) -> None:
         for name in ("stop", "close"):
@@ -374,6 +363,21 @@ class Session:
                     fn()
                 except Exception:  # noqa: BLE001 - closing: nothing left to save
                     pass
+
+
+def storage_text(e: Exception, outputs, keep_partial: bool = False) -> str:
+    """One line for an output that cannot be written, naming the user's file (not its part file)."""
+    if isinstance(e, CaptureStorageError) and (keep_partial or not outputs):
+        text = str(e)  # a capture (or its segments): what it kept is what matters
+    else:
+        reason = (e.strerror or str(e)) if isinstance(e, OSError) else (getattr(e, "reason", "") or str(e))
+        where = ", ".join(o.path for o in outputs)
+        if not where and isinstance(e, OSError) and isinstance(e.filename, str):
+            where = e.filename
+        text = f"{where or 'output'}: cannot write: {reason}"
+    for o in outputs:
+        text = text.replace(o.part, o.path)
+    return text
 
 
 class EventSource:

@@ -9,10 +9,10 @@ from pathlib import Path
 
 from sniffer.analysis.check import (
     EXIT_DIFFERENT, EXIT_ERROR, EXIT_SAME, GoldenSink, Tolerances, compare_lines, golden_lines, golden_version,
-    read_lines, FINDING,
+    read_lines, FINDING, GOLDEN_HEADER, GOLDEN_V1,
 )
 from sniffer.capture.settings import CaptureSpec
-from sniffer.commands.flags import command_parser, decode_flags, duration, input_flags, serial_flags
+from sniffer.commands.flags import command_parser, decode_flags, duration, input_flags, jobs_flag, serial_flags
 from sniffer.diagnose import Diagnosis
 
 
@@ -39,22 +39,28 @@ def add_parser(subparsers) -> None:
                    help="frame time tolerance, in ms or with a unit (default 1 ms)")
     p.add_argument("--latency-tol-ms", type=duration("--latency-tol-ms", bare="ms", unit="ms", upper_s=1e6),
                    default=1.0, metavar="TIME", help="latency tolerance, in ms or with a unit (default 1 ms)")
+    jobs_flag(p)
     serial_flags(p, "file")
     decode_flags(p, "file")
 
 
 def run(spec: CaptureSpec, args) -> int:
     tol = Tolerances(args.time_tol_ms, args.latency_tol_ms)
+    from sniffer.commands.common import jobs_for
+
     rc, text = check(spec.input, args.golden, spec=spec, update=args.update_golden, tolerances=tol,
-                     findings=args.findings)
+                     findings=args.findings, jobs=jobs_for(spec, args))
     (sys.stdout if rc == 1 else sys.stderr).write(text)
     return rc
 
 
 def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
-          update: bool = False, findings: bool = False) -> tuple[int, str]:
+          update: bool = False, findings: bool = False, jobs: int = 1) -> tuple[int, str]:
     """(exit code, text): 0 same, 1 different (unified diff), 2 error (one line).  `findings`: the golden holds
-    the capture's findings too (they are compared whenever the golden holds them)."""
+    the capture's findings too (they are compared whenever the golden holds them).  `jobs` > 1: decoded by
+    parts in that many processes (sniffer.parallel), the same lines."""
+    if jobs > 1:
+        return _check_parts(capture, golden, spec, tolerances or Tolerances(), update, jobs, findings)
     from decoders.registry import DeviceMapError
 
     from sniffer.line import SettingsError
@@ -112,6 +118,76 @@ def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
     return (EXIT_DIFFERENT, d) if d else (EXIT_SAME, "")
 
 
+def _check_parts(capture, golden, spec, tol: Tolerances, update: bool, jobs: int,
+                 findings: bool) -> tuple[int, str]:
+    """check() with the capture decoded by parts: the golden lines come from the workers, in order (with the
+    findings: the frames, through one diagnosis here, then its findings)."""
+    from decoders.registry import DeviceMapError
+
+    from sniffer.line import SettingsError
+    from sniffer.formats.outputs import Output
+    from sniffer.events import CaptureError
+    from sniffer.parallel.outputs import FramesPlan, GoldenPlan
+    from sniffer.parallel.run import decode_capture
+
+    golden = Path(golden)
+    names = (f"{golden}", os.fspath(capture))
+    try:
+        if not update and not golden.exists():
+            return EXIT_ERROR, (f"sniffer check: error: {golden}: no such golden file "
+                                "(create it with --update-golden, then review it)\n")
+        version = 2 if update else golden_version(golden)
+        findings = findings or (not update and holds_findings(golden))
+        out = None
+        if update:
+            golden.parent.mkdir(parents=True, exist_ok=True)
+            out = Output(golden, inputs=[capture, *(spec.read_paths() if spec else ())], what="--golden")
+        run = decode_capture(capture, spec, jobs)
+        header = GOLDEN_HEADER if version >= 2 else GOLDEN_V1
+
+        def lines():
+            if findings:
+                frames = (f for part in run.parts([FramesPlan()]) for f in part.pieces[0])
+                yield from with_findings(run, golden_lines(run.info.t0_ns, diagnosed(run, frames), version))
+                return
+            yield header
+            for part in run.parts([GoldenPlan(version)]):
+                yield from part.pieces[0]
+
+        if out is None:
+            d = compare_lines(read_lines(golden), lines(), tol, names)
+            err = _failed(run)
+            if err:
+                return EXIT_ERROR, f"sniffer check: error: {err}\n"
+            return (EXIT_DIFFERENT, d) if d else (EXIT_SAME, "")
+        err = "interrupted"
+        try:
+            with open(out.claim(), "w", encoding="utf-8") as fh:
+                def written():
+                    for line in lines():
+                        fh.write(line + "\n")
+                        yield line
+
+                new = written()
+                d = ""
+                if golden.exists():
+                    d = compare_lines(read_lines(golden), new, Tolerances(0, 0), names)
+                for _ in new:
+                    pass
+            err = _failed(run)
+        finally:
+            if err:
+                out.discard()
+            else:
+                out.commit()
+        if err:
+            return EXIT_ERROR, f"sniffer check: error: {err}\n"
+        return EXIT_SAME, f"sniffer check: wrote {golden} ({run.frames_out} frames)\n" + d
+    except (CaptureError, SettingsError, DeviceMapError, ValueError, OSError) as e:
+        why = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.filename else str(e)
+        return EXIT_ERROR, f"sniffer check: error: {why}\n"
+
+
 def _failed(session) -> str | None:
     """Why a decode cannot be trusted (input error or damage), or None."""
     if session.error:
@@ -132,10 +208,11 @@ def with_findings(session, lines: Iterator[str]) -> Iterator[str]:
     yield from (f.golden_line() for f in session.diagnosis.findings())
 
 
-def diagnosed(session):
-    """The session's frames, each through a diagnosis engine first (kept as `session.diagnosis`)."""
+def diagnosed(session, frames=None):
+    """The session's frames (or `frames`, a parallel run's), each through a diagnosis engine first (kept as
+    `session.diagnosis`)."""
     engine = session.diagnosis = Diagnosis()
     engine.start_session(session)
-    for f in session:
+    for f in session if frames is None else frames:
         engine.frame(f)
         yield f

@@ -120,6 +120,46 @@ def report(session: Session, *, label: str = "") -> int:
     return EXIT_OK
 
 
+def jobs_for(spec: CaptureSpec, args) -> int:
+    """The processes a decoding command runs with (sniffer.parallel): 1 where a part cannot carry what the
+    command needs across its cut (said in one line when --jobs asked for more)."""
+    from sniffer.parallel.options import jobs_of, one_process_why
+
+    jobs = jobs_of(args)
+    if jobs > 1:
+        why = one_process_why(spec, args)
+        if why:
+            if getattr(args, "jobs", None):
+                say(f"note: --jobs {jobs}: one process ({why})")
+            return 1
+    return jobs
+
+
+def parallel_run(spec: CaptureSpec, source, outputs, jobs: int, progress_label: str | None = None):
+    """A ParallelRun (sniffer.parallel.run) of `source` into `outputs` [(plan, writer)], opened; with a progress
+    bar on stderr when `progress_label` is given (closed by `run_with_bar`)."""
+    from sniffer.parallel.run import ParallelRun
+
+    run = ParallelRun(spec, source, outputs, jobs=jobs)
+    run.bar = None
+    if progress_label is not None:
+        from sniffer.capture.progress import ReplayProgress
+
+        run.bar = ReplayProgress(progress_label, source=source, frames=lambda: run.frames_out)
+        run.on_event = run.bar.update
+    return run
+
+
+def run_with_bar(run) -> None:
+    """run.open(); run.run(), the progress bar (if any) closed whatever happens."""
+    try:
+        run.open()
+        run.run()
+    finally:
+        if run.bar is not None:
+            run.bar.close()
+
+
 def tui_wanted(spec: CaptureSpec) -> bool:
     """The TUI is the default on a terminal; --headless, --quiet, --format jsonl or a pipe keep the stream."""
     return (not spec.headless and spec.stream == "text" and sys.stdout.isatty() and sys.stdin.isatty())

@@ -51,13 +51,7 @@ def take_in_all(spec: CaptureSpec, args, files: list[str], root: str) -> int:
     known = Known(ds.manifest())
     taken = skipped = frames = replaced = 0
     failed: list[Failed] = []
-    for path in files:
-        bar = _bar(path, args) if getattr(args, "progress", False) else None
-        try:
-            result = take_in(ds, path, spec, known, link=args.link, on_event=bar.update if bar else None)
-        finally:
-            if bar is not None:
-                bar.close()
+    for result in _results(ds, spec, args, files, known):
         if isinstance(result, Taken):
             taken += 1
             replaced += bool(result.replaced)
@@ -76,6 +70,30 @@ def take_in_all(spec: CaptureSpec, args, files: list[str], root: str) -> int:
     if any(f.why.startswith(f"{shown(f.path)}: cannot write the dataset") for f in failed):
         return EXIT_FAILED
     return EXIT_USAGE if failed else EXIT_OK
+
+
+def _results(ds, spec: CaptureSpec, args, files: list[str], known):
+    """Each capture's result, in order: decoded here one by one, or by worker processes (--jobs) or a Dask cluster
+    (--dask), each capture by one worker (sniffer.parallel.fleet: the same dataset)."""
+    from sniffer.commands.common import jobs_for
+
+    address = getattr(args, "dask", None)
+    jobs = 1 if address else min(jobs_for(spec, args), len(files))
+    if address or jobs > 1:
+        from sniffer.parallel.fleet import DaskError, take_in_all
+
+        try:
+            yield from take_in_all(ds, files, spec, known, link=args.link, jobs=jobs, dask=address)
+        except DaskError as e:
+            raise UsageError(str(e)) from None
+        return
+    for path in files:
+        bar = _bar(path, args) if getattr(args, "progress", False) else None
+        try:
+            yield take_in(ds, path, spec, known, link=args.link, on_event=bar.update if bar else None)
+        finally:
+            if bar is not None:
+                bar.close()
 
 
 def _bar(path: str, args):

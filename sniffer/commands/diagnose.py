@@ -13,8 +13,8 @@ import sys
 
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
-from sniffer.commands.common import report
-from sniffer.commands.flags import command_parser, decode_flags, input_flags, progress_flag, serial_flags
+from sniffer.commands.common import jobs_for, report
+from sniffer.commands.flags import command_parser, decode_flags, input_flags, jobs_flag, progress_flag, serial_flags
 from sniffer.commands.replay import file_source, note_unfinished
 
 
@@ -37,24 +37,19 @@ def add_parser(subparsers) -> None:
                    help="a drive's saved parameter set (CSV: unit,register,value) or an earlier capture: "
                         "parameters this capture reads otherwise are a finding")
     progress_flag(p)
+    jobs_flag(p)
     serial_flags(p, "file")
     decode_flags(p, "file")
 
 
-def run(spec: CaptureSpec, args) -> int:
-    from sniffer.diagnose import Diagnosis, summary, to_json, to_text
-    from sniffer.diagnose.reference import load
-
-    reference = load(args.params, spec.with_(input=None, inputs=())) if args.params else None
-    source = file_source(spec)
+def _one_process(spec: CaptureSpec, source, engine, progress: bool) -> Session:
     session = Session(spec, source, [])
     bar = None
-    if args.progress:
+    if progress:
         from sniffer.capture.progress import ReplayProgress
 
         bar = ReplayProgress(spec.input, source=source, frames=lambda: session.frames_out)
         session.on_event = bar.update
-    engine = Diagnosis(reference)
     try:
         session.open()
         note_unfinished(session)
@@ -65,6 +60,35 @@ def run(spec: CaptureSpec, args) -> int:
     finally:
         if bar is not None:
             bar.close()
+    return session
+
+
+def run(spec: CaptureSpec, args) -> int:
+    from sniffer.diagnose import Diagnosis, summary, to_json, to_text
+    from sniffer.diagnose.reference import load
+
+    reference = load(args.params, spec.with_(input=None, inputs=())) if args.params else None
+    source = file_source(spec)
+    engine = Diagnosis(reference)
+    jobs = jobs_for(spec, args)
+    if jobs > 1:  # decoded by parts in worker processes; the engine takes their frames here, in order
+        from sniffer.commands.common import parallel_run
+        from sniffer.parallel.outputs import FramesPlan
+
+        session = parallel_run(spec, source, [], jobs, spec.input if args.progress else None)
+        try:
+            session.open()
+            note_unfinished(session.session)
+            engine.start_session(session)
+            frame = engine.frame
+            for part in session.parts([FramesPlan()]):
+                for f in part.pieces[0]:
+                    frame(f)
+        finally:
+            if session.bar is not None:
+                session.bar.close()
+    else:
+        session = _one_process(spec, source, engine, args.progress)
     findings = engine.findings()
     if args.format == "json":
         sys.stdout.write(to_json(findings))

@@ -14,7 +14,7 @@ import argparse
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.formats import EXPORT_FORMATS, FileSink
-from sniffer.commands.common import UsageError, report, say
+from sniffer.commands.common import UsageError, jobs_for, report, say
 from sniffer.commands.flags import command_parser, dataset_flags, foxglove_flags, input_format_flag, logic_flags
 from sniffer.commands.replay import file_source
 
@@ -79,8 +79,17 @@ def run(spec: CaptureSpec, args) -> int:
     if args.link:
         raise UsageError("--link is for --to dataset")
     spec = spec.with_(input=files[0], inputs=(files[0],))  # a folder of segments is one capture (segset.py)
-    sink = FileSink(args.to, spec.out, inputs=spec.read_paths())  # checked before the input is read
+    # checked before the input is read; written as it fills, never by the clock: the same bytes every time
+    sink = FileSink(args.to, spec.out, inputs=spec.read_paths(), timed_flush=False)
     source = file_source(spec)
+    jobs = jobs_for(spec, args)
+    if jobs > 1:
+        from sniffer.commands.common import parallel_run, run_with_bar
+        from sniffer.parallel.outputs import file_output
+
+        run = parallel_run(spec, source, [file_output(sink)], jobs, spec.input if args.progress else None)
+        run_with_bar(run)
+        return _done(run, spec)
     session = Session(spec, source, [sink])
     bar = None
     if args.progress:
@@ -94,6 +103,10 @@ def run(spec: CaptureSpec, args) -> int:
     finally:
         if bar is not None:
             bar.close()
+    return _done(session, spec)
+
+
+def _done(session, spec: CaptureSpec) -> int:
     rc = report(session, label=spec.input)
     if rc == 0:
         say(f"wrote {', '.join(o.path for o in session.outputs)} ({session.frames_out} frames)")

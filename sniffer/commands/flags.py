@@ -177,6 +177,12 @@ def scenario_flags(p, *, seed: bool = True, what: str = "") -> None:
                    help="the simulation's random seed: the same seed, the same traffic" if seed else argparse.SUPPRESS)
 
 
+def jobs_flag(p) -> None:
+    from sniffer.parallel.options import add_jobs_flag
+
+    add_jobs_flag(p)
+
+
 def fault_flag(p, what: str) -> None:
     p.add_argument("--fault", action="append", metavar="KIND[:UNIT]", help=what)
 
@@ -395,6 +401,7 @@ def mqtt_flags(p) -> None:
 def dataset_flags(p, progress: str) -> None:
     """export's and ingest's: --progress, --link, and the line and decoding flags a capture is read with."""
     progress_flag(p, progress)
+    jobs_flag(p)
     g = p.add_argument_group("fleet dataset")
     g.add_argument("--link", metavar="NAME",
                    help="the link a one-line capture is filed under (default: its port's name, e.g. ttyUSB0, "

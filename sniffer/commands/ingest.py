@@ -26,6 +26,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("folder", help="the folder of captures (*.mcap, in subfolders too; *.part files are left out)")
     p.add_argument("--to", required=True, metavar="DIR", dest="dataset", help="the dataset folder (made if new)")
     dataset_flags(p, "a progress bar per capture on stderr")
+    from sniffer.parallel.options import add_dask_flag
+
+    add_dask_flag(p)
 
 
 def run(spec: CaptureSpec, args) -> int:

@@ -7,10 +7,10 @@ import sys
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.sources.segset import replay_source as file_source  # noqa: F401 - the commands' name for it
-from sniffer.commands.common import UsageError, line_warning, report, say, stream_sink
+from sniffer.commands.common import UsageError, jobs_for, line_warning, report, say, stream_sink
 from sniffer.commands.flags import (
-    command_parser, decode_flags, foxglove_flags, input_flags, mqtt_flags, progress_flag, serial_flags, stream_flags,
-    trigger_flags, unattended_flags,
+    command_parser, decode_flags, foxglove_flags, input_flags, jobs_flag, mqtt_flags, progress_flag, serial_flags,
+    stream_flags, trigger_flags, unattended_flags,
 )
 
 
@@ -26,6 +26,7 @@ def add_parser(subparsers) -> None:
                   "sniffer replay capture.bytes.csv --baud 9600 --parity N --format jsonl",
                   "sniffer replay /var/lib/sniffer/cab3 --quiet --trigger fault --pre 2m --windows faults/"])
     input_flags(p)
+    jobs_flag(p)
     progress_flag(p)
     p.add_argument("--tui", action="store_true", help="browse the capture in the terminal UI")
     serial_flags(p, "file")
@@ -58,6 +59,9 @@ def run(spec: CaptureSpec, args) -> int:
         note_unfinished(session)
         rc = run_session_tui(session, sink, source_label=spec.input, source_path=spec.input)
         return rc or report(session, label=spec.input)
+    jobs = jobs_for(spec, args)
+    if jobs > 1:
+        return _parallel(spec, source, args, jobs)
     bar = None
     sinks = [s for s in (stream_sink(spec, line_buffered=False),) if s is not None]
     session = Session(spec, source, [line_warning(file=spec.input), *sinks])
@@ -76,6 +80,24 @@ def run(spec: CaptureSpec, args) -> int:
     if getattr(source, "unfinished", None):
         note_unfinished(session)  # a set's segments are read only as the replay reaches them
     return report(session, label=spec.input)
+
+
+def _parallel(spec: CaptureSpec, source, args, jobs: int) -> int:
+    """replay --jobs N: the capture decoded by parts in N processes (sniffer.parallel), the same lines; the line
+    warning sees every frame, in order, here."""
+    from sniffer.commands.common import parallel_run, run_with_bar
+    from sniffer.parallel.outputs import CallsPlan, SinkWriter, StreamPlan, StreamWriter, stdout_for
+
+    outputs = [(StreamPlan(spec.stream), StreamWriter(stdout_for(spec.stream)))] \
+        if spec.stream in ("text", "jsonl") else []
+    outputs.append((CallsPlan(), SinkWriter(line_warning(file=spec.input))))
+    run = parallel_run(spec, source, outputs, jobs, spec.input if args.progress else None)
+    run.open()
+    note_unfinished(run.session)
+    run_with_bar(run)
+    if getattr(source, "unfinished", None):
+        note_unfinished(run.session)
+    return report(run, label=spec.input)
 
 
 def _rotate(spec: CaptureSpec, source) -> int:

@@ -16,8 +16,10 @@ from sniffer.formats.outputs import Output, readable, shown
 from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.events import CaptureError
-from sniffer.commands.common import EXIT_OK, report, say
-from sniffer.commands.flags import command_parser, decode_flags, input_format_flag, progress_flag, serial_flags
+from sniffer.commands.common import EXIT_OK, jobs_for, report, say
+from sniffer.commands.flags import (
+    command_parser, decode_flags, input_format_flag, jobs_flag, progress_flag, serial_flags,
+)
 from sniffer.commands.replay import note_unfinished, file_source
 
 
@@ -40,6 +42,7 @@ def add_parser(subparsers) -> None:
                    help="a reference capture: the page adds what changed against it (as `sniffer diff GOLDEN ...`)")
     p.add_argument("--title", help="the page's title (default: Bus report: the captures' names)")
     progress_flag(p, "a progress bar per capture on stderr")
+    jobs_flag(p)
     serial_flags(p, "file")
     decode_flags(p, "file")
 
@@ -71,10 +74,14 @@ def run(spec: CaptureSpec, args) -> int:
     out = Output(spec.out, inputs=[*captures, *([golden] if golden else []), *spec.read_paths()])
     collector = Collector(compare=bool(golden))
     rc = EXIT_OK
+    jobs = jobs_for(spec, args)
     try:
         for path in captures:
             cspec = spec.with_(input=path, inputs=(path,))  # one capture: a file or a rotated capture's segments
             source = file_source(cspec)
+            if jobs > 1:
+                rc = max(rc, _parts(cspec, source, path, collector, args, jobs))
+                continue
             session = Session(cspec, source, [])
             bar = None
             if args.progress:
@@ -106,6 +113,27 @@ def run(spec: CaptureSpec, args) -> int:
     frames = data["totals"]["frames"]
     say(f"wrote {out.path} ({len(page.encode()):,} bytes: {frames:,} frames from {len(captures)} capture(s))")
     return rc
+
+
+def _parts(spec: CaptureSpec, source, path: str, collector, args, jobs: int) -> int:
+    """One capture decoded by parts in `jobs` processes (sniffer.parallel); the collector takes its frames here,
+    in order, as from one session."""
+    from sniffer.commands.common import parallel_run
+    from sniffer.parallel.outputs import FramesPlan
+
+    run = parallel_run(spec, source, [], jobs, path if args.progress else None)
+    try:
+        run.open()
+        note_unfinished(run.session)
+        collector.begin(path, run)
+        for part in run.parts([FramesPlan()]):
+            for f in part.pieces[0]:
+                collector.frame(f)
+    finally:
+        if run.bar is not None:
+            run.bar.close()
+    collector.end(run)
+    return report(run, label=path)
 
 
 def _compare(collector, golden: str, captures: list[str], spec: CaptureSpec) -> dict:

@@ -78,8 +78,31 @@ class Failed:
 def take_in(ds: Dataset, path: str, spec: CaptureSpec, known: Known, *, link: str | None = None,
             on_event=None) -> Taken | Skipped | Failed:
     """Decode `path` into the dataset unless the manifest has it (see the module doc)."""
-    from sniffer.sources.files import FileSource
+    got = prepare(ds, path, known)
+    if not isinstance(got, Prepared):
+        return got
+    return commit(ds, got, stage(got.job(spec, link), on_event=on_event), known)
 
+
+@dataclass
+class Prepared:
+    """A capture the dataset does not have yet, its staging folder made and locked by this process: `job()` is
+    what decodes it (anywhere that sees the same files: a worker process, a Dask worker), `commit` takes it in."""
+
+    path: str
+    sha: str | None
+    before: tuple
+    capture: str
+    staging: str
+    lock: int
+
+    def job(self, spec: CaptureSpec, link: str | None) -> dict:
+        """What `stage` needs (plain data: it may run in another process or on another machine)."""
+        return {"path": self.path, "staging": self.staging, "capture": self.capture, "spec": spec, "link": link}
+
+
+def prepare(ds: Dataset, path: str, known: Known) -> Prepared | Skipped | Failed:
+    """The first step of take_in: skipped if the manifest has the file; else its staging folder, locked."""
     try:
         before = _stat(path)
         entry, sha = known.seen(path)
@@ -90,50 +113,85 @@ def take_in(ds: Dataset, path: str, spec: CaptureSpec, known: Known, *, link: st
     capture = capture_name(path, sha)
     staging = ds.path(STAGING, f"{capture}.{os.getpid()}")
     shutil.rmtree(staging, ignore_errors=True)  # a killed run of this process id's
-    lock = None
     try:
         make_folders(staging)
-        lock = _hold(staging)
-        sink = DatasetSink(staging, capture, link=link, source=os.path.abspath(path))
+        return Prepared(path, sha, before, capture, staging, _hold(staging))
+    except OSError as e:
+        release(ds, staging, None)
+        where = e.filename if isinstance(e.filename, str) else ds.root
+        return Failed(path, f"{shown(path)}: cannot write the dataset: {shown(where)}: {e.strerror or e}")
+
+
+def stage(job: dict, on_event=None) -> dict:
+    """The second step: the capture decoded by one Session into its staging folder.  Plain data back: {"why":
+    why it is not taken in} or what its manifest entry says ({"frames", ..., "written"})."""
+    from sniffer.sources.files import FileSource
+
+    path, spec = job["path"], job["spec"]
+    try:
+        sink = DatasetSink(job["staging"], job["capture"], link=job["link"], source=os.path.abspath(path))
         session = Session(spec.with_(input=path), FileSource(path, spec.input_format), [sink], on_event=on_event)
         try:
             session.open()
             if _unfinished(session):  # not whole: nothing decoded
                 session.close()
-                return Failed(path, f"{shown(path)}: {UNFINISHED}")
+                return {"why": f"{shown(path)}: {UNFINISHED}"}
             session.run()
         except (CaptureError, SettingsError) as e:
-            return Failed(path, str(e))
-        why = _why_not(session, path) or _changed(path, before)
+            return {"why": str(e)}
+        why = _why_not(session, path)
+        if why:
+            return {"why": why}
+        return {"frames": sink.counts["frames"], "points": sink.counts["points"],
+                "annotations": sink.counts["annotations"], "first_ns": sink.first_ns, "last_ns": sink.last_ns,
+                "settings": session.resolved.describe(), "links": sorted({k[0] for k in sink.partitions}),
+                "partitions": [f"link={k[0]}/date={k[1]}" for k in sink.partitions],
+                "files": [rel for rel, _, _ in sink.written], "written": list(sink.written)}
+    except OSError as e:
+        where = e.filename if isinstance(e.filename, str) else os.path.dirname(os.path.dirname(job["staging"]))
+        return {"why": f"{shown(path)}: cannot write the dataset: {shown(where)}: {e.strerror or e}"}
+
+
+def commit(ds: Dataset, p: Prepared, staged: dict, known: Known) -> Taken | Skipped | Failed:
+    """The last step, in the order the captures were given: the staged files moved in and the manifest entry
+    written (or the capture skipped, if one taken in since has the same content)."""
+    path = p.path
+    try:
+        if "why" in staged:
+            return Failed(path, staged["why"])
+        why = _changed(path, p.before)
         if why:
             return Failed(path, why)
-        entry = new_entry(path, sha)
-        entry.update(frames=sink.counts["frames"], points=sink.counts["points"],
-                     annotations=sink.counts["annotations"], first_ns=sink.first_ns, last_ns=sink.last_ns,
-                     settings=session.resolved.describe(), links=sorted({k[0] for k in sink.partitions}),
-                     partitions=[f"link={k[0]}/date={k[1]}" for k in sink.partitions],
-                     files=[rel for rel, _, _ in sink.written])
+        entry = known.have(path, p.sha)  # an identical file taken in since this one was prepared
+        if entry is not None:
+            return Skipped(path, entry)
+        entry = new_entry(path, p.sha)
+        entry.update({k: v for k, v in staged.items() if k != "written"})
         old = known.earlier(entry)
         if old:
             entry["replaces"] = [e["capture"] for e in old]
-        _move_in(ds, staging, sink.written)
+        _move_in(ds, p.staging, staged["written"])
         ds.record(entry)
         for e in old:  # the new rows are in: the old go
             forget(ds, e)
         known.add(entry)
         known.drop(old)
-        return Taken(path, entry, sink.written, old)
+        return Taken(path, entry, staged["written"], old)
     except OSError as e:
         where = e.filename if isinstance(e.filename, str) else ds.root
         return Failed(path, f"{shown(path)}: cannot write the dataset: {shown(where)}: {e.strerror or e}")
     finally:
-        shutil.rmtree(staging, ignore_errors=True)
-        if lock is not None:
-            os.close(lock)
-        try:
-            os.rmdir(ds.path(STAGING))  # when no other sniffer is writing
-        except OSError:
-            pass
+        release(ds, p.staging, p.lock)
+
+
+def release(ds: Dataset, staging: str, lock: int | None) -> None:
+    shutil.rmtree(staging, ignore_errors=True)
+    if lock is not None:
+        os.close(lock)
+    try:
+        os.rmdir(ds.path(STAGING))  # when no other sniffer is writing
+    except OSError:
+        pass
 
 
 UNFINISHED = ("not closed cleanly (still being copied or written, or its capture was killed): not taken in; a "

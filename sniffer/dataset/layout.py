@@ -215,6 +215,11 @@ class Known:
         sha = content_hash(path)
         return self.by_hash.get(sha), sha
 
+    def have(self, path: str, sha: str | None) -> dict | None:
+        """`seen(path)` again, with the content hash `seen` gave (None: it found the file by its stat)."""
+        e = self.by_stat.get(self.stat_key(path))
+        return e if e is not None or sha is None else self.by_hash.get(sha)
+
     def add(self, entry: dict) -> None:
         self.entries.append(entry)
         self.by_stat[(entry["source"], entry["size"], entry["mtime_ns"])] = entry

@@ -82,12 +82,16 @@ class FileSink:
     OutputError (one line) before anything is opened or created.
     """
 
-    def __init__(self, fmt: str, out: str | os.PathLike[str], *, inputs=(), what: str = "--out") -> None:
+    def __init__(self, fmt: str, out: str | os.PathLike[str], *, inputs=(), what: str = "--out",
+                 timed_flush: bool = True) -> None:
+        """`timed_flush=False`: a file made from another (an export) is written out as its writer fills it,
+        never because wall time passed (an MCAP's chunks then depend on its messages alone)."""
         if fmt not in WRITERS:
             raise ValueError(f"unknown output format {fmt!r}")
         if WRITERS[fmt].extra:
             need(WRITERS[fmt].extra, f"--to {fmt}")
         self.fmt = fmt
+        self.timed_flush = timed_flush
         self.path = os.fspath(out)
         if fmt in ("csv", "parquet"):
             from sniffer.formats.rows import points_path
@@ -102,6 +106,8 @@ class FileSink:
         fmt, parts = self.fmt, [o.part for o in self.outputs]
         sink: Sink = _load(WRITERS[fmt].writer)(fmt, self.path, parts)
         sink.outputs = self.outputs
+        if not self.timed_flush and hasattr(sink, "flush_interval_s"):
+            sink.flush_interval_s = float("inf")
         return sink
 
 

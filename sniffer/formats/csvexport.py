@@ -11,6 +11,7 @@ comprehension per column) and written with one write.
 
 from __future__ import annotations
 
+import os
 from decimal import Decimal
 
 from sniffer.formats.rows import FRAMES, POINTS
@@ -68,11 +69,12 @@ def csv_text(rows: list, columns) -> bytes:
 class CsvSink(TableSink):
     TABLES = (FRAMES, POINTS)
 
-    def __init__(self, frames_path: str, points_path: str) -> None:
+    def __init__(self, frames_path, points_path) -> None:
+        """Paths, or binary files (closed with the sink)."""
         super().__init__()
-        self._files = [open(frames_path, "wb")]
+        self._files = [_open(frames_path)]
         try:
-            self._files.append(open(points_path, "wb"))
+            self._files.append(_open(points_path))
             for fh, columns in zip(self._files, self.TABLES):
                 fh.write(header(columns))
         except BaseException:
@@ -97,6 +99,10 @@ class CsvSink(TableSink):
                 error = error or e
         if error is not None:
             raise error
+
+
+def _open(out):
+    return open(out, "wb") if isinstance(out, (str, os.PathLike)) else out
 
 
 def open_sink(fmt: str, path: str, parts: list[str]) -> CsvSink:

@@ -86,19 +86,7 @@ class LineBuffer:
             end_t = chunk.t_ns
             if chunk.unseen_ns is not None:  # the bytes may have come as early as the reader's last empty look
                 first_t = min(first_t, chunk.t_ns - chunk.unseen_ns)
-        cls = NONE
-        if self.last_t_end is None or chunk.packet:
-            cls = HARD
-        elif self.closed or (self.last_channel is not None and chunk.channel != self.last_channel):
-            cls = HARD
-        else:
-            gap = first_t - self.last_t_end
-            if bt is None:
-                cls = HARD if gap > self.hard_ns + self.read_slack_ns else SOFT
-            elif gap >= self.hard_ns:
-                cls = HARD
-            elif gap >= self.soft_ns:
-                cls = SOFT
+        cls = self._class_before(chunk, first_t)
         if cls:
             self.bounds.append((start, cls))
         if bt is not None and n > 1:
@@ -122,6 +110,38 @@ class LineBuffer:
             return []  # the frame being waited for is still incomplete: nothing can change
         return self._run()
 
+    def _class_before(self, chunk: Chunk, first_t: int) -> int:
+        """The boundary before a chunk whose first byte began at first_t: HARD, SOFT or NONE."""
+        if self.last_t_end is None or chunk.packet:
+            return HARD
+        if self.closed or (self.last_channel is not None and chunk.channel != self.last_channel):
+            return HARD
+        gap = first_t - self.last_t_end
+        if chunk.byte_t_ns is None:
+            return HARD if gap > self.hard_ns + self.read_slack_ns else SOFT
+        return HARD if gap >= self.hard_ns else SOFT if gap >= self.soft_ns else NONE
+
+    def closes_before(self, chunk: Chunk) -> bool:
+        """Would feed(chunk) close every pending byte as it would at the end of the input (a silence, or a
+        new wire, before the chunk's first byte)?  Then `close_now()` gives those frames, and feed(chunk)
+        after it gives the chunk's own: what feed(chunk) alone gives, in the same order (sniffer.parallel
+        cuts a capture there)."""
+        if not chunk.data:
+            return False
+        bt = chunk.byte_t_ns
+        if bt is not None:
+            first_t = bt[0]
+        else:
+            first_t = chunk.t_ns - len(chunk.data) * self.char_ns
+            if chunk.unseen_ns is not None:
+                first_t = min(first_t, chunk.t_ns - chunk.unseen_ns)
+        return self._class_before(chunk, first_t) == HARD
+
+    def close_now(self) -> list[Frame]:
+        """Close every pending byte, as a silence proven after the last one does (`closes_before`)."""
+        self.closed = True
+        return self._run()
+
     def tick(self, t_ns: int) -> list[Frame]:
         """Silence until t_ns: once it exceeds t3.5 (+ read slack), close what is pending."""
         if not self.would_close(t_ns):
@@ -143,6 +163,25 @@ class LineBuffer:
 
     def pending_bytes(self) -> int:
         return self.base + len(self.buf) - self.pos
+
+    def cut_state(self) -> tuple:
+        """What this framer carries past a cut where no byte is pending (sniffer.parallel): every field, byte
+        positions counted from `pos`, the frame counter left out (each part numbers its own).  Two framers
+        with equal cut states frame what follows alike; a field a framing adds is compared as it is."""
+        pos = self.pos
+        out = []
+        for k, v in sorted(vars(self).items()):
+            if k in ("index", "base", "pos", "buf"):
+                continue
+            if k == "segs":
+                v = tuple((start - pos, c) for start, c in v)
+            elif k in ("bounds", "flags"):
+                v = tuple((at - pos, what) for at, what in v)
+            elif k == "_need":
+                v = max(0, v - pos)
+            out.append((k, v))
+        out.append(("pending", bytes(self.buf[pos - self.base:])))
+        return tuple(out)
 
     def pending_since(self) -> int | None:
         """When the first byte no frame holds yet began (the next frame starts there), or None."""

@@ -173,6 +173,16 @@ class McapSink(Sink):
             raise CaptureStorageError(f"{self.path}: cannot create capture file: {e.strerror or e}") from None
 
     @property
+    def flush_interval_s(self) -> float:
+        """How much wall time may pass before the open chunk is written out (inf: only when it is full, so
+        the file's chunks depend on its messages alone: an export)."""
+        return self._interval_ns / 1e9
+
+    @flush_interval_s.setter
+    def flush_interval_s(self, seconds: float) -> None:
+        self._interval_ns = int(seconds * 1e9) if seconds < 1e9 else 1 << 62
+
+    @property
     def bytes_written(self) -> int:
         """Bytes on disk so far (the flushed, complete part of the file)."""
         return self._file.on_disk

@@ -33,11 +33,15 @@ __all__ = ["PcapSink", "TSHARK_ARGS", "global_header", "packet"]
 class PcapSink(Sink):
     """Pipeline sink: one pcap (or pcapng) packet per frame."""
 
-    def __init__(self, out: str | os.PathLike[str], include_noise: bool = True, ng: bool | None = None) -> None:
-        self.path = os.fspath(out)
+    def __init__(self, out, include_noise: bool = True, ng: bool | None = None) -> None:
+        """`out`: a path, or a binary file (closed with the sink)."""
+        if isinstance(out, (str, os.PathLike)):
+            self.path = os.fspath(out)
+            self._fh = open(self.path, "wb", buffering=1 << 16)
+        else:
+            self.path, self._fh = getattr(out, "name", ""), out
         self.ng = self.path.endswith(".pcapng") if ng is None else ng  # pcapng by extension
         self.include_noise = include_noise
-        self._fh = open(self.path, "wb", buffering=1 << 16)
         self._t0 = 0
         self._anchor = 0
         self._interface: dict[str, int] = {}  # link -> pcapng interface
