@@ -234,7 +234,7 @@ class Pairer:
             req, ended = self.recent[k]
             if req.unit != f.unit or not (f.function == req.function or f.function == req.function | 0x80):
                 continue
-            if f.t_ns - req.t_end_ns > LATE_WINDOW * self._timeout(req.unit):
+            if f.t_ns - req.t_end_ns > LATE_WINDOW * self.timeout_for(req.unit):
                 continue
             if req.crc_ok and f.crc_ok and f.protocol in _MODBUS and response_mismatch(req.adu, f.adu):
                 continue
