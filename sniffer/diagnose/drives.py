@@ -15,6 +15,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from sniffer.codes import ERROR, WARNING
+from sniffer.diagnose.codesets import FAULT, UART
 from sniffer.diagnose.state import Group, Link, Unit
 from sniffer.diagnose.finding import Finding
 from sniffer.diagnose.stats import two_proportions
@@ -82,7 +83,7 @@ class DrivesGroup(Group):
         if unit is None or not f.crc_ok or (f.model is None or f.model == "generic") and not self.open and not codes:
             return
         key = (link.name, unit.unit)
-        if codes and "model.fault" in codes:
+        if codes and not FAULT.isdisjoint(codes):
             self._faults(f, link, key, unit)
         elif key in self.open:
             self._maybe_close(f, link, key)
@@ -95,7 +96,7 @@ class DrivesGroup(Group):
         eps = self.open.setdefault(key, {})
         seen = set()
         for a in f.annotations:
-            if a.code != "model.fault":
+            if a.code not in FAULT:
                 continue
             text = _without_register(a.detail.removeprefix("fault: "))
             seen.add(text)
@@ -262,7 +263,7 @@ def _short(text: str, n: int = 60) -> str:
 
 
 def _bad(f, codes: frozenset) -> bool:
-    return f.crc_ok is False or bool(codes) and ("uart.framing_error" in codes or "uart.parity_error" in codes)
+    return f.crc_ok is False or bool(codes) and not UART.isdisjoint(codes)
 
 
 def _without_register(detail: str) -> str:

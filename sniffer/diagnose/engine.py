@@ -15,6 +15,8 @@ paired to a CRC-good request of it; a unit number seen only in damaged frames is
 from __future__ import annotations
 
 
+from sniffer.codes import CRC_UNPROVEN
+from sniffer.diagnose.codesets import LATE, RETRY, UNANSWERED
 from sniffer.frame import REQUEST, RESPONSE, Frame
 from sniffer.diagnose.finding import Finding, sort
 from sniffer.diagnose.state import Group, Link, Unit
@@ -96,6 +98,8 @@ class Diagnosis:
             return
         unit = None
         ok = f.crc_ok
+        if ok or (codes and CRC_UNPROVEN.code in codes):
+            link.matched_bytes += n
         if ok:
             link.good_frames += 1
             link.good_bytes += n
@@ -137,9 +141,9 @@ class Diagnosis:
         if f.function not in _ECHO_FUNCTIONS:
             u.plain_requests += 1
         if codes:
-            if "pair.retry" in codes:
+            if not RETRY.isdisjoint(codes):
                 u.retries += 1
-            if "pair.no_response" in codes or "pair.timeout" in codes:
+            if not UNANSWERED.isdisjoint(codes):
                 u.no_response += 1
         link.due = (f.unit, f.t_end_ns, _answer_length(key)) if f.unit != 0 else None
         if f.unit != 0:
@@ -167,13 +171,13 @@ class Diagnosis:
             return  # (its latency may be the master's timeout: not the unit's answer time)
         if req.function not in _ECHO_FUNCTIONS:
             u.plain_answers += 1
-        if "pair.late_response" in codes:
+        if not LATE.isdisjoint(codes):
             u.late += 1
             return
         lat = f.latency_ms
         if lat is not None:
             link.time_sources[f.time_source] = link.time_sources.get(f.time_source, 0) + 1
-            if req.annotations and any(a.code == "pair.retry" for a in req.annotations):
+            if req.annotations and any(a.code in RETRY for a in req.annotations):
                 u.answered_retries += 1
                 return  # an answer to a retry may be the first try's, late: timing.py judges those
             u.lat.add(lat)

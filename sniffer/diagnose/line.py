@@ -8,8 +8,9 @@ Two pictures, each with what to try:
   characters (`_baud_from_bursts`: what a UART at the wrong baud makes of it lasts about as long); with
   per-read times only
   `sniffer detect` can tell;
-* the frames are fine but the UART flags many of their bytes (the baud is right, the character format
-  is not): parity errors on nearly every byte = the other parity (E <-> O); on some = the line has
+* the frames' CRCs match but the UART flags many of their bytes (the baud is right, the character
+  format is not; such a frame is not taken as good, its CRC is `modbus.crc.unproven`): parity errors
+  on nearly every byte = the other parity (E <-> O); on some = the line has
   none; framing errors on some and no parity errors = the line has a parity bit where the sniffer
   expects the stop bit, and the flagged bytes' parity says which (a 0 parity bit fails the stop bit:
   under even parity that is a byte with an even number of ones).
@@ -21,6 +22,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from sniffer.codes import CRC_UNPROVEN, UART_FRAMING, UART_PARITY
+from sniffer.diagnose.codesets import UART
 from sniffer.codes import ERROR
 from sniffer.diagnose.state import Group, Link
 from sniffer.diagnose.finding import Finding
@@ -66,19 +69,19 @@ class LineGroup(Group):
             s = self.stats.get(link.name) or self._s(link)
             if len(s["bad"]) < 8:
                 s["bad"].append(f.index)
-        if not codes or not ("uart.framing_error" in codes or "uart.parity_error" in codes):
+        if not codes or UART.isdisjoint(codes):
             return
         s = self._s(link)
-        good = bool(f.crc_ok)
+        good = bool(f.crc_ok) or CRC_UNPROVEN.code in codes  # the CRC matches (a flagged byte leaves it unproven)
         if len(s["frames"]) < 8:
             s["frames"].append(f.index)
         for a in f.annotations:
-            if a.code == "uart.framing_error":
+            if a.code == UART_FRAMING.code:
                 s["framing"] += 1
                 if good:
                     s["good_framing"] += 1
                     s["even" if bin(f.raw[a.start]).count("1") % 2 == 0 else "odd"] += 1
-            elif a.code == "uart.parity_error":
+            elif a.code == UART_PARITY.code:
                 s["parity"] += 1
                 s["good_parity"] += good
 
@@ -95,8 +98,8 @@ class LineGroup(Group):
             return None
         s = self.stats.get(link.name) or self._s(link)
         line = link.line
-        share = link.good_bytes / link.bytes
-        ev = {"bytes": link.bytes, "bytes_in_good_frames": link.good_bytes, "good_share": round(share, 3),
+        share = link.matched_bytes / link.bytes
+        ev = {"bytes": link.bytes, "bytes_in_good_frames": link.matched_bytes, "good_share": round(share, 3),
               "framing_errors": s["framing"], "parity_errors": s["parity"], "read_at": line.label()}
         span = dict(link=link.name, t_start=d.seconds(link.first_ns), t_end=d.seconds(link.last_ns),
                     frames=s["frames"] or s["bad"])
@@ -113,7 +116,7 @@ class LineGroup(Group):
                 text=f"Only {share:.0%} of the bytes read at {line.label()} make frames whose CRC holds: the line "
                      f"runs at other settings, and what is shown as units and requests here is noise.",
                 action=f"Capture again at the line's settings; {try_}.")
-        good = max(link.good_bytes, 1)
+        good = max(link.matched_bytes, 1)
         if s["good_parity"] > 0.9 * good:
             other = {"E": "O", "O": "E"}.get(line.parity, "N")
             return Finding(

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import math
 from collections import Counter
 
+from sniffer.diagnose.codesets import LATE, RETRY, UNANSWERED
 from sniffer.codes import ERROR, WARNING
 from sniffer.analysis.diff import key_text
 from sniffer.diagnose.state import Group, Link, Unit
@@ -139,7 +140,7 @@ class MastersGroup(Group):
         s = self._l(link)
         if f.crc_ok is False and "modbus.length.mismatch" in codes:
             self._burst(s, f)
-        if "pair.late_response" in codes:
+        if not LATE.isdisjoint(codes):
             s.late += 1
             if len(s.late_frames) < 8:
                 s.late_frames.append(f.index)
@@ -154,8 +155,8 @@ class MastersGroup(Group):
         s.requests += 1
         if s.last is not None and s.last[2] and len(s.gaps) < 4096:
             s.gaps.append((s.last[0], (f.t_ns - s.last[1]) / 1e6))
-        s.last = (f.unit, f.t_end_ns, "pair.no_response" in codes, f.index)
-        if codes and "pair.retry" in codes:
+        s.last = (f.unit, f.t_end_ns, not UNANSWERED.isdisjoint(codes), f.index)
+        if codes and not RETRY.isdisjoint(codes):
             s.retries[f.unit] += 1
             return
         k = key

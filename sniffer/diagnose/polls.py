@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from sniffer.diagnose.codesets import RETRY
 from sniffer.codes import INFO
 from sniffer.analysis.diff import key_text
 from sniffer.diagnose.state import Group, Link, Unit
@@ -46,7 +47,7 @@ class PollsGroup(Group):
         self.turnaround_ns: dict[str, int] = {}
 
     def request(self, f, link: Link, unit: Unit, codes: frozenset, key: tuple) -> None:
-        if codes and "pair.retry" in codes:
+        if codes and not RETRY.isdisjoint(codes):
             return
         types = self.types.get(link.name)
         if types is None:

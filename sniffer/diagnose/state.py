@@ -67,8 +67,8 @@ class Link:
     """One line (one link of several): its settings and figures."""
 
     __slots__ = ("name", "resolved", "registry", "line", "char_ns", "t35_ns", "units", "first_ns", "last_ns", "frames",
-                 "bytes", "good_frames", "good_bytes", "crc_bad", "noise_frames", "noise_bytes", "last_role",
-                 "last_unit", "due", "slot", "time_sources", "requests", "echo_retries")
+                 "bytes", "good_frames", "good_bytes", "matched_bytes", "crc_bad", "noise_frames", "noise_bytes",
+                 "last_role", "last_unit", "due", "slot", "time_sources", "requests", "echo_retries")
 
     def __init__(self, name: str, resolved=None, registry=None) -> None:
         self.name = name
@@ -85,6 +85,7 @@ class Link:
         self.bytes = 0
         self.good_frames = 0
         self.good_bytes = 0
+        self.matched_bytes = 0  # in frames whose CRC matches, flagged bytes or not (modbus.crc.unproven)
         self.crc_bad = 0
         self.noise_frames = 0
         self.noise_bytes = 0

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 import math
 
+from sniffer.diagnose.codesets import LATE, RETRY, UNANSWERED
 from sniffer.codes import WARNING
 from sniffer.diagnose.state import Group, Link, Unit
 from sniffer.diagnose.finding import Finding
@@ -59,25 +60,25 @@ class TimingGroup(Group):
             last = self.last_req.get(link.name)
             if last is not None and last[2]:  # the one before got no answer: the master waited this long
                 self._w(link, last[0]).gave_up.add((f.t_ns - last[1]) / 1e6)
-            unanswered = "pair.no_response" in codes
+            unanswered = not UNANSWERED.isdisjoint(codes)
             if not codes:
                 self.last_req[link.name] = (f.unit, f.t_end_ns, False)
                 return
             uk = (link.name, f.unit)
-            if "pair.retry" in codes:
+            if not RETRY.isdisjoint(codes):
                 first = self.last_unanswered.get(uk)
                 if first is not None and first[0] == f.raw:
                     self.retry_of[f.index] = first[1]
                     if len(self.retry_of) > 1024:
                         self.retry_of.pop(next(iter(self.retry_of)))
-            if unanswered and (uk not in self.last_unanswered or "pair.retry" not in codes):
+            if unanswered and (uk not in self.last_unanswered or RETRY.isdisjoint(codes)):
                 self.last_unanswered[uk] = (f.raw, f.t_end_ns)
             self.last_req[link.name] = (f.unit, f.t_end_ns, unanswered)
 
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
         if unit is not None and f.crc_ok and f.latency_ms is not None:
             w = self._w(link, unit.unit)
-            if "pair.late_response" in codes:
+            if not LATE.isdisjoint(codes):
                 if len(w.late) < 1024:
                     w.late.append((f.latency_ms, f.index))
                 return

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 from collections import Counter
 
+from sniffer.diagnose.codesets import RETRY
 from sniffer.codes import ERROR, WARNING
 from sniffer.analysis.diff import key_text
 from sniffer.diagnose.state import Group, Link, Unit
@@ -53,7 +54,7 @@ class UnitsGroup(Group):
                     e[2].append(f.index)
 
     def request(self, f, link: Link, unit: Unit, codes: frozenset, key: tuple) -> None:
-        if f.unit and not (codes and "pair.retry" in codes):
+        if f.unit and not (codes and not RETRY.isdisjoint(codes)):
             e = self._key(link, key)
             if e is not None:
                 e[0] += 1

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 
 from collections import Counter
 
+from sniffer.diagnose.codesets import UART
 from sniffer.codes import ERROR, WARNING
 from sniffer.framing.crc import damaged_byte
 from sniffer.diagnose.state import Group, Link, Unit
@@ -37,7 +38,6 @@ MIN_HITS = 5
 MIN_RATE = 0.05  # of a unit's answers
 DOMINANT = 0.5  # of its damaged answers
 OTHERS_BELOW = 0.2  # the other units' rate, as a share of this unit's
-_FLAGS = ("uart.framing_error", "uart.parity_error")
 _DE_KINDS = (("driver_enable_late", "on", "late", "turns on after the first start bit"),
              ("driver_disable_early", "off", "early", "turns off before the last stop bit"))
 _DIP = frozenset((0xFF << k) & 0xFF for k in range(9))  # 00, 80, C0 ... FE, FF: a floating line's shapes
@@ -97,7 +97,7 @@ class WiringGroup(Group):
         n = len(f.raw)
         last = False
         for x in f.annotations if not burst else ():  # a burst is damaged all over: no one byte is
-            if x.code in _FLAGS:
+            if x.code in UART:
                 first |= x.start == 0
                 last |= x.start == n - 1
             elif x.code == "modbus.crc.one_byte":
@@ -145,7 +145,7 @@ class WiringGroup(Group):
         u = link.last_unit
         if (len(f.raw) == 1 and codes and link.last_role == "response" and u is not None and u.present
                 and f.idle_before_ns is not None and f.idle_before_ns < link.char_ns
-                and ("uart.framing_error" in codes or "uart.parity_error" in codes)):
+                and not UART.isdisjoint(codes)):
             # a flagged byte glued to an answer: its last byte, cut off it (a framer that keeps a flagged byte out
             # of a CRC-good frame leaves the answer a byte short and this after it)
             a = self.answers.get((link.name, u.unit))
@@ -163,7 +163,7 @@ class WiringGroup(Group):
         s["short"] += 1
         s["bytes"] += len(f.raw)
         s["dip"] += sum(1 for b in f.raw if b in _DIP)
-        s["flagged"] += sum(1 for a in f.annotations if a.code in _FLAGS)
+        s["flagged"] += sum(1 for a in f.annotations if a.code in UART)
         prev = link.last_role
         if prev == "request":
             s["after_request"] += 1

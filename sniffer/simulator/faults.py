@@ -171,7 +171,7 @@ def _drive_fault(sc: Scenario, unit: int) -> Scenario:
 
 def _save_address(sc: Scenario, unit: int, what: str) -> tuple[int, int]:
     save = _model(sc, unit, what, need_save=True).eeprom_save
-    return save["addr"], save.get("value", 0)
+    return save.addr, save.value
 
 
 def _eeprom_wear(sc: Scenario, unit: int) -> Scenario:
