@@ -65,7 +65,7 @@ def test_export_every_format(tmp_path, fmt, capsys):
 
 
 def test_readme_worked_example_names_the_changed_register(tmp_path):
-    """README: change one drive parameter in the simulator, record again, `sniffer diff` names it."""
+    """docs/regression.md: change one drive parameter in the simulator, record again, `sniffer diff` names it."""
     import subprocess
     import sys
 
@@ -79,9 +79,9 @@ def test_readme_worked_example_names_the_changed_register(tmp_path):
     changed = [l for l in r.stdout.splitlines() if l.startswith("  ~ u")]
     assert changed and all(l.startswith("  ~ u2 ") for l in changed)  # only unit 2 changed
     assert any("holding[8451]" in l and "->" in l for l in changed)
-    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    page = (Path(__file__).resolve().parent.parent / "docs" / "regression.md").read_text()
     for line in r.stdout.splitlines():
-        assert line in readme, line
+        assert line in page, line
     bad = subprocess.run(sn + base + ["--param", "unit9.rated_current_a=1", "--out", "x.mcap"], cwd=tmp_path,
                          capture_output=True, text=True)
     assert bad.returncode == 2 and "no unit 9" in bad.stderr and "Traceback" not in bad.stderr

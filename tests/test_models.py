@@ -75,7 +75,7 @@ def test_spl_vendor_exception():
 
 
 def test_readme_model_file_worked_example():
-    """The README's --model-file example, verbatim."""
+    """docs/models.md's --model-file example, verbatim."""
     import subprocess
     import sys
     from pathlib import Path
@@ -86,7 +86,7 @@ def test_readme_model_file_worked_example():
          "030610010190DCD4", "038630E3B4", "--model-file", "docs/examples/acme-x1.toml", "--device", "3=acme-x1"],
         capture_output=True, text=True, cwd=root, timeout=60)
     assert r.returncode == 0, r.stderr
-    readme = (root / "README.md").read_text()
+    page = (root / "docs" / "models.md").read_text()
     for line in r.stdout.splitlines():
-        assert line in readme, line
+        assert line in page, line
     assert "Active fault=3 [OC — over-current during acceleration]" in r.stdout

@@ -6,7 +6,7 @@ Real parts: the CLI writes the report from simulated captures (captures/sim), De
 against the canvases: each exists with a non-zero size and holds pixels of its series' colours.  A drag
 across a time plot zooms it (the x range shrinks), Shift+drag pans it (the range moves, its width kept),
 and a double-click shows everything again.  The screenshot goes to docs/report.png with
-SNIFFER_REPORT_DOCS=1 (the README shows it).
+SNIFFER_REPORT_DOCS=1 (docs/report.md shows it).
 """
 
 from __future__ import annotations

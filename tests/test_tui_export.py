@@ -173,17 +173,17 @@ def test_y_copies_the_selected_frames_hex(tmp_path):
     asyncio.run(go())
 
 
-def test_help_and_readme_name_the_keys_of_export_copy_and_the_byte_view():
+def test_help_and_docs_name_the_keys_of_export_copy_and_the_byte_view():
     from pathlib import Path
 
     from sniffer.tui.app import HELP, SnifferApp
 
     keys = {b.key for b in SnifferApp.BINDINGS}
-    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    page = (Path(__file__).resolve().parent.parent / "docs" / "tui.md").read_text()
     for key, words in (("x", "export"), ("y", "copy"), ("6", "bytes")):
         assert key in keys
         assert f"[b]{key}[/b]" in HELP and words in HELP.split(f"[b]{key}[/b]")[1][:40].lower()
-        assert f"`{key}`" in readme
+        assert f"`{key}`" in page
 
 
 def test_export_of_a_finished_replay_writes_every_frame_beside_the_capture(tmp_path, monkeypatch):

@@ -229,11 +229,11 @@ def test_an_empty_plot_says_what_to_do_and_the_plot_holds_eight_registers():
     run(go())
 
 
-def test_help_and_readme_name_the_plot_keys():
-    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+def test_help_and_docs_name_the_plot_keys():
+    page = (Path(__file__).resolve().parent.parent / "docs" / "tui.md").read_text()
     for key in ("5", "a", "+ -", "0", "d", ", .", "← →", "↑ ↓", "Enter", "Esc"):
         assert f"[b]{key}[/b]" in HELP, key
     for key in ("`5`", "`a`", "`+`/`-`", "`0`", "`,`/`.`", "`d`"):
-        assert key in readme, key
+        assert key in page, key
     bound = {b.key for cls in (PlotView, RegisterWatch, ChangeLog) for b in cls.BINDINGS}
     assert {"plus,equals_sign", "minus", "0", "comma", "full_stop", "a", "d,delete", "enter", "escape"} <= bound

@@ -361,14 +361,14 @@ def test_at_80x24_units_keep_the_unit_when_scrolled_to_the_latencies():
     run(go())
 
 
-def test_the_time_keys_are_in_the_help_and_the_readme():
+def test_the_time_keys_are_in_the_help_and_the_docs():
     from pathlib import Path
 
     from sniffer.tui.app import HELP
 
     keys = {b.key for b in SnifferApp.BINDINGS if b.action in ("time_base", "time_reference", "goto_bar")}
     assert keys == {"t", "T", "g"}
-    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
-    tui = readme[readme.index("## Terminal UI"):readme.index("## Real hardware")]
+    page = (Path(__file__).resolve().parent.parent / "docs" / "tui.md").read_text()
+    tui = page[page.index("## The tabs and their keys"):page.index("## What it looks like")]
     for key in keys:
         assert f"[b]{key}[/b]" in HELP and f"`{key}`" in tui, key

@@ -1,9 +1,9 @@
-"""One set of per-unit figures in every view (sniffer/analysis/unitfigures.py; the README's "What the figures mean").
+"""One set of per-unit figures in every view (sniffer/analysis/unitfigures.py; docs/figures.md says what they mean).
 
 One capture goes through every view a user has (the TUI's Units tab under Pilot, the HTML report, the
 status file and `sniffer status`, `sniffer diff`, the MQTT health topics on a real broker, the fleet
 dataset and its `units` query) and each must show the figures counted here, independently, from the
-decoded frames by the README's definitions.  Runs `sniffer` as a user would."""
+decoded frames by docs/figures.md's definitions.  Runs `sniffer` as a user would."""
 
 from __future__ import annotations
 
@@ -57,7 +57,7 @@ def nearest_rank(values: list[float], q: float) -> float:
 
 
 def expected(frames) -> dict[str, dict]:
-    """Every unit's figures by the README's definitions, counted from the frames without analysis/unitfigures.py."""
+    """Every unit's figures by docs/figures.md, counted from the frames without analysis/unitfigures.py."""
     units: dict[str, dict] = {}
     lat: dict[str, list] = {}
     for f in frames:

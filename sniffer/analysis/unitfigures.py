@@ -14,8 +14,8 @@ Which frames count: every frame that names a unit and is not noise, under `frame
 of its link, with several links), whatever its CRC: the line carried it and the pairer gave it a
 role.  A CRC-bad frame counts in `crc_errors` too; its unit byte may be the damage, so a unit seen
 in CRC-bad frames only is a `ghost`.  What an annotation counts as is its code's category
-(`sniffer.codes`, `Code.category`): no view keeps its own list of codes.  The README's "What the
-figures mean" says the same for a reader.
+(`sniffer.codes`, `Code.category`): no view keeps its own list of codes.  docs/figures.md says the
+same for a reader.
 """
 
 from __future__ import annotations

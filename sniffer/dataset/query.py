@@ -58,7 +58,7 @@ _FRAME_CATEGORIES = f"""SELECT capture, frame,
 _QUANTILES = ",\n       ".join(f"quantile_disc(latency_ms, {q}) FILTER (WHERE paired) AS {name}"
                                for name, q in QUANTILES)
 
-# analysis/unitfigures.py's UnitFigures, figure by figure (its docstring defines each; the README says what they mean);
+# analysis/unitfigures.py's UnitFigures, figure by figure (its docstring defines each; docs/figures.md too);
 # an aggregate leaves out NULL: a latency counts where the response is paired and has one
 UNITS_SQL = f"""WITH a AS (
   {_FRAME_CATEGORIES}

@@ -215,7 +215,7 @@ def _units(d: dict) -> str:
     note = ('<p class="note">A timeout is a request that got no response (not a late one, not one the capture '
             'ended on); latency runs from the end of a request to the start of its response; quantiles by the '
             'nearest rank' + (f", within 0.1 % for unit(s) {_e(', '.join(approx))}" if approx else ", exact")
-            + ' (the README\'s "What the figures mean").</p>')
+            + ' (the sniffer\'s docs/figures.md).</p>')
     return _section("units", "Units", _table(head, rows, "wide") + note if rows else "<p>No unit on the line.</p>")
 
 

@@ -60,7 +60,7 @@ HELP = """\
   [b]/[/b]            filter bar; Enter applies (a bad filter says where, and the old one stays):
                words find names, texts, registers (holding[300] 2520H 12-00), codes, hex;
                u:1,2 fc:3 role:rsp reg:2520H..2525H model:a510 t:10s..20s "Output frequency">50
-               lat>20ms  err crc exc timeout fault noise warn  not and or ( )  (README: Filter language)
+               lat>20ms  err crc exc timeout fault noise warn  not and or ( )  (docs/filters.md)
   [b]c[/b]            clear all filters
   [b]space[/b]        pause the view (capture goes on); again to resume
   [b]t[/b]            times since the start → wall clock → from the time reference (the header says which;
