@@ -58,6 +58,12 @@ SLOW_FILES: frozenset[str] = frozenset({
 # single tests slow by their work (seconds of simulation, decoding or memory tracing), not by a part the rule
 # sees: "file.py::test_name", parameters left out.  `pytest -m "not slow" --durations=30` shows candidates.
 SLOW_TESTS: frozenset[str] = frozenset({
+    # several captures into a dataset: by worker processes, as `--jobs` defaults to every core
+    "test_dataset.py::test_ingest_is_incremental",
+    "test_dataset.py::test_query_formats_and_presets",
+    "test_dataset.py::test_corrupt_capture_is_left_out_whole",
+    "test_dataset.py::test_export_of_a_rotated_folder_takes_its_segments",
+    "test_value_parts.py::test_a_dataset_of_segments_keeps_one_unit_per_name",
     "test_simulated_models.py::test_every_simulated_frame_recovered_and_paired",
     "test_sources_stream.py::test_memory_does_not_grow_with_the_file",
     "test_sources_stream.py::test_long_single_channel_run_is_cut_at_4096_bytes",

@@ -81,7 +81,12 @@ def take_in(ds: Dataset, path: str, spec: CaptureSpec, known: Known, *, link: st
     got = prepare(ds, path, known)
     if not isinstance(got, Prepared):
         return got
-    return commit(ds, got, stage(got.job(spec, link), on_event=on_event), known)
+    try:
+        staged = stage(got.job(spec, link), on_event=on_event)
+    except BaseException:  # Ctrl-C, a bug: nothing of the capture stays (commit's release otherwise)
+        release(ds, got.staging, got.lock)
+        raise
+    return commit(ds, got, staged, known)
 
 
 @dataclass
