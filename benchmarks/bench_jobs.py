@@ -49,6 +49,7 @@ ROWS = [
     ("export mcap", ["export", "{cap}", "--to", "mcap", "--out", "{o}/x-{j}.mcap"], ["x-{j}.mcap"]),
     ("check", ["check", "{cap}", "--golden", "{o}/golden.txt"], []),
     ("report", ["report", "{cap}", "--out", "{o}/r-{j}.html"], ["r-{j}.html"]),
+    ("diagnose", ["diagnose", "{cap}", "--format", "json"], ["diagnose-{j}.json"]),  # stdout to the file
 ]
 
 
@@ -134,7 +135,7 @@ def main() -> None:
             res = {}
             for j in (1, jobs):
                 a = [x.format(cap=cap, o=out, j=j) for x in argv]
-                stdout = out / outputs[0].format(j=j) if name.startswith("replay") else None
+                stdout = out / outputs[0].format(j=j) if name.startswith(("replay", "diagnose")) else None
                 res[j] = timed([*SNIFFER, *a, "--jobs", str(j)], stdout)
             rows.append((name, res, same(out, outputs, jobs)))
             r1, rn = res[1], res[jobs]
