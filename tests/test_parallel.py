@@ -391,3 +391,19 @@ def test_renumbering_moves_the_frames_and_the_numbers_the_notes_name():
     assert [a.detail for a in f.annotations] == [
         "repeats frame #101", "nothing pending",
         "taken as the response to #102 though x; as a request it would leave #102 unanswered"]
+
+
+def test_a_capture_without_events_is_its_own_part(capfd, tmp_path):
+    """A capture with no event at all (a simulation of a millisecond, a segment killed at its start): its start
+    is the cut, and every command gives what one process gives (it said 'no quiet point' and exit 1)."""
+    from sniffer.cli import main
+
+    empty = str(tmp_path / "empty.mcap")
+    assert main(["simulate", "--duration", "0.001", "--out", empty]) == 0
+    capfd.readouterr()
+    _same(capfd, ["replay", empty, "--format", "jsonl"], ["replay", empty, "--format", "jsonl"])
+    _same(capfd, ["diagnose", empty], ["diagnose", empty])
+    one, two = str(tmp_path / "one.html"), str(tmp_path / "two.html")
+    _same(capfd, ["report", empty, "--out", one], ["report", empty, "--out", two])
+    _same(capfd, ["check", empty, "--golden", str(tmp_path / "one.txt"), "--update-golden"],
+          ["check", empty, "--golden", str(tmp_path / "two.txt"), "--update-golden"], [str(tmp_path / "one.txt")])

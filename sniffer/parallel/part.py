@@ -243,6 +243,8 @@ def run_part(spec, info: CaptureInfo, plans, task: Task) -> PartResult:
         else:
             while k >= n or not r.quiet_before(ev := unpack(events[k])):
                 if k >= n:
+                    if first + k == 0:  # a capture without events: its start is the cut
+                        break
                     counted.why = "no quiet point in the events it was given"
                     return PartResult(counted)
                 p.feed(ev)
