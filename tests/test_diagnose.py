@@ -417,3 +417,15 @@ def test_driver_enable_times_of_a_logic_capture_make_the_finding():
     (f,) = [x for x in engine.findings() if x.severity != "info"]
     assert (f.kind, f.unit) == ("driver_enable_late", 2)
     assert f.evidence["de_late"] == 40 and f.evidence["de_on_median_us"] == 20.0
+
+
+@pytest.mark.parametrize("fault", ["noise_correlated_with_load:2", "drive_fault:2", "params_not_saved:2",
+                                   "eeprom_wear:2"])
+def test_a_fault_whose_verdict_needs_a_drive_model_is_refused_without_one(fault):
+    """docs/diagnose.md: these kinds are judged from a drive model's registers; on a scenario of model-less drives
+    the cause would be on the line and `diagnose` could never name it, so `simulate` says so instead."""
+    from sniffer.simulator.faults import FaultError
+
+    with pytest.raises(FaultError, match="real model"):
+        apply(scenario_named("default"), [fault])
+    apply(scenario_named("tds-v8"), [fault])  # a model scenario takes it
