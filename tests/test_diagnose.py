@@ -429,3 +429,17 @@ def test_a_fault_whose_verdict_needs_a_drive_model_is_refused_without_one(fault)
     with pytest.raises(FaultError, match="real model"):
         apply(scenario_named("default"), [fault])
     apply(scenario_named("tds-v8"), [fault])  # a model scenario takes it
+
+
+def test_the_fault_examples_in_simulate_help_run_on_its_default_scenario():
+    """`simulate --help` names examples of --fault; each is one `simulate --out x.mcap --fault EXAMPLE` takes."""
+    import re
+
+    from sniffer.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.dest == "cmd")
+    (fault,) = [a for a in sub.choices["simulate"]._actions if "--fault" in a.option_strings]
+    examples = re.findall(r"\b([a-z_]+(?::\d+)?)(?=[,( ])", fault.help.split("e.g.", 1)[1].split("(", 1)[0] + " ")
+    assert examples
+    for example in examples:
+        apply(scenario_named("default"), [example])
