@@ -55,7 +55,7 @@ def captures(tmp_path_factory):
 COMMANDS = [("replay",), ("replay", "--format", "jsonl"), ("diagnose",), ("diagnose", "--format", "json")]
 
 
-@pytest.mark.parametrize("name", ["quiet", "chunks"])
+@pytest.mark.parametrize("name", ["quiet", "chunks", "outside"])
 @pytest.mark.parametrize("command", COMMANDS, ids=[" ".join(c) for c in COMMANDS])
 def test_jobs_gives_what_one_process_gives(capfd, captures, name, command):
     cap = captures / f"{name}.mcap"
@@ -64,7 +64,7 @@ def test_jobs_gives_what_one_process_gives(capfd, captures, name, command):
     assert _run(capfd, command[0], cap, *command[1:], "--jobs", "2") == one
 
 
-@pytest.mark.parametrize("name", ["quiet", "chunks"])
+@pytest.mark.parametrize("name", ["quiet", "chunks", "outside"])
 def test_export_with_jobs_writes_what_one_process_writes(capfd, tmp_path, captures, name):
     cap = captures / f"{name}.mcap"
     one = _run(capfd, "export", cap, "--to", "csv", "--out", tmp_path / "one.csv", "--jobs", "1")
@@ -79,3 +79,11 @@ def test_the_damaged_captures_are_damage_one_process_reports(capfd, captures):
     for name in ("chunks", "outside"):
         rc, _out, err = _run(capfd, "replay", captures / f"{name}.mcap", "--jobs", "1")
         assert rc == 2 and "damaged" in err, (name, err)
+
+
+def test_only_an_intact_file_is_read_by_number(captures):
+    """The workers read a finished file's chunks by number; damage outside them leaves the file to the reader."""
+    from sniffer.formats.mcap.ranges import raw_index
+
+    assert raw_index(str(captures / "small.mcap")) is not None
+    assert raw_index(str(captures / "outside.mcap")) is None
