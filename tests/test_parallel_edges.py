@@ -87,3 +87,24 @@ def test_only_an_intact_file_is_read_by_number(captures):
 
     assert raw_index(str(captures / "small.mcap")) is not None
     assert raw_index(str(captures / "outside.mcap")) is None
+
+
+@pytest.fixture(scope="module")
+def killed_set(tmp_path_factory):
+    """A rotated capture's folder with a segment that was not closed cleanly (its capture killed)."""
+    d = tmp_path_factory.mktemp("killed") / "set"
+    assert main(["simulate", "--duration", "12", "--rotate", "5s", "--out", str(d)]) == 0
+    seg = sorted(d.glob("*.mcap"))[1]
+    seg.write_bytes(seg.read_bytes()[: seg.stat().st_size // 2])
+    return d, seg
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+@pytest.mark.parametrize("command", [("replay",), ("diagnose",), ("export", "--to", "csv", "--out", "{tmp}/x.csv"),
+                                     ("report", "--out", "{tmp}/x.html")], ids=lambda c: c[0])
+def test_a_segment_not_closed_cleanly_is_noted_by_every_command_that_reads_it(capfd, tmp_path, killed_set, command,
+                                                                             jobs):
+    folder, seg = killed_set
+    args = [a.format(tmp=tmp_path) for a in command[1:]]
+    rc, _out, err = _run(capfd, command[0], folder, *args, "--jobs", jobs)
+    assert rc == 0 and f"{seg.name} was not closed cleanly" in err, err

@@ -60,6 +60,7 @@ def _one_process(spec: CaptureSpec, source, engine, progress: bool) -> Session:
     finally:
         if bar is not None:
             bar.close()
+    note_unfinished(session)  # a rotated capture's segments are opened as the reading reaches them
     return session
 
 
@@ -87,6 +88,7 @@ def run(spec: CaptureSpec, args) -> int:
         finally:
             if session.bar is not None:
                 session.bar.close()
+        note_unfinished(session.session)
     else:
         session = _one_process(spec, source, engine, args.progress)
     findings = engine.findings()
