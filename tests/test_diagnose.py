@@ -443,3 +443,31 @@ def test_the_fault_examples_in_simulate_help_run_on_its_default_scenario():
     assert examples
     for example in examples:
         apply(scenario_named("default"), [example])
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_the_text_head_names_every_links_settings(tmp_path, capsys, jobs):
+    """A capture of two links at different settings: the head says each link's, not the first link's alone."""
+    from helpers import bursts, fr
+
+    from sniffer.capture.session import EventSource
+    from sniffer.cli import main
+    from sniffer.events import CaptureInfo, Chunk
+    from sniffer.formats import FileSink
+    from sniffer.line import LineSettings
+
+    a, b = LineSettings(19200, "E", 1), LineSettings(9600, "N", 2)
+    events = []
+    for link, line in (("drives", a), ("pumps", b)):
+        for c in bursts([fr("010300000002"), fr("01030400010002")] * 20, line, gap_chars=40):
+            events.append(Chunk(c.t_ns, c.data, c.byte_t_ns, c.flags, "", link))
+    events.sort(key=lambda c: c.t_ns)
+    info = CaptureInfo(baud=a.baud, parity=a.parity, stopbits=a.stopbits, links=[
+        {"name": "drives", "baud": a.baud, "parity": a.parity, "stopbits": a.stopbits},
+        {"name": "pumps", "baud": b.baud, "parity": b.parity, "stopbits": b.stopbits}])
+    cap = tmp_path / "links.mcap"
+    Session(CaptureSpec(), EventSource(info, events), [FileSink("mcap", str(cap), timed_flush=False)]).run()
+    capsys.readouterr()
+    assert main(["diagnose", str(cap), "--jobs", jobs]) == 0
+    head = capsys.readouterr().out.splitlines()[0]
+    assert "drives" in head and "19200 8E1" in head and "pumps" in head and "9600 8N2" in head, head

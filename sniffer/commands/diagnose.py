@@ -64,6 +64,15 @@ def _one_process(spec: CaptureSpec, source, engine, progress: bool) -> Session:
     return session
 
 
+def _settings(session) -> str:
+    """Where the frames were read: the line's settings, or each link's (a parallel run's own session has them)."""
+    links = getattr(getattr(getattr(session, "session", session), "pipeline", None), "resolved", None)
+    if isinstance(links, dict) and len(links) > 1:
+        each = ", ".join(f"{name} at {r.describe()}" for name, r in links.items())
+        return f"on {len(links)} links ({each})"
+    return f"at {session.resolved.describe()}"
+
+
 def run(spec: CaptureSpec, args) -> int:
     from sniffer.diagnose import Diagnosis, summary, to_json, to_text
     from sniffer.diagnose.reference import load
@@ -96,7 +105,6 @@ def run(spec: CaptureSpec, args) -> int:
         sys.stdout.write(to_json(findings))
     else:
         what = " + ".join(spec.inputs or [spec.input])
-        head = (f"sniffer diagnose {what}: {session.frames_out:,} frames at {session.resolved.describe()}; "
-                f"{summary(findings)}\n")
+        head = f"sniffer diagnose {what}: {session.frames_out:,} frames {_settings(session)}; {summary(findings)}\n"
         sys.stdout.write(to_text(findings, head))
     return report(session, label=spec.input)
