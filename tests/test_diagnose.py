@@ -417,3 +417,57 @@ def test_driver_enable_times_of_a_logic_capture_make_the_finding():
     (f,) = [x for x in engine.findings() if x.severity != "info"]
     assert (f.kind, f.unit) == ("driver_enable_late", 2)
     assert f.evidence["de_late"] == 40 and f.evidence["de_on_median_us"] == 20.0
+
+
+@pytest.mark.parametrize("fault", ["noise_correlated_with_load:2", "drive_fault:2", "params_not_saved:2",
+                                   "eeprom_wear:2"])
+def test_a_fault_whose_verdict_needs_a_drive_model_is_refused_without_one(fault):
+    """docs/diagnose.md: these kinds are judged from a drive model's registers; on a scenario of model-less drives
+    the cause would be on the line and `diagnose` could never name it, so `simulate` says so instead."""
+    from sniffer.simulator.faults import FaultError
+
+    with pytest.raises(FaultError, match="real model"):
+        apply(scenario_named("default"), [fault])
+    apply(scenario_named("tds-v8"), [fault])  # a model scenario takes it
+
+
+def test_the_fault_examples_in_simulate_help_run_on_its_default_scenario():
+    """`simulate --help` names examples of --fault; each is one `simulate --out x.mcap --fault EXAMPLE` takes."""
+    import re
+
+    from sniffer.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.dest == "cmd")
+    (fault,) = [a for a in sub.choices["simulate"]._actions if "--fault" in a.option_strings]
+    examples = re.findall(r"\b([a-z_]+(?::\d+)?)(?=[,( ])", fault.help.split("e.g.", 1)[1].split("(", 1)[0] + " ")
+    assert examples
+    for example in examples:
+        apply(scenario_named("default"), [example])
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_the_text_head_names_every_links_settings(tmp_path, capsys, jobs):
+    """A capture of two links at different settings: the head says each link's, not the first link's alone."""
+    from helpers import bursts, fr
+
+    from sniffer.capture.session import EventSource
+    from sniffer.cli import main
+    from sniffer.events import CaptureInfo, Chunk
+    from sniffer.formats import FileSink
+    from sniffer.line import LineSettings
+
+    a, b = LineSettings(19200, "E", 1), LineSettings(9600, "N", 2)
+    events = []
+    for link, line in (("drives", a), ("pumps", b)):
+        for c in bursts([fr("010300000002"), fr("01030400010002")] * 20, line, gap_chars=40):
+            events.append(Chunk(c.t_ns, c.data, c.byte_t_ns, c.flags, "", link))
+    events.sort(key=lambda c: c.t_ns)
+    info = CaptureInfo(baud=a.baud, parity=a.parity, stopbits=a.stopbits, links=[
+        {"name": "drives", "baud": a.baud, "parity": a.parity, "stopbits": a.stopbits},
+        {"name": "pumps", "baud": b.baud, "parity": b.parity, "stopbits": b.stopbits}])
+    cap = tmp_path / "links.mcap"
+    Session(CaptureSpec(), EventSource(info, events), [FileSink("mcap", str(cap), timed_flush=False)]).run()
+    capsys.readouterr()
+    assert main(["diagnose", str(cap), "--jobs", jobs]) == 0
+    head = capsys.readouterr().out.splitlines()[0]
+    assert "drives" in head and "19200 8E1" in head and "pumps" in head and "9600 8N2" in head, head

@@ -60,7 +60,17 @@ def _one_process(spec: CaptureSpec, source, engine, progress: bool) -> Session:
     finally:
         if bar is not None:
             bar.close()
+    note_unfinished(session)  # a rotated capture's segments are opened as the reading reaches them
     return session
+
+
+def _settings(session) -> str:
+    """Where the frames were read: the line's settings, or each link's (a parallel run's own session has them)."""
+    links = getattr(getattr(getattr(session, "session", session), "pipeline", None), "resolved", None)
+    if isinstance(links, dict) and len(links) > 1:
+        each = ", ".join(f"{name} at {r.describe()}" for name, r in links.items())
+        return f"on {len(links)} links ({each})"
+    return f"at {session.resolved.describe()}"
 
 
 def run(spec: CaptureSpec, args) -> int:
@@ -87,6 +97,7 @@ def run(spec: CaptureSpec, args) -> int:
         finally:
             if session.bar is not None:
                 session.bar.close()
+        note_unfinished(session.session)
     else:
         session = _one_process(spec, source, engine, args.progress)
     findings = engine.findings()
@@ -94,7 +105,6 @@ def run(spec: CaptureSpec, args) -> int:
         sys.stdout.write(to_json(findings))
     else:
         what = " + ".join(spec.inputs or [spec.input])
-        head = (f"sniffer diagnose {what}: {session.frames_out:,} frames at {session.resolved.describe()}; "
-                f"{summary(findings)}\n")
+        head = f"sniffer diagnose {what}: {session.frames_out:,} frames {_settings(session)}; {summary(findings)}\n"
         sys.stdout.write(to_text(findings, head))
     return report(session, label=spec.input)

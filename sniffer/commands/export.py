@@ -107,6 +107,9 @@ def run(spec: CaptureSpec, args) -> int:
 
 
 def _done(session, spec: CaptureSpec) -> int:
+    from sniffer.commands.replay import note_unfinished
+
+    note_unfinished(getattr(session, "session", session))  # a parallel run's own session
     rc = report(session, label=spec.input)
     if rc == 0:
         say(f"wrote {', '.join(o.path for o in session.outputs)} ({session.frames_out} frames)")

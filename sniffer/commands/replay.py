@@ -115,9 +115,15 @@ def _rotate(spec: CaptureSpec, source) -> int:
 
 
 def note_unfinished(session: Session) -> None:
+    """A note for each input file not closed cleanly, once: called when the session opens, and again when it
+    ends (a rotated capture's segments are opened only as the reading reaches them)."""
     paths = list(getattr(session.source, "unfinished", None) or ())
     if not paths and session.info.extra.get("mcap_unfinished"):
         paths = [session.spec.input]
+    said = session.__dict__.setdefault("unfinished_said", set())
     for path in paths:
+        if path in said:
+            continue
+        said.add(path)
         say(f"note: {path} was not closed cleanly (capture killed, or still being written?); read up to its last "
             f"complete record. 'sniffer repair {path}' writes a clean copy.")

@@ -98,6 +98,7 @@ def run(spec: CaptureSpec, args) -> int:
             finally:
                 if bar is not None:
                     bar.close()
+            note_unfinished(session)  # a rotated capture's segments are opened as the reading reaches them
             collector.end(session)
             rc = max(rc, report(session, label=path))
         data = collector.to_data()
@@ -132,6 +133,7 @@ def _parts(spec: CaptureSpec, source, path: str, collector, args, jobs: int) -> 
     finally:
         if run.bar is not None:
             run.bar.close()
+    note_unfinished(run.session)
     collector.end(run)
     return report(run, label=path)
 

@@ -243,8 +243,8 @@ def run_part(spec, info: CaptureInfo, plans, task: Task) -> PartResult:
         else:
             while k >= n or not r.quiet_before(ev := unpack(events[k])):
                 if k >= n:
-                    if first + k == 0:  # a capture without events: its start is the cut
-                        break
+                    if task.end is None and p.settled() == 2:
+                        break  # the capture ends here with nothing pending (a line with no traffic): its end is quiet
                     counted.why = "no quiet point in the events it was given"
                     return PartResult(counted)
                 p.feed(ev)

@@ -194,12 +194,20 @@ def _needs_unit(kind: str):
     return check
 
 
+def _needs_model(kind: str):
+    """A kind `diagnose` judges from the drive's decoded values: only on a drive of a real model."""
+    def check(sc: Scenario, unit: int) -> Scenario:
+        _model(sc, unit, kind)
+        return sc
+    return check
+
+
 _SCENARIO_CHANGES = {
     "unit_silent": _unit_silent, "timeout_too_short": _timeout_too_short, "latency_drift": _latency_drift,
     "drive_fault": _drive_fault, "eeprom_wear": _eeprom_wear, "params_not_saved": _params_not_saved,
     "driver_enable_late": _needs_unit("driver_enable_late"),
     "driver_disable_early": _needs_unit("driver_disable_early"),
-    "noise_correlated_with_load": _needs_unit("noise_correlated_with_load"),
+    "noise_correlated_with_load": _needs_model("noise_correlated_with_load"),
     "second_master": _needs_unit("second_master"),
 }
 

@@ -107,11 +107,47 @@ def raw_index(path: str) -> RawIndex | None:
                 total += size // 16
             if summary.statistics.channel_message_counts.get(channel, 0) != total:
                 return None  # a /raw message outside the chunks
+            if not _between_chunks_intact(fh, {c.chunk_start_offset: c.chunk_length for c in summary.chunk_indexes}):
+                return None  # damage the reader skips and reports, where no worker looks
             return RawIndex(path, channel, total, tuple(chunks))
     except (OSError, ValueError, KeyError, struct.error, ImportError):
         return None
     except Exception:  # noqa: BLE001 - mcap's own errors on a file it cannot read: the reader says why
         return None
+
+
+def _between_chunks_intact(fh, chunks: dict[int, int]) -> bool:
+    """Do the data section's records outside the chunks (header, schemas, channels, metadata, message indexes)
+    read as the reader reads them, and are the chunks where the summary puts them (`chunks`: offset -> record
+    length)?  The workers read only the chunks: a damaged record elsewhere would go unsaid."""
+    from sniffer.formats.mcap.format import MAGIC
+    from sniffer.formats.mcap.scan import MAX_RECORD, record_reads
+
+    size = fh.seek(0, 2)
+    pos, first, met = len(MAGIC), True, 0
+    while True:
+        fh.seek(pos)
+        head = fh.read(_INDEX_HEAD.size)
+        if len(head) < _RECORD.size:
+            return False
+        op, length = _RECORD.unpack_from(head)
+        if length > size - pos - _RECORD.size or length > MAX_RECORD or first != (op == 0x01):
+            return False
+        if op == 0x06:  # a chunk: its CRC is checked where it is read
+            if chunks.get(pos) != _RECORD.size + length:
+                return False
+            met += 1
+        elif op == 0x07:  # a message index: its shape
+            if len(head) < _INDEX_HEAD.size or (length - 6) % 16 or _INDEX_HEAD.unpack(head)[3] != length - 6:
+                return False
+        else:
+            fh.seek(pos + _RECORD.size)
+            if not record_reads(op, fh.read(length)):
+                return False
+        if op == 0x0F:  # data end: every chunk the summary names was met
+            return met == len(chunks)
+        first = False
+        pos += _RECORD.size + length
 
 
 def read_raw(index: RawIndex, lo: int, hi: int) -> list[bytes]:

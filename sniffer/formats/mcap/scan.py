@@ -390,6 +390,15 @@ def _chunk(body: bytes) -> Chunk:
     return chunk
 
 
+def record_reads(opcode: int, body: bytes) -> bool:
+    """Does a record's body read as `Scan.records` reads it (where it does not, the scan reports a hole)?"""
+    try:
+        _parse(opcode, body)
+    except Exception:  # noqa: BLE001 - parsing foreign bytes: any failure means damage
+        return False
+    return True
+
+
 def _parse(opcode: int, body: bytes) -> list[McapRecord]:
     stream = ReadDataStream(io.BytesIO(body))
     if opcode == Opcode.CHUNK:
