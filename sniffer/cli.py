@@ -72,11 +72,6 @@ def _one_line(e: Exception) -> int | None:
     if isinstance(e, WorkerError):  # a part's process failed: its last line (the traceback is on stderr above)
         _say(f"--jobs: {str(e).strip().splitlines()[0]}")
         return EXIT_FAILED
-    from sniffer.parallel.engine import WorkerError
-
-    if isinstance(e, WorkerError):  # a part's process failed: its last line (the traceback is on stderr above)
-        _say(f"--jobs: {str(e).strip().splitlines()[0]}")
-        return EXIT_FAILED
     if isinstance(e, OSError):  # e.g. an output that cannot be written
         _say(f"{e.filename + ': ' if isinstance(e.filename, str) else ''}{e.strerror or e}")
         return EXIT_FAILED

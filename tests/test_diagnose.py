@@ -471,3 +471,11 @@ def test_the_text_head_names_every_links_settings(tmp_path, capsys, jobs):
     assert main(["diagnose", str(cap), "--jobs", jobs]) == 0
     head = capsys.readouterr().out.splitlines()[0]
     assert "drives" in head and "19200 8E1" in head and "pumps" in head and "9600 8N2" in head, head
+
+
+def test_no_frame_read_is_not_said_to_be_a_healthy_line():
+    from sniffer.diagnose import to_text
+
+    assert "nothing on this line looks wrong" in to_text([], frames=5)
+    text = to_text([], frames=0)
+    assert "no frame was read" in text and "looks wrong" not in text

@@ -106,5 +106,5 @@ def run(spec: CaptureSpec, args) -> int:
     else:
         what = " + ".join(spec.inputs or [spec.input])
         head = f"sniffer diagnose {what}: {session.frames_out:,} frames {_settings(session)}; {summary(findings)}\n"
-        sys.stdout.write(to_text(findings, head))
+        sys.stdout.write(to_text(findings, head, session.frames_out))
     return report(session, label=spec.input)

@@ -41,10 +41,12 @@ def summary(findings: list[Finding]) -> str:
     return ", ".join(parts) if findings else "no finding"
 
 
-def to_text(findings: list[Finding], head: str = "") -> str:
+def to_text(findings: list[Finding], head: str = "", frames: int | None = None) -> str:
+    """The findings for people; `frames` read (None: not said) tells "nothing wrong" from "nothing read"."""
     lines = [head] if head else []
     if not findings:
-        lines.append("No finding: nothing on this line looks wrong.")
+        lines.append("No finding: nothing on this line looks wrong." if frames != 0 else
+                     "No finding: no frame was read, so nothing could be judged.")
     for f in findings:
         lines += f.text_lines() + [""]
     return "\n".join(lines).rstrip("\n") + "\n"
