@@ -166,3 +166,38 @@ def test_bauds_flag():
     for bad, why in (("x", "not a whole number"), ("10", "outside"), ("9999999", "outside")):
         with pytest.raises(SettingsError, match=why):
             parse_bauds([bad])
+
+
+class BusyHost(SimulatedPort):
+    """A port read by a host that wakes late from idle: the first read after a silence often comes `late_ns`
+    after its data, and the reads due meanwhile with it (a loaded laptop, a virtual CPU waking up, a pty whose
+    writer stalled). The frame's first timed read is late, the later ones not: its measured time is squeezed."""
+
+    def __init__(self, *a, late_ns: int = 2_000_000, share: float = 0.5, **kw) -> None:
+        import random
+
+        super().__init__(*a, **kw)
+        self.rng, self.late_ns, self.share = random.Random(7), late_ns, share
+        self.stall_until = self.last = 0
+
+    def read(self, timeout_s: float) -> bytes:
+        idle = self.t - self.last
+        data = super().read(timeout_s)
+        if data:
+            if idle > 5_000_000 and self.rng.random() < self.share:  # woke from idle: late
+                self.stall_until = self.t + self.late_ns
+            self.t = self.last = max(self.t, self.stall_until)
+        return data
+
+
+def test_a_host_that_wakes_late_never_makes_the_line_too_fast():
+    """Late reads squeeze most frames' measured character time below 8N1's 10 bits; the line is still found
+    (as 8N1: the frames a late read squeezed least are 10 bits), and 8N2 still impossible."""
+    sc = get_scenario("pd-series")
+    port = BusyHost(sc, setting(9600, "8N1"), start_s=0.137)
+    v = listen(port, Search(baud_order(()), quiet_s=5.0))
+    assert settled(v) == ("9600 8N1", "pd-rtu"), headline(v, "sim")
+    n1 = next(w for w in v.windows if w.fmt == "8N1" and w.rx.baud == 9600)
+    assert n1.bits_per_char < 10 * 0.93  # squeezed: the old verdict called it impossible
+    assert n1.timing != "impossible"
+    assert all(w.timing == "impossible" for w in v.windows if w.fmt == "8N2" and w.rx.baud == 9600)

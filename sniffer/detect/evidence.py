@@ -45,6 +45,7 @@ MISFIT = frozenset(c.code for c in (
 READ_SLACK_NS = 20_000_000
 MIN_SPAN_NS = 3_000_000  # a frame's reads must span this long to time it (a read can come 0.1-0.3 ms late)
 MIN_TIMED_FRAMES, MIN_TIMED_NS = 6, 40_000_000  # and this many frames timed, this long in all
+LEAST_SQUEEZED = 0.1  # the share of timed frames taken as squeezed least by late reads (not one outlier)
 TIMING_TOLERANCE = 0.07  # measured bits per character within 7 % of the format's: it fits exactly
 TWIN_MARGIN = 0.2  # ... and for 8N1 / 8N2, nearer its own by this many bits than the other's
 FIT_COVERAGE, FIT_ERRORS = 0.8, 0.01
@@ -142,6 +143,7 @@ class Evidence:
     pending: int = 0  # bytes the framers have not decided on yet (the most of any protocol)
     hint: str | None = None  # the format the bytes point to (for the search's order)
     found: bool = False  # some protocol frames these bytes (maybe at another format): the baud is right
+    bits_least_squeezed: float | None = None  # bits per character of the frames a late read squeezed least
 
     @property
     def fmt(self) -> str:
@@ -167,7 +169,10 @@ class Evidence:
             return "?"
         bits = self.line.bits_per_char
         if self.bits_per_char < bits * (1 - TIMING_TOLERANCE):
-            return "impossible"
+            # a read the host takes late squeezes its frame's measured time, never stretches it: faster than
+            # the format only if even the frames squeezed least are (a busy host squeezes most of them)
+            least = self.bits_least_squeezed
+            return "impossible" if least is None or least < bits * (1 - TIMING_TOLERANCE) else "?"
         return "exact" if self.bits_per_char <= bits * (1 + TIMING_TOLERANCE) else "slower"
 
     def stop_bits_told(self) -> str | None:
@@ -238,12 +243,13 @@ class Evidence:
                          for r in w.readings.values()),
                         key=lambda s: (s.paired, s.coverage, s.fit_frames), reverse=True)
         best = w.readings[scores[0].protocol]
-        bits, timed = _timing(w.reads, best.spans, w.rx.baud)
+        bits, timed, least = _timing(w.reads, best.spans, w.rx.baud)
         even = w.popcounts[0][0] + w.popcounts[1][0]
         odd = w.popcounts[0][1] + w.popcounts[1][1]
         ev = cls(w.rx, (t_ns - w.t0_ns) / 1e9, w.chars, w.skipped, w.errors, w.nul_errors, scores, bits, timed,
                  min(even, odd) >= 3, best.units.seen() if scores[0].fit_frames else [])
         ev.bursts = w.bursts
+        ev.bits_least_squeezed = least
         ev.pending = w.chars - min(r.pos for r in w.readings.values())
         hinted = [h for h in w.hints.values() if h.fit_frames >= 2 and h.coverage > 0.5]
         ev.found = scores[0].fit_frames >= 2 or bool(hinted)
@@ -251,8 +257,10 @@ class Evidence:
         return ev
 
 
-def _timing(reads: list[tuple[int, int]], spans: list[tuple[int, int]], baud: int) -> tuple[float | None, float]:
-    """Bits per character from the reads that end inside a fitting frame, before its last character.
+def _timing(reads: list[tuple[int, int]], spans: list[tuple[int, int]],
+            baud: int) -> tuple[float | None, float, float | None]:
+    """Bits per character from the reads that end inside a fitting frame, before its last character; the
+    seconds timed; and the bits per character of the frames squeezed least (LEAST_SQUEEZED of them are higher).
 
     A read returns a little after its last character came: at most a character later when more
     characters follow (the adapter sends what it has), up to its latency timer after the frame's
@@ -271,13 +279,15 @@ def _timing(reads: list[tuple[int, int]], spans: list[tuple[int, int]], baud: in
             chars = ends[j] - ends[i]
             per_frame.append((dt / chars * baud / 1e9, chars, dt))
     if len(per_frame) < MIN_TIMED_FRAMES:
-        return None, sum(dt for *_, dt in per_frame) / 1e9
+        return None, sum(dt for *_, dt in per_frame) / 1e9, None
     mid = median(bits for bits, *_ in per_frame)
     kept = [(chars, dt) for bits, chars, dt in per_frame if 0.75 * mid <= bits <= 1.33 * mid]
     timed = sum(dt for _, dt in kept)
     if len(kept) < MIN_TIMED_FRAMES or timed < MIN_TIMED_NS:
-        return None, timed / 1e9
-    return timed / sum(chars for chars, _ in kept) * baud / 1e9, timed / 1e9
+        return None, timed / 1e9, None
+    ranked = sorted(bits for bits, *_ in per_frame)
+    least = ranked[min(len(ranked) - 1, int(len(ranked) * (1 - LEAST_SQUEEZED)))]
+    return timed / sum(chars for chars, _ in kept) * baud / 1e9, timed / 1e9, least
 
 
 def _hint(w, ev: Evidence, seven_bit: bool) -> str | None:
