@@ -233,11 +233,15 @@ def test_trigger_windows_of_a_multi_link_capture_keep_their_links(three):
     got = [json.loads(x) for x in w.stdout.splitlines()]
     assert {x["link"] for x in got} == {"line1", "line2", "line3"}
     assert any(x["link"] == "line2" and x["role"] == "request" for x in got)
-    whole = {(x["link"], x["raw"]) for x in recs}
+    # the capture as the live run read it: a loaded machine stalls a simulated line mid-frame now and then
+    # (test_live_three_ports_every_link_decodes), so a window may hold a damaged frame, but only one the
+    # capture has too; a window cut inside a frame would hold a piece of it the capture never had
+    whole = {(x["link"], x["raw"], x["crc_ok"]) for x in recs}
     for name in ("line1", "line2", "line3"):
         mine = [x for x in got if x["link"] == name]
         head = [x for x in mine if x["t"] < mine[0]["t"] + 0.2]  # (the end may cut a frame: --post ends it)
-        assert head and all(x["crc_ok"] and (name, x["raw"]) in whole for x in head), head
+        assert head and all((name, x["raw"], x["crc_ok"]) in whole for x in head), head
+        assert sum(bool(x["crc_ok"]) for x in head) * 3 >= len(head) * 2, head  # mostly good frames, as the capture
 
 
 def test_fleet_dataset_files_each_link_under_its_own_partition(three):

@@ -141,6 +141,9 @@ def _live(port: str, out) -> Terminal:
 
 
 def _reader_of(term: Terminal, port: str) -> int:
+    """The capture's reader process, once the capture says it captures: the port is configured and its input
+    flushed then (bytes played before that are dropped, as the port's own, and the test would miss them)."""
+    assert term.wait_for("(read-only)"), term.screen[-2000:]
     deadline = time.monotonic() + HANG_S
     while True:
         found = [p for p in children(term.proc.pid) if fds_on(p, port)]
@@ -180,7 +183,7 @@ def test_a_killed_reader_process_costs_one_line_and_keeps_the_capture(tmp_path):
         term = _live(bus.port, out)
         reader = _reader_of(term, bus.port)
         bus.play(sent, speed=4.0)
-        time.sleep(0.3)
+        assert term.wait_for(f"#{len(sent) - 1} "), term.screen[-2000:]  # every frame through the reader
         os.kill(reader, signal.SIGKILL)
         rc = term.finish()
     text = term.screen.decode(errors="replace")
