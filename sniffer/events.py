@@ -16,6 +16,9 @@ from dataclasses import dataclass, field
 
 FLAG_FRAMING = "framing"
 FLAG_PARITY = "parity"
+# a part of a capture's metadata (CaptureInfo.extra): {link: the request that waited for its answer where the
+# part was cut} (capture.pairer.Pairer.waiting), so the part read alone pairs that answer as the whole capture does
+WAITING_KEY = "waiting_requests"
 
 
 @dataclass(slots=True, frozen=True)

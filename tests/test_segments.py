@@ -543,3 +543,58 @@ def test_a_segment_closed_for_its_size_holds_frames_not_only_its_own_records(tmp
         with open(tmp_path / "wide" / s["file"], "rb") as fh:
             summary = make_reader(fh).get_summary()
         assert sum(c.compressed_size for c in summary.chunk_indexes) >= size // 4
+
+
+def _two_busy_links(path) -> str:
+    """Two links of the default scenario read by USB adapters (per-read times): both busy, seldom quiet at once,
+    so most segment cuts fall while a request waits on one link (and the merge holds frames of the other)."""
+    from sniffer.capture.session import EventSource, Session
+    from sniffer.events import CaptureInfo, Chunk
+    from sniffer.formats import FileSink
+    from sniffer.simulator import get_scenario, simulate, usb_chunks
+
+    sc = get_scenario("default")
+    events = sorted((Chunk(c.t_ns, c.data, c.byte_t_ns, c.flags, "", link)
+                     for link, seed in (("a", 3), ("b", 4)) for c in usb_chunks(simulate(sc, sc.line, 40, seed))),
+                    key=lambda c: c.t_ns)
+    line = {"baud": sc.line.baud, "parity": sc.line.parity, "stopbits": sc.line.stopbits}
+    info = CaptureInfo(**line, links=[{"name": "a", **line}, {"name": "b", **line}])
+    Session(CaptureSpec(), EventSource(info, events), [FileSink("mcap", str(path), timed_flush=False)]).run()
+    return str(path)
+
+
+def _figures(records) -> dict:
+    """Per link and unit: requests, responses, answers with a latency, orphan answers, unanswered requests."""
+    from collections import Counter
+
+    c = Counter()
+    for x in map(json.loads, records):
+        key = (x.get("link"), x.get("unit"))
+        codes = {a["code"] for a in x["annotations"]}
+        c[(*key, x["role"])] += x["role"] in ("request", "response")
+        c[(*key, "latency")] += x.get("latency_ms") is not None
+        c[(*key, "orphan")] += "pair.orphan_response" in codes
+        c[(*key, "timeout")] += "pair.timeout" in codes
+    return {k: v for k, v in c.items() if v}
+
+
+def test_each_segment_of_busy_links_read_alone_has_the_whole_captures_figures(capsys, tmp_path):
+    """A segment cut while a request waits (its answer in the next segment) records that request in its
+    metadata: read alone (a fleet dataset takes segments in one by one), the next segment pairs the answer as
+    the whole capture does, so the segments' figures add up to the whole capture's (an echo was a request of
+    its own, an answer an orphan without latency)."""
+    from sniffer.events import WAITING_KEY
+    from sniffer.sources.files import FileSource
+
+    folder = tmp_path / "F"
+    _rotate(capsys, _two_busy_links(tmp_path / "two.mcap"), folder, "--rotate", "5s", "--jobs", "1")
+    segments = sorted(str(p) for p in folder.glob("*.mcap"))
+    carried = 0
+    for seg in segments:
+        src = FileSource(seg)
+        carried += bool(src.open().extra.get(WAITING_KEY))
+        src.close()
+    assert len(segments) >= 6 and carried >= 2  # cuts that split an exchange: what the test is about
+    whole = _figures(_jsonl(capsys, folder, flags=("--jobs", "1")))
+    alone = _figures([r for seg in segments for r in _jsonl(capsys, seg, flags=("--jobs", "1"))])
+    assert alone == whole

@@ -60,6 +60,8 @@ close as a Pipeline.
 
 from __future__ import annotations
 
+import copy
+
 import heapq
 from collections import deque
 
@@ -232,6 +234,24 @@ class LinkPipelines:
 
     def state_version(self) -> int:
         return sum(reg.version() for reg in self.registries.values())
+
+    def waiting(self) -> dict:
+        """Every link's request waiting for its answer (Pipeline.waiting)."""
+        out = {}
+        for name, p in self.pipelines.items():
+            queued = [x for x in self._queues[name] if type(x) is Frame]
+            if not queued:
+                out.update(p.waiting())
+                continue
+            # the merge holds frames its pairer has not seen yet (their bytes are before the cut): what waits is
+            # what a copy of the pairer waits for once it has them (copies: the real ones are paired later)
+            pairer, frames = copy.deepcopy((p.pairer, queued))
+            for f in frames:
+                pairer.push(f)
+            w = pairer.waiting()
+            if w is not None:
+                out[name] = w
+        return out
 
     def _release(self, final: bool = False) -> list[Frame]:
         """Stage 1 (queues, in time order, numbered, paired) then stage 2 (in number order) to the sinks."""

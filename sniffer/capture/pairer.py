@@ -190,7 +190,7 @@ class Pairer:
                     and response_mismatch(req.adu, f.adu) and self._late(f, shape_only=True):
                 return self._pass_through(f)  # answers an earlier request, not this one: that one's late answer
             self.pending = None  # (_same_transaction, inline: every response passes here)
-            f.pair = req.index
+            f.pair = req.index if req.index >= 0 else None  # (< 0: a request of the part before)
             req.pair = f.index
             f.peer = req
             req.peer = f
@@ -248,7 +248,7 @@ class Pairer:
                 return False  # a later request of the unit (answered, or its answer lost) fits it as well
             del self.recent[k]
             f.role = RESPONSE
-            f.pair = req.index
+            f.pair = req.index if req.index >= 0 else None
             f.peer = req  # decoded with its request (which was settled and decoded before it)
             lat = f.t_ns - req.t_end_ns
             if f.time_source != "none":
@@ -314,6 +314,31 @@ class Pairer:
         last = ref(last) if last is not None and last.index == self._last_index else None
         return (None if self.pending is None else ref(self.pending), tuple(ref(f) for f in self.held), last,
                 self.timeout_ns, tuple(sorted(self.unit_timeouts.items())))
+
+    def waiting(self) -> dict | None:
+        """The request waiting for its answer, as a part cut now carries it (`resume`); None if none."""
+        req = self.pending
+        if req is None:
+            return None
+        return {"t_ns": req.t_ns, "t_end_ns": req.t_end_ns, "raw": req.raw.hex(), "protocol": req.protocol,
+                "unit": req.unit, "function": req.function, "crc_ok": req.crc_ok, "time_source": req.time_source,
+                "adu": bytes(req.adu).hex()}
+
+    def resume(self, waiting: dict) -> None:
+        """Start as the part before ended: its request waiting for an answer (`waiting`), so an answer at this
+        part's start is that request's response, not a request of its own.  The request is the part before's:
+        it is never handed on here (unanswered, it settles with nothing to show)."""
+        try:
+            raw = bytes.fromhex(waiting["raw"])
+            req = Frame(-1, int(waiting["t_ns"]), int(waiting["t_end_ns"]), raw, str(waiting["protocol"]),
+                        waiting.get("unit"), waiting.get("function"), crc_ok=waiting.get("crc_ok"),
+                        time_source=str(waiting.get("time_source") or "byte"))
+            adu = waiting.get("adu")
+            req.adu = bytes.fromhex(adu) if isinstance(adu, str) else b""
+        except (KeyError, TypeError, ValueError):
+            return  # metadata of another version or damaged: start as a capture does
+        req.role = REQUEST
+        self.pending, self.held = req, []
 
     def would_time_out(self, t_ns: int) -> bool:
         """True if tick(t_ns) would settle the pending request (used to record effective ticks)."""

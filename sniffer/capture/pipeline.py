@@ -31,7 +31,7 @@ from collections.abc import Iterable
 
 from sniffer import codes, protocols
 from sniffer.codes import note
-from sniffer.events import CaptureInfo, Chunk, Gap, Tick
+from sniffer.events import WAITING_KEY, CaptureInfo, Chunk, Gap, Tick
 from sniffer.frame import CAN_REQ, CAN_RSP, Frame
 from sniffer.line import LineSettings
 from sniffer.capture.pairer import DEFAULT_TIMEOUT_MS, Pairer
@@ -77,6 +77,9 @@ class Pipeline:
         self._gap_pending: Gap | None = None
         self.link = link
         self.directions = directions or None
+        waiting = info.extra.get(WAITING_KEY) if info is not None and isinstance(info.extra, dict) else None
+        if isinstance(waiting, dict) and isinstance(waiting.get(link), dict):
+            self.pairer.resume(waiting[link])  # a segment cut while a request waited: its answer is this one's
         self.driver_enable = None  # sniffer.sources.driver_enable.DriverEnable, made by the first DE chunk
         if start:
             for s in self.sinks:
@@ -158,6 +161,12 @@ class Pipeline:
 
     def state_version(self) -> int:
         return self.registry.version()
+
+    def waiting(self) -> dict:
+        """{link: the request waiting for its answer} (Pairer.waiting), if one waits: what a segment cut now
+        starts with (its metadata's WAITING_KEY), so read alone it pairs that answer as the whole capture does."""
+        w = self.pairer.waiting()
+        return {self.link: w} if w is not None else {}
 
     def settled(self) -> int:
         """Between events: 2 nothing is pending, 1 a request waits for its answer, 0 bytes wait in the framer.

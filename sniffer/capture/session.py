@@ -190,6 +190,8 @@ class Session:
                     s.decoder_state = self.pipeline.decoder_state
                 if hasattr(s, "state_version"):
                     s.state_version = self.pipeline.state_version
+                if hasattr(s, "waiting"):
+                    s.waiting = self.pipeline.waiting
         except BaseException as e:
             self._abandon()
             if isinstance(e, (CaptureStorageError, OSError)):  # e.g. the disk is full already

@@ -27,7 +27,7 @@ import uuid
 
 from decoders.carry import record
 
-from sniffer.events import CaptureInfo, Gap
+from sniffer.events import WAITING_KEY, CaptureInfo, Gap
 from sniffer.frame import Frame
 from sniffer.formats.outputs import Output, OutputError, lock_file, make_folders, shown
 from sniffer.formats.mcap.segments import (
@@ -127,6 +127,7 @@ class SegmentSink(Sink):
         self._first_seq = 1
         self._closed = False
         self.decoder_state = None  # the session binds its pipeline's (Pipeline.decoder_state)
+        self.waiting = None  # ... and the requests waiting for their answers (Pipeline.waiting)
 
     # ------------------------------------------------------------ the sink
     def start(self, info: CaptureInfo) -> None:
@@ -233,6 +234,10 @@ class SegmentSink(Sink):
         seg_info.extra = {**info.extra, "segment": seq, "segment_t_ns": t_ns}
         if self.decoder_state is not None:
             record(seg_info, self.decoder_state())
+        seg_info.extra.pop(WAITING_KEY, None)
+        waiting = self.waiting() if self.waiting is not None else None
+        if waiting:  # cut while a request waited (busy links are seldom all quiet): read alone, it pairs its answer
+            seg_info.extra[WAITING_KEY] = waiting
         self._cur = McapSink(self._out.part, flush_interval_s=self.flush_interval_s, packing=self._packing)
         self._cur.start(seg_info)
         span = self.rotate.span_ns
