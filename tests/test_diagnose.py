@@ -479,3 +479,16 @@ def test_no_frame_read_is_not_said_to_be_a_healthy_line():
     assert "nothing on this line looks wrong" in to_text([], frames=5)
     text = to_text([], frames=0)
     assert "no frame was read" in text and "looks wrong" not in text
+
+
+def test_a_request_timed_before_its_cycles_anchor_counts_in_the_first_twelfth():
+    """Per-read times are estimated back from the read: a request may carry a time before the anchor request
+    of its cycle.  The second-master test counts it at the cycle's start (it raised IndexError on a million
+    frames of the stress scenario, in `diagnose` and in `report`)."""
+    from collections import Counter
+
+    from sniffer.diagnose import masters
+
+    win = [(10_000, "A"), (0, "B"), (10_100, "A")] * 40
+    phases = masters._phases(win, "A", Counter({"A": 100, "B": 100}))
+    assert phases["B"][0] == 40  # every B counted once

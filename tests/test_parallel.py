@@ -407,3 +407,17 @@ def test_a_capture_without_events_is_its_own_part(capfd, tmp_path):
     _same(capfd, ["report", empty, "--out", one], ["report", empty, "--out", two])
     _same(capfd, ["check", empty, "--golden", str(tmp_path / "one.txt"), "--update-golden"],
           ["check", empty, "--golden", str(tmp_path / "two.txt"), "--update-golden"], [str(tmp_path / "one.txt")])
+
+
+def test_a_wrong_line_is_warned_of_as_one_process_does(capfd, tmp_path, small_parts):
+    """The line warning of a replay by parts counts every frame in order from what the workers send of each
+    (link, time, bytes, what made it bad), not the frames themselves: the same warning, at the same frame."""
+    from sniffer.cli import main
+
+    path = str(tmp_path / "wrong.mcap")
+    assert main(["simulate", "--out", path, "--scenario", "default", "--duration", "20",
+                 "--fault", "wrong_line_settings:38400"]) == 0
+    capfd.readouterr()
+    _same(capfd, ["replay", path, "--quiet"], ["replay", path, "--quiet"])
+    rc, _out, err = _cli(capfd, "replay", path, "--quiet", "--jobs", "2")
+    assert "probably wrong" in err and err.count("probably wrong") == 1, err

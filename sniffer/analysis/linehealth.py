@@ -173,11 +173,14 @@ class LineWatch:
         self.lines: dict[str, LineHealth] = {}
 
     def frame(self, f) -> Change | None:
-        link = f.link or ""
+        return self.add(f.link or "", f.t_ns, len(f.raw), badness(f))
+
+    def add(self, link: str, t_ns: int, nbytes: int, bad: int | None) -> Change | None:
+        """A frame by what counts of it (a frame of a part decoded elsewhere: sniffer.parallel)."""
         h = self.lines.get(link)
         if h is None:
             h = self.lines[link] = LineHealth(link)
-        return h.add(f.t_ns, len(f.raw), badness(f))
+        return h.add(t_ns, nbytes, bad)
 
     def broken(self) -> list[str]:
         """The links broken now."""
@@ -212,7 +215,11 @@ class LineWarning(Sink):
         self.info = info
 
     def frame(self, f) -> None:
-        change = self.watch.frame(f)
+        self.observe(f.link or "", f.t_ns, len(f.raw), badness(f))
+
+    def observe(self, link: str, t_ns: int, nbytes: int, bad: int | None) -> None:
+        """A frame by what counts of it (LineWatch.add)."""
+        change = self.watch.add(link, t_ns, nbytes, bad)
         if change is not None and change.broken:
             self.say("warning: " + warning_text(change, line_settings(self.info, change.link),
                                                 self.hint(self.info, change.link)))

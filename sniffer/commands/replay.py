@@ -84,13 +84,13 @@ def run(spec: CaptureSpec, args) -> int:
 
 def _parallel(spec: CaptureSpec, source, args, jobs: int) -> int:
     """replay --jobs N: the capture decoded by parts in N processes (sniffer.parallel), the same lines; the line
-    warning sees every frame, in order, here."""
+    warning counts every frame, in order, here (from a few numbers a frame the workers send: HealthPlan)."""
     from sniffer.commands.common import parallel_run, run_with_bar
-    from sniffer.parallel.outputs import CallsPlan, SinkWriter, StreamPlan, StreamWriter, stdout_for
+    from sniffer.parallel.outputs import HealthPlan, HealthWriter, StreamPlan, StreamWriter, stdout_for
 
     outputs = [(StreamPlan(spec.stream), StreamWriter(stdout_for(spec.stream)))] \
         if spec.stream in ("text", "jsonl") else []
-    outputs.append((CallsPlan(), SinkWriter(line_warning(file=spec.input))))
+    outputs.append((HealthPlan(), HealthWriter(line_warning(file=spec.input))))
     run = parallel_run(spec, source, outputs, jobs, spec.input if args.progress else None)
     run.open()
     note_unfinished(run.session)

@@ -89,8 +89,9 @@ def _phases(win: list, anchor: tuple, counts: Counter) -> dict[tuple, tuple]:
             x = bins.get(k)
             if x is None:
                 x = bins[k] = [0] * (2 * BINS)
+            # per-read times are estimated back from the read: a frame may carry a time before the anchor's
             m = (t - t_a) * BINS // span
-            x[m if m < top else top] += 1
+            x[0 if m < 0 else m if m < top else top] += 1
             x[BINS + (i - a) * BINS // size] += 1
     out = {}
     for k, x in bins.items():

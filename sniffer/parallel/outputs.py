@@ -300,6 +300,48 @@ class SinkWriter:
         self.sink.close()
 
 
+class HealthPlan:
+    """What the line warning counts of each frame (link, time, bytes, what made it bad: a few bytes a frame,
+    not the frame): a replay by parts warns as one process does, without sending every frame here."""
+
+    def part_sink(self, info, first: bool):
+        return _Health()
+
+
+class _Health(Sink):
+    def __init__(self) -> None:
+        from sniffer.analysis.linehealth import badness
+
+        self.rows: list = []
+        self.badness = badness
+
+    def frame(self, f) -> None:
+        self.rows.append((f.link or "", f.t_ns, len(f.raw), self.badness(f)))
+
+    def piece(self):
+        return self.rows
+
+
+class HealthWriter:
+    """The line warning (sniffer.analysis.linehealth.LineWarning) fed the parts' HealthPlan rows in order."""
+
+    outputs: tuple = ()
+
+    def __init__(self, warning) -> None:
+        self.warning = warning
+
+    def begin(self, info) -> None:
+        self.warning.start(info)
+
+    def add(self, piece) -> None:
+        observe = self.warning.observe
+        for row in piece:
+            observe(*row)
+
+    def close(self) -> None:
+        pass
+
+
 def file_output(file_sink) -> tuple:
     """(plan, writer) of a planned output file (sniffer.formats.FileSink) of any export format."""
     fmt = file_sink.fmt
@@ -321,5 +363,5 @@ def stdout_for(kind: str):
     return sys.stdout.buffer if kind == "jsonl" else sys.stdout
 
 
-__all__ = ["CallsPlan", "FilePlan", "FileWriter", "FramesPlan", "GoldenPlan", "SinkWriter", "StreamPlan",
-           "StreamWriter", "file_output", "stdout_for"]
+__all__ = ["CallsPlan", "FilePlan", "FileWriter", "FramesPlan", "GoldenPlan", "HealthPlan", "HealthWriter",
+           "SinkWriter", "StreamPlan", "StreamWriter", "file_output", "stdout_for"]
