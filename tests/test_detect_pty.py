@@ -10,42 +10,16 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 import pytest
-from helpers import run_sniffer
+from helpers import SimulatedLine, run_sniffer
 
 from sniffer.capture.busfile import load_bus_file
 from sniffer.events import Chunk
 from sniffer.frame import CAN_RSP
 from sniffer.framing.rtu import RtuFramer
 from sniffer.line import LineSettings
-from sniffer.detect.candidates import setting
-from sniffer.simulator import get_scenario
-from sniffer.simulator.uartpty import PtyLine
-
-
-class Line:
-    """A simulated line on a pty, played in a thread."""
-
-    def __init__(self, tmp_path, scenario: str, line: str | None = None, resync: str = "edge", name: str = "line0"):
-        sc = get_scenario(scenario)
-        b, f = (line or f"{sc.line.baud} {sc.line.databits}{sc.line.parity}{sc.line.stopbits}").split()
-        self.pty = PtyLine(sc, setting(int(b), f), seed=5, resync=resync)
-        self.path = str(tmp_path / name)
-        self.pty.link(self.path)
-        self.stop = threading.Event()
-        self.thread = threading.Thread(target=self.pty.play, args=(self.stop,), daemon=True)
-
-    def __enter__(self) -> "Line":
-        self.thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.stop.set()
-        self.thread.join(5)
-        self.pty.close()
 
 
 def detect(tmp_path, path, *flags):
@@ -64,7 +38,7 @@ def detect(tmp_path, path, *flags):
     ("pd-series", None, "9600 8N1 pd-rtu", "certain:"),
 ])
 def test_detect_finds_the_line_and_sends_nothing(tmp_path, scenario, line, want, how):
-    with Line(tmp_path, scenario, line) as sim:
+    with SimulatedLine(tmp_path, scenario, line) as sim:
         r, bus = detect(tmp_path, sim.path)
         back = sim.pty.bytes_received_from_sniffer
     assert r.returncode == 0, r.stderr
@@ -102,7 +76,7 @@ def test_silent_line_is_no_traffic_in_one_line(tmp_path):
 
 
 def test_no_candidate_fits_says_so_and_writes_nothing(tmp_path):
-    with Line(tmp_path, "default", "250000 8E1") as sim:  # a rate detect is not told to try
+    with SimulatedLine(tmp_path, "default", "250000 8E1") as sim:  # a rate detect is not told to try
         r, bus = detect(tmp_path, sim.path, "--max-time", "8", "-q")
         back = sim.pty.bytes_received_from_sniffer
     assert r.returncode == 1 and back == 0
@@ -233,7 +207,7 @@ def test_several_ports_one_silent_writes_the_settled_and_says_the_other(tmp_path
     silent = os.ttyname(slave)
     bus = tmp_path / "plant.toml"
     try:
-        with Line(tmp_path, "default") as sim:
+        with SimulatedLine(tmp_path, "default") as sim:
             r = run_sniffer("detect", sim.path, silent, "--write-bus", str(bus), "--quiet-time", "2", "-q")
     finally:
         os.close(master)
