@@ -358,13 +358,18 @@ class Session:
         return storage_text(e, self.outputs, self.keep_partial)
 
     def _close_source(self) -> None:
-        for name in ("stop", "close"):
-            fn = getattr(self.source, name, None)
-            if fn is not None:
-                try:
-                    fn()
-                except Exception:  # noqa: BLE001 - closing: nothing left to save
-                    pass
+        close_source(self.source)
+
+
+def close_source(source) -> None:
+    """Stop and close a capture's source, whatever either raises (closing: nothing left to save)."""
+    for name in ("stop", "close"):
+        fn = getattr(source, name, None)
+        if fn is not None:
+            try:
+                fn()
+            except Exception:  # noqa: BLE001 - closing: nothing left to save
+                pass
 
 
 def storage_text(e: Exception, outputs, keep_partial: bool = False) -> str:

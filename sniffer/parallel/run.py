@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import os
 
-from sniffer.capture.session import Session, storage_text
+from sniffer.capture.session import Session, close_source, storage_text
 from sniffer.events import CaptureError
 from sniffer.formats.mcap.sink import CaptureStorageError
 from sniffer.parallel.engine import Engine
@@ -145,13 +145,7 @@ class ParallelRun:
                 o.commit()
 
     def _close_source(self) -> None:
-        for name in ("stop", "close"):
-            fn = getattr(self.source, name, None)
-            if fn is not None:
-                try:
-                    fn()
-                except Exception:  # noqa: BLE001 - closing: nothing left to save
-                    pass
+        close_source(self.source)
 
 
 def decode_capture(path, spec, jobs: int) -> ParallelRun:
