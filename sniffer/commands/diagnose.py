@@ -15,7 +15,7 @@ from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.commands.common import jobs_for, report
 from sniffer.commands.flags import command_parser, decode_flags, input_flags, jobs_flag, progress_flag, serial_flags
-from sniffer.commands.replay import file_source, note_unfinished
+from sniffer.commands.replay import file_source, frames_by_parts, note_unfinished
 
 
 def add_parser(subparsers) -> None:
@@ -82,22 +82,8 @@ def run(spec: CaptureSpec, args) -> int:
     engine = Diagnosis(reference)
     jobs = jobs_for(spec, args)
     if jobs > 1:  # decoded by parts in worker processes; the engine takes their frames here, in order
-        from sniffer.commands.common import parallel_run
-        from sniffer.parallel.outputs import FramesPlan
-
-        session = parallel_run(spec, source, [], jobs, spec.input if args.progress else None)
-        try:
-            session.open()
-            note_unfinished(session.session)
-            engine.start_session(session)
-            frame = engine.frame
-            for part in session.parts([FramesPlan()]):
-                for f in part.pieces[0]:
-                    frame(f)
-        finally:
-            if session.bar is not None:
-                session.bar.close()
-        note_unfinished(session.session)
+        session = frames_by_parts(spec, source, jobs, spec.input if args.progress else None,
+                                  engine.start_session, engine.frame)
     else:
         session = _one_process(spec, source, engine, args.progress)
     findings = engine.findings()

@@ -127,3 +127,25 @@ def note_unfinished(session: Session) -> None:
         said.add(path)
         say(f"note: {path} was not closed cleanly (capture killed, or still being written?); read up to its last "
             f"complete record. 'sniffer repair {path}' writes a clean copy.")
+
+
+def frames_by_parts(spec: CaptureSpec, source, jobs: int, label: str | None, begin, frame):
+    """A capture decoded by parts in `jobs` processes (sniffer.parallel) for a command that must see every frame
+    in one place (a report, a diagnosis): `begin(run)` once it is open, then `frame(f)` for each frame in
+    capture order, as from one session; `label`: a progress bar on stderr.  The run, ended, for the report."""
+    from sniffer.commands.common import parallel_run
+    from sniffer.parallel.outputs import FramesPlan
+
+    run = parallel_run(spec, source, [], jobs, label)
+    try:
+        run.open()
+        note_unfinished(run.session)
+        begin(run)
+        for part in run.parts([FramesPlan()]):
+            for f in part.pieces[0]:
+                frame(f)
+    finally:
+        if run.bar is not None:
+            run.bar.close()
+    note_unfinished(run.session)  # a rotated capture's segments are opened as the reading reaches them
+    return run

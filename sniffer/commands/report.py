@@ -20,7 +20,7 @@ from sniffer.commands.common import EXIT_OK, jobs_for, report, say
 from sniffer.commands.flags import (
     command_parser, decode_flags, input_format_flag, jobs_flag, progress_flag, serial_flags,
 )
-from sniffer.commands.replay import note_unfinished, file_source
+from sniffer.commands.replay import file_source, frames_by_parts, note_unfinished
 
 
 def add_parser(subparsers) -> None:
@@ -119,21 +119,8 @@ def run(spec: CaptureSpec, args) -> int:
 def _parts(spec: CaptureSpec, source, path: str, collector, args, jobs: int) -> int:
     """One capture decoded by parts in `jobs` processes (sniffer.parallel); the collector takes its frames here,
     in order, as from one session."""
-    from sniffer.commands.common import parallel_run
-    from sniffer.parallel.outputs import FramesPlan
-
-    run = parallel_run(spec, source, [], jobs, path if args.progress else None)
-    try:
-        run.open()
-        note_unfinished(run.session)
-        collector.begin(path, run)
-        for part in run.parts([FramesPlan()]):
-            for f in part.pieces[0]:
-                collector.frame(f)
-    finally:
-        if run.bar is not None:
-            run.bar.close()
-    note_unfinished(run.session)
+    run = frames_by_parts(spec, source, jobs, path if args.progress else None,
+                          lambda r: collector.begin(path, r), collector.frame)
     collector.end(run)
     return report(run, label=path)
 
