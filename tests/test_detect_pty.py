@@ -173,7 +173,8 @@ class SimulatedPorts:
 
 def test_several_ports_are_settled_at_once_into_one_bus_file_that_live_captures(tmp_path):
     """Three lines at different settings: one bus file, a [[links]] table each (named after the port, the units
-    seen as comments); `live --bus` on it captures every link with good frames; nothing reaches any line."""
+    identified named, the others as comments); `live --bus` on it captures every link with good frames; nothing
+    reaches any line."""
     lines = [("tds-v8", [], "line0"), ("default", ["--baud", "9600", "--parity", "O"], "line1"),
              ("a510-ascii", [], "line2")]
     want = {"line0": (9600, "N", 2, 8, "modbus-rtu"), "line1": (9600, "O", 1, 8, "modbus-rtu"),
@@ -187,9 +188,12 @@ def test_several_ports_are_settled_at_once_into_one_bus_file_that_live_captures(
         if got.get("line0") == (9600, "N", 1, 8, "modbus-rtu") and "stop bits not told apart" in r.stdout:
             want["line0"] = got["line0"]  # a loaded machine blurs the characters' spacing (see above)
         assert got == want
-        assert [x.ports for x in b.links] == [(p,) for p in sims.paths] and not any(x.devices for x in b.links)
+        assert [x.ports for x in b.links] == [(p,) for p in sims.paths]
+        # the drives identified while listening are named; the generic ones are left as comments
+        assert {x.name: x.devices for x in b.links} == {"line0": {1: "tds-v8", 2: "tds-v8"}, "line1": {},
+                                                         "line2": {1: "a510", 2: "a510"}}
         text = bus.read_text()
-        assert text.count("[[links]]") == 3 and text.count("# units = { 1 = ") == 3  # the units as comments
+        assert text.count("[[links]]") == 3 and text.count("# units = { 1 = ") == 1
         assert f"wrote {bus}" in r.stderr
         assert all(f"{p} (" in r.stdout for p in sims.paths) and r.stdout.count("  line: ") == 3
         live = run_sniffer("live", "--bus", str(bus), "--no-out", "--headless", "--duration", "3", "--format",

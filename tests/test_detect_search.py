@@ -154,7 +154,7 @@ def test_report_table_best_first_and_bus_file_that_live_takes(tmp_path):
     path.write_text(bus_file(v, "/dev/ttyUSB0"))
     bus = load_bus_file(str(path))
     assert (bus.baud, bus.parity, bus.stopbits, bus.databits, bus.protocol) == (9600, "E", 1, 7, "modbus-ascii")
-    assert bus.devices == {}  # units are comments: a device map would stop their models being guessed
+    assert bus.devices == {}  # bus_file without the models named: the units are comments (generic)
     assert "# 1 = \"generic\"" in path.read_text()
     resolved = CaptureSpec.of(bus_file=str(path)).resolve(None)
     assert resolved.line.label() == "9600 7E1" and resolved.protocol.name == "modbus-ascii"
@@ -201,3 +201,57 @@ def test_a_host_that_wakes_late_never_makes_the_line_too_fast():
     assert n1.bits_per_char < 10 * 0.93  # squeezed: the old verdict called it impossible
     assert n1.timing != "impossible"
     assert all(w.timing == "impossible" for w in v.windows if w.fmt == "8N2" and w.rx.baud == 9600)
+
+
+def named_detect(scenario: str, line: str | None = None, **kw):
+    from sniffer.detect.models import Naming
+
+    naming = Naming()
+    v, port = detect(scenario, line, follow_s=kw.pop("follow_s", 1.0), more=naming.wants_more,
+                     more_s=kw.pop("more_s", 30.0), **kw)
+    return v, naming.feed(v.best.answers, v.best.best.protocol)
+
+
+@pytest.mark.parametrize("scenario, models", [
+    ("tds-v8", {1: "tds-v8", 2: "tds-v8"}),
+    ("a510-ascii", {1: "a510", 2: "a510"}),
+    ("spl", {1: "spl", 2: "spl"}),
+    ("pd-series", {1: "pd-series", 2: "pd-series"}),  # the protocol is the model's own
+])
+def test_the_bus_file_names_the_models_identified_while_listening(tmp_path, scenario, models):
+    from sniffer.simulator import get_scenario
+
+    v, named = named_detect(scenario)
+    assert v.status in ("certain", "stop bits") and {u: n.model for u, n in named.items()} == models
+    assert all(get_scenario(scenario).devices.get(u) == m for u, m in models.items())  # what the line really is
+    text = bus_file(v, "/dev/ttyUSB0", named)
+    bus = load_bus_text(tmp_path, text)
+    assert bus.devices == models  # a table live --bus applies as it is: every model's decoding kept
+    assert "generic" not in text and "model not identified" not in text
+
+
+def test_units_of_no_known_model_are_named_on_stderr_and_left_as_comments(tmp_path):
+    """The default scenario's drives are generic Modbus devices: nothing names them, the listen stops once their
+    answers bring nothing new (well before --identify-time), and the bus file leaves them to the user."""
+    from sniffer.detect.report import unnamed_line
+
+    v, named = named_detect("default", "19200 8E1", more_s=120.0)
+    assert named == {}
+    assert v.best.seconds < 30  # stopped when the polls repeated, not at the 120 s allowed
+    line = unnamed_line(v.best, named)
+    assert line.startswith("model not identified for units 1, 2, 5")
+    text = bus_file(v, "/dev/ttyUSB0", named)
+    assert load_bus_text(tmp_path, text).devices == {}
+    assert '# 1 = "generic"' in text and "model not identified" in text
+
+
+def test_a_mixed_line_names_the_units_it_can_and_comments_the_rest(tmp_path):
+    """Named units in [units], the unnamed ones commented right after them (uncommenting one adds it there)."""
+    from sniffer.detect.models import Named
+
+    v, _ = named_detect("default", "19200 8E1", more_s=0.0)
+    named = {1: Named("tds-v8", 0.9, "test")}
+    text = bus_file(v, "/dev/ttyUSB0", named)
+    assert load_bus_text(tmp_path, text).devices == {1: "tds-v8"}
+    uncommented = text.replace('# 2 = "generic"', '2 = "generic"')
+    assert load_bus_text(tmp_path, uncommented).devices == {1: "tds-v8", 2: "generic"}

@@ -20,7 +20,9 @@ from sniffer.commands.common import capture_sinks, destination, line_warning, re
 def capture_session(spec: CaptureSpec, source, label: str, *, inputs=(), status_label: str = "") -> Session:
     """The session of a capture: the stdout stream, the MCAP file, the viewers' socket; its files are kept
     whatever ends it.  Outputs are checked now; nothing is opened yet."""
-    sinks = [line_warning(), *capture_sinks(spec, label, stream=True, inputs=inputs)]
+    from sniffer.analysis.quietline import QuietLine
+
+    sinks = [line_warning(), QuietLine(say), *capture_sinks(spec, label, stream=True, inputs=inputs)]
     return Session(spec, source, sinks, keep_partial=True, need_baud=False, label=status_label or label)
 
 

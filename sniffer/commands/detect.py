@@ -17,7 +17,8 @@ import sys
 
 from sniffer.detect.candidates import baud_order, parse_bauds, setting
 from sniffer.detect.evidence import Evidence
-from sniffer.detect.report import bus_file, headline, table, units, verdict_word
+from sniffer.detect.models import Naming
+from sniffer.detect.report import bus_file, headline, table, units, unnamed_line, verdict_word
 from sniffer.detect.search import Search
 from sniffer.formats.outputs import Output
 from sniffer.capture.settings import CaptureSpec
@@ -65,6 +66,9 @@ def add_parser(subparsers) -> None:
                    help="no byte in the first TIME: no traffic (default 5 s)")
     p.add_argument("--units-time", type=duration("--units-time", upper_s=86_400.0), default=2.0, metavar="TIME",
                    help="once certain, listen this much more for the units and their poll periods (default 2 s)")
+    p.add_argument("--identify-time", type=duration("--identify-time", upper_s=86_400.0), default=30.0,
+                   metavar="TIME", help="once certain, listen up to this long until every unit's drive model is "
+                                        "identified from its answers (default 30 s; 0: do not wait)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
 
 
@@ -93,8 +97,10 @@ def run(spec: CaptureSpec, args) -> int:
     if not args.quiet:
         say(f"listening on {port} (read-only, nothing is sent): up to {len(bauds)} baud rates, "
             f"at most {args.max_time:g} s")
+    naming = Naming(spec.model_files)
     verdict = listen(serial, Search(bauds, quiet_s=args.quiet_time), max_s=args.max_time,
-                     follow_s=args.units_time, on_window=None if args.quiet else _progress)
+                     follow_s=args.units_time, on_window=None if args.quiet else _progress,
+                     more=naming.wants_more, more_s=args.identify_time)
     line = headline(verdict, port)
     if verdict.status == "no traffic":
         say(f"error: {line}")
@@ -105,12 +111,16 @@ def run(spec: CaptureSpec, args) -> int:
         return EXIT_FAILED
     print(f"\nline: {line}")
     print(f"settled in {verdict.decided_s:.1f} s of listening ({len(verdict.windows)} settings)")
-    seen = units(verdict.best)
+    named = naming.feed(verdict.best.answers, verdict.best.best.protocol)
+    seen = units(verdict.best, named)
     if seen:
         print("units seen:\n" + "\n".join(f"  {u}" for u in seen))
+    left = unnamed_line(verdict.best, named)
+    if left:
+        say(f"note: {left}")
     if out is not None:
         try:
-            out.write_text(bus_file(verdict, port))
+            out.write_text(bus_file(verdict, port, named))
             out.commit()
         except BaseException:
             out.discard()
@@ -153,8 +163,10 @@ def _detect_ports(spec: CaptureSpec, args) -> int:
 
     def listen_one(serial):
         on_window = None if args.quiet else (lambda ev: _progress(ev, f"{serial.path}: "))
+        naming = Naming(spec.model_files)
         return listen(serial, Search(bauds, quiet_s=args.quiet_time), max_s=args.max_time,
-                      follow_s=args.units_time, on_window=on_window)
+                      follow_s=args.units_time, on_window=on_window, more=naming.wants_more,
+                      more_s=args.identify_time)
 
     results = settle(opened, listen_one)
     for r in results:

@@ -37,7 +37,9 @@ def add_parser(subparsers) -> None:
                    help="capture files (MCAP, byte CSV, Saleae CSV, pcap/pcapng) or rotated captures' folders, "
                         "reported as one, in this order")
     input_format_flag(p)
-    p.add_argument("--out", required=True, metavar="FILE.html", help="the report to write")
+    p.add_argument("--out", metavar="FILE.html",
+                   help="the report to write (default: next to the first capture, its name with .html: "
+                        "cab3.mcap -> cab3.html, a rotated capture's folder cab3/ -> cab3.html)")
     p.add_argument("--compare", metavar="GOLDEN",
                    help="a reference capture: the page adds what changed against it (as `sniffer diff GOLDEN ...`)")
     p.add_argument("--title", help="the page's title (default: Bus report: the captures' names)")
@@ -62,6 +64,13 @@ def _check_input(spec: CaptureSpec, path: str, what: str = "") -> None:
         source.close()
 
 
+def default_report_path(capture: str) -> str:
+    """Where a report goes without --out: beside the (first) capture, named after it."""
+    path = os.path.normpath(capture)
+    stem, ext = os.path.splitext(path)
+    return (path if os.path.isdir(path) or not ext else stem) + ".html"
+
+
 def run(spec: CaptureSpec, args) -> int:
     from sniffer.report import Collector, render
 
@@ -71,6 +80,8 @@ def run(spec: CaptureSpec, args) -> int:
         _check_input(spec, path)
     if golden:
         _check_input(spec, golden, "--compare")
+    if not spec.out:
+        spec = spec.with_(out=default_report_path(captures[0]))
     out = Output(spec.out, inputs=[*captures, *([golden] if golden else []), *spec.read_paths()])
     collector = Collector(compare=bool(golden))
     rc = EXIT_OK

@@ -53,6 +53,9 @@ CERTAIN_MARGIN = 0.25  # the best protocol's share of bytes in pairs ahead of th
 CERTAIN_CHARS = 48  # the best protocol's coverage ahead of the next one's
 
 
+KEEP_ANSWERS = 20_000  # answers kept a listen for naming the units' models (a few MB at most)
+
+
 class Reading:
     """One protocol's framer and a pairer over a listen's bytes (optionally masked to 7 bits)."""
 
@@ -67,6 +70,7 @@ class Reading:
         self._fit_requests: dict[int, int] = {}  # index -> length of the last fitting requests
         self.spans: list[tuple[int, int]] = []  # character spans of the fitting frames
         self.units = UnitPolls()
+        self.answers: list = []  # fitting answers paired with their fitting requests: what names the models
         self._span: dict[int, tuple[int, int]] = {}  # frame index -> span, until the pairer settles it
 
     def feed(self, chunk: Chunk) -> None:
@@ -98,6 +102,8 @@ class Reading:
             self.spans.append(span)
             if f.role == RESPONSE and f.pair in self._fit_requests:
                 self.pairs += 1
+                if len(self.answers) < KEEP_ANSWERS:
+                    self.answers.append(f)
                 self.paired_bytes += len(f.raw) + self._fit_requests.pop(f.pair)
             elif f.role == REQUEST and f.unit is not None:
                 if len(self._fit_requests) > 8:
@@ -139,6 +145,7 @@ class Evidence:
     timed_s: float  # how long the timed spans inside frames add up to
     both_parities: bool  # bytes of even and of odd popcount seen (a wrong parity would have shown)
     units: list[UnitSeen] = field(default_factory=list)
+    answers: list = field(default_factory=list, repr=False)  # the best protocol's paired answers (Reading.answers)
     bursts: int = 0  # runs of reads between silences
     pending: int = 0  # bytes the framers have not decided on yet (the most of any protocol)
     hint: str | None = None  # the format the bytes point to (for the search's order)
@@ -249,6 +256,7 @@ class Evidence:
         ev = cls(w.rx, (t_ns - w.t0_ns) / 1e9, w.chars, w.skipped, w.errors, w.nul_errors, scores, bits, timed,
                  min(even, odd) >= 3, best.units.seen() if scores[0].fit_frames else [])
         ev.bursts = w.bursts
+        ev.answers = best.answers if scores[0].fit_frames else []
         ev.bits_least_squeezed = least
         ev.pending = w.chars - min(r.pos for r in w.readings.values())
         hinted = [h for h in w.hints.values() if h.fit_frames >= 2 and h.coverage > 0.5]

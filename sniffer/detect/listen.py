@@ -29,6 +29,7 @@ from sniffer.detect.window import Window
 TICK_S = 0.005  # silence is noticed this soon
 EVAL_NS = 50_000_000  # how often a listen asks whether it has heard enough
 READ_SIZE = 4096
+MORE_NS = 500_000_000  # while a unit is not named yet, the follow-up listen asks again this often
 
 
 class SerialPort:
@@ -72,9 +73,11 @@ class SerialPort:
 
 
 def listen(port, search: Search, *, max_s: float = 60.0, follow_s: float = 0.0,
-           on_window: Callable[[Evidence], None] | None = None) -> Verdict:
+           on_window: Callable[[Evidence], None] | None = None,
+           more: Callable[[Evidence], bool] | None = None, more_s: float = 0.0) -> Verdict:
     """Listen at each candidate the search asks for, until it is done or `max_s` have passed.  A candidate
-    found certain is listened to `follow_s` longer, for the units and their poll periods."""
+    found certain is listened to `follow_s` longer, for the units and their poll periods, and then on while
+    `more(evidence)` says so (a unit not named yet), up to `more_s` after the verdict in all."""
     start = port.now()
     decided = None
     try:
@@ -82,8 +85,13 @@ def listen(port, search: Search, *, max_s: float = 60.0, follow_s: float = 0.0,
             port.configure(rx)
             t = port.now()
             w = Window(rx, t)
-            next_eval, until = t + EVAL_NS, None
-            while until is None or t < until:
+            next_eval, until, ev = t + EVAL_NS, None, None
+            while True:
+                if until is not None and t >= until:
+                    if not (more is not None and ev is not None and ev.certain and t - decided < more_s * 1e9
+                            and more(w.evidence(t))):
+                        break
+                    until = t + MORE_NS  # listen a little longer, then ask again
                 data = port.read(TICK_S)
                 t = port.now()
                 if data:

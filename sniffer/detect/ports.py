@@ -46,8 +46,11 @@ def result_of(v: Verdict, port: str, name: str) -> PortResult:
     r = PortResult(port, name, v.status, headline(v, port), table(v) if v.status != "no traffic" else [],
                    v.decided_s, len(v.windows))
     if r.settled:
-        r.units = units(v.best)
-        r.link, r.notes = link_table(v, name, port)
+        from sniffer.detect.models import Naming
+
+        named = Naming().feed(v.best.answers, v.best.best.protocol)
+        r.units = units(v.best, named)
+        r.link, r.notes = link_table(v, name, port, named)
     return r
 
 

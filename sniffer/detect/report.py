@@ -85,37 +85,68 @@ def _errors(w: Evidence) -> str:
     return f"{w.errors} ({w.errors / w.chars:.0%})" if w.errors and w.chars else str(w.errors)
 
 
-def units(ev: Evidence) -> list[str]:
-    """The units that were polled, with their poll periods and functions."""
-    return [u.describe(ev.seconds) for u in ev.units]
+def units(ev: Evidence, named: dict | None = None) -> list[str]:
+    """The units that were polled, with their poll periods and functions, and the model each was named."""
+    return [u.describe(ev.seconds) + _model_words(u.unit, named) for u in ev.units]
 
 
-def bus_file(v: Verdict, port: str) -> str:
-    """The bus file for the verdict's line (`sniffer live PORT --bus FILE`); the units seen as comments:
-    a device map would turn off the guessing of their models."""
+def _model_words(unit: int, named: dict | None) -> str:
+    if named is None or unit == 0:
+        return ""
+    n = named.get(unit)
+    if n is None:
+        return "; model not identified"
+    return f"; {n.model} ({n.confidence:.0%}: {n.evidence})"
+
+
+def unnamed_line(ev: Evidence, named: dict) -> str | None:
+    """One line naming the units whose model the listen could not tell, or None."""
+    left = [u.unit for u in ev.units if u.unit and u.unit not in named]
+    if not left:
+        return None
+    return (f"model not identified for unit{'s' if len(left) > 1 else ''} {', '.join(map(str, left))} "
+            f"(no answer only one model gives, yet): the bus file leaves {'them' if len(left) > 1 else 'it'} "
+            f"commented (generic); listen longer (--identify-time) or name the model")
+
+
+def bus_file(v: Verdict, port: str, named: dict | None = None) -> str:
+    """The bus file for the verdict's line (`sniffer live PORT --bus FILE`): the units whose model was
+    identified in [units]; the others as comments (a generic entry would stop their models being guessed)."""
     ev = v.best
     line = ev.line
+    named = named or {}
+    models = {u.unit: named[u.unit].model for u in ev.units if u.unit in named}
     bus = BusFile(line.baud, line.parity, line.stopbits, ev.best.protocol,
-                  line.databits if line.databits != 8 else None)
+                  line.databits if line.databits != 8 else None, devices=models)
     comments = [f"written by `sniffer detect {port}`: {headline(v, port)}"]
-    trailer = ["units seen (name their models here, or leave them to be guessed from their answers):", "[units]"]
-    trailer += [f'{u.unit} = "{_default_model(ev.best.protocol)}"   # {line}' for u, line in zip(ev.units, units(ev))]
-    return format_bus_file(bus, comments, trailer if ev.units else [])
+    comments += [f"unit {u.unit}: {text}" for u, text in zip(ev.units, units(ev, named)) if u.unit in models]
+    left = [(u, text) for u, text in zip(ev.units, units(ev, named)) if u.unit not in models]
+    trailer = []
+    if left:
+        trailer = ["units seen whose model was not identified (name it here, or leave it to be guessed from "
+                   "their answers):"]
+        trailer += ([] if models else ["[units]"])
+        trailer += [f'{u.unit} = "{_default_model(ev.best.protocol)}"   # {text}' for u, text in left]
+    return format_bus_file(bus, comments, trailer)
 
 
-def link_table(v: Verdict, name: str, port: str) -> tuple[BusFile, list[str]]:
+def link_table(v: Verdict, name: str, port: str, named: dict | None = None) -> tuple[BusFile, list[str]]:
     """A settled port as one [[links]] table of a bus file (`sniffer detect P1 P2 --write-bus`), and the comment
-    lines after it: the units seen, as a `units = {...}` to name their models in."""
+    lines after it: the units identified in its `units = {...}`, the others as comments."""
     ev = v.best
     line = ev.line
+    named = named or {}
+    models = {u.unit: named[u.unit].model for u in ev.units if u.unit in named}
     link = BusFile(line.baud, line.parity, line.stopbits, ev.best.protocol,
-                   line.databits if line.databits != 8 else None, name=name, ports=(port,))
+                   line.databits if line.databits != 8 else None, name=name, ports=(port,), devices=models)
     notes = []
-    if ev.units:
+    left = [u for u in ev.units if u.unit not in models]
+    if left:
         model = _default_model(ev.best.protocol)
-        notes = ["units seen (name their models here, or leave them to be guessed from their answers):",
-                 "units = { " + ", ".join(f'{u.unit} = "{model}"' for u in ev.units) + " }"]
-        notes += [f"  {text}" for text in units(ev)]
+        notes = ["units seen whose model was not identified (name it here, or leave it to be guessed):"]
+        notes += ([f"units = {{ {', '.join(f'{u.unit} = {chr(34)}{model}{chr(34)}' for u in left)} }}"] if not models
+                  else [f"add to units above: {', '.join(f'{u.unit} = {chr(34)}MODEL{chr(34)}' for u in left)}"])
+    notes += [f"  {text}" for text in units(ev, named)]
     return link, notes
 
 

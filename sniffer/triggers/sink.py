@@ -140,7 +140,10 @@ class TriggerSink(Sink):
             if self.runner is not None:
                 self.runner.close()
         p = self.plan
-        if p.fired or p.suppressed:
+        if not (p.fired or p.suppressed):  # a trigger that never fired says so: silence would read as "not armed"
+            rules = "; ".join(f"'{r}'" for r in self.spec.rules)
+            self.report(f"triggers: 0 fired, 0 windows (no frame matched {rules})")
+        else:
             self.report(f"triggers: {p.fired} fired, {len(self.written)} window files"
                         + (f", {self.failed_windows} could not be written" if self.failed_windows else "")
                         + (f", {p.suppressed} matches while their rule re-armed" if p.suppressed else ""))
