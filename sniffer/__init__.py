@@ -34,6 +34,7 @@ EXTRAS = {
     "mqtt": {"paho.mqtt.client": "paho-mqtt"},  # --mqtt
     "web": {"textual_serve.server": "textual-serve"},  # serve
     "maps": {"yaml": "pyyaml"},  # --model-file x.yaml (Home Assistant modbus)
+    "mcp": {"mcp.server.mcpserver": "mcp"},  # sniffer mcp: an assistant's read-only tools (the SDK's v2 server)
 }
 DISTRIBUTION = "rs485-sniffer"
 

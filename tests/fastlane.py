@@ -42,6 +42,7 @@ SLOW_NAMES: dict[str, str] = {
     "SigrokSource": "another process (sigrok-cli)",
     "need_sigrok_cli": "another process (sigrok-cli decodes the samples)",
     "LocalCluster": "other processes (a Dask cluster)",
+    "StdioServerParameters": "another process (an MCP server over stdio)",
 }
 # the commands that start processes or ptys of their own (a capture child, the port's reader, a simulated
 # line): a test that runs one in this process (`main(["live", ...])`) is slow

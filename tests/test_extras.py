@@ -66,6 +66,7 @@ CASES = [
     ("web", "serve --demo --no-out", "sniffer serve"),
     ("mqtt", "replay {cap} --quiet --mqtt mqtt://localhost/plant", "--mqtt"),
     ("maps", "replay {cap} --quiet --model-file {yaml}", "--model-file meter.yaml"),
+    ("mcp", "mcp {cap}", "sniffer mcp"),
 ]
 
 
