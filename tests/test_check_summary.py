@@ -132,3 +132,78 @@ def test_findings_compare_as_sets(tmp_path):
     rc, text = check(errors, g)
     assert rc == EXIT_DIFFERENT
     assert "0 of" in text and "findings: 1 added (" in text and "1 gone (warning eeprom_wear u7)" in text
+
+
+# --ignore and --tolerance, kept in the golden's header
+
+
+def _max_current_step(changed: Path) -> float:
+    a, b = list(decode_capture(TDS, None)), list(decode_capture(changed, None))
+    return max(abs(_current(fa) - _current(fb)) for fa, fb in zip(a, b) if _current(fa) is not None)
+
+
+@pytest.mark.parametrize("margin, rc", [(0.05, EXIT_SAME), (-0.05, EXIT_DIFFERENT)])
+def test_absolute_tolerance_around_the_largest_change(changed, margin, rc, capsys):
+    amount = round(_max_current_step(changed) + margin, 2)
+    assert cli.main(["check", str(changed), "--golden", str(TDS_GOLDEN), "--tolerance",
+                     f"Output current={amount}A"]) == rc
+    if rc == EXIT_DIFFERENT:
+        assert "u1    Output current" in capsys.readouterr().out
+
+
+def test_tolerance_in_another_unit_tolerates_nothing(changed, capsys):
+    assert cli.main(["check", str(changed), "--golden", str(TDS_GOLDEN), "--tolerance", "Output current=100V"]) == 1
+    frames, n, _ = _expected(changed)
+    assert f"{n} of {frames} frames differ" in capsys.readouterr().out
+
+
+def test_relative_tolerance(changed, capsys):
+    """Rated 12 -> 15 A scales the current by 25 %: 30 % tolerates every nonzero value, 10 % none."""
+    assert cli.main(["check", str(changed), "--golden", str(TDS_GOLDEN), "--tolerance", "Output current=10%"]) == 1
+    _, n, _ = _expected(changed)
+    assert f"{n} of" in capsys.readouterr().out
+    cli.main(["check", str(changed), "--golden", str(TDS_GOLDEN), "--tolerance", "Output current=30%"])
+    out = capsys.readouterr().out
+    a, b = list(decode_capture(TDS, None)), list(decode_capture(changed, None))
+    from_zero = sum(1 for fa, fb in zip(a, b) if _current(fa) == 0 and _current(fb) not in (0, None))
+    assert (f"{from_zero} of" in out) if from_zero else out == ""
+
+
+@pytest.mark.parametrize("field", ["Output current", "Output cur*"])
+def test_ignore_a_field(changed, field, capsys):
+    assert cli.main(["check", str(changed), "--golden", str(TDS_GOLDEN), "--ignore", field]) == EXIT_SAME
+    assert capsys.readouterr().err.startswith("ok: ")
+
+
+def test_ignore_does_not_hide_another_field(tmp_path, capsys):
+    lines = TDS_GOLDEN.read_text().splitlines()
+    k = next(i for i, x in enumerate(lines) if "Output voltage=" in x)
+    g = tmp_path / "g.txt"
+    g.write_text("\n".join(lines[:k] + [lines[k].replace("Output voltage=", "Output voltage=1", 1)] + lines[k + 1:])
+                 + "\n")
+    assert cli.main(["check", str(TDS), "--golden", str(g), "--ignore", "Output current"]) == EXIT_DIFFERENT
+    assert "Output voltage 1" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_rules_are_kept_in_the_golden_header(changed, tmp_path, jobs, capsys):
+    g = tmp_path / "g.txt"
+    assert cli.main(["check", str(TDS), "--golden", str(g), "--update-golden", "--jobs", jobs,
+                     "--tolerance", "Output current=4A", "--ignore", "Analog*", "--time-tol-ms", "2"]) == 0
+    head = g.read_text().splitlines()[:2]
+    assert head[1].startswith("# sniffer check options: ")
+    assert orjson.loads(head[1].split(": ", 1)[1]) == {
+        "time_tol_ms": 2.0, "ignore": ["Analog*"], "tolerance": {"Output current": "4A"}}
+    capsys.readouterr()
+    assert cli.main(["check", str(changed), "--golden", str(g), "--jobs", jobs]) == EXIT_SAME  # the header's rules
+    # the command line's tolerance for the same field wins over the header's
+    assert cli.main(["check", str(changed), "--golden", str(g), "--tolerance", "Output current=0.1A"]) == 1
+    # rewriting the golden without flags keeps its rules
+    assert cli.main(["check", str(TDS), "--golden", str(g), "--update-golden"]) == 0
+    assert g.read_text().splitlines()[1] == head[1]
+
+
+def test_bad_tolerance_is_one_line(capsys):
+    assert cli.main(["check", str(TDS), "--golden", str(TDS_GOLDEN), "--tolerance", "Output current"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "FIELD=AMOUNT" in err[0]
