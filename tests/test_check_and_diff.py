@@ -37,7 +37,7 @@ def _shift(text: str, line_no: int, dt_s: float = 0.0, dlat: float = 0.0) -> str
 
 
 def test_same_capture_passes(a510_golden):
-    assert check(A510, a510_golden) == (EXIT_SAME, "")
+    assert check(A510, a510_golden) == (EXIT_SAME, "ok: 502 frames, 0 findings match\n")
 
 
 def test_golden_is_one_line_per_frame_with_timing_columns(a510_golden):
@@ -54,8 +54,9 @@ def test_timing_within_tolerance_passes_beyond_fails(tmp_path, a510_golden):
     assert check(A510, g)[0] == EXIT_SAME
     g.write_text(_shift(a510_golden.read_text(), 5, dt_s=0.005))
     rc, text = check(A510, g)
-    assert rc == EXIT_DIFFERENT
-    assert text.startswith("--- ") and text.count("\n-") >= 1
+    assert rc == EXIT_DIFFERENT and "1 of 502 frames differ (1 changed" in text and " time " in text
+    rc, text = check(A510, g, diff=True)
+    assert text.count("\n-") >= 1
     # only the shifted frame is in the diff
     assert [x for x in text.splitlines() if x.startswith("-") and not x.startswith("---")][0].startswith("-0.")
     assert check(A510, g, tolerances=Tolerances(time_ms=10))[0] == EXIT_SAME
@@ -71,7 +72,7 @@ def test_latency_tolerance(tmp_path, a510_golden):
 def test_content_change_is_a_difference_whatever_the_tolerance(tmp_path, a510_golden):
     g = tmp_path / "g.txt"
     g.write_text(a510_golden.read_text().replace("pair=-1 wrote 2501H", "pair=-1 wrote 2501h", 1))
-    rc, text = check(A510, g, tolerances=Tolerances(time_ms=1e9, latency_ms=1e9))
+    rc, text = check(A510, g, tolerances=Tolerances(time_ms=1e9, latency_ms=1e9), diff=True)
     assert rc == EXIT_DIFFERENT
     assert "-0.026568 11.757 | response u1 a510 fc10 crc=ok pair=-1 wrote 2501h" in text
     assert "+0.026568 11.757 | response u1 a510 fc10 crc=ok pair=-1 wrote 2501H" in text
@@ -165,9 +166,12 @@ def test_an_inserted_frame_is_one_diff_line(tmp_path, a510_golden):
     del lines[10]  # the golden lacks one frame that the capture has
     g = tmp_path / "g.txt"
     g.write_text("\n".join(lines) + "\n")
-    rc, text = check(A510, g)
+    rc, text = check(A510, g, diff=True)
     assert rc == EXIT_DIFFERENT
-    changed = [x for x in text.splitlines()[2:] if x[:1] in "+-"]
+    assert "1 of 501 frames differ (0 changed, 1 added, 0 missing)" in text
+    assert "first: frame 9 at " in text and ": added" in text
+    unified = text[text.index("\n--- ") + 1:]
+    changed = [x for x in unified.splitlines()[2:] if x[:1] in "+-"]
     assert len(changed) == 1 and changed[0].startswith("+")
 
 
@@ -225,8 +229,8 @@ def test_a_value_past_the_summarys_sixth_point_is_checked(tmp_path, a510_golden)
     assert changed != lines[k]
     g = tmp_path / "g.txt"
     g.write_text("\n".join(lines[:k] + [changed] + lines[k + 1:]) + "\n")
-    rc, diff_text = check(A510, g)
-    assert rc == EXIT_DIFFERENT and f"{name}={value}9" in diff_text
+    rc, summary = check(A510, g)
+    assert rc == EXIT_DIFFERENT and f"first: frame {k - 1} " in summary and f"{name} {value}9 " in summary
 
 
 def test_a_v1_golden_is_still_checked_as_v1(tmp_path, a510_golden):

@@ -29,7 +29,9 @@ def test_check_exit_codes(tmp_path, capsys):
     assert run("check", WIZ, "--golden", g, "--baud", "9600") == 0
     Path(g).write_text(Path(g).read_text().replace(" | ", " | X", 1))
     assert run("check", WIZ, "--golden", g, "--baud", "9600") == 1
-    assert capsys.readouterr().out.startswith("--- ")
+    assert capsys.readouterr().out.startswith(f"sniffer check: {WIZ} differs from {g}")
+    assert run("check", WIZ, "--golden", g, "--baud", "9600", "--diff") == 1
+    assert "\n--- " in capsys.readouterr().out
 
 
 def test_check_time_tolerance_flag(tmp_path):

@@ -49,7 +49,16 @@ def test_missing_golden_fails_then_update_then_pass(pytester):
     golden.write_text(golden.read_text().replace("pair=-1 wrote 2501H", "pair=-1 wrote 2501h", 1))
     result = _run(pytester)
     result.assert_outcomes(failed=1, passed=1)
-    result.stdout.fnmatch_lines(["*differs from golden/a510.txt*", "*-* wrote 2501h*", "*+* wrote 2501H*"])
+    result.stdout.fnmatch_lines([
+        "E * AssertionError: decode of * differs from golden/a510.txt*",
+        "E *frames: 1 of 502 frames differ (1 changed, 0 added, 0 missing)",
+        "E *first: frame 1 at *, u1 fc10 response: summary wrote 2501h* -> wrote 2501H*",
+        "E *u1 * summary * 1",
+        "E *pytest --sniffer-diff shows the unified diff",
+    ])
+    assert "+0." not in result.stdout.str()  # no unified diff unless asked
+    result = _run(pytester, "--sniffer-diff")
+    result.stdout.fnmatch_lines(["E *frames: 1 of 502 frames differ*", "E *-* wrote 2501h*", "E *+* wrote 2501H*"])
 
 
 def test_tolerance_option(pytester):

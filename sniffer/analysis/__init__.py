@@ -1,6 +1,8 @@
 """What a capture says, as Textual-free models the TUI, the report, `check`, `diff`, `learn` and MQTT share.
 
     check.py          the golden text of frames, compared line by line (`sniffer check`)
+    checksummary.py   what a failing check says first (frames differing, first difference, by unit and field)
+    goldenfields.py   a golden line's fields, and the --ignore / --tolerance rules they are compared with
     diff.py           a capture's summary (units, polls, registers, latency) and two compared (`sniffer diff`)
     learn.py          a skeleton register map from traffic (`sniffer learn`)
     unitfigures.py    per-unit figures, each defined once;  flags.py  a frame's problem bits

@@ -32,6 +32,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from sniffer.analysis.goldenfields import NO_RULES, FieldRules, Names, differences, parse
 from sniffer.frame import Frame
 
 EXIT_SAME, EXIT_DIFFERENT, EXIT_ERROR = 0, 1, 2
@@ -50,6 +51,7 @@ class Tolerances:
 
     time_ms: float = 1.0  # frame start time
     latency_ms: float = 1.0  # request -> response latency
+    rules: FieldRules = FieldRules()  # fields ignored or compared within a tolerance (--ignore, --tolerance)
 
 
 def _rest(f: Frame) -> str:
@@ -105,13 +107,18 @@ def _split(line: str) -> tuple[float | None, float | None, str]:
         return None, None, line
 
 
-def within(old: str, new: str, tol: Tolerances) -> bool:
-    """The same frame: content equal, timing within tolerance."""
+split_line = _split  # (t seconds, latency ms, content) of a golden line
+
+
+def within(old: str, new: str, tol: Tolerances, names: Names | None = None) -> bool:
+    """The same frame: content equal (but for the fields the rules leave out), timing within tolerance."""
     if old == new:
         return True
     t_a, l_a, c_a = _split(old)
     t_b, l_b, c_b = _split(new)
-    if c_a != c_b or t_a is None or t_b is None:
+    if t_a is None or t_b is None:
+        return False
+    if c_a != c_b and not (tol.rules and not differences(parse(c_a, names), parse(c_b, names), tol.rules)):
         return False
     if abs(t_a - t_b) * 1e3 > tol.time_ms + 1e-9:
         return False
@@ -186,9 +193,13 @@ def _range(start: int, n: int) -> str:
 
 
 def compare_lines(old: Iterable[str], new: Iterable[str], tol: Tolerances = Tolerances(),
-                  names: tuple[str, str] = ("golden", "capture")) -> str:
-    """'' when the two line streams agree within tolerance, else a unified diff (timing-only noise hidden)."""
+                  names: tuple[str, str] = ("golden", "capture"), on_change=None,
+                  point_names: Names | None = None) -> str:
+    """'' when the two line streams agree within tolerance, else a unified diff (timing-only noise hidden).
+    `on_change(old_lines, new_lines, at_old, at_new)` hears each changed block (the summary is built from
+    them); `point_names` anchor the field rules' split of a line (sniffer.analysis.goldenfields)."""
     a_it, b_it = iter(old), iter(new)
+    key = _keyer(tol.rules, point_names)
     a: deque[str] = deque()
     b: deque[str] = deque()
     a_end = b_end = False
@@ -208,7 +219,7 @@ def compare_lines(old: Iterable[str], new: Iterable[str], tol: Tolerances = Tole
         b_end = fill(b, b_it, b_end, 1)
         if not a and not b:
             break
-        if a and b and within(a[0], b[0], tol):
+        if a and b and within(a[0], b[0], tol, point_names):
             d.equal(a.popleft())
             b.popleft()
             line_a += 1
@@ -216,21 +227,38 @@ def compare_lines(old: Iterable[str], new: Iterable[str], tol: Tolerances = Tole
             continue
         a_end = fill(a, a_it, a_end, WINDOW)
         b_end = fill(b, b_it, b_end, WINDOW)
-        i, j = _realign(list(a), list(b), a_end, b_end)
+        i, j = _realign(list(a), list(b), a_end, b_end, key)
         old_lines = [a.popleft() for _ in range(i)]
         new_lines = [b.popleft() for _ in range(j)]
         if not old_lines and not new_lines:  # same content, timing beyond tolerance
             old_lines, new_lines = [a.popleft()], [b.popleft()]
         d.change(old_lines, new_lines, line_a, line_b)
+        if on_change is not None:
+            on_change(old_lines, new_lines, line_a, line_b)
         line_a += len(old_lines)
         line_b += len(new_lines)
     return d.text()
 
 
-def _realign(a: list[str], b: list[str], a_end: bool, b_end: bool) -> tuple[int, int]:
+def _keyer(rules: FieldRules, names: Names | None):
+    """A line's alignment key: its content, without the fields the rules leave out or tolerate."""
+    if not rules:
+        return lambda line: _split(line)[2]
+    from functools import lru_cache
+
+    @lru_cache(maxsize=8192)  # a window is re-keyed at each change: most lines are keyed before
+    def key(line: str) -> str:
+        c = parse(_split(line)[2], names)
+        kept = [f"{k}={v}" for k, v in c.fields.items() if not rules.ignored(k) and rules.tolerance_of(k) is None]
+        return "\x1f".join((*c.key, *kept))
+    return key
+
+
+def _realign(a: list[str], b: list[str], a_end: bool, b_end: bool, key=None) -> tuple[int, int]:
     """How many lines of a and b differ before the two agree again (content keys, difflib)."""
-    ka = [_split(x)[2] for x in a]
-    kb = [_split(x)[2] for x in b]
+    key = key or (lambda line: _split(line)[2])
+    ka = [key(x) for x in a]
+    kb = [key(x) for x in b]
     sm = difflib.SequenceMatcher(None, ka, kb, autojunk=False)
     for i, j, n in sm.get_matching_blocks():
         reaches_end = i + n == len(a) and j + n == len(b) and a_end and b_end
@@ -242,6 +270,53 @@ def _realign(a: list[str], b: list[str], a_end: bool, b_end: bool) -> tuple[int,
 def compare_text(old: str, new: str, tol: Tolerances = Tolerances(), names=("golden", "capture")) -> str:
     """compare_lines over two texts."""
     return compare_lines(old.splitlines(), new.splitlines(), tol, names)
+
+
+OPTIONS = "# sniffer check options: "  # a golden's second header line: the tolerances it is checked with
+
+
+def options_line(tol: Tolerances) -> str | None:
+    """The header line that keeps `tol` with the golden (None when every tolerance is the default)."""
+    import orjson
+
+    d: dict = {}
+    if tol.time_ms != Tolerances.time_ms:
+        d["time_tol_ms"] = tol.time_ms
+    if tol.latency_ms != Tolerances.latency_ms:
+        d["latency_tol_ms"] = tol.latency_ms
+    d.update(tol.rules.to_json())
+    return OPTIONS + orjson.dumps(d).decode() if d else None
+
+
+def golden_tolerances(path: Path) -> dict:
+    """The options a golden's header keeps ({} if none): time_tol_ms, latency_tol_ms, rules (FieldRules)."""
+    import orjson
+
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            if not line.startswith("#"):
+                break
+            if line.startswith(OPTIONS):
+                try:
+                    d = orjson.loads(line[len(OPTIONS):])
+                    if not isinstance(d, dict):
+                        raise ValueError("not an object")
+                    d["rules"] = FieldRules.from_json(d)
+                except ValueError as e:
+                    raise ValueError(f"{path}: unreadable options line in the header ({e})") from None
+                return d
+    return {}
+
+
+def resolve(path: Path | None, time_ms: float | None, latency_ms: float | None,
+            rules: FieldRules = NO_RULES) -> Tolerances:
+    """The tolerances of a check: the command line's, else the golden header's, else the defaults; the
+    field rules of both (the command line's tolerance wins for the same field)."""
+    kept = golden_tolerances(path) if path is not None and path.exists() else {}
+    return Tolerances(
+        time_ms=next(v for v in (time_ms, kept.get("time_tol_ms"), Tolerances.time_ms) if v is not None),
+        latency_ms=next(v for v in (latency_ms, kept.get("latency_tol_ms"), Tolerances.latency_ms) if v is not None),
+        rules=kept.get("rules", FieldRules()).merged(rules))
 
 
 def golden_version(path: Path) -> int:
@@ -262,8 +337,9 @@ def read_lines(path: Path) -> Iterator[str]:
 class GoldenSink:
     """Writes the golden text of the frames it gets to an Output's part file (check() renames it)."""
 
-    def __init__(self, out) -> None:
+    def __init__(self, out, options: str | None = None) -> None:
         self.out = out
+        self.options = options  # the header line keeping the tolerances (options_line)
         self._fh = None
         self._t0 = 0
         self.session = None  # set when the golden holds the findings: they follow the frames
@@ -272,6 +348,8 @@ class GoldenSink:
         self._t0 = info.t0_ns
         self._fh = open(self.out.claim(), "w", encoding="utf-8")
         self._fh.write(GOLDEN_HEADER + "\n")
+        if self.options:
+            self._fh.write(self.options + "\n")
 
     def raw(self, event) -> None:
         pass

@@ -1,19 +1,32 @@
-"""`sniffer check CAPTURE --golden FILE`: exit 0 same, 1 different (a unified diff on stdout), 2 error."""
+"""`sniffer check CAPTURE --golden FILE`: exit 0 same, 1 different (a summary; --diff adds the unified diff),
+2 error."""
 
 from __future__ import annotations
 
 import os
 import sys
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 from sniffer.analysis.check import (
-    EXIT_DIFFERENT, EXIT_ERROR, EXIT_SAME, GoldenSink, Tolerances, compare_lines, golden_lines, golden_version,
-    read_lines, FINDING, GOLDEN_HEADER, GOLDEN_V1,
+    EXIT_DIFFERENT, EXIT_ERROR, EXIT_SAME, GoldenSink, Tolerances, golden_lines, golden_version,
+    options_line, read_lines, resolve, FINDING, GOLDEN_HEADER, GOLDEN_V1,
 )
+from sniffer.analysis.checksummary import CheckSummary, summarize
+from sniffer.analysis.goldenfields import NO_RULES, FieldRules, Names, parse_tolerance
 from sniffer.capture.settings import CaptureSpec
-from sniffer.commands.flags import command_parser, decode_flags, duration, input_flags, jobs_flag, serial_flags
+from sniffer.commands.flags import (
+    UsageError, command_parser, decode_flags, duration, input_flags, jobs_flag, serial_flags,
+)
 from sniffer.diagnose import Diagnosis
+
+
+def _tolerance(text: str):
+    try:
+        return parse_tolerance(text)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
 
 
 def add_parser(subparsers) -> None:
@@ -22,12 +35,18 @@ def add_parser(subparsers) -> None:
         description="""\
             Regression test for decoding: decode a capture and compare it, frame by frame, with its reviewed
             golden text (one line a frame; with --findings, `sniffer diagnose`'s verdicts after them).  Exit 0
-            the same, 1 different (a unified diff on stdout), 2 an error.  --update-golden writes the golden:
-            review its diff before you commit it.""",
+            the same (`ok: N frames, M findings match` on stderr), 1 different (a summary on stdout: frames
+            that differ, the first difference, the differences by unit and field, findings added or gone;
+            --diff adds the unified diff), 2 an error.  --update-golden writes the golden: review its diff
+            before you commit it.  --ignore, --tolerance and the time tolerances given with --update-golden
+            are kept in the golden's header, so the next run uses them.""",
         examples=["sniffer check captures/a510.mcap --golden captures/golden/a510.txt",
                   "sniffer check cab3.mcap --golden cab3.txt --update-golden && git diff cab3.txt",
                   "sniffer check cab3.mcap --golden cab3.txt --findings --update-golden",
-                  "sniffer check cab3.mcap --golden cab3.txt --time-tol-ms 5"])
+                  "sniffer check cab3.mcap --golden cab3.txt --time-tol-ms 5",
+                  "sniffer check cab3.mcap --golden cab3.txt --tolerance 'Output current=0.2A' "
+                  "--ignore 'Analog input*' --update-golden",
+                  "sniffer check cab3.mcap --golden cab3.txt --format json --junit check.xml"])
     input_flags(p)
     p.add_argument("--golden", required=True, metavar="FILE.txt", help="the reviewed golden decode")
     p.add_argument("--update-golden", action="store_true", help="rewrite the golden (review the diff!)")
@@ -35,157 +54,239 @@ def add_parser(subparsers) -> None:
                    help="the golden holds the capture's findings (`sniffer diagnose`'s verdicts) after its frames: "
                         "written with --update-golden, compared whenever the golden holds them")
     tol = duration("--time-tol-ms", bare="ms", unit="ms", upper_s=1e6)
-    p.add_argument("--time-tol-ms", type=tol, default=1.0, metavar="TIME",
-                   help="frame time tolerance, in ms or with a unit (default 1 ms)")
+    p.add_argument("--time-tol-ms", type=tol, default=None, metavar="TIME",
+                   help="frame time tolerance, in ms or with a unit (default: the golden's, else 1 ms)")
     p.add_argument("--latency-tol-ms", type=duration("--latency-tol-ms", bare="ms", unit="ms", upper_s=1e6),
-                   default=1.0, metavar="TIME", help="latency tolerance, in ms or with a unit (default 1 ms)")
+                   default=None, metavar="TIME",
+                   help="latency tolerance, in ms or with a unit (default: the golden's, else 1 ms)")
+    p.add_argument("--ignore", action="append", default=[], metavar="FIELD",
+                   help="leave this field out of the comparison: a point's name as the golden shows it "
+                        "('Output current', 'holding[8451]'), a glob ('Analog input*'), or crc, pair, codes "
+                        "(repeatable)")
+    p.add_argument("--tolerance", action="append", default=[], type=_tolerance, metavar="FIELD=AMOUNT",
+                   help="compare this field within AMOUNT: absolute in the field's unit ('Output current=0.2A') "
+                        "or relative to the golden's value ('Output current=5%%') (repeatable)")
+    p.add_argument("--diff", action="store_true", help="after the summary, the unified diff of the golden lines")
+    p.add_argument("--format", choices=["text", "json"], default="text", help="the summary on stdout (json: "
+                   "one object, also when the check passes)")
+    p.add_argument("--junit", metavar="FILE.xml", help="also write the result as JUnit XML for a CI system "
+                   "(a test case for the capture; the summary is the failure message)")
     jobs_flag(p)
     serial_flags(p, "file")
     decode_flags(p, "file")
 
 
+@dataclass
+class Outcome:
+    """A check's result: the exit code, the summary (None for an error or an update) and the message."""
+
+    rc: int
+    summary: CheckSummary | None = None
+    message: str = ""
+
+
 def run(spec: CaptureSpec, args) -> int:
-    tol = Tolerances(args.time_tol_ms, args.latency_tol_ms)
     from sniffer.commands.common import jobs_for
 
-    rc, text = check(spec.input, args.golden, spec=spec, update=args.update_golden, tolerances=tol,
-                     findings=args.findings, jobs=jobs_for(spec, args))
-    (sys.stdout if rc == 1 else sys.stderr).write(text)
-    return rc
+    rules = FieldRules(tuple(args.ignore), tuple(args.tolerance))
+    o = check_outcome(spec.input, args.golden, spec=spec, update=args.update_golden, findings=args.findings,
+                      jobs=jobs_for(spec, args), time_ms=args.time_tol_ms, latency_ms=args.latency_tol_ms,
+                      rules=rules)
+    if args.junit:
+        from sniffer.formats.junit import write_junit
+
+        try:
+            write_junit(args.junit, [(os.fspath(spec.input), o.rc, o.summary, o.message)],
+                        inputs=[spec.input, args.golden])
+        except (OSError, ValueError) as e:
+            why = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.filename else str(e)
+            sys.stderr.write(f"sniffer check: error: --junit: {why}\n")
+            return EXIT_ERROR
+    if args.format == "json":
+        import orjson
+
+        d = o.summary.to_dict() if o.summary else {"golden": os.fspath(args.golden), "error": o.message.strip()}
+        if o.summary and args.diff:
+            d["diff"] = o.summary.diff
+        sys.stdout.write(orjson.dumps(d, option=orjson.OPT_INDENT_2).decode() + "\n")
+        if o.rc != EXIT_DIFFERENT and o.message:
+            sys.stderr.write(o.message)
+        return o.rc
+    text = o.summary.text(args.diff) if o.rc == EXIT_DIFFERENT else o.message
+    (sys.stdout if o.rc == EXIT_DIFFERENT else sys.stderr).write(text)
+    return o.rc
 
 
 def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
-          update: bool = False, findings: bool = False, jobs: int = 1) -> tuple[int, str]:
-    """(exit code, text): 0 same, 1 different (unified diff), 2 error (one line).  `findings`: the golden holds
-    the capture's findings too (they are compared whenever the golden holds them).  `jobs` > 1: decoded by
-    parts in that many processes (sniffer.parallel), the same lines."""
-    if jobs > 1:
-        return _check_parts(capture, golden, spec, tolerances or Tolerances(), update, jobs, findings)
+          update: bool = False, findings: bool = False, jobs: int = 1, diff: bool = False) -> tuple[int, str]:
+    """(exit code, text): 0 same (`ok: ...`), 1 different (the summary; with `diff` the unified diff after it),
+    2 error (one line).  `tolerances`: as given (else the golden header's, else the defaults)."""
+    t = tolerances
+    o = check_outcome(capture, golden, spec=spec, update=update, findings=findings, jobs=jobs,
+                      time_ms=t.time_ms if t else None, latency_ms=t.latency_ms if t else None,
+                      rules=t.rules if t else FieldRules())
+    if o.rc == EXIT_DIFFERENT:
+        return o.rc, o.summary.text(diff)
+    return o.rc, o.message
+
+
+def check_outcome(capture, golden, *, spec=None, update: bool = False, findings: bool = False, jobs: int = 1,
+                  time_ms: float | None = None, latency_ms: float | None = None,
+                  rules: FieldRules = NO_RULES) -> Outcome:
+    """Check `capture` against `golden` (or rewrite it): the Outcome.  `findings`: the golden holds the capture's
+    findings too (they are compared whenever the golden holds them).  `jobs` > 1: decoded by parts in that
+    many processes (sniffer.parallel), the same lines."""
     from decoders.registry import DeviceMapError
 
-    from sniffer.line import SettingsError
-    from sniffer.formats.outputs import Output
-    from sniffer.capture.session import decode_capture
     from sniffer.events import CaptureError
+    from sniffer.line import SettingsError
 
-    tol = tolerances or Tolerances()
     golden = Path(golden)
-    name = f"{golden}"
     try:
-        if update:
-            golden.parent.mkdir(parents=True, exist_ok=True)  # a new golden folder is part of --update-golden
-            out = Output(golden, inputs=[capture, *(spec.read_paths() if spec else ())], what="--golden")
-            sink = GoldenSink(out)
-            err = "interrupted"
-            try:
-                session = decode_capture(capture, spec, [sink])
-                if findings:
-                    new = with_findings(session, golden_lines(session.info.t0_ns, diagnosed(session)))
-                    sink.session = session
-                else:
-                    new = golden_lines(session.info.t0_ns, session)
-                d = ""
-                if golden.exists():
-                    d = compare_lines(read_lines(golden), new, Tolerances(0, 0), (name, os.fspath(capture)))
-                for _ in new:  # decode what the comparison did not need
-                    pass
-                err = _failed(session)
-            finally:
-                sink.close()
-                if err:  # a golden from a damaged or failed decode would be wrong: keep the old one
-                    out.discard()
-                else:
-                    out.commit()
-            if err:
-                return EXIT_ERROR, f"sniffer check: error: {err}\n"
-            return EXIT_SAME, f"sniffer check: wrote {golden} ({session.frames_out} frames)\n" + d
-        session = decode_capture(capture, spec)
-        if not golden.exists():
-            session.close()
-            return EXIT_ERROR, (f"sniffer check: error: {golden}: no such golden file "
-                                "(create it with --update-golden, then review it)\n")
-        if findings or holds_findings(golden):
-            new = with_findings(session, golden_lines(session.info.t0_ns, diagnosed(session), golden_version(golden)))
-        else:
-            new = golden_lines(session.info.t0_ns, session, golden_version(golden))
-        d = compare_lines(read_lines(golden), new, tol, (name, os.fspath(capture)))
-        err = _failed(session)
-        if err:
-            return EXIT_ERROR, f"sniffer check: error: {err}\n"
+        tol = resolve(golden, time_ms, latency_ms, rules)
+        if jobs > 1:
+            if not update and not golden.exists():
+                return _no_golden(golden)
+            return _check_parts(capture, golden, spec, tol, update, jobs, findings)
+        return _check_one(capture, golden, spec, tol, update, findings)
     except (CaptureError, SettingsError, DeviceMapError, ValueError, OSError) as e:
         why = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.filename else str(e)
-        return EXIT_ERROR, f"sniffer check: error: {why}\n"
-    return (EXIT_DIFFERENT, d) if d else (EXIT_SAME, "")
+        return Outcome(EXIT_ERROR, message=f"sniffer check: error: {why}\n")
 
 
-def _check_parts(capture, golden, spec, tol: Tolerances, update: bool, jobs: int,
-                 findings: bool) -> tuple[int, str]:
-    """check() with the capture decoded by parts: the golden lines come from the workers, in order (with the
-    findings: the frames, through one diagnosis here, then its findings)."""
-    from decoders.registry import DeviceMapError
+def _no_golden(golden: Path) -> Outcome:
+    return Outcome(EXIT_ERROR, message=f"sniffer check: error: {golden}: no such golden file "
+                                       "(create it with --update-golden, then review it)\n")
 
-    from sniffer.line import SettingsError
+
+def _names(capture, golden) -> tuple[str, str]:
+    return os.fspath(golden), os.fspath(capture)
+
+
+def _verdict(s: CheckSummary, err: str | None) -> Outcome:
+    if err:
+        return Outcome(EXIT_ERROR, message=f"sniffer check: error: {err}\n")
+    if s.same:
+        return Outcome(EXIT_SAME, s, s.ok_line())
+    return Outcome(EXIT_DIFFERENT, s)
+
+
+def _check_one(capture, golden: Path, spec, tol: Tolerances, update: bool, findings: bool) -> Outcome:
+    from sniffer.capture.session import decode_capture
     from sniffer.formats.outputs import Output
-    from sniffer.events import CaptureError
+
+    names = Names()
+    if not update:
+        session = decode_capture(capture, spec)  # an unreadable capture is said first
+        if not golden.exists():
+            session.close()
+            return _no_golden(golden)
+        frames = _named(session, names)
+        version = golden_version(golden)
+        if findings or holds_findings(golden):
+            new = with_findings(session, golden_lines(session.info.t0_ns, diagnosed(session, frames), version))
+        else:
+            new = golden_lines(session.info.t0_ns, frames, version)
+        s = summarize(read_lines(golden), new, tol, _names(capture, golden), names)
+        return _verdict(s, _failed(session))
+    golden.parent.mkdir(parents=True, exist_ok=True)  # a new golden folder is part of --update-golden
+    out = Output(golden, inputs=[capture, *(spec.read_paths() if spec else ())], what="--golden")
+    sink = GoldenSink(out, options_line(tol))
+    err = "interrupted"
+    try:
+        session = decode_capture(capture, spec, [sink])
+        frames = _named(session, names)
+        if findings:
+            new = with_findings(session, golden_lines(session.info.t0_ns, diagnosed(session, frames)))
+            sink.session = session
+        else:
+            new = golden_lines(session.info.t0_ns, frames)
+        d = ""
+        if golden.exists():
+            d = summarize(read_lines(golden), new, Tolerances(0, 0), _names(capture, golden), names).diff
+        for _ in new:  # decode what the comparison did not need
+            pass
+        err = _failed(session)
+    finally:
+        sink.close()
+        if err:  # a golden from a damaged or failed decode would be wrong: keep the old one
+            out.discard()
+        else:
+            out.commit()
+    if err:
+        return Outcome(EXIT_ERROR, message=f"sniffer check: error: {err}\n")
+    return Outcome(EXIT_SAME, message=f"sniffer check: wrote {golden} ({session.frames_out} frames)\n" + d)
+
+
+def _check_parts(capture, golden: Path, spec, tol: Tolerances, update: bool, jobs: int,
+                 findings: bool) -> Outcome:
+    """The check with the capture decoded by parts: the golden lines come from the workers, in order (with the
+    findings: the frames, through one diagnosis here, then its findings)."""
+    from sniffer.formats.outputs import Output
     from sniffer.parallel.outputs import FramesPlan, GoldenPlan
     from sniffer.parallel.run import decode_capture
 
-    golden = Path(golden)
-    names = (f"{golden}", os.fspath(capture))
+    version = 2 if update else golden_version(golden)
+    findings = findings or (not update and holds_findings(golden))
+    out = None
+    if update:
+        golden.parent.mkdir(parents=True, exist_ok=True)
+        out = Output(golden, inputs=[capture, *(spec.read_paths() if spec else ())], what="--golden")
+    run = decode_capture(capture, spec, jobs)
+    header = GOLDEN_HEADER if version >= 2 else GOLDEN_V1
+    names = Names()
+    kept = options_line(tol) if update else None
+
+    def lines():
+        if findings:
+            frames = (f for part in run.parts([FramesPlan()]) for f in part.pieces[0])
+            it = with_findings(run, golden_lines(run.info.t0_ns, diagnosed(run, _named(frames, names)), version))
+            yield next(it)
+            if kept:
+                yield kept
+            yield from it
+            return
+        yield header
+        if kept:
+            yield kept
+        for part in run.parts([GoldenPlan(version)]):
+            part_lines, part_names = part.pieces[0]
+            names.names.update(part_names)
+            yield from part_lines
+
+    if out is None:
+        s = summarize(read_lines(golden), lines(), tol, _names(capture, golden), names)
+        return _verdict(s, _failed(run))
+    err = "interrupted"
     try:
-        if not update and not golden.exists():
-            return EXIT_ERROR, (f"sniffer check: error: {golden}: no such golden file "
-                                "(create it with --update-golden, then review it)\n")
-        version = 2 if update else golden_version(golden)
-        findings = findings or (not update and holds_findings(golden))
-        out = None
-        if update:
-            golden.parent.mkdir(parents=True, exist_ok=True)
-            out = Output(golden, inputs=[capture, *(spec.read_paths() if spec else ())], what="--golden")
-        run = decode_capture(capture, spec, jobs)
-        header = GOLDEN_HEADER if version >= 2 else GOLDEN_V1
+        with open(out.claim(), "w", encoding="utf-8") as fh:
+            def written():
+                for line in lines():
+                    fh.write(line + "\n")
+                    yield line
 
-        def lines():
-            if findings:
-                frames = (f for part in run.parts([FramesPlan()]) for f in part.pieces[0])
-                yield from with_findings(run, golden_lines(run.info.t0_ns, diagnosed(run, frames), version))
-                return
-            yield header
-            for part in run.parts([GoldenPlan(version)]):
-                yield from part.pieces[0]
-
-        if out is None:
-            d = compare_lines(read_lines(golden), lines(), tol, names)
-            err = _failed(run)
-            if err:
-                return EXIT_ERROR, f"sniffer check: error: {err}\n"
-            return (EXIT_DIFFERENT, d) if d else (EXIT_SAME, "")
-        err = "interrupted"
-        try:
-            with open(out.claim(), "w", encoding="utf-8") as fh:
-                def written():
-                    for line in lines():
-                        fh.write(line + "\n")
-                        yield line
-
-                new = written()
-                d = ""
-                if golden.exists():
-                    d = compare_lines(read_lines(golden), new, Tolerances(0, 0), names)
-                for _ in new:
-                    pass
-            err = _failed(run)
-        finally:
-            if err:
-                out.discard()
-            else:
-                out.commit()
+            new = written()
+            d = ""
+            if golden.exists():
+                d = summarize(read_lines(golden), new, Tolerances(0, 0), _names(capture, golden), names).diff
+            for _ in new:
+                pass
+        err = _failed(run)
+    finally:
         if err:
-            return EXIT_ERROR, f"sniffer check: error: {err}\n"
-        return EXIT_SAME, f"sniffer check: wrote {golden} ({run.frames_out} frames)\n" + d
-    except (CaptureError, SettingsError, DeviceMapError, ValueError, OSError) as e:
-        why = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.filename else str(e)
-        return EXIT_ERROR, f"sniffer check: error: {why}\n"
+            out.discard()
+        else:
+            out.commit()
+    if err:
+        return Outcome(EXIT_ERROR, message=f"sniffer check: error: {err}\n")
+    return Outcome(EXIT_SAME, message=f"sniffer check: wrote {golden} ({run.frames_out} frames)\n" + d)
+
+
+def _named(frames, names: Names):
+    """The frames, their point names noted on the way (the anchors the summary splits a line on)."""
+    for f in frames:
+        names.add_frame(f)
+        yield f
 
 
 def _failed(session) -> str | None:

@@ -8,7 +8,8 @@
                segments.py + rotating.py + segset.py (a rotated capture's folder)
     pcap/      format.py, reader.py, writer.py;   bytecsv/  reader.py, writer.py
     saleae.py  csvstream.py  timeparse.py  (readers);  jsonl.py  text.py  csvexport.py  parquet.py  rows.py
-    tables.py  schemas.py  (exports);  records.py  the frame record every writer shares;  files.py  open any
+    tables.py  schemas.py  (exports);  junit.py  check results for CI;  records.py  the frame record every
+    writer shares;  files.py  open any
     capture file;  reading.py  what readers share;  outputs.py  temporary name, then rename
 
 Adding a format is a module here and a row in `TABLE`; nothing else lists formats or their suffixes.

@@ -180,7 +180,8 @@ class FileWriter:
 
 
 class GoldenPlan:
-    """`sniffer check`'s golden lines of the part (analysis.check.golden_line)."""
+    """`sniffer check`'s golden lines of the part (analysis.check.golden_line), and the point names they
+    hold (the anchors check's summary splits a changed line on)."""
 
     def __init__(self, version: int = 2) -> None:
         self.version = version
@@ -191,8 +192,11 @@ class GoldenPlan:
 
 class _Golden(Sink):
     def __init__(self, version: int) -> None:
+        from sniffer.analysis.goldenfields import Names
+
         self.version = version
         self.lines: list[str] = []
+        self.names = Names()
         self.t0 = 0
 
     def start(self, info) -> None:
@@ -201,10 +205,11 @@ class _Golden(Sink):
     def frame(self, f) -> None:
         from sniffer.analysis.check import golden_line
 
+        self.names.add_frame(f)
         self.lines.append(golden_line(f, self.t0, self.version))
 
     def piece(self):
-        return self.lines
+        return self.lines, sorted(self.names.names)
 
 
 class FramesPlan:
