@@ -1,48 +1,27 @@
 """Read a TOML file (bus files, register maps) with one clear error line.
 
-Refused, each as `error("<path>: <why>")`: a missing or unreadable file, a
-directory, FIFO or device (reading one could block), a file over MAX_BYTES,
-bytes that are not UTF-8, TOML that does not parse, nesting deep enough to
-exhaust Python's recursion limit, numbers too long to convert.
+Refused, each as `error("<path>: <why>")`, by sniffer.inputs' rules: a missing or unreadable file, a
+directory, FIFO or device (reading one could block), a file over its cap (CAPS), bytes that are not
+UTF-8; and here: TOML that does not parse, nesting deep enough to exhaust Python's recursion limit,
+numbers too long to convert.  A float that is not finite (nan, inf) is refused by the field that reads it
+(busfile.py, regtypes.py) with the field's own words.
 """
 
 from __future__ import annotations
 
-import os
-import stat
 import tomllib
 
-MAX_BYTES = 16 << 20  # a bus file is a few lines, the largest register map ~200 kB
+from sniffer.inputs import CAPS
+from sniffer.inputs import read_text as _read_text
+
+KIND = "a bus file or register map"
+MAX_BYTES = CAPS[KIND]
 
 
-def read_text(path: str, error: type[Exception], what: str = "a bus file or register map",
-              bom: bool = False) -> str:
+def read_text(path: str, error: type[Exception], what: str = KIND, bom: bool = False) -> str:
     """A small text file (UTF-8; with `bom`, a byte-order mark allowed), or `error("<path>: <why>")`:
     never blocks on a FIFO, never reads more than MAX_BYTES of a device or a huge file."""
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
-    except OSError as e:
-        raise error(f"{path}: {e.strerror or e}") from None
-    try:
-        mode = os.fstat(fd).st_mode
-        if stat.S_ISDIR(mode):
-            raise error(f"{path}: is a directory, not a TOML file")
-        if not stat.S_ISREG(mode):
-            raise error(f"{path}: not a regular file (a FIFO or device?)")
-        os.set_blocking(fd, True)
-        with os.fdopen(fd, "rb", closefd=False) as fh:
-            data = fh.read(MAX_BYTES + 1)
-    except OSError as e:
-        raise error(f"{path}: {e.strerror or e}") from None
-    finally:
-        os.close(fd)
-    if len(data) > MAX_BYTES:
-        raise error(f"{path}: over {MAX_BYTES >> 20} MB: not {what}")
-    try:
-        return data.decode("utf-8-sig" if bom else "utf-8")
-    except UnicodeDecodeError as e:
-        line = data.count(b"\n", 0, e.start) + 1
-        raise error(f"{path}: not UTF-8 text (line {line}, byte {e.start})") from None
+    return _read_text(path, MAX_BYTES, what, error, bom)
 
 
 def read_toml(path: str, error: type[Exception]) -> dict:

@@ -66,7 +66,7 @@ def test_fifo_is_refused_without_blocking(tmp_path, capsys):
     t.start()
     t.join(20)
     assert not t.is_alive(), "replaying a FIFO blocked"
-    assert out == [f"{fifo}: not a regular file (a FIFO): replaying it would block forever or never end"]
+    assert out == [f"{fifo}: not a regular file (a FIFO): reading it would block forever or never end"]
 
 
 def test_directory_empty_and_garbage(tmp_path, capsys):

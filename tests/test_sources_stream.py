@@ -269,7 +269,7 @@ def test_a_fifo_is_refused_at_once(tmp_path):
         t.join(10)
         assert not t.is_alive(), f"opening a FIFO as {fmt} blocked"
     assert len(result) == len(FORMATS)
-    assert all(r == f"{fifo}: not a regular file (a FIFO): replaying it would block forever or never end"
+    assert all(r == f"{fifo}: not a regular file (a FIFO): reading it would block forever or never end"
                for r in result)
 
 

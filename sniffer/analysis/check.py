@@ -26,6 +26,8 @@ changed lines and counts the rest.
 
 from __future__ import annotations
 
+import os
+
 import difflib
 from collections import deque
 from collections.abc import Iterable, Iterator
@@ -321,17 +323,21 @@ def resolve(path: Path | None, time_ms: float | None, latency_ms: float | None,
 
 def golden_version(path: Path) -> int:
     """The golden format of the file at path: 1 for a v1 header, else the current one."""
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        return 1 if fh.readline().rstrip("\n") == GOLDEN_V1 else 2
+    return 1 if next(read_lines(path), None) == GOLDEN_V1 else 2
 
 
 FINDING = "finding "  # a golden line holding a verdict (after the frames)
 
 
 def read_lines(path: Path) -> Iterator[str]:
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for line in fh:
-            yield line.rstrip("\n")
+    """The golden's lines, streamed; a FIFO, a device, a folder or a line over 1 MB: InputError (one line)."""
+    from sniffer.inputs import read_lines as regular_lines
+
+    lines = regular_lines(os.fspath(path), "a golden file")
+    try:
+        yield from lines
+    finally:
+        lines.close()
 
 
 class GoldenSink:

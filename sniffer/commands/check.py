@@ -299,8 +299,7 @@ def _failed(session) -> str | None:
 
 
 def holds_findings(path: Path) -> bool:
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        return any(line.startswith(FINDING) for line in fh)
+    return any(line.startswith(FINDING) for line in read_lines(path))
 
 
 def with_findings(session, lines: Iterator[str]) -> Iterator[str]:

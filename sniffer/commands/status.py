@@ -22,7 +22,7 @@ from sniffer.formats.outputs import shown
 from sniffer.formats.mcap.segments import STATUS_NAME, held, size_text
 from sniffer.capture.settings import CaptureSpec
 from sniffer.events import CaptureError
-from sniffer.formats.reading import open_regular
+from sniffer.inputs import CAPS, open_regular
 from sniffer.commands.common import EXIT_FAILED, EXIT_OK, UsageError, say
 from sniffer.commands.flags import command_parser
 
@@ -71,7 +71,7 @@ def run(spec: CaptureSpec, args) -> int:
     return EXIT_OK if running else EXIT_FAILED
 
 
-MAX_STATUS_BYTES = 16 << 20  # a capture's status file is a few kB
+MAX_STATUS_BYTES = CAPS["a status file"]
 
 
 def read_status(path: str) -> dict:

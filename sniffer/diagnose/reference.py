@@ -10,12 +10,16 @@ params_changed findings, one per unit.
 from __future__ import annotations
 
 import csv
-import math
+import io
 import os
+import math
 
 from sniffer.codes import WARNING
 from sniffer.events import CaptureError
 from sniffer.diagnose.finding import Finding
+from sniffer.inputs import CAPS, finite, open_regular, read_text
+
+KIND = "a parameter set"
 
 MAX_ROWS = 100_000
 
@@ -108,32 +112,32 @@ def _same(a, b) -> bool:
 
 def load_csv(path: str) -> Reference:
     rows = []
+    text = read_text(path, CAPS[KIND], KIND, ReferenceError, bom=True)
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            reader = csv.DictReader(fh)
-            fields = {(h or "").strip().lower(): h for h in reader.fieldnames or ()}
-            if not {"unit", "register", "value"} <= set(fields):
-                raise ReferenceError(f"--params {path}: a CSV needs the columns unit, register, value "
-                                     f"(found: {', '.join(fields) or 'none'})")
-            for i, r in enumerate(reader, 2):
-                if len(rows) >= MAX_ROWS:
-                    break
-                unit_text = (r.get(fields["unit"]) or "").strip()
-                link, _, unit_text = unit_text.rpartition(":")
-                try:
-                    unit = int(unit_text, 0)
-                except ValueError:
-                    raise ReferenceError(f"--params {path}: line {i}: unit {unit_text[:20]!r} is not a number") \
-                        from None
-                value = (r.get(fields["value"]) or "").strip()
-                try:
-                    value = float(value)
-                except ValueError:
-                    pass
-                rows.append((link, unit, (r.get(fields["register"]) or "").strip(), value))
-    except OSError as e:
-        raise ReferenceError(f"--params {path}: {e.strerror or e}") from None
-    except (UnicodeDecodeError, csv.Error) as e:
+        reader = csv.DictReader(io.StringIO(text, newline=""))
+        fields = {(h or "").strip().lower(): h for h in reader.fieldnames or ()}
+        if not {"unit", "register", "value"} <= set(fields):
+            raise ReferenceError(f"--params {path}: a CSV needs the columns unit, register, value "
+                                 f"(found: {', '.join(fields) or 'none'})")
+        for i, r in enumerate(reader, 2):
+            if len(rows) >= MAX_ROWS:
+                break
+            unit_text = (r.get(fields["unit"]) or "").strip()
+            link, _, unit_text = unit_text.rpartition(":")
+            try:
+                unit = int(unit_text, 0)
+            except ValueError:
+                raise ReferenceError(f"--params {path}: line {i}: unit {unit_text[:20]!r} is not a number") \
+                    from None
+            value = (r.get(fields["value"]) or "").strip()
+            try:
+                float(value)
+            except ValueError:
+                pass  # a value shown as text (an enum's name) is compared as text
+            else:  # a number is finite: nan, inf, 1e400 hold against nothing a drive reads back
+                value = finite(value, f"--params {path}: line {i}: value", ReferenceError)
+            rows.append((link, unit, (r.get(fields["register"]) or "").strip(), value))
+    except csv.Error as e:
         raise ReferenceError(f"--params {path}: not a CSV ({e})") from None
     return Reference(path, rows)
 
@@ -150,16 +154,22 @@ def load_capture(path: str, spec) -> Reference:
         if f.role != "response" or not f.crc_ok or f.exception or not f.writes or f.unit is None:
             continue
         for pt in f.points:
-            if pt.get("id") and pt.get("address") is not None and pt.get("value") is not None:
-                last[(f.link, f.unit, pt["id"])] = pt["value"]
+            v = pt.get("value")
+            if isinstance(v, float) and not math.isfinite(v):  # a float register's NaN: nothing to hold against
+                continue
+            if pt.get("id") and pt.get("address") is not None and v is not None:
+                last[(f.link, f.unit, pt["id"])] = v
     if session.error:
         raise ReferenceError(f"--params {path}: {session.error}")
     return Reference(path, [(ln, u, pid, v) for (ln, u, pid), v in last.items()])
 
 
 def load(path: str, spec) -> Reference:
-    if not os.path.exists(path):
-        raise ReferenceError(f"--params {path}: no such file")
+    """The reference at `path` (a regular file: a FIFO, a device or a folder is refused in one line)."""
+    try:
+        open_regular(path, "a parameter set or capture", ReferenceError).close()
+    except ReferenceError as e:
+        raise ReferenceError(f"--params {e}") from None
     if path.lower().endswith(".csv") and _looks_like_params(path):
         return load_csv(path)
     return load_capture(path, spec)
@@ -168,8 +178,8 @@ def load(path: str, spec) -> Reference:
 def _looks_like_params(path: str) -> bool:
     """A parameter CSV (unit,register,value), not a byte CSV capture."""
     try:
-        with open(path, encoding="utf-8-sig") as fh:
-            head = fh.readline().lower()
-    except (OSError, UnicodeDecodeError):
+        with open_regular(path, KIND) as fh:
+            head = fh.readline(4096).decode("utf-8-sig").lower()
+    except (OSError, CaptureError, UnicodeDecodeError):
         return False
     return any(word in head for word in ("unit", "register", "value"))

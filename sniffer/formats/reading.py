@@ -1,12 +1,11 @@
-"""What every file reader shares: opening only regular files, a bounded damage log, gaps."""
+"""What every file reader shares: opening only regular files (sniffer.inputs' rules), a bounded damage log, gaps."""
 
 from __future__ import annotations
 
-import os
-import stat
-from typing import BinaryIO
-
 from sniffer.events import CaptureError
+from sniffer.inputs import not_regular, open_regular
+
+__all__ = ["DamageLog", "EmptyCapture", "file_position", "gap_before", "not_regular", "open_regular", "quote"]
 
 
 class EmptyCapture(CaptureError):
@@ -25,50 +24,11 @@ def quote(text: str, limit: int = QUOTE_LIMIT) -> str:
     return f"{text[:limit]!r}... ({len(text):,} characters)"
 
 
-_KINDS = ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"), (stat.S_ISSOCK, "a socket"),
-          (stat.S_ISBLK, "a block device"))
-
-
-def not_regular(path: str, mode: int) -> str | None:
-    """Why a file of this st_mode cannot be replayed, or None for a regular file."""
-    if stat.S_ISDIR(mode):
-        return f"{path}: is a directory, not a capture file"
-    if stat.S_ISREG(mode):
-        return None
-    kind = next((name for test, name in _KINDS if test(mode)), "a special file")
-    return f"{path}: not a regular file ({kind}): replaying it would block forever or never end"
-
-
 def file_position(fh, size: int) -> tuple[int, int] | None:
     """(bytes read so far, file size) of an open reader's file, for a progress bar; None once closed."""
     if fh is None or fh.closed:
         return None
     return fh.tell(), size
-
-
-def open_regular(path: str | os.PathLike[str]) -> BinaryIO:
-    """Open a capture file for binary reading, refusing anything but a regular file.
-
-    O_NONBLOCK keeps open() itself from waiting for a FIFO's writer; the
-    file is then checked with fstat before a single byte is read.
-    """
-    p = os.fspath(path)
-    try:
-        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
-                     | getattr(os, "O_CLOEXEC", 0))
-    except OSError as e:
-        raise CaptureError(f"{p}: {e.strerror or e}") from None
-    try:
-        why = not_regular(p, os.fstat(fd).st_mode)
-        if why is None and hasattr(os, "set_blocking"):
-            os.set_blocking(fd, True)
-    except OSError as e:
-        os.close(fd)
-        raise CaptureError(f"{p}: {e.strerror or e}") from None
-    if why is not None:
-        os.close(fd)
-        raise CaptureError(why)
-    return os.fdopen(fd, "rb")
 
 
 class DamageLog:

@@ -33,15 +33,34 @@ def _local(jobs: int):
     return pool, lambda job: pool.submit(_stage, job), jobs, pool.shutdown
 
 
+DASK_PORT = 8786
+MAX_HANDSHAKE = 1 << 20  # a scheduler's first message (its handshake) is a few hundred bytes
+
+
+def dask_address(text: str) -> str:
+    """The scheduler's address, checked before any connection: parsed (InputError, one line, for a malformed
+    one), then its first 8 bytes read with a connect and a reply timeout.  A scheduler speaks first: the length
+    of its handshake.  A port that says nothing, or answers otherwise (an HTTP server's "HTTP/1.1" read as a
+    length would be an allocation of exabytes), is refused here, not handed to distributed."""
+    from sniffer.inputs import InputError, parse_address, probe
+
+    addr = parse_address(text, "--dask", ("tcp",), default_port=DASK_PORT)
+    first = probe(addr, "--dask", reply=8)
+    if int.from_bytes(first, "little") > MAX_HANDSHAKE:
+        raise InputError(f"--dask {addr}: answers as no Dask scheduler does (it began with {first!r})")
+    return str(addr)
+
+
 def _dask(address: str):
     try:
         from distributed import Client
     except ImportError:
         raise RuntimeError("--dask needs dask[distributed] (pip install 'dask[distributed]')") from None
+    address = dask_address(address)
     try:
         client = Client(address, timeout=10)
-    except OSError as e:
-        raise RuntimeError(f"--dask {address}: cannot reach the scheduler: {e}") from None
+    except (OSError, ValueError) as e:
+        raise RuntimeError(f"--dask {address}: cannot reach the scheduler: {str(e)[:200]}") from None
     workers = max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
     return client, lambda job: client.submit(_stage, job, pure=False), workers, client.close
 

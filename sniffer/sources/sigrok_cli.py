@@ -293,8 +293,22 @@ class SigrokSource:
                                        "; the capture so far is kept")
                 if rc != 0 and not self.finalize_crash:
                     raise CaptureError(f"{self.where}: sigrok-cli failed (exit {rc}){self._why()}")
+                short = self.short_of()
+                if short:
+                    raise CaptureError(f"{self.where}: {short}")
         finally:
             self.close()
+
+    def short_of(self) -> str | None:
+        """Why sigrok-cli's decode of a file ended short, or None: the samples its UART decoder handled (its last
+        "Done" watermark) against the samples the file holds.  sigrok-cli ends with exit 0 at a member it
+        cannot read; the frames after it would be lost without a word."""
+        if self.live or self.total_samples is None or self.watermark >= self.total_samples:
+            return None
+        done = self.watermark / self.total_samples
+        return (f"sigrok-cli stopped after sample {self.watermark:,} of the {self.total_samples:,} the file holds "
+                f"({done:.0%}; {self.total_samples - self.watermark:,} samples not decoded){self._why()}; "
+                "the frames before it are kept")
 
     def _ask_stop(self) -> bool:
         """Stop the acquisition: a live analyzer gets sigrok-cli's "any key" (it ends cleanly); a file's decode is

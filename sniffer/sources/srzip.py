@@ -19,15 +19,18 @@ import configparser
 import os
 import re
 import stat
-import zipfile
-import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 
 from sniffer.events import CaptureError
-from sniffer.formats.reading import open_regular
+from sniffer.inputs import Archive, open_regular
 
 BLOCK = 1 << 20  # bytes of samples handed out at a time
+WHAT = "a sigrok session file"
+MAX_METADATA = 1 << 20  # an INI of a few lines
+# 1 GiB of samples: 45 s at 24 MHz, 18 min at 1 MHz; sigrok-cli takes minutes to decode more, and idle samples
+# deflate 1000:1, so a 3 MB file can hold 3 GB of them
+MAX_SAMPLE_BYTES = 1 << 30
 
 _RATE = re.compile(r"\s*([0-9]+(?:\.[0-9]+)?)\s*([kKmMgG]?)(?:[hH][zZ])?\s*")
 _SCALE = {"": 1, "k": 1_000, "m": 1_000_000, "g": 1_000_000_000}
@@ -80,9 +83,9 @@ def sniff(path: str | os.PathLike[str]) -> bool:
         with open_regular(path) as fh:
             if fh.read(4) != b"PK\x03\x04":
                 return False
-        with zipfile.ZipFile(os.fspath(path)) as z:
-            names = set(z.namelist())
-    except (CaptureError, OSError, zipfile.BadZipFile, ValueError):
+        with Archive(os.fspath(path), WHAT) as z:
+            names = set(z.names())
+    except (CaptureError, OSError):
         return False
     return "metadata" in names and "version" in names
 
@@ -96,51 +99,83 @@ def _member_order(name: str, prefix: str) -> int | None:
 
 
 def read_meta(path: str | os.PathLike[str]) -> SrMeta:
-    """The file's SrMeta; CaptureError (one line) for a file that is not a readable sigrok session."""
+    """The file's SrMeta; CaptureError (one line) for a file that is not a readable sigrok session, or one
+    sigrok-cli would stop reading early (a member missing from the numbering, no unit size): decoded, it
+    would give the frames before the gap and not a word about the rest."""
     p = os.fspath(path)
-    open_regular(p).close()  # a directory, FIFO or missing file: the same one line as every reader
-    try:
-        with zipfile.ZipFile(p) as z:
-            text = z.read("metadata").decode("utf-8", "replace")
-            infos = z.infolist()
-    except KeyError:
-        raise CaptureError(f"{p}: not a sigrok session file (no metadata in the zip)") from None
-    except (zipfile.BadZipFile, OSError, ValueError) as e:
-        raise CaptureError(f"{p}: not a readable sigrok session file ({e})") from None
-    ini = configparser.ConfigParser(interpolation=None, strict=False)
-    try:
-        ini.read_string(text)
-    except configparser.Error as e:
-        raise CaptureError(f"{p}: its metadata is not readable ({str(e).splitlines()[0]})") from None
-    if not ini.has_section("device 1"):
-        raise CaptureError(f"{p}: its metadata has no [device 1] section")
-    dev = ini["device 1"]
-    try:
-        rate = parse_rate(dev.get("samplerate", ""))
-    except ValueError:
-        raise CaptureError(f"{p}: its metadata gives no sample rate ({dev.get('samplerate')!r})") from None
-    try:
-        unitsize = int(dev.get("unitsize", "1"))
-    except ValueError:
-        unitsize = 0
-    if not 1 <= unitsize <= 8:
-        raise CaptureError(f"{p}: unit size {dev.get('unitsize')!r} is not 1..8 bytes")
-    channels: dict[str, int] = {}
-    for key, name in dev.items():
-        if key.startswith("probe") and key[5:].isdigit():
-            bit = int(key[5:]) - 1
-            if 0 <= bit < 8 * unitsize:
-                channels[name.strip()] = bit
-    if not channels:
-        raise CaptureError(f"{p}: no logic channels in its metadata")
-    prefix = dev.get("capturefile", "logic-1").strip()
-    members = sorted((order, i.filename, i.file_size) for i in infos
-                     if (order := _member_order(i.filename, prefix)) is not None)
-    total = sum(size for _, _, size in members)
+    with Archive(p, WHAT) as z:
+        z.require(["metadata"])
+        text = z.read("metadata", MAX_METADATA).decode("utf-8", "replace")
+        infos = list(z.infos.values())
+        ini = configparser.ConfigParser(interpolation=None, strict=False)
+        try:
+            ini.read_string(text)
+        except configparser.Error as e:
+            raise CaptureError(f"{p}: its metadata is not readable ({str(e).splitlines()[0]})") from None
+        if not ini.has_section("device 1"):
+            raise CaptureError(f"{p}: its metadata has no [device 1] section")
+        dev = ini["device 1"]
+        try:
+            rate = parse_rate(dev.get("samplerate", ""))
+        except ValueError:
+            raise CaptureError(f"{p}: its metadata gives no sample rate ({dev.get('samplerate')!r})") from None
+        if "unitsize" not in dev:
+            raise CaptureError(f"{p}: its metadata gives no unitsize (bytes a sample): sigrok-cli reads no "
+                               "samples without it")
+        try:
+            unitsize = int(dev.get("unitsize"))
+        except ValueError:
+            unitsize = 0
+        if not 1 <= unitsize <= 8:
+            raise CaptureError(f"{p}: unit size {dev.get('unitsize')!r} is not 1..8 bytes")
+        channels: dict[str, int] = {}
+        for key, name in dev.items():
+            if key.startswith("probe") and key[5:].isdigit():
+                bit = int(key[5:]) - 1
+                if 0 <= bit < 8 * unitsize:
+                    channels[name.strip()] = bit
+        if not channels:
+            raise CaptureError(f"{p}: no logic channels in its metadata")
+        prefix = dev.get("capturefile", "logic-1").strip()
+        members = sorted((order, i.filename, i.file_size) for i in infos
+                         if (order := _member_order(i.filename, prefix)) is not None)
+        _check_numbering(p, prefix, [order for order, _, _ in members])
+        total = 0
+        for _, name, size in members:  # each member's method, flags, size and ratio, before sigrok-cli reads it
+            z.check(name, MAX_SAMPLE_BYTES)
+            total += size
     if not members or total < unitsize:
         raise CaptureError(f"{p}: no logic samples in it")
+    if total > MAX_SAMPLE_BYTES:
+        raise CaptureError(f"{p}: {total:,} bytes of samples inflated, over the {MAX_SAMPLE_BYTES >> 30} GiB this "
+                           f"reader takes (cut it with sigrok-cli -i {os.path.basename(p)} --samples N -o part.sr)")
     return SrMeta(p, rate, dict(sorted(channels.items(), key=lambda kv: kv[1])), unitsize,
                   tuple(name for _, name, _ in members), total // unitsize)
+
+
+def _check_numbering(path: str, prefix: str, orders: list[int]) -> None:
+    """The logic members are `prefix` alone or `prefix-1` ... `prefix-N` without a gap: sigrok-cli stops at the
+    first member missing from the numbering, and everything after it would be lost without a word."""
+    if orders == [0]:
+        return
+    if 0 in orders:
+        raise CaptureError(f"{path}: both {prefix} and {prefix}-N members: not a session sigrok writes")
+    want = list(range(1, len(orders) + 1))
+    if orders != want:
+        gap = next((n for n, o in zip(want, orders) if n != o), len(orders) + 1)
+        raise CaptureError(f"{path}: logic member {prefix}-{gap} is missing (members {_runs(orders)}): sigrok-cli "
+                           f"would stop there and lose what follows")
+
+
+def _runs(orders: list[int]) -> str:
+    out, start = [], None
+    for i, o in enumerate(orders):
+        if start is None:
+            start = o
+        if i + 1 == len(orders) or orders[i + 1] != o + 1:
+            out.append(f"{start}" if start == o else f"{start}-{o}")
+            start = None
+    return ", ".join(out)
 
 
 def logic_blocks(meta: SrMeta, block: int = BLOCK) -> Iterator[bytes]:
@@ -148,19 +183,12 @@ def logic_blocks(meta: SrMeta, block: int = BLOCK) -> Iterator[bytes]:
     unit = meta.unitsize
     block -= block % unit
     pending = b""
-    try:
-        with zipfile.ZipFile(meta.path) as z:
-            for name in meta.files:
-                with z.open(name) as fh:
-                    while True:
-                        data = fh.read(block)
-                        if not data:
-                            break
-                        if pending:
-                            data = pending + data
-                        cut = len(data) - len(data) % unit
-                        pending = data[cut:]
-                        if cut:
-                            yield data[:cut]
-    except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError) as e:
-        raise CaptureError(f"{meta.path}: its samples cannot be read ({e})") from None
+    with Archive(meta.path, WHAT) as z:
+        for name in meta.files:
+            for data in z.stream(name, MAX_SAMPLE_BYTES, block):
+                if pending:
+                    data = pending + data
+                cut = len(data) - len(data) % unit
+                pending = data[cut:]
+                if cut:
+                    yield data[:cut]
