@@ -55,6 +55,7 @@ SLOW_FILES: frozenset[str] = frozenset({
     "test_ingest_whole.py",  # every test ingests captures into a dataset and queries it with DuckDB
     "test_parallel.py",  # worker processes decode the parts (sniffer.parallel)
     "test_parallel_fleet.py",  # worker processes or a local Dask cluster take captures into a dataset
+    "test_parallel_links.py",  # worker processes decode captures of one, two and three simulated links
 })
 # single tests slow by their work (seconds of simulation, decoding or memory tracing), not by a part the rule
 # sees: "file.py::test_name", parameters left out.  `pytest -m "not slow" --durations=30` shows candidates.

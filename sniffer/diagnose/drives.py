@@ -129,7 +129,7 @@ class DrivesGroup(Group):
     def _load(self, f, link: Link, key: tuple) -> None:
         addr = self.load_addr.get(key, -1)
         if addr == -1:
-            addr = self.load_addr[key] = _load_register(link, key[1])
+            addr = self.load_addr[key] = _load_register(link, f.model)
         if addr is None or f.function not in (0x03, 0x04):
             return
         for p in f.points:
@@ -242,14 +242,10 @@ class DrivesGroup(Group):
         return out
 
 
-def _load_register(link: Link, unit: int) -> int | None:
-    """The address of the register the unit's model names 'Output frequency' (None: no such register)."""
-    reg = link.registry
-    if reg is None:
-        return None
+def _load_register(link: Link, model: str | None) -> int | None:
+    """The address of the register the unit's model (its frame's) names 'Output frequency' (None: no such one)."""
     try:
-        dec = reg.decoders.get(reg.model_for(unit))
-        rows = dec.map.registers.values()
+        rows = link.decoder(model).map.registers.values()
     except AttributeError:
         return None
     for r in rows:

@@ -63,7 +63,7 @@ class ParamsGroup(Group):
         if p is None or (model and p.model != model):  # a guessed model may settle later
             p = self.units[key] = _UnitParams()
             p.model = model
-            _bind(p, link, unit)
+            _bind(p, link, model)
         return p
 
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
@@ -117,7 +117,7 @@ class ParamsGroup(Group):
             p.save_frames.append(f.index)
 
     def _values(self, f, link: Link, unit: int) -> None:
-        want = self.reference.addresses(link, unit)
+        want = self.reference.addresses(link, unit, f.model)
         if not want:
             return
         got = self.read.setdefault((link.name, unit), {})
@@ -197,14 +197,11 @@ class ParamsGroup(Group):
                    f"setpoints and run commands need no save.")
 
 
-def _bind(p: _UnitParams, link: Link, unit: int) -> None:
-    """The unit's model's save register, the parameter groups a save keeps, and each register's id."""
-    reg = link.registry
-    if reg is None:
-        return
+def _bind(p: _UnitParams, link: Link, model: str | None) -> None:
+    """The save register of the unit's model (the one its frame was decoded with: the registry's naming now may be
+    another part's of the capture), the parameter groups a save keeps, and each register's id."""
     try:
-        dec = reg.decoders.get(reg.model_for(unit))
-        regmap = dec.map
+        regmap = link.decoder(model).map
     except AttributeError:
         return
     save = regmap.model.eeprom_save

@@ -48,19 +48,16 @@ class Reference:
         self.rows = rows  # (link, unit, register id or address text, value)
         self._resolved: dict[tuple, dict[int, tuple]] = {}  # (link, unit) -> addr -> (name, value)
 
-    def addresses(self, link, unit: int) -> dict[int, tuple]:
+    def addresses(self, link, unit: int, model: str | None) -> dict[int, tuple]:
+        """`model`: the one the unit's frame was decoded with."""
         key = (link.name, unit)
         got = self._resolved.get(key)
         if got is None:
-            got = self._resolved[key] = self._resolve(link, unit)
+            got = self._resolved[key] = self._resolve(link, unit, model)
         return got
 
-    def _resolve(self, link, unit: int) -> dict[int, tuple]:
-        by_id = {}
-        reg = link.registry
-        if reg is not None:
-            dec = reg.decoders.get(reg.model_for(unit))
-            by_id = getattr(getattr(dec, "map", None), "by_id", None) or {}
+    def _resolve(self, link, unit: int, model: str | None) -> dict[int, tuple]:
+        by_id = getattr(getattr(link.decoder(model), "map", None), "by_id", None) or {}
         out = {}
         for ln, u, name, value in self.rows:
             if u != unit or (ln and ln != link.name):

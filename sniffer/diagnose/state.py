@@ -109,6 +109,12 @@ class Link:
             x = self.units[u] = Unit(u)
         return x
 
+    def decoder(self, model: str | None):
+        """The decoder of a model on this link (None: none).  A unit's model is the one its frame names
+        (Frame.model): the registry's naming now can be ahead of or behind the frame in hand when the capture
+        was decoded by parts."""
+        return None if self.registry is None or model is None else self.registry.decoders.get(model)
+
     def request_of(self, f: Frame):
         """The request a response is paired to (unit, frame, type), if it is still remembered."""
         return None if f.pair is None else self.requests.get(f.pair)
