@@ -184,7 +184,7 @@ def jobs_flag(p) -> None:
 
 
 def fault_flag(p, what: str) -> None:
-    p.add_argument("--fault", action="append", metavar="KIND[:UNIT]", help=what)
+    p.add_argument("--fault", action="append", metavar="KIND[:UNIT][@FROM-TO][,SEVERITY]", help=what)
 
 
 def port_flags(p, what: str = "") -> None:

@@ -53,8 +53,10 @@ def add_parser(subparsers) -> None:
                    help="timestamps per byte (a logic analyzer: wire) or per USB read (usb)")
     p.add_argument("--param", action="append", metavar="KEY=VALUE",
                    help="change the scenario: a setting (poll_period_ms=50) or a unit's (unit2.rated_current_a=7.5)")
-    fault_flag(p, "put a cause of trouble on the line (repeatable), one `sniffer diagnose` names: e.g. "
-                  "driver_enable_late:2, bus_unbiased, second_master:1 (docs/diagnose.md lists them)")
+    fault_flag(p, "put a cause of trouble on the line (repeatable: several at once), one `sniffer diagnose` names: "
+                  "e.g. driver_enable_late:2, bus_unbiased,0.007 (a stray character after 0.7 %% of the "
+                  "transmissions), unit_silent:5@20-60 (only from 20 s to 60 s), noise_during_ramps:1,gross "
+                  "(docs/diagnose.md lists them)")
     serial_flags(p, "sim")
     g = p.add_argument_group("receiver (--out): record what a sniffer set to other settings than the line's receives")
     g.add_argument("--receiver-baud", type=number(int, "--receiver-baud", 50, MAX_BAUD), metavar="BAUD",

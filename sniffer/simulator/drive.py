@@ -41,6 +41,7 @@ class Drive:
         self.temp_c = 28.0 + rng.random() * 4
         self.dc_bus_v = 560.0
         self.current_a = 0.0
+        self.accel_hz_s = 0.0  # how fast the output frequency rose (falls negative) at the last advance
         self.t_ns: int | None = None
         self.coils = [False] * dmap.n_coils
         self.discretes = [rng.random() < 0.3 for _ in range(dmap.n_discretes)]
@@ -65,6 +66,8 @@ class Drive:
         else:
             self.out_hz = max(target, self.out_hz - down * dt)
         accel = (self.out_hz - before) / dt if dt else 0.0
+        if dt:
+            self.accel_hz_s = accel
         noise = 1 + (self.rng.random() - 0.5) * 0.04
         if self.out_hz > 0.05:
             load = 0.3 + 0.6 * self.out_hz / 50 + max(accel, 0.0) / up * 0.5
@@ -76,6 +79,10 @@ class Drive:
         self.dc_bus_v += (self.rng.random() - 0.5) * 2
         heat = 28.0 + 25.0 * self.current_a / self.spec.rated_current_a
         self.temp_c += (heat - self.temp_c) * min(1.0, dt / 60)
+
+    def full_accel_hz_s(self) -> float:
+        """How fast the output frequency rises on the set ramp (Hz/s)."""
+        return 50.0 / max(self.accel_01s / 10, 0.1)
 
     def status_word(self) -> int:
         running = self.out_hz > 0.05

@@ -31,12 +31,13 @@ A kind that needs a unit takes the scenario's first unit when none is given.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 from sniffer.line import LineSettings
 from sniffer.simulator.wire import KIND_REQUEST, WireFrame
-from sniffer.simulator.scenario import PollSpec, Scenario
+from sniffer.simulator.scenario import Fault, PollSpec, Scenario
 
 
 class FaultError(ValueError):
@@ -48,62 +49,141 @@ class FaultKind:
     name: str
     about: str
     unit: bool = True  # takes a unit (KIND:UNIT)
+    spans: bool = False  # may come and go (KIND@FROM-TO)
+    # (mild, usual, gross) values of the severity number (KIND,SEVERITY; also the words mild and gross),
+    # and what the number means; None: the kind has no degrees
+    levels: tuple[float, float, float] | None = None
+    severity: str = ""
 
 
 KINDS: dict[str, FaultKind] = {k.name: k for k in (
-    FaultKind("driver_enable_late", "the unit's transmitter turns on after its first start bit began"),
-    FaultKind("driver_disable_early", "the unit's transmitter turns off before its last stop bit ended"),
-    FaultKind("bus_unbiased", "no fail-safe bias: the idle line floats and reads as stray characters", unit=False),
-    FaultKind("noise_correlated_with_load", "interference that grows with the unit's output frequency"),
-    FaultKind("timeout_too_short", "a third of the unit's answers come after the master's timeout"),
-    FaultKind("unit_silent", "the unit never answers"),
+    FaultKind("driver_enable_late", "the unit's transmitter turns on after its first start bit began", spans=True,
+              levels=(0.05, 1.0, 1.0), severity="share of its answers cut"),
+    FaultKind("driver_disable_early", "the unit's transmitter turns off before its last stop bit ended", spans=True,
+              levels=(0.05, 1.0, 1.0), severity="share of its answers cut"),
+    FaultKind("bus_unbiased", "no fail-safe bias: the idle line floats and reads as stray characters", unit=False,
+              spans=True, levels=(0.007, 0.6, 0.9), severity="chance of a stray character after a transmission"),
+    FaultKind("noise_correlated_with_load", "interference that grows with the unit's output frequency", spans=True,
+              levels=(0.05, 0.3, 0.6), severity="share of frames hit at full output frequency"),
+    FaultKind("noise_during_ramps", "interference only while the unit's motor accelerates (a fan drive's ramps)",
+              spans=True, levels=(0.1, 0.4, 0.8), severity="share of frames hit at the full acceleration"),
+    FaultKind("timeout_too_short", "a third of the unit's answers come after the master's timeout",
+              levels=(0.05, 0.35, 0.7), severity="share of its answers late"),
+    FaultKind("unit_silent", "the unit never answers (KIND@FROM-TO: only then)", spans=True,
+              levels=(0.9, 1.0, 1.0), severity="share of the requests it leaves unanswered"),
     FaultKind("params_not_saved", "a parameter is written and never saved; the drive loses power half way"),
     FaultKind("eeprom_wear", "the PLC writes the save register every cycle"),
     FaultKind("drive_fault", "the drive (of a real model) trips every few seconds"),
     FaultKind("wrong_line_settings", "the sniffer is set to another baud and parity than the line "
                                      "(KIND:BAUD: that baud)", unit=False),
     FaultKind("second_master", "a second PLC polls the unit on its own schedule"),
-    FaultKind("latency_drift", "the unit's turnaround grows through the capture"),
+    FaultKind("latency_drift", "the unit's turnaround grows through the capture", levels=(0.5, 4.0, 10.0),
+              severity="growth of its turnaround per minute, as a share of itself"),
 )}
 
 SECOND_MASTER_PERIOD_MS = 270.0  # unrelated to any scenario's poll period
 M2_LISTENS = 0.6  # share of the second master's requests sent into a quiet line (the rest: when its timer says)
 POWER_OFF_S = 1.5  # params_not_saved: how long the drive is without power
-INTERFERENCE = 0.3  # noise_correlated_with_load: share of frames hit at full output frequency
+_WORDS = {"mild": 0, "usual": 1, "gross": 2}
 
 
 def parse(items: Iterable[str] | None) -> tuple[tuple[str, int | None], ...]:
-    """`KIND[:UNIT]` strings -> (kind, unit or None); FaultError for an unknown kind or a bad number."""
-    out = []
-    for item in items or ():
-        kind, sep, arg = item.partition(":")
-        kind = kind.strip().replace("-", "_")
-        if kind not in KINDS:
-            raise FaultError(f"--fault {item!r}: unknown kind; known: {', '.join(KINDS)}")
-        num = None
-        if sep:
-            try:
-                num = int(arg, 0)
-            except ValueError:
-                raise FaultError(f"--fault {item!r}: {arg!r} is not a unit number") from None
-            if KINDS[kind].unit and not 1 <= num <= 247:
-                raise FaultError(f"--fault {item!r}: unit {num} is outside 1..247")
-        out.append((kind, num))
-    return tuple(out)
+    """`KIND[:UNIT][@FROM-TO][,SEVERITY]` strings -> (kind, unit or None); FaultError for a bad one."""
+    return tuple((f.kind, f.unit) for f in parse_faults(items))
+
+
+def parse_faults(items: Iterable[str] | None) -> tuple[Fault, ...]:
+    """`KIND[:UNIT][@FROM-TO][,SEVERITY]` strings -> Faults (the unit None where not given); FaultError for
+    an unknown kind, a bad number, a span the kind cannot have or a severity outside 0..1 (a share)."""
+    return tuple(_one(item) for item in items or ())
+
+
+def _one(item: str) -> Fault:
+    head, _, sev = item.partition(",")
+    head, at, span = head.partition("@")
+    kind, sep, arg = head.partition(":")
+    kind = kind.strip().replace("-", "_")
+    if kind not in KINDS:
+        raise FaultError(f"--fault {item!r}: unknown kind; known: {', '.join(KINDS)}")
+    k = KINDS[kind]
+    num = None
+    if sep:
+        try:
+            num = int(arg, 0)
+        except ValueError:
+            raise FaultError(f"--fault {item!r}: {arg!r} is not a unit number") from None
+        if k.unit and not 1 <= num <= 247:
+            raise FaultError(f"--fault {item!r}: unit {num} is outside 1..247")
+    start, end = 0.0, math.inf
+    if at:
+        if not k.spans:
+            raise FaultError(f"--fault {item!r}: {kind} cannot come and go (no @FROM-TO); those that can: "
+                             f"{', '.join(n for n, x in KINDS.items() if x.spans)}")
+        a, dash, b = span.partition("-")
+        try:
+            start, end = float(a or 0), float(b) if b else math.inf
+        except ValueError:
+            raise FaultError(f"--fault {item!r}: @{span} is not FROM-TO in seconds (e.g. @20-60)") from None
+        if not dash or start < 0 or end <= start:
+            raise FaultError(f"--fault {item!r}: @{span} is not FROM-TO in seconds with FROM < TO (e.g. @20-60)")
+    severity = None
+    if sev:
+        if k.levels is None:
+            raise FaultError(f"--fault {item!r}: {kind} has no degrees (no ,SEVERITY)")
+        word = sev.strip().lower()
+        try:
+            severity = k.levels[_WORDS[word]] if word in _WORDS else float(word)
+        except ValueError:
+            raise FaultError(f"--fault {item!r}: {sev!r} is not a severity (a number, mild or gross)") from None
+        top = math.inf if kind == "latency_drift" else 1.0
+        if not 0 < severity <= top:
+            raise FaultError(f"--fault {item!r}: severity {severity:g} is outside 0..{top:g} ({k.severity})")
+    return Fault(kind, num, start, end, severity)
+
+
+def level(fault: Fault) -> float:
+    """How bad a fault is: its severity, or its kind's usual one."""
+    if fault.severity is not None:
+        return fault.severity
+    levels = KINDS[fault.kind].levels
+    return levels[1] if levels else 1.0
+
+
+def find(sc: Scenario, kind: str) -> tuple[Fault, ...]:
+    """The faults of `kind` on the scenario (with their spans and severities): a kind may come twice, on two
+    units or in two spans."""
+    specs = sc.fault_specs or tuple(Fault(k, u) for k, u in sc.faults)  # (a scenario built with `faults` alone)
+    return tuple(f for f in specs if f.kind == kind)
+
+
+def now(faults: tuple[Fault, ...], t_ns: int, unit: int | None = None) -> Fault | None:
+    """The first of `faults` active at `t_ns` (on `unit`, if given), or None."""
+    return next((f for f in faults if f.active(t_ns) and (unit is None or f.unit == unit)), None)
 
 
 def apply(sc: Scenario, items: Iterable[str] | None) -> Scenario:
-    """The scenario with the faults `items` name (see the module doc); the faults travel in `sc.faults`."""
-    faults = []
-    for kind, num in parse(items):
+    """The scenario with the faults `items` name (see the module doc); the faults travel in `sc.faults`
+    (kind, unit) and `sc.fault_specs` (with their spans and severities)."""
+    faults, specs = [], list(sc.fault_specs)
+    for fault in parse_faults(items):
+        kind, num = fault.kind, fault.unit
         unit = num if KINDS[kind].unit else None
         if KINDS[kind].unit and unit is None:
             if not sc.units:
                 raise FaultError(f"--fault {kind}: scenario {sc.name!r} has no unit")
             unit = sc.units[0].unit
-        sc = _SCENARIO_CHANGES.get(kind, _no_change)(sc, unit)
-        faults.append((kind, unit if KINDS[kind].unit else num))
-    return dataclasses.replace(sc, faults=sc.faults + tuple(faults)) if faults else sc
+        fault = dataclasses.replace(fault, unit=unit if KINDS[kind].unit else num)
+        specs.append(fault)  # (the change sees it last in sc.fault_specs: `_this`)
+        sc = _SCENARIO_CHANGES.get(kind, _no_change)(dataclasses.replace(sc, fault_specs=tuple(specs)), unit)
+        faults.append((kind, fault.unit))
+    if not faults:
+        return sc
+    return dataclasses.replace(sc, faults=sc.faults + tuple(faults), fault_specs=tuple(specs))
+
+
+def _this(sc: Scenario) -> Fault:
+    """The fault a scenario change is applying (apply puts it last)."""
+    return sc.fault_specs[-1]
 
 
 def receiver_for(sc: Scenario, line: LineSettings) -> LineSettings | None:
@@ -148,18 +228,21 @@ def _model(sc: Scenario, unit: int, what: str, need_save: bool = False):
 
 
 def _unit_silent(sc: Scenario, unit: int) -> Scenario:
+    fault = _this(sc)
     if any(u.unit == unit for u in sc.units):
-        return _with_unit(sc, unit, "unit_silent", no_answer_prob=1.0)
+        if fault.spanned:
+            return sc  # silent only in its span: BusFaults.powered says when
+        return _with_unit(sc, unit, "unit_silent", no_answer_prob=level(fault))
     return dataclasses.replace(sc, polls=sc.polls + (PollSpec(0x03, sc.drive_map.monitor, 2, units=(unit,)),))
 
 
 def _timeout_too_short(sc: Scenario, unit: int) -> Scenario:
-    sc = _with_unit(sc, unit, "timeout_too_short", late_prob=0.35)
+    sc = _with_unit(sc, unit, "timeout_too_short", late_prob=level(_this(sc)))
     return dataclasses.replace(sc, retries=max(sc.retries, 1))
 
 
 def _latency_drift(sc: Scenario, unit: int) -> Scenario:
-    return _with_unit(sc, unit, "latency_drift", turnaround_growth_per_min=4.0)
+    return _with_unit(sc, unit, "latency_drift", turnaround_growth_per_min=level(_this(sc)))
 
 
 def _drive_fault(sc: Scenario, unit: int) -> Scenario:
@@ -208,6 +291,7 @@ _SCENARIO_CHANGES = {
     "driver_enable_late": _needs_unit("driver_enable_late"),
     "driver_disable_early": _needs_unit("driver_disable_early"),
     "noise_correlated_with_load": _needs_model("noise_correlated_with_load"),
+    "noise_during_ramps": _needs_unit("noise_during_ramps"),
     "second_master": _needs_unit("second_master"),
 }
 
@@ -219,7 +303,9 @@ class BusFaults:
     def __init__(self, bus) -> None:
         self.bus = bus
         faults = dict(bus.sc.faults)
-        self.load_unit = faults.get("noise_correlated_with_load")
+        self.load = find(bus.sc, "noise_correlated_with_load")
+        self.ramps = find(bus.sc, "noise_during_ramps")
+        self.silent = [f for f in find(bus.sc, "unit_silent") if f.spanned]
         self.m2_unit = faults.get("second_master")
         self.m2_next = int(bus.sc.start_ms * 1e6) + int(0.4 * SECOND_MASTER_PERIOD_MS * 1e6)
         self._m2_end = 0
@@ -227,17 +313,31 @@ class BusFaults:
         self.power_off: tuple[int, int] | None = None  # (from, to) in bus time
 
     def interference(self, now: int) -> float:
-        """Extra chance that a frame is hit: grows with the load unit's output frequency."""
-        drive = self.bus.drives.get(self.load_unit) if self.load_unit is not None else None
-        if drive is None:
-            return 0.0
-        drive.advance(now)
-        top = drive.max_hz() if hasattr(drive, "max_hz") else 60.0
-        return INTERFERENCE * min(1.0, drive.out_hz / top) ** 2
+        """Extra chance that a frame is hit: grows with the load unit's output frequency, or with how hard the
+        ramps unit accelerates (only while it does), each in its span."""
+        extra = 0.0
+        for f in self.load:
+            drive = self.bus.drives.get(f.unit) if f.active(now) else None
+            if drive is not None:
+                drive.advance(now)
+                top = drive.max_hz() if hasattr(drive, "max_hz") else 60.0
+                extra += level(f) * min(1.0, drive.out_hz / top) ** 2
+        for f in self.ramps:
+            drive = self.bus.drives.get(f.unit) if f.active(now) else None
+            if drive is not None:
+                drive.advance(now)
+                extra += level(f) * min(1.0, max(drive.accel_hz_s, 0.0) / drive.full_accel_hz_s())
+        return extra
 
     def powered(self, unit: int, now: int) -> bool:
+        """Whether the unit can answer now: not while it is without power, nor in a span it is silent."""
         off = self.power_off
-        return not (unit == self.power_unit and off is not None and off[0] <= now < off[1])
+        if unit == self.power_unit and off is not None and off[0] <= now < off[1]:
+            return False
+        for f in self.silent:
+            if f.unit == unit and f.active(now) and (f.severity is None or self.bus.rng.random() < f.severity):
+                return False
+        return True
 
     def between(self, now: int, end_ns: int) -> Iterator[WireFrame]:
         """Called between two exchanges: the power loss, and the second master's exchanges that are due."""

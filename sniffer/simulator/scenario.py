@@ -11,6 +11,7 @@ milliseconds where a human configured them (poll period, master timeout).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from sniffer.line import LineSettings
@@ -102,6 +103,33 @@ class PollSpec:
 
 
 @dataclass(frozen=True, slots=True)
+class Fault:
+    """One cause of trouble put on the line (`simulate --fault KIND[:UNIT][@FROM-TO][,SEVERITY]`, faults.py):
+    on a unit (or, for wrong_line_settings, a baud), from one second of bus time to another, this bad
+    (None: the kind's usual severity; faults.KINDS says what the number means for each kind)."""
+
+    kind: str
+    unit: int | None = None
+    start_s: float = 0.0
+    end_s: float = math.inf
+    severity: float | None = None
+
+    def active(self, t_ns: int) -> bool:
+        return self.start_s * 1e9 <= t_ns < self.end_s * 1e9
+
+    @property
+    def spanned(self) -> bool:
+        return self.start_s > 0.0 or self.end_s != math.inf
+
+    def label(self) -> str:
+        """The fault as `--fault` spells it."""
+        out = self.kind if self.unit is None else f"{self.kind}:{self.unit}"
+        if self.spanned:
+            out += f"@{self.start_s:g}-{'' if self.end_s == math.inf else f'{self.end_s:g}'}"
+        return out + ("" if self.severity is None else f",{self.severity:g}")
+
+
+@dataclass(frozen=True, slots=True)
 class Scenario:
     name: str
     units: tuple[UnitSpec, ...]
@@ -132,6 +160,8 @@ class Scenario:
     quiet_ms: float = 0.0
     # causes of trouble on the line (faults.py, `simulate --fault KIND[:UNIT]`): (kind, unit or None)
     faults: tuple[tuple[str, int | None], ...] = ()
+    # the same faults with their spans and severities (one Fault each, in the order of `faults`)
+    fault_specs: tuple[Fault, ...] = ()
 
 
 _READS = (

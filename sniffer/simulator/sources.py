@@ -121,7 +121,8 @@ class SimulatedSource:
         sc, line = self.scenario, self.receiver or self.line
         extra = {"simulated_line": self.line.label()} if self.receiver else {}
         if sc.faults:  # what was put on the line, for whoever reads the capture later
-            extra["simulated_faults"] = ",".join(k if u is None else f"{k}:{u}" for k, u in sc.faults)
+            extra["simulated_faults"] = " ".join(f.label() for f in sc.fault_specs) if sc.fault_specs else ",".join(
+                k if u is None else f"{k}:{u}" for k, u in sc.faults)
         return CaptureInfo(
             source=f"simulator:{sc.name}:seed={self.seed}", port="(simulated)", baud=line.baud,
             parity=line.parity, stopbits=line.stopbits, databits=line.databits,

@@ -26,21 +26,23 @@ from sniffer.events import FLAG_FRAMING
 from sniffer.line import LineSettings
 from sniffer.simulator.wire import FAULT_NOISE, KIND_CORRUPTED, KIND_NOISE, KIND_REQUEST, WireFrame
 from sniffer.simulator.received import FLAGS
-from sniffer.simulator.scenario import Scenario
+from sniffer.simulator.scenario import Fault, Scenario
 from sniffer.simulator.uart import Receiver, Wire
 
 
 def wire_faults(frames: Iterable[WireFrame], sc: Scenario, line: LineSettings, seed: int) -> Iterator[WireFrame]:
     """The bus's frames as the wire carries them: in time order, overlapping ones collided, and the line
     faults of `sc.faults` applied to the bytes."""
-    faults = dict(sc.faults)
+    from sniffer.simulator.faults import find
+
     rng = random.Random(seed ^ 0x5EED)
     out = collide(frames, line)
-    late_on, early_off = faults.get("driver_enable_late"), faults.get("driver_disable_early")
-    if late_on is not None or early_off is not None:
+    late_on, early_off = find(sc, "driver_enable_late"), find(sc, "driver_disable_early")
+    if late_on or early_off:
         out = _drivers(out, line, rng, late_on, early_off)
-    if "bus_unbiased" in faults:
-        out = _floating(out, line, rng)
+    unbiased = find(sc, "bus_unbiased")
+    if unbiased:
+        out = _floating(out, line, rng, unbiased)
     return out
 
 
@@ -116,18 +118,29 @@ def _and(transitions: list[list[int]]) -> list[int]:
     return out
 
 
-def _drivers(frames: Iterable[WireFrame], line: LineSettings, rng: random.Random, late_on: int | None,
-             early_off: int | None) -> Iterator[WireFrame]:
+def _drivers(frames: Iterable[WireFrame], line: LineSettings, rng: random.Random, late_on: tuple[Fault, ...],
+             early_off: tuple[Fault, ...]) -> Iterator[WireFrame]:
     bit = 1e9 / line.baud
     for f in frames:
-        answer = f.role in ("response", "exception") and f.fault != "collision"
-        if answer and f.unit is not None and f.unit == late_on:
+        answer = f.role in ("response", "exception") and f.fault != "collision" and f.unit is not None
+        if answer and _hits(late_on, f, rng):
             # on after the start bit began: the line idles high until then (the bias holds it)
             f = _reread(f, line, hold_high=(f.t_ns - 1, f.t_ns + round(rng.uniform(1.0, 1.6) * bit)))
-        if answer and f.unit is not None and f.unit == early_off:
+        if answer and _hits(early_off, f, rng):
             # off before the last character's end: the line goes back to idle high from there
             f = _reread(f, line, hold_high=(f.t_end_ns - round(rng.uniform(1.5, 4.0) * bit), f.t_end_ns + 1))
         yield f
+
+
+def _hits(faults: tuple[Fault, ...], f: WireFrame, rng: random.Random) -> bool:
+    """Whether a fault on the frame's unit reshapes this frame: in its span, on its severity's share of them."""
+    from sniffer.simulator.faults import level, now
+
+    fault = now(faults, f.t_ns, f.unit) if faults else None
+    if fault is None:
+        return False
+    share = level(fault)
+    return share >= 1.0 or rng.random() < share
 
 
 def _reread(f: WireFrame, line: LineSettings, hold_high: tuple[int, int]) -> WireFrame:
@@ -159,15 +172,20 @@ _FLOAT_BYTES = ((0x00, FLAG_FRAMING), (0x00, FLAG_FRAMING), (0x00, FLAG_FRAMING)
                 (0xFE, ""), (0xF0, ""), (0x80, FLAG_FRAMING))
 
 
-def _floating(frames: Iterable[WireFrame], line: LineSettings, rng: random.Random) -> Iterator[WireFrame]:
-    """After a transmission the released line floats: now and then a receiver reads a stray character
-    out of it (a 00H with a framing error when it drifts low, FFH and the like from a short dip)."""
+def _floating(frames: Iterable[WireFrame], line: LineSettings, rng: random.Random,
+              faults: tuple[Fault, ...]) -> Iterator[WireFrame]:
+    """After a transmission the released line floats: now and then (the fault's severity: the chance after
+    each transmission, in its span) a receiver reads a stray character out of it (a 00H with a framing
+    error when it drifts low, FFH and the like from a short dip)."""
+    from sniffer.simulator.faults import level, now
+
     char = line.char_ns
     prev = None
     for f in frames:
         if prev is not None:
             yield prev
-            if prev.kind != KIND_NOISE and rng.random() < 0.6:
+            fault = now(faults, prev.t_end_ns) if prev.kind != KIND_NOISE else None
+            if fault is not None and rng.random() < level(fault):
                 t0 = prev.t_end_ns + int(rng.uniform(0.2, 0.9) * char)
                 if t0 + 2 * char <= f.t_ns:  # room before the next transmission
                     value, flag = rng.choice(_FLOAT_BYTES)
