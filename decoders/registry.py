@@ -359,6 +359,45 @@ def _builtin_decoders() -> dict[str, Decoder]:
     return decoders
 
 
+def plugin_decoders() -> dict[str, Decoder]:
+    """The installed plugins' models (sniffer.plugins: the `rs485_sniffer.models` entry points, and each
+    `rs485_sniffer.protocols` plugin's decoder), by --device id.  A map that does not load, or an id a shipped
+    model or another plugin has, is one warning line naming the plugin; the rest are kept."""
+    return {model: d for model, (d, _) in plugin_models().items()}
+
+
+@functools.lru_cache(maxsize=1)
+def plugin_models() -> dict[str, tuple[Decoder, object]]:
+    """{model id: (its decoder, the sniffer.plugins.Plugin it came from)} of `plugin_decoders`."""
+    from sniffer.plugins.entry import warn
+    from sniffer.plugins.models import model_plugins
+    from sniffer.plugins.protocols import protocol_plugins
+
+    from .mapformats import load_model_file
+    from .table_decoder import TableDecoder
+    from .tables import MapError
+
+    shipped = _builtin_decoders()
+    found: dict[str, tuple[Decoder, object]] = {}
+    for plugin in (*model_plugins(), *protocol_plugins()):
+        obj = getattr(plugin.obj, "decoder", plugin.obj)
+        if isinstance(obj, str):  # a register map's path
+            try:
+                made = [TableDecoder(m) for m in load_model_file(obj)]
+            except (MapError, DeviceMapError, OSError, ValueError) as e:
+                warn(plugin.group, plugin.name, plugin.value, plugin.dist, f"its register map does not load: {e}")
+                continue
+        else:
+            made = [obj]
+        for d in made:
+            if d.model in shipped or d.model in found:
+                whose = "a shipped model's" if d.model in shipped else "another plugin's"
+                warn(plugin.group, plugin.name, plugin.value, plugin.dist, f"model id {d.model!r} is {whose}")
+                continue
+            found[d.model] = (d, plugin)
+    return found
+
+
 @functools.lru_cache(maxsize=1)
 def code_book() -> CodeBook:
     """Every code the shipped stages may emit: the core ones, each protocol's framer's, each decoder class's
@@ -366,7 +405,7 @@ def code_book() -> CodeBook:
     that reads records (no decoder at hand) asks a code's category of.  Loads no map."""
     from sniffer.protocols import all_codes
 
-    return CodeBook(all_codes(), *(cls.codes for cls, _ in _shipped()))
+    return CodeBook(all_codes(), *(cls.codes for cls, _ in _shipped()), *(d.codes for d in plugin_decoders().values()))
 
 
 def default_registry(devices: dict[int, str] | None = None, model_files: list[str] | None = None,
@@ -378,6 +417,7 @@ def default_registry(devices: dict[int, str] | None = None, model_files: list[st
     from decoders.table_decoder import TableDecoder
 
     decoders = builtin_decoders()
+    decoders.update(plugin_decoders())
     for path in model_files or []:
         for m in load_model_file(path, map_base):
             if m.model_id == "generic":  # every unit without a model falls back to it

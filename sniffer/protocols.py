@@ -8,7 +8,9 @@
     protocol.raw_span(2, 4, len(raw))        # ADU bytes [2, 4) as a span of the wire bytes
 
 A new protocol is a framer class (a `LineBuffer` subclass that declares its
-`codes`) and one `Protocol` entry below; nothing else lists protocols.
+`codes`) and one `Protocol` entry below; nothing else lists protocols.  Protocols of
+other packages (sniffer.plugins, the `rs485_sniffer.protocols` entry points) join them
+in `known()`: `get`, `of_frame`, `names` and `all_codes` read that.
 """
 
 from __future__ import annotations
@@ -55,12 +57,14 @@ class Protocol:
     text: bool  # ASCII on the wire: raw holds characters, adu the binary bytes
     default_model: str
     tables: Mapping[int, str]
-    _framer: str  # "module:Class", imported when first used
+    _framer: str | type  # "module:Class", imported when first used (a plugin's: its class)
 
     @property
     def framer_class(self):
         import importlib
 
+        if not isinstance(self._framer, str):
+            return self._framer
         module, _, cls = self._framer.partition(":")
         return getattr(importlib.import_module(module, __package__), cls)
 
@@ -110,23 +114,52 @@ NAMES: tuple[str, ...] = tuple(PROTOCOLS)
 DEFAULT = "modbus-rtu"
 
 
+_known: Mapping[str, Protocol] | None = None
+
+
+def known() -> Mapping[str, Protocol]:
+    """The built-in protocols and those of the installed plugins (loaded once per process, when first asked:
+    a plugin that fails is one warning line and is left out)."""
+    global _known
+    if _known is None:
+        from sniffer.plugins.protocols import protocol_plugins
+
+        found = dict(PROTOCOLS)
+        for plugin in protocol_plugins():
+            pp = plugin.obj
+            found[pp.name] = Protocol(pp.name, pp.name, pp.text, pp.decoder.model, MappingProxyType(dict(pp.tables)),
+                                      pp.framer)
+        _known = MappingProxyType(found)
+    return _known
+
+
+def names() -> tuple[str, ...]:
+    """--protocol's choices: the built-in names, then the plugins' (their entry points' names: none is loaded)."""
+    from sniffer.plugins.protocols import protocol_names
+
+    return tuple(dict.fromkeys((*NAMES, *protocol_names())))
+
+
 def get(name: str) -> Protocol:
     """The protocol named `name`, or SettingsError naming the ones there are."""
-    p = PROTOCOLS.get(name) if isinstance(name, str) else None
+    p = (PROTOCOLS.get(name) or known().get(name)) if isinstance(name, str) else None
     if p is None:
-        raise SettingsError(f"protocol {str(name)[:60]!r} is not one of {', '.join(NAMES)}")
+        raise SettingsError(f"protocol {str(name)[:60]!r} is not one of {', '.join(known())}")
     return p
 
 
 def of_frame(protocol: str) -> Protocol | None:
     """The entry for a frame's `protocol` field (None for noise)."""
-    return PROTOCOLS.get(protocol)
+    p = PROTOCOLS.get(protocol)
+    if p is None and protocol != "noise":
+        p = known().get(protocol)
+    return p
 
 
 def all_codes() -> tuple[Code, ...]:
     """Every code the framers of all protocols may emit (for the code book)."""
     seen: dict[str, Code] = {}
-    for p in PROTOCOLS.values():
+    for p in known().values():
         for c in p.codes:
             seen.setdefault(c.code, c)
     return tuple(seen.values())

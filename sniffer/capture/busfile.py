@@ -110,7 +110,7 @@ def _table(path: str, doc: dict, name: str) -> dict:
 
 
 def _serial(path: str, serial: dict, bus: BusFile, where: str = "[serial]") -> None:
-    from sniffer.protocols import NAMES
+    from sniffer.protocols import known
 
     unknown = sorted(set(serial) - set(SERIAL_KEYS))
     if unknown:
@@ -131,8 +131,8 @@ def _serial(path: str, serial: dict, bus: BusFile, where: str = "[serial]") -> N
     if databits is not None and (not _is_int(databits) or databits not in (7, 8)):
         raise BusFileError(f"{path}: {where} databits must be 7 or 8, not {_show(databits)}")
     protocol = serial.get("protocol")
-    if protocol is not None and protocol not in NAMES:
-        raise BusFileError(f"{path}: {where} protocol {_show(protocol)} is not one of {', '.join(NAMES)}")
+    if protocol is not None and (not isinstance(protocol, str) or protocol not in known()):
+        raise BusFileError(f"{path}: {where} protocol {_show(protocol)} is not one of {', '.join(known())}")
     bus.baud, bus.parity, bus.stopbits, bus.databits, bus.protocol = baud, parity, stopbits, databits, protocol
 
 

@@ -364,7 +364,7 @@ class CaptureSpec:
         for unit, model in sorted(resolved.devices.items()):
             fam = getattr(registry.decoders[model], "family", "pd" if model == "pd-series" else "modbus")
             if fam != protocol.family:
-                speaks = ", ".join(n for n, p in protocols.PROTOCOLS.items() if p.family == fam)
+                speaks = ", ".join(n for n, p in protocols.known().items() if p.family == fam)
                 raise SettingsError(f"unit {unit}: model {model} speaks {speaks}, not {protocol.name} "
                                     f"(give --protocol, or another model)")
         return resolved

@@ -247,7 +247,9 @@ def decode_flags(p, source: str) -> None:
     defaults come from (and whether a bus file applies)."""
     from sniffer.capture.pairer import DEFAULT_TIMEOUT_MS
     from sniffer.capture.settings import MAX_TIMEOUT_MS
-    from sniffer.protocols import NAMES as PROTOCOLS
+    from sniffer.protocols import names
+
+    protocols = names()
 
     device, protocol, timeout = _DECODE_DEFAULTS[source]
     g = p.add_argument_group("decoding")
@@ -264,7 +266,7 @@ def decode_flags(p, source: str) -> None:
     g.add_argument("--map-base", choices=["0", "1", "modicon"], default=None,
                    help="how a CSV map counts its addresses: from 0, from 1, or Modicon 4xxxx/3xxxx (default: what "
                         "the file says, else 0)")
-    g.add_argument("--protocol", choices=PROTOCOLS, default=None, help=f"line protocol (default: {protocol})")
+    g.add_argument("--protocol", choices=protocols, default=None, help=f"line protocol (default: {protocol})")
 
 
 def input_format_flag(p) -> None:

@@ -4,6 +4,7 @@
     crc_rules.py    rules A, B1..B5 over a line of CRC-16 checked frames (RTU and PD RTU share them)
     hexline.py      ':' hex pairs CR LF (Modbus ASCII and PD ASCII share it)
     rtu.py          Modbus RTU          ascii.py   Modbus ASCII          pd.py   PD-series RTU and ASCII
+    packet.py       PacketFramer: a frame that says its length and ends in a check (protocol plugins)
     rtu_lengths.py  the lengths a function code and role imply
     crc.py          CRC-16/MODBUS and LRC
 
@@ -15,6 +16,7 @@ from sniffer import face
 
 _EXPORTS = {
     "LineBuffer": "sniffer.framing.linebuf",
+    "PacketFramer": "sniffer.framing.packet",
     "RtuFramer": "sniffer.framing.rtu",
     "AsciiFramer": "sniffer.framing.ascii",
     "PdRtuFramer": "sniffer.framing.pd",
