@@ -85,7 +85,7 @@ Event = Chunk | Tick | Gap
 
 
 # How a capture's (and each frame's) times were taken: per byte (a logic analyzer, the simulator), per read
-# of a local adapter, per read of a network connection to a gateway (sources/serial_net.py), or not at all
+# of a local adapter, per read of a network connection to a gateway (sources/pyserial_line.py), or not at all
 TIME_SOURCES = ("byte", "read", "net", "none")
 PER_READ = ("read", "net")  # times of a read of several bytes: a frame's start is estimated back from it
 

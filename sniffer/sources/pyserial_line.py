@@ -1,7 +1,11 @@
-"""A line behind an RS-485-to-Ethernet gateway: `rfc2217://HOST:PORT` or `socket://HOST:PORT`, read-only.
+"""A line read through pyserial alone, read-only: behind an RS-485-to-Ethernet gateway (`rfc2217://HOST:PORT`,
+`socket://HOST:PORT`), or a COM port on Windows.
 
-pyserial's URL handlers do the talking (serial.serial_for_url), so nothing here needs termios, fcntl or
-a pseudo-terminal: this is also the live path on Windows.  Read-only means no data byte is ever sent:
+pyserial does the talking (serial.serial_for_url), so nothing here needs termios, fcntl or a
+pseudo-terminal: this is the live path where those do not exist.  (On Linux and macOS a local port is
+opened by serial_port.py instead: O_RDONLY, which pyserial cannot do; Windows has no read-only open of a
+COM port, so there pyserial opens it, DTR and RTS off, and nothing is ever written.)
+Read-only means no data byte is ever sent:
 
 * socket:// (a device server's "TCP server" / raw mode): a plain TCP connection; we only receive;
 * rfc2217:// (Telnet COM-PORT-OPTION): pyserial's client negotiates the Telnet options and then sets the
@@ -20,13 +24,14 @@ backoff (RECONNECT_FIRST_S doubling to RECONNECT_MAX_S), and the Gap's reason sa
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections.abc import Iterator
 
 from sniffer.events import CaptureError, CaptureInfo, Chunk, Gap, Tick
 from sniffer.line import LineSettings
-from sniffer.sources.serial_live import Hub, PortLostError, ReaderEnd
+from sniffer.sources.hub import Hub, PortLostError, ReaderEnd
 
 SCHEMES = ("rfc2217://", "socket://")
 READ_SIZE = 4096
@@ -35,13 +40,18 @@ RECONNECT_MAX_S = 5.0
 CONNECT_TIMEOUT_S = 5.0
 
 
+def reads_through_pyserial(port: str) -> bool:
+    """`port` is opened by pyserial here: a gateway's URL anywhere; any port on Windows (no termios)."""
+    return is_url(port) or os.name == "nt"
+
+
 def is_url(port: str) -> bool:
     """`port` names a line behind a gateway (a URL pyserial opens), not a local serial device."""
     return port.lower().startswith(SCHEMES)
 
 
-class NetSource:
-    """A gateway's line as a live source: `open()` (CaptureInfo), `events()`, `stop()` from any thread.
+class PyserialLine:
+    """A line pyserial reads as a live source: `open()` (CaptureInfo), `events()`, `stop()` from any thread.
 
     The same face as serial_live.SerialSource (`port`, `lost_since_ns`, `lost_reason`, `losses`), so the
     capture's status and notices treat both alike."""
@@ -70,12 +80,16 @@ class NetSource:
         if self.info is not None:
             return self.info
         self._conn = self._connect()
+        net = is_url(self.port)
         self.info = CaptureInfo(
-            source=f"net:{self.port}", port=self.port, baud=self.line.baud, parity=self.line.parity,
-            stopbits=self.line.stopbits, databits=self.line.databits, time_source="net",
-            t0_ns=time.monotonic_ns(), wall_anchor_ns=time.time_ns(),
+            source=f"{'net' if net else 'serial'}:{self.port}", port=self.port, baud=self.line.baud,
+            parity=self.line.parity, stopbits=self.line.stopbits, databits=self.line.databits,
+            time_source="net" if net else "read", t0_ns=time.monotonic_ns(), wall_anchor_ns=time.time_ns(),
         )
-        self.info.extra["gateway"] = {"url": self.port, "scheme": self.port.split(":", 1)[0].lower()}
+        if net:
+            self.info.extra["gateway"] = {"url": self.port, "scheme": self.port.split(":", 1)[0].lower()}
+        else:
+            self.info.extra["reader"] = {"via": "pyserial"}
         self._thread = threading.Thread(target=self._run, name=f"net-reader {self.port}", daemon=True)
         self._thread.start()
         return self.info
@@ -92,7 +106,7 @@ class NetSource:
         if t is not None and t is not threading.current_thread():
             t.join(timeout=5)
 
-    def __enter__(self) -> "NetSource":
+    def __enter__(self) -> "PyserialLine":
         self.open()
         return self
 
@@ -196,11 +210,15 @@ class NetSource:
             self.lost_since_ns = None
             self.hub.lost(self)
             with self.hub.clock:
-                self.hub.push(Gap(lost, back, f"gateway connection lost ({reason}), reconnected", self.link))
+                self.hub.push(Gap(lost, back, f"{self._what} lost ({reason}), reconnected", self.link))
             return
         with self.hub.clock:
             self.hub.push(Gap(lost, time.monotonic_ns(),
-                              f"gateway connection lost ({reason}), capture stopped before it returned", self.link))
+                              f"{self._what} lost ({reason}), capture stopped before it returned", self.link))
+
+    @property
+    def _what(self) -> str:
+        return "gateway connection" if is_url(self.port) else "port"
 
     def _close(self) -> None:
         conn, self._conn = self._conn, None
@@ -219,5 +237,7 @@ def _is_socket(conn) -> bool:
 
 def _text(e: BaseException) -> str:
     text = str(e) or type(e).__name__
-    # pyserial says "could not open port socket://h:p: [Errno 111] Connection refused"; the URL is said already
-    return text.split(": ", 1)[1] if text.startswith("could not open port") and ": " in text else text
+    # pyserial says "Could not open port socket://h:p: [Errno 111] Connection refused"; the URL is said already
+    if text.lower().startswith("could not open port ") and ": " in text[20:]:
+        text = text[20:].split(": ", 1)[1]
+    return text
