@@ -84,6 +84,12 @@ class Gap:
 Event = Chunk | Tick | Gap
 
 
+# How a capture's (and each frame's) times were taken: per byte (a logic analyzer, the simulator), per read
+# of a local adapter, per read of a network connection to a gateway (sources/pyserial_line.py), or not at all
+TIME_SOURCES = ("byte", "read", "net", "none")
+PER_READ = ("read", "net")  # times of a read of several bytes: a frame's start is estimated back from it
+
+
 @dataclass(slots=True)
 class CaptureInfo:
     """Metadata of a capture: written to MCAP, read back on replay."""
@@ -94,7 +100,7 @@ class CaptureInfo:
     parity: str | None = None  # "N", "E", "O"
     stopbits: int | None = None
     databits: int = 8
-    time_source: str = "byte"  # "byte" or "read" (see Chunk); "none": frames typed in, no real time
+    time_source: str = "byte"  # one of TIME_SOURCES
     t0_ns: int = 0  # capture start on the monotonic clock; JSONL `t` counts from here
     wall_anchor_ns: int = 0  # wall-clock ns (Unix epoch) at t0_ns
     low_latency: dict = field(default_factory=dict)

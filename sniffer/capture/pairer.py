@@ -63,6 +63,7 @@ import re
 
 from sniffer import codes
 from sniffer.codes import note
+from sniffer.events import PER_READ
 from sniffer.frame import CAN_REQ, CAN_RSP, REQUEST, RESPONSE, UNKNOWN, Frame
 from sniffer.protocols import PROTOCOLS
 from collections import deque
@@ -199,7 +200,7 @@ class Pairer:
             # with its request has no measurable turnaround (latency stays null; the
             # frame's time_source "read" says why)
             # frames typed in (`sniffer decode`, time source "none") have no time to measure
-            if f.time_source != "none" and not (f.time_source == "read" and lat <= 0):
+            if f.time_source != "none" and not (f.time_source in PER_READ and lat <= 0):
                 # to the microsecond, as the frame record has it: a viewer that reads the record and
                 # one that has the frame show the same figure (rounding twice could differ)
                 f.latency_ms = round(lat / 1e6, 3)

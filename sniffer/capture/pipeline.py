@@ -68,8 +68,8 @@ class Pipeline:
         self.registry = registry
         self.sinks = list(sinks)
         self.framer = protocols.get(protocol).framer(line)
-        if info.time_source == "none":  # no real time in the input: no latency, no silence verdicts
-            self.framer.time_source = "none"
+        if info.time_source in ("none", "net"):  # no real time / every read's time after a network: said per frame
+            self.framer.time_source = info.time_source
         self.pairer = Pairer(timeout_ms, unit_timeouts)
         self.frames_out = 0
         self.bytes_in = 0

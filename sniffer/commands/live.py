@@ -31,7 +31,8 @@ def add_parser(subparsers) -> None:
                   "sniffer live /dev/ttyUSB0 --bus line.toml --headless --format jsonl > line.jsonl",
                   "sniffer live /dev/ttyUSB0 --bus line.toml --wait-port --headless --quiet --rotate 1h "
                   "--keep 14d --out /var/lib/sniffer/cab3",
-                  "sniffer live --bus plant.toml --out plant.mcap        # the [[links]] of a bus file"])
+                  "sniffer live --bus plant.toml --out plant.mcap        # the [[links]] of a bus file",
+                  "sniffer live socket://10.0.0.7:4001 --baud 19200 --parity E   # behind a gateway (rfc2217:// too)"])
     port_flags(p)
     serial_flags(p, "live")
     logic_flags(p, live=True)
@@ -49,6 +50,7 @@ def add_parser(subparsers) -> None:
 
 def run(spec: CaptureSpec, args) -> int:
     from sniffer.sources.logic_options import is_device
+    from sniffer.sources.pyserial_line import reads_through_pyserial
 
     if not spec.port:
         raise UsageError("live: give a PORT (several for several links), --tap PORT_A PORT_B, "
@@ -57,6 +59,8 @@ def run(spec: CaptureSpec, args) -> int:
         raise UsageError("a logic analyzer (sigrok:DRIVER) is one capture of its own: give it alone")
     if is_device(spec.port) or spec.logic is not None:
         return _live_logic(spec)
+    if any(reads_through_pyserial(p) for plan in spec.links for p in plan.ports) or reads_through_pyserial(spec.port):
+        return _live_pyserial(spec, args)
     need_posix_tty("live (reading a serial port)")
     from sniffer.processes.reader import live_source
 
@@ -81,6 +85,28 @@ def run(spec: CaptureSpec, args) -> int:
         return run_capture_tui(spec, "live", spec.port)
     source = live_source("serial", spec.port, line)
     return run_capture(spec, source, spec.port, inputs=[spec.port], status_label=f"live {spec.port}")
+
+
+def _live_pyserial(spec: CaptureSpec, args) -> int:
+    """`live rfc2217://HOST:PORT` or `socket://HOST:PORT` (a line behind a gateway), or a COM port on Windows: read
+    by pyserial alone, in this process (sources/pyserial_line.py: no termios, no reader process)."""
+    from sniffer.sources.pyserial_line import PyserialLine, is_url
+
+    if spec.links:
+        raise UsageError("a gateway's line (rfc2217:// or socket://) or a port read by pyserial is one capture of "
+                         "its own: give it alone")
+    if not args.no_out and not spec.out and not args.spec_from_stdin:
+        name = default_capture_name()
+        spec = spec.with_(out=name[:-5] if spec.rotate is not None else name)
+    line = spec.resolve(None, need_baud=False).line
+    if tui_wanted(spec):
+        from sniffer.tui.run import run_capture_tui
+
+        return run_capture_tui(spec, "live", spec.port)
+    source = PyserialLine(spec.port, line)
+    return run_capture(spec, source, spec.port, status_label=f"live {spec.port}",
+                       what=lambda: f"capturing {spec.port}" + (" through its gateway (network read times)"
+                                                                 if is_url(spec.port) else ""))
 
 
 def _live_logic(spec: CaptureSpec) -> int:

@@ -18,6 +18,7 @@ import math
 
 from sniffer.diagnose.codesets import LATE, RETRY, UNANSWERED
 from sniffer.codes import WARNING
+from sniffer.events import PER_READ
 from sniffer.diagnose.state import Group, Link, Unit
 from sniffer.diagnose.finding import Finding
 from sniffer.diagnose.stats import Quantiles, spearman
@@ -156,7 +157,7 @@ class TimingGroup(Group):
         a = sorted(ys[:third])[third // 2]
         b = sorted(ys[-third:])[third // 2]
         ratio = b / a if a > 0 else 1.0
-        per_read = link.time_sources.get("read", 0) > link.time_sources.get("byte", 0)
+        per_read = sum(link.time_sources.get(s, 0) for s in PER_READ) > link.time_sources.get("byte", 0)
         least = max(1.0, 2 * link.char_ns / 1e6) * (3 if per_read else 1)  # ms: read times blur a small shift
         if p > DRIFT_P or abs(b - a) < least or not (ratio >= DRIFT_RATIO or ratio <= 1 / DRIFT_RATIO):
             return None

@@ -27,6 +27,7 @@ from __future__ import annotations
 import msgspec
 
 from sniffer.codes import Annotation
+from sniffer.events import TIME_SOURCES
 from sniffer.frame import Frame
 from sniffer.protocols import NAMES, TABLES, of_frame
 
@@ -185,7 +186,7 @@ FRAME_SCHEMA = {
         "latency_ms": _NULLABLE_NUM,
         "pair": _NULLABLE_INT,
         "summary": {"type": "string"},
-        "time_source": {"type": "string", "enum": ["byte", "read", "none"]},
+        "time_source": {"type": "string", "enum": list(TIME_SOURCES)},
         "channel": {"type": "string"},
         "noise_reason": {"type": ["string", "null"]},
         "link": {"type": "string", "description": "the link's name; only in a capture of several links"},

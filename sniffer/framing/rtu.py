@@ -175,7 +175,7 @@ class RtuFramer(Crc16Framing, LineBuffer):
             t1 = c0.t_ns - (end0 - e) * char
             if can == 3 and raw[1] < 5:  # 01-04 in 8 bytes with byte count 3: the bytes may decide the role
                 can = roles(raw[:-2], can)[0]
-            fr = Frame(index, t0, t1, raw, "modbus-rtu", raw[0], raw[1], can, True, None, "read",
+            fr = Frame(index, t0, t1, raw, "modbus-rtu", raw[0], raw[1], can, True, None, self.time_source or "read",
                        None if prev_end is None else t0 - prev_end, None, c0.channel)
             fr.adu = raw[:-2]
             out.append(fr)

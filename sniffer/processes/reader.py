@@ -37,7 +37,7 @@ from collections.abc import Iterator
 from sniffer.processes.pipes import child_env, pipe_message, pipe_size, read_messages, write_all
 from sniffer.events import CaptureInfo, Chunk, Gap, Tick, read_fields
 from sniffer.events import CaptureError
-from sniffer.sources.serial_live import Hub, ReaderEnd
+from sniffer.sources.hub import Hub, ReaderEnd
 
 READER_ENV = "SNIFFER_READER"  # "thread": readers in the capture's own process
 PIPE_BYTES = 1 << 20  # the events the capture may be behind before a reader waits for it

@@ -22,6 +22,8 @@ TIME_SOURCES = {
     "byte": "timestamps per byte (a logic analyzer or the simulator): turnaround measured",
     "read": "timestamps per USB read: turnaround estimated from the read times and the baud rate (a response in "
             "the same read as its request has none)",
+    "net": "timestamps per network read (a gateway's rfc2217:// or socket:// line): after the gateway's packing "
+           "and the network, so a turnaround is estimated as for a USB read and missing more often",
     "none": "no timestamps (frames typed in): no turnaround",
 }
 

@@ -63,7 +63,6 @@ import select
 import sys
 import threading
 import time
-from collections import deque
 from collections.abc import Iterator
 
 from sniffer.events import CaptureInfo, Chunk, Gap, Tick
@@ -72,6 +71,7 @@ from sniffer.sources.lowlatency import request_low_latency
 from sniffer.events import CaptureError
 from sniffer.sources.reader_priority import raise_reader
 from sniffer.sources.serial_port import open_read_only
+from sniffer.sources.hub import Hub, PortLostError, ReaderEnd  # noqa: F401 - PortLostError: raised here, imported from here
 
 READ_SIZE = 4096
 STALL_TICKS = 4  # the port unseen for longer than this many ticks: the reader stalled (a Chunk's unseen_ns)
@@ -79,59 +79,6 @@ READER_SWITCH_S = 0.0001  # the longest the reader waits for the interpreter aft
 PORT_POLL_S = 0.2  # how often a lost port is looked for, and a live one's path checked
 # Errors that mean "the adapter went away", not "this program is broken".
 LOST_ERRNOS = {errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF}
-
-
-class PortLostError(CaptureError):
-    """The port went away during a capture and reconnect was off."""
-
-
-class ReaderEnd:
-    """A reader's last item: its source (whose `_error`, if any, the consumer raises)."""
-
-    __slots__ = ("source",)
-
-    def __init__(self, source) -> None:
-        self.source = source
-
-
-class Hub:
-    """Where reader threads hand over their events: one queue, in time order (see the module doc).
-
-    A reader holds `clock` from taking an event's time until the event is queued.  Ticks of one
-    link that the consumer has not taken yet are kept as the latest only.
-    """
-
-    def __init__(self) -> None:
-        self.clock = threading.Lock()
-        self._queue: deque = deque()
-        self._cond = threading.Condition()
-
-    def push(self, item) -> None:
-        with self._cond:
-            q = self._queue
-            if type(item) is Tick and q and type(q[-1]) is Tick and q[-1].link == item.link:
-                q[-1] = item  # consumer is behind: only the latest silence matters
-            else:
-                q.append(item)
-            self._cond.notify()
-
-    def lost(self, reader: "SerialSource") -> None:
-        """`reader`'s port went away (its lost_since_ns set) or came back (None): nothing here (a reader
-        process tells its capture, processes/reader.py)."""
-
-    def events(self, readers: int) -> Iterator[Chunk | Tick | Gap]:
-        """Every queued event until `readers` readers have ended; a reader's error is raised."""
-        while readers:
-            with self._cond:
-                while not self._queue:
-                    self._cond.wait(0.1)
-                item = self._queue.popleft()
-            if type(item) is ReaderEnd:
-                readers -= 1
-                if item.source._error is not None:
-                    raise item.source._error
-                continue
-            yield item
 
 
 class SerialSource:

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import msgspec
 
-from sniffer.events import CaptureInfo, Chunk, Gap, Tick
+from sniffer.events import TIME_SOURCES, CaptureInfo, Chunk, Gap, Tick
 from sniffer.formats.records import FRAME_SCHEMA
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -96,7 +96,7 @@ CAPTURE_SCHEMA = {
         "parity": {"type": ["string", "null"]},
         "stopbits": {"type": ["integer", "null"]},
         "databits": {"type": "integer"},
-        "time_source": {"type": "string", "enum": ["byte", "read", "none"]},
+        "time_source": {"type": "string", "enum": list(TIME_SOURCES)},
         "t0_ns": {"type": "integer"},
         "wall_anchor_ns": {"type": "integer"},
         "low_latency": {"type": "object"},
