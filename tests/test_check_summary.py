@@ -185,7 +185,7 @@ def test_ignore_does_not_hide_another_field(tmp_path, capsys):
     assert "Output voltage 1" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("jobs", ["1", "2"])
+@pytest.mark.parametrize("jobs", ["1", pytest.param("2", marks=pytest.mark.slow)])  # 2: worker processes
 def test_rules_are_kept_in_the_golden_header(changed, tmp_path, jobs, capsys):
     g = tmp_path / "g.txt"
     assert cli.main(["check", str(TDS), "--golden", str(g), "--update-golden", "--jobs", jobs,

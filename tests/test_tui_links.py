@@ -27,10 +27,9 @@ LINKS = tuple(LINES)
 ROW = re.compile(r"^..\s*\d+\.\d{6} ")  # a row of the frame list (its time column)
 
 
-@functools.cache
-def _two_links():
-    """(info, frames, {link: registry}): two simulated lines of the default scenario (the same units,
-    other values, other speeds), their bytes merged by time and decoded as one capture of two links."""
+def two_link_events() -> tuple[CaptureInfo, list[Chunk]]:
+    """Two simulated lines of the default scenario (the same units, other values, other speeds), their bytes
+    merged by time: the info and events of one capture of two links."""
     events = []
     for seed, (name, line) in enumerate(LINES.items()):
         events += [Chunk(c.t_ns, c.data, c.byte_t_ns, c.flags, "", name)
@@ -38,6 +37,13 @@ def _two_links():
     events.sort(key=lambda c: c.t_ns)
     info = CaptureInfo(links=[{"name": n, "ports": [], "tap": False, "baud": line.baud, "parity": line.parity,
                                "stopbits": line.stopbits} for n, line in LINES.items()])
+    return info, events
+
+
+@functools.cache
+def _two_links():
+    """(info, frames, {link: registry}): two_link_events decoded as one capture of two links."""
+    info, events = two_link_events()
     sink = TuiSink()
     session = Session(CaptureSpec(), EventSource(info, events), [sink])
     session.run()

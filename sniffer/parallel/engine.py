@@ -252,7 +252,8 @@ class Engine:
 
     def _turn(self):
         """Take what can be taken; the next part in order if its pieces are here, "tail", or None."""
-        while (got := self._counted.get(self._check)) is not None:
+        # a part taken with no end closed the capture (its source's error): the parts after it are nothing
+        while self.truth.cut is not None and (got := self._counted.get(self._check)) is not None:
             k = self._check
             c, w = got
             if c == "tail":  # no quiet point follows this part's cut: the rest in order, once it is its turn

@@ -83,7 +83,7 @@ def exported_info(info: CaptureInfo | None, what: str, n: int) -> CaptureInfo:
 
 def frame_read(f: Frame) -> Chunk:
     """A frame's bytes as one read returned when its last byte ended (the MCAP export's /raw)."""
-    return Chunk(f.t_end_ns, f.raw, None, (), f.channel)
+    return Chunk(f.t_end_ns, f.raw, None, (), f.channel, f.link)
 
 
 class Export:
