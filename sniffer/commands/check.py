@@ -31,6 +31,9 @@ def add_parser(subparsers) -> None:
     input_flags(p)
     p.add_argument("--golden", required=True, metavar="FILE.txt", help="the reviewed golden decode")
     p.add_argument("--update-golden", action="store_true", help="rewrite the golden (review the diff!)")
+    p.add_argument("--allow-unfinished", action="store_true",
+                   help="with --update-golden: write the golden of a capture that was not closed cleanly (killed, "
+                        "or still being written: its frames up to the cut); without it, such a golden is refused")
     p.add_argument("--findings", action="store_true",
                    help="the golden holds the capture's findings (`sniffer diagnose`'s verdicts) after its frames: "
                         "written with --update-golden, compared whenever the golden holds them")
@@ -49,18 +52,21 @@ def run(spec: CaptureSpec, args) -> int:
     from sniffer.commands.common import jobs_for
 
     rc, text = check(spec.input, args.golden, spec=spec, update=args.update_golden, tolerances=tol,
-                     findings=args.findings, jobs=jobs_for(spec, args))
+                     findings=args.findings, jobs=jobs_for(spec, args), allow_unfinished=args.allow_unfinished)
     (sys.stdout if rc == 1 else sys.stderr).write(text)
     return rc
 
 
 def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
-          update: bool = False, findings: bool = False, jobs: int = 1) -> tuple[int, str]:
+          update: bool = False, findings: bool = False, jobs: int = 1, allow_unfinished: bool = False
+          ) -> tuple[int, str]:
     """(exit code, text): 0 same, 1 different (unified diff), 2 error (one line).  `findings`: the golden holds
     the capture's findings too (they are compared whenever the golden holds them).  `jobs` > 1: decoded by
-    parts in that many processes (sniffer.parallel), the same lines."""
+    parts in that many processes (sniffer.parallel), the same lines.  A capture not closed cleanly (cut short)
+    is said (the note `replay` prints); its golden is written only with `allow_unfinished`."""
     if jobs > 1:
-        return _check_parts(capture, golden, spec, tolerances or Tolerances(), update, jobs, findings)
+        return _check_parts(capture, golden, spec, tolerances or Tolerances(), update, jobs, findings,
+                            allow_unfinished)
     from decoders.registry import DeviceMapError
 
     from sniffer.line import SettingsError
@@ -89,7 +95,7 @@ def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
                     d = compare_lines(read_lines(golden), new, Tolerances(0, 0), (name, os.fspath(capture)))
                 for _ in new:  # decode what the comparison did not need
                     pass
-                err = _failed(session)
+                err = _failed(session) or _cut_short(session, allow_unfinished)
             finally:
                 sink.close()
                 if err:  # a golden from a damaged or failed decode would be wrong: keep the old one
@@ -112,6 +118,7 @@ def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
         err = _failed(session)
         if err:
             return EXIT_ERROR, f"sniffer check: error: {err}\n"
+        _cut_short(session, True)
     except (CaptureError, SettingsError, DeviceMapError, ValueError, OSError) as e:
         why = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.filename else str(e)
         return EXIT_ERROR, f"sniffer check: error: {why}\n"
@@ -119,7 +126,7 @@ def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
 
 
 def _check_parts(capture, golden, spec, tol: Tolerances, update: bool, jobs: int,
-                 findings: bool) -> tuple[int, str]:
+                 findings: bool, allow_unfinished: bool = False) -> tuple[int, str]:
     """check() with the capture decoded by parts: the golden lines come from the workers, in order (with the
     findings: the frames, through one diagnosis here, then its findings)."""
     from decoders.registry import DeviceMapError
@@ -159,6 +166,7 @@ def _check_parts(capture, golden, spec, tol: Tolerances, update: bool, jobs: int
             err = _failed(run)
             if err:
                 return EXIT_ERROR, f"sniffer check: error: {err}\n"
+            _cut_short(run, True)
             return (EXIT_DIFFERENT, d) if d else (EXIT_SAME, "")
         err = "interrupted"
         try:
@@ -174,7 +182,7 @@ def _check_parts(capture, golden, spec, tol: Tolerances, update: bool, jobs: int
                     d = compare_lines(read_lines(golden), new, Tolerances(0, 0), names)
                 for _ in new:
                     pass
-            err = _failed(run)
+            err = _failed(run) or _cut_short(run, allow_unfinished)
         finally:
             if err:
                 out.discard()
@@ -195,6 +203,21 @@ def _failed(session) -> str | None:
     if session.damage:
         return f"{session.damage[0]} (input damaged: {len(session.damage)} problem(s))"
     return None
+
+
+def _cut_short(session, allowed: bool) -> str | None:
+    """A capture not closed cleanly: its note (as `replay` says it), and unless `allowed`, why its golden is not
+    written (a golden of the frames up to a cut would pass later checks of the same cut file, and miss the rest)."""
+    from sniffer.commands.replay import note_unfinished, unfinished_paths
+
+    paths = unfinished_paths(session)
+    if not paths:
+        return None
+    note_unfinished(session)
+    if allowed:
+        return None
+    return (f"{paths[0]}: not closed cleanly (cut short): no golden written from it; give --allow-unfinished to "
+            "write the golden of the frames up to the cut")
 
 
 def holds_findings(path: Path) -> bool:
