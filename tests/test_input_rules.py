@@ -271,7 +271,7 @@ def test_probe_of_a_refused_port_is_one_line():
         probe(parse_address(f"tcp://127.0.0.1:{port}", "--dask"), "--dask", reply=8)
 
 
-@pytest.mark.parametrize("text", ["x", "tcp://", "tcp://[::1", "tcp://host:99999"])
+@pytest.mark.parametrize("text", ["tcp://", "tcp://[::1", "tcp://host:99999", "tcp://[::1]x", "udp://h:1"])
 def test_ingest_dask_malformed_is_one_line(text, tmp_path, capsys):
     pytest.importorskip("distributed")
     (tmp_path / "in").mkdir()
