@@ -50,6 +50,9 @@ def add_parser(subparsers) -> None:
     input_flags(p)
     p.add_argument("--golden", required=True, metavar="FILE.txt", help="the reviewed golden decode")
     p.add_argument("--update-golden", action="store_true", help="rewrite the golden (review the diff!)")
+    p.add_argument("--allow-unfinished", action="store_true",
+                   help="with --update-golden: write the golden of a capture that was not closed cleanly (killed, "
+                        "or still being written: its frames up to the cut); without it, such a golden is refused")
     p.add_argument("--findings", action="store_true",
                    help="the golden holds the capture's findings (`sniffer diagnose`'s verdicts) after its frames: "
                         "written with --update-golden, compared whenever the golden holds them")
@@ -91,7 +94,7 @@ def run(spec: CaptureSpec, args) -> int:
     rules = FieldRules(tuple(args.ignore), tuple(args.tolerance))
     o = check_outcome(spec.input, args.golden, spec=spec, update=args.update_golden, findings=args.findings,
                       jobs=jobs_for(spec, args), time_ms=args.time_tol_ms, latency_ms=args.latency_tol_ms,
-                      rules=rules)
+                      rules=rules, allow_unfinished=args.allow_unfinished)
     if args.junit:
         from sniffer.formats.junit import write_junit
 
@@ -117,14 +120,14 @@ def run(spec: CaptureSpec, args) -> int:
     return o.rc
 
 
-def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
-          update: bool = False, findings: bool = False, jobs: int = 1, diff: bool = False) -> tuple[int, str]:
+def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None, update: bool = False,
+          findings: bool = False, jobs: int = 1, diff: bool = False, allow_unfinished: bool = False) -> tuple[int, str]:
     """(exit code, text): 0 same (`ok: ...`), 1 different (the summary; with `diff` the unified diff after it),
     2 error (one line).  `tolerances`: as given (else the golden header's, else the defaults)."""
     t = tolerances
     o = check_outcome(capture, golden, spec=spec, update=update, findings=findings, jobs=jobs,
                       time_ms=t.time_ms if t else None, latency_ms=t.latency_ms if t else None,
-                      rules=t.rules if t else FieldRules())
+                      rules=t.rules if t else FieldRules(), allow_unfinished=allow_unfinished)
     if o.rc == EXIT_DIFFERENT:
         return o.rc, o.summary.text(diff)
     return o.rc, o.message
@@ -132,10 +135,11 @@ def check(capture, golden, *, spec=None, tolerances: Tolerances | None = None,
 
 def check_outcome(capture, golden, *, spec=None, update: bool = False, findings: bool = False, jobs: int = 1,
                   time_ms: float | None = None, latency_ms: float | None = None,
-                  rules: FieldRules = NO_RULES) -> Outcome:
+                  rules: FieldRules = NO_RULES, allow_unfinished: bool = False) -> Outcome:
     """Check `capture` against `golden` (or rewrite it): the Outcome.  `findings`: the golden holds the capture's
     findings too (they are compared whenever the golden holds them).  `jobs` > 1: decoded by parts in that
-    many processes (sniffer.parallel), the same lines."""
+    many processes (sniffer.parallel), the same lines.  A capture not closed cleanly (cut short) is said (the
+    note `replay` prints); its golden is written only with `allow_unfinished`."""
     from decoders.registry import DeviceMapError
 
     from sniffer.events import CaptureError
@@ -147,8 +151,8 @@ def check_outcome(capture, golden, *, spec=None, update: bool = False, findings:
         if jobs > 1:
             if not update and not golden.exists():
                 return _no_golden(golden)
-            return _check_parts(capture, golden, spec, tol, update, jobs, findings)
-        return _check_one(capture, golden, spec, tol, update, findings)
+            return _check_parts(capture, golden, spec, tol, update, jobs, findings, allow_unfinished)
+        return _check_one(capture, golden, spec, tol, update, findings, allow_unfinished)
     except (CaptureError, SettingsError, DeviceMapError, ValueError, OSError) as e:
         why = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.filename else str(e)
         return Outcome(EXIT_ERROR, message=f"sniffer check: error: {why}\n")
@@ -171,7 +175,8 @@ def _verdict(s: CheckSummary, err: str | None) -> Outcome:
     return Outcome(EXIT_DIFFERENT, s)
 
 
-def _check_one(capture, golden: Path, spec, tol: Tolerances, update: bool, findings: bool) -> Outcome:
+def _check_one(capture, golden: Path, spec, tol: Tolerances, update: bool, findings: bool,
+               allow_unfinished: bool = False) -> Outcome:
     from sniffer.capture.session import decode_capture
     from sniffer.formats.outputs import Output
 
@@ -188,7 +193,10 @@ def _check_one(capture, golden: Path, spec, tol: Tolerances, update: bool, findi
         else:
             new = golden_lines(session.info.t0_ns, frames, version)
         s = summarize(read_lines(golden), new, tol, _names(capture, golden), names)
-        return _verdict(s, _failed(session))
+        err = _failed(session)
+        if not err:
+            _cut_short(session, True)
+        return _verdict(s, err)
     golden.parent.mkdir(parents=True, exist_ok=True)  # a new golden folder is part of --update-golden
     out = Output(golden, inputs=[capture, *(spec.read_paths() if spec else ())], what="--golden")
     sink = GoldenSink(out, options_line(tol))
@@ -206,7 +214,7 @@ def _check_one(capture, golden: Path, spec, tol: Tolerances, update: bool, findi
             d = summarize(read_lines(golden), new, Tolerances(0, 0), _names(capture, golden), names).diff
         for _ in new:  # decode what the comparison did not need
             pass
-        err = _failed(session)
+        err = _failed(session) or _cut_short(session, allow_unfinished)
     finally:
         sink.close()
         if err:  # a golden from a damaged or failed decode would be wrong: keep the old one
@@ -219,7 +227,7 @@ def _check_one(capture, golden: Path, spec, tol: Tolerances, update: bool, findi
 
 
 def _check_parts(capture, golden: Path, spec, tol: Tolerances, update: bool, jobs: int,
-                 findings: bool) -> Outcome:
+                 findings: bool, allow_unfinished: bool = False) -> Outcome:
     """The check with the capture decoded by parts: the golden lines come from the workers, in order (with the
     findings: the frames, through one diagnosis here, then its findings)."""
     from sniffer.formats.outputs import Output
@@ -256,7 +264,10 @@ def _check_parts(capture, golden: Path, spec, tol: Tolerances, update: bool, job
 
     if out is None:
         s = summarize(read_lines(golden), lines(), tol, _names(capture, golden), names)
-        return _verdict(s, _failed(run))
+        err = _failed(run)
+        if not err:
+            _cut_short(run, True)
+        return _verdict(s, err)
     err = "interrupted"
     try:
         with open(out.claim(), "w", encoding="utf-8") as fh:
@@ -271,7 +282,7 @@ def _check_parts(capture, golden: Path, spec, tol: Tolerances, update: bool, job
                 d = summarize(read_lines(golden), new, Tolerances(0, 0), _names(capture, golden), names).diff
             for _ in new:
                 pass
-        err = _failed(run)
+        err = _failed(run) or _cut_short(run, allow_unfinished)
     finally:
         if err:
             out.discard()
@@ -296,6 +307,21 @@ def _failed(session) -> str | None:
     if session.damage:
         return f"{session.damage[0]} (input damaged: {len(session.damage)} problem(s))"
     return None
+
+
+def _cut_short(session, allowed: bool) -> str | None:
+    """A capture not closed cleanly: its note (as `replay` says it), and unless `allowed`, why its golden is not
+    written (a golden of the frames up to a cut would pass later checks of the same cut file, and miss the rest)."""
+    from sniffer.commands.replay import note_unfinished, unfinished_paths
+
+    paths = unfinished_paths(session)
+    if not paths:
+        return None
+    note_unfinished(session)
+    if allowed:
+        return None
+    return (f"{paths[0]}: not closed cleanly (cut short): no golden written from it; give --allow-unfinished to "
+            "write the golden of the frames up to the cut")
 
 
 def holds_findings(path: Path) -> bool:

@@ -114,12 +114,20 @@ def _rotate(spec: CaptureSpec, source) -> int:
     return report(session, label=spec.input)
 
 
+def unfinished_paths(session: Session) -> list[str]:
+    """The input files of `session` (or a parallel run's) not closed cleanly, as read so far."""
+    session = getattr(session, "session", session)
+    paths = list(getattr(session.source, "unfinished", None) or ())
+    if not paths and session.info is not None and session.info.extra.get("mcap_unfinished"):
+        paths = [session.spec.input]
+    return paths
+
+
 def note_unfinished(session: Session) -> None:
     """A note for each input file not closed cleanly, once: called when the session opens, and again when it
     ends (a rotated capture's segments are opened only as the reading reaches them)."""
-    paths = list(getattr(session.source, "unfinished", None) or ())
-    if not paths and session.info.extra.get("mcap_unfinished"):
-        paths = [session.spec.input]
+    paths = unfinished_paths(session)
+    session = getattr(session, "session", session)
     said = session.__dict__.setdefault("unfinished_said", set())
     for path in paths:
         if path in said:

@@ -74,11 +74,14 @@ def parse_address(text: str, what: str, schemes: tuple[str, ...] = ("tcp",), def
     return Address(scheme, host, int(port_text))
 
 
-def probe(addr: Address, what: str, reply: int = 0, *, connect_timeout: float = CONNECT_TIMEOUT_S,
-          reply_timeout: float = REPLY_TIMEOUT_S) -> bytes:
+def probe(addr: Address, what: str, reply: int = 0, *, connect_timeout: float | None = None,
+          reply_timeout: float | None = None) -> bytes:
     """Connect to `addr` within `connect_timeout`; with `reply` > 0, read the peer's first `reply` bytes within
     `reply_timeout` (a server that speaks first, as a Dask scheduler does).  InputError (one line) for a name
-    that does not resolve, a refused or silent connect, a peer that says nothing or hangs up."""
+    that does not resolve, a refused or silent connect, a peer that says nothing or hangs up.  The timeouts:
+    CONNECT_TIMEOUT_S and REPLY_TIMEOUT_S unless given."""
+    connect_timeout = CONNECT_TIMEOUT_S if connect_timeout is None else connect_timeout
+    reply_timeout = REPLY_TIMEOUT_S if reply_timeout is None else reply_timeout
     try:
         sock = socket.create_connection((addr.host, addr.port), timeout=connect_timeout)
     except socket.gaierror as e:

@@ -27,7 +27,8 @@ _READ_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, EOFError, 
                 RuntimeError, NotImplementedError)
 
 
-def _size(n: int) -> str:
+def size_text(n: int) -> str:
+    """1610612736 -> '1.5 GiB' (what a cap or a member's size says in an error)."""
     for unit, shift in (("GiB", 30), ("MiB", 20), ("kiB", 10)):
         if n >= 1 << shift:
             return f"{n / (1 << shift):.1f} {unit}"
@@ -76,11 +77,11 @@ class Archive:
             raise InputError(f"{self.path}: member {name!r} is compressed with method {info.compress_type} "
                              f"(only stored and deflate are read)")
         if info.file_size > cap:
-            raise InputError(f"{self.path}: member {name!r} inflates to {_size(info.file_size)}, over the "
-                             f"{_size(cap)} this reader takes")
+            raise InputError(f"{self.path}: member {name!r} inflates to {size_text(info.file_size)}, over the "
+                             f"{size_text(cap)} this reader takes")
         if info.file_size > self.max_ratio * max(info.compress_size, 1) and info.file_size > 1 << 16:
-            raise InputError(f"{self.path}: member {name!r} claims {_size(info.file_size)} from "
-                             f"{_size(info.compress_size)} (over {self.max_ratio}:1, more than deflate can reach)")
+            raise InputError(f"{self.path}: member {name!r} claims {size_text(info.file_size)} from "
+                             f"{size_text(info.compress_size)} (over {self.max_ratio}:1, more than deflate can reach)")
         return info
 
     def read(self, name: str, cap: int) -> bytes:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 from sniffer.events import CaptureError
 from sniffer.inputs import Archive, open_regular
+from sniffer.inputs.archive import size_text
 
 BLOCK = 1 << 20  # bytes of samples handed out at a time
 WHAT = "a sigrok session file"
@@ -95,7 +96,7 @@ def _member_order(name: str, prefix: str) -> int | None:
     if name == prefix:
         return 0
     head, _, n = name.rpartition("-")
-    return int(n) if head == prefix and n.isdigit() else None
+    return int(n) if head == prefix and n.isdigit() and int(n) > 0 else None  # sigrok counts from 1
 
 
 def read_meta(path: str | os.PathLike[str]) -> SrMeta:
@@ -147,8 +148,8 @@ def read_meta(path: str | os.PathLike[str]) -> SrMeta:
     if not members or total < unitsize:
         raise CaptureError(f"{p}: no logic samples in it")
     if total > MAX_SAMPLE_BYTES:
-        raise CaptureError(f"{p}: {total:,} bytes of samples inflated, over the {MAX_SAMPLE_BYTES >> 30} GiB this "
-                           f"reader takes (cut it with sigrok-cli -i {os.path.basename(p)} --samples N -o part.sr)")
+        raise CaptureError(f"{p}: {size_text(total)} of samples inflated, over the {size_text(MAX_SAMPLE_BYTES)} "
+                           "this reader takes (record shorter captures: each is decoded on its own)")
     return SrMeta(p, rate, dict(sorted(channels.items(), key=lambda kv: kv[1])), unitsize,
                   tuple(name for _, name, _ in members), total // unitsize)
 
