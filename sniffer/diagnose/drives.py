@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 from sniffer.codes import ERROR, WARNING
 from sniffer.diagnose.codesets import FAULT, UART
 from sniffer.diagnose.state import Group, Link, Unit
+from sniffer.diagnose.episodes import Episode
 from sniffer.diagnose.finding import Finding
 from sniffer.diagnose.stats import two_proportions
 
@@ -186,6 +187,7 @@ class DrivesGroup(Group):
                           "frames_below": n_lo, "damaged_below": b_lo, "rate_above": round(b_hi / n_hi, 4),
                           "rate_below": round(b_lo / n_lo, 4)},
                 statistic={"test": "two-proportion z test, one-sided", "z": round(z, 2), "p": p},
+                episodes=link.damage.episodes(d.seconds, "damaged frames"),
                 frames=self.examples.get((name, unit), []),
                 text=f"The line's errors follow unit {unit}'s output frequency: {b_hi / n_hi:.1%} of the frames are "
                      f"damaged while it runs above {level:.1f} {eng}".rstrip() + f", {b_lo / n_lo:.1%} below: "
@@ -220,11 +222,7 @@ class DrivesGroup(Group):
             still = [e for e in episodes if not e.closed]
             faults = ", ".join(f"{t} ({c}x)" if c > 1 else t for t, _, c in sorted(rows, key=lambda r: -r[2]))
             ev = {"trips": n, "faults": {t: c for t, _, c in rows},
-                  "tripped_s": round(sum(e.end_ns - e.start_ns for e in episodes) / 1e9, 2), "writes_during": writes,
-                  "episodes": [{"fault": e.text, "from_s": round(d.seconds(e.start_ns), 3),
-                                "to_s": round(d.seconds(e.end_ns), 3), "writes": e.writes,
-                                "reset": None if not (e.closed and e.last_write) else f"#{e.last_write[0]}"}
-                               for e in episodes[:3] + episodes[3:][-3:]]}
+                  "tripped_s": round(sum(e.end_ns - e.start_ns for e in episodes) / 1e9, 2), "writes_during": writes}
             if written:
                 ev["written_during"] = written
             tail = "; still tripped at the end of the capture" if still else ""
@@ -233,13 +231,22 @@ class DrivesGroup(Group):
             first, last = episodes[0], episodes[-1]
             out.append(Finding(
                 "drive_fault", ERROR, unit=unit, link=name, t_start=d.seconds(first.start_ns),
-                t_end=d.seconds(last.end_ns), evidence=ev,
+                t_end=d.seconds(last.end_ns), evidence=ev, episode_count=n,
+                episodes=[Episode(d.seconds(e.start_ns), d.seconds(e.end_ns), max(e.writes, 0),
+                                  _trip_words(e)) for e in episodes],
                 frames=[e.first for e in episodes[:4]] + [r[0] for r in resets[:2]],
                 text=f"Unit {unit} tripped {n} time(s): {faults}; first at {d.seconds(first.start_ns):.1f} s"
                      f"{during}{reset}{tail}.",
                 action=f"Look up {rows[0][0].split(' (')[0]} (and the others) in the drive's manual and remove the "
                        f"cause; a PLC that resets the drive and runs it again at once only repeats the trip."))
         return out
+
+
+def _trip_words(e: _Episode) -> str:
+    """What an episode's count counts: the master's writes while tripped, the fault and its reset."""
+    reset = f", reset by #{e.last_write[0]}" if e.closed and e.last_write else (
+        "" if e.closed else ", still tripped at the end")
+    return f"writes while tripped; {_short(e.text, 40)}{reset}"
 
 
 def _load_register(link: Link, unit: int) -> int | None:

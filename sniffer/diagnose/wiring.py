@@ -287,7 +287,7 @@ class WiringGroup(Group):
             evidence={"stray_bursts": s["short"], "per_frame": round(rate, 3),
                       "bytes_00_ff_or_flagged": round(min(floaty, 1.0), 3), "after_requests": s["after_request"],
                       "after_answers": s["after_answer"], "frames_crc_bad": round(damaged, 4)},
-            frames=s["frames"],
+            frames=s["frames"], episodes=link.damage.episodes(d.seconds, "stray bursts or damaged frames"),
             text=f"The idle line floats: after {rate:.0%} of the transmissions a stray character (00H with a framing "
                  f"error, FFH and the like) comes out of the released line, in turnarounds ({s['after_request']}) and "
                  f"idle gaps ({s['after_answer']}), while the frames themselves are intact.",
