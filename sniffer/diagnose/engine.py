@@ -31,12 +31,13 @@ class Diagnosis:
     """Frames in, findings out (see the module doc)."""
 
     def __init__(self, reference=None) -> None:
-        from sniffer.diagnose import drives, line, masters, params, polls, timing, units, wiring
+        from sniffer.diagnose import correlate, drives, line, masters, params, polls, timing, units, wiring
 
         self.t0_ns = 0
         self.links: dict[str, Link] = {}
         self.groups = [line.LineGroup(), wiring.WiringGroup(), units.UnitsGroup(), timing.TimingGroup(),
-                       masters.MastersGroup(), drives.DrivesGroup(), params.ParamsGroup(reference),
+                       masters.MastersGroup(), drives.DrivesGroup(), correlate.CorrelateGroup(),
+                       params.ParamsGroup(reference),
                        polls.PollsGroup()]
         self._resolved: dict = {}
         self._registries: dict = {}
