@@ -11,7 +11,8 @@
     line.py      wrong_line_settings                   wiring.py   driver_enable_late / _disable_early, bus_unbiased
     units.py     unit_silent, unit_refuses, answers_broadcast
     timing.py    timeout_too_short, latency_drift      masters.py  second_master, retry_storm
-    drives.py    drive_fault, noise_correlated_with_load
+    drives.py    drive_fault                           correlate.py  noise_correlated_with_load
+    episodes.py  when: windows of time, episodes
     params.py    params_not_saved, eeprom_wear, params_changed (reference.py: --params)
     polls.py     poll_cycle, poll_redundant
 

@@ -1,31 +1,25 @@
-"""What the drives do, against what the line does: drive_fault, noise_correlated_with_load.
+"""What the drives report: drive_fault.
 
 * drive_fault: the drive's model reports a trip (model.fault: its fault register, with the manual's
   text).  One trip is one episode: from the first answer that reports it to the first answer of the
   same read that no longer does; meanwhile the master's writes to the drive are counted (a run command
   written into a fault does nothing) and the last write before the episode ends is named (the reset);
-* noise_correlated_with_load: the line's damaged frames (CRC errors, UART flags, noise) counted against
-  a drive's decoded output frequency at the time (its last good reading): the rate of damage while
-  the drive runs above half its highest frequency seen, against the rate below, with a one-sided
-  two-proportion z test.  Only drives whose model names an "Output frequency" register take part.
+(noise_correlated_with_load, the line's damage against what the drives do: correlate.py)
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from sniffer.codes import ERROR, WARNING
-from sniffer.diagnose.codesets import FAULT, UART
+from sniffer.codes import ERROR
+from sniffer.diagnose.codesets import FAULT
 from sniffer.diagnose.state import Group, Link, Unit
+from sniffer.diagnose.episodes import Episode
 from sniffer.diagnose.finding import Finding
-from sniffer.diagnose.stats import two_proportions
 
 if TYPE_CHECKING:
     from sniffer.diagnose.engine import Diagnosis
 
-LOAD_NAME = "output frequency"
-LOAD_P = 1e-4
-MIN_BAD = 10
 _WRITES = frozenset((0x05, 0x06, 0x0F, 0x10))
 
 
@@ -49,25 +43,9 @@ class DrivesGroup(Group):
         self.open: dict[tuple, dict[str, _Episode]] = {}  # (link, unit) -> fault text -> episode
         self.done: dict[tuple, list[_Episode]] = {}  # (link, unit, text) -> episodes (first and last kept)
         self.counts: dict[tuple, int] = {}
-        self.load_addr: dict[tuple, int | None] = {}  # (link, unit) -> its output frequency register
-        self.load_now: dict[str, dict[int, float]] = {}  # link -> unit -> last reading
-        self.bins: dict[tuple, dict[int, list]] = {}  # (link, unit) -> bucket -> [frames, damaged]
-        self.top: dict[tuple, float] = {}
-        self.examples: dict[tuple, list[int]] = {}  # (link, unit) -> damaged frames while it ran high
-        self.eng_unit: dict[tuple, str] = {}  # (link, unit) -> the output frequency's unit (Hz, or % of its maximum)
 
     # ------------------------------------------------------------ frames
-    def noise(self, f, link: Link, codes: frozenset) -> None:
-        if self.load_now:
-            self._count(link, True, f.index)
-
-    def other(self, f, link: Link, unit: Unit | None, codes: frozenset) -> None:
-        if self.load_now:
-            self._count(link, _bad(f, codes), f.index)
-
     def request(self, f, link: Link, unit: Unit, codes: frozenset, key: tuple) -> None:
-        if self.load_now:
-            self._count(link, _bad(f, codes), f.index)
         if self.open and f.function in _WRITES:
             eps = self.open.get((link.name, unit.unit))
             if eps:
@@ -78,8 +56,6 @@ class DrivesGroup(Group):
                     e.last_write = (f.index, _short(f.summary))
 
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
-        if self.load_now:
-            self._count(link, _bad(f, codes), f.index)
         if unit is None or not f.crc_ok or (f.model is None or f.model == "generic") and not self.open and not codes:
             return
         key = (link.name, unit.unit)
@@ -87,8 +63,6 @@ class DrivesGroup(Group):
             self._faults(f, link, key, unit)
         elif key in self.open:
             self._maybe_close(f, link, key)
-        if f.writes and f.model and f.model != "generic" and self.load_addr.get(key, -1) is not None:
-            self._load(f, link, key)
 
     def _faults(self, f, link: Link, key: tuple, unit: Unit) -> None:
         got = link.request_of(f)
@@ -126,74 +100,9 @@ class DrivesGroup(Group):
         if len(lst) > 6:
             del lst[3]  # the first three and the latest ones
 
-    def _load(self, f, link: Link, key: tuple) -> None:
-        addr = self.load_addr.get(key, -1)
-        if addr == -1:
-            addr = self.load_addr[key] = _load_register(link, f.model)
-        if addr is None or f.function not in (0x03, 0x04):
-            return
-        for p in f.points:
-            if p.get("address") == addr and isinstance(p.get("value"), (int, float)):
-                v = float(p["value"])
-                self.load_now.setdefault(link.name, {})[key[1]] = v
-                self.eng_unit[key] = p.get("unit") or ""
-                self.top[key] = max(self.top.get(key, 0.0), v)
-                return
-
-    def _count(self, link: Link, bad: bool, index: int = -1) -> None:
-        now = self.load_now.get(link.name)
-        if not now:
-            return
-        for unit, v in now.items():
-            if bad and v > self.top.get((link.name, unit), 0.0) / 2:
-                ex = self.examples.setdefault((link.name, unit), [])
-                if len(ex) < 6:
-                    ex.append(index)
-            b = self.bins.setdefault((link.name, unit), {})
-            x = b.get(int(v))
-            if x is None:
-                x = b[int(v)] = [0, 0]
-            x[0] += 1
-            x[1] += bad
-
     # ------------------------------------------------------------ verdicts
     def findings(self, d: Diagnosis) -> list[Finding]:
-        out = self._trips(d)
-        best = None
-        for key, bins in self.bins.items():
-            top = self.top.get(key, 0.0)
-            if top <= 0:
-                continue
-            level = top / 2
-            hi = [x for v, x in bins.items() if v > level]
-            lo = [x for v, x in bins.items() if v <= level]
-            n_hi, b_hi = sum(x[0] for x in hi), sum(x[1] for x in hi)
-            n_lo, b_lo = sum(x[0] for x in lo), sum(x[1] for x in lo)
-            if b_hi + b_lo < MIN_BAD or not n_hi or not n_lo:
-                continue
-            z, p = two_proportions(b_hi, n_hi, b_lo, n_lo)
-            r_hi, r_lo = b_hi / n_hi, b_lo / n_lo
-            if p < LOAD_P and r_hi >= 2 * r_lo + 0.01 and (best is None or p < best[0]):
-                best = (p, key, z, level, n_hi, b_hi, n_lo, b_lo)
-        if best is not None:
-            p, (name, unit), z, level, n_hi, b_hi, n_lo, b_lo = best
-            link = d.links[name]
-            eng = self.eng_unit.get((name, unit), "")
-            out.append(Finding(
-                "noise_correlated_with_load", WARNING, unit=unit, link=name, t_start=d.seconds(link.first_ns),
-                t_end=d.seconds(link.last_ns),
-                evidence={"level": round(level, 2), "level_unit": eng, "frames_above": n_hi, "damaged_above": b_hi,
-                          "frames_below": n_lo, "damaged_below": b_lo, "rate_above": round(b_hi / n_hi, 4),
-                          "rate_below": round(b_lo / n_lo, 4)},
-                statistic={"test": "two-proportion z test, one-sided", "z": round(z, 2), "p": p},
-                frames=self.examples.get((name, unit), []),
-                text=f"The line's errors follow unit {unit}'s output frequency: {b_hi / n_hi:.1%} of the frames are "
-                     f"damaged while it runs above {level:.1f} {eng}".rstrip() + f", {b_lo / n_lo:.1%} below: "
-                     f"interference from its motor side.",
-                action=f"Check unit {unit}'s motor cable and screen (360-degree clamp at the drive, away from the "
-                       f"RS-485 cable), its EMC filter and earthing; route the bus cable apart and earth its screen "
-                       f"at one end."))
-        return out
+        return self._trips(d)
 
     def _trips(self, d: Diagnosis) -> list[Finding]:
         """One finding per drive: its faults (the manual's text), each episode from when to when, what the
@@ -220,11 +129,7 @@ class DrivesGroup(Group):
             still = [e for e in episodes if not e.closed]
             faults = ", ".join(f"{t} ({c}x)" if c > 1 else t for t, _, c in sorted(rows, key=lambda r: -r[2]))
             ev = {"trips": n, "faults": {t: c for t, _, c in rows},
-                  "tripped_s": round(sum(e.end_ns - e.start_ns for e in episodes) / 1e9, 2), "writes_during": writes,
-                  "episodes": [{"fault": e.text, "from_s": round(d.seconds(e.start_ns), 3),
-                                "to_s": round(d.seconds(e.end_ns), 3), "writes": e.writes,
-                                "reset": None if not (e.closed and e.last_write) else f"#{e.last_write[0]}"}
-                               for e in episodes[:3] + episodes[3:][-3:]]}
+                  "tripped_s": round(sum(e.end_ns - e.start_ns for e in episodes) / 1e9, 2), "writes_during": writes}
             if written:
                 ev["written_during"] = written
             tail = "; still tripped at the end of the capture" if still else ""
@@ -233,7 +138,9 @@ class DrivesGroup(Group):
             first, last = episodes[0], episodes[-1]
             out.append(Finding(
                 "drive_fault", ERROR, unit=unit, link=name, t_start=d.seconds(first.start_ns),
-                t_end=d.seconds(last.end_ns), evidence=ev,
+                t_end=d.seconds(last.end_ns), evidence=ev, episode_count=n,
+                episodes=[Episode(d.seconds(e.start_ns), d.seconds(e.end_ns), max(e.writes, 0),
+                                  _trip_words(e)) for e in episodes],
                 frames=[e.first for e in episodes[:4]] + [r[0] for r in resets[:2]],
                 text=f"Unit {unit} tripped {n} time(s): {faults}; first at {d.seconds(first.start_ns):.1f} s"
                      f"{during}{reset}{tail}.",
@@ -242,24 +149,15 @@ class DrivesGroup(Group):
         return out
 
 
-def _load_register(link: Link, model: str | None) -> int | None:
-    """The address of the register the unit's model (its frame's) names 'Output frequency' (None: no such one)."""
-    try:
-        rows = link.decoder(model).map.registers.values()
-    except AttributeError:
-        return None
-    for r in rows:
-        if (r.name or "").strip().lower() == LOAD_NAME:
-            return r.addr
-    return None
+def _trip_words(e: _Episode) -> str:
+    """What an episode's count counts: the master's writes while tripped, the fault and its reset."""
+    reset = f", reset by #{e.last_write[0]}" if e.closed and e.last_write else (
+        "" if e.closed else ", still tripped at the end")
+    return f"writes while tripped; {_short(e.text, 40)}{reset}"
 
 
 def _short(text: str, n: int = 60) -> str:
     return text if len(text) <= n else text[: n - 3].rstrip() + "..."
-
-
-def _bad(f, codes: frozenset) -> bool:
-    return f.crc_ok is False or bool(codes) and not UART.isdisjoint(codes)
 
 
 def _without_register(detail: str) -> str:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 
 from sniffer.codes import CRC_UNPROVEN
-from sniffer.diagnose.codesets import LATE, RETRY, UNANSWERED
+from sniffer.diagnose.codesets import LATE, RETRY, UART, UNANSWERED
 from sniffer.frame import REQUEST, RESPONSE, Frame
 from sniffer.diagnose.finding import Finding, sort
 from sniffer.diagnose.state import Group, Link, Unit
@@ -31,12 +31,13 @@ class Diagnosis:
     """Frames in, findings out (see the module doc)."""
 
     def __init__(self, reference=None) -> None:
-        from sniffer.diagnose import drives, line, masters, params, polls, timing, units, wiring
+        from sniffer.diagnose import correlate, drives, line, masters, params, polls, timing, units, wiring
 
         self.t0_ns = 0
         self.links: dict[str, Link] = {}
         self.groups = [line.LineGroup(), wiring.WiringGroup(), units.UnitsGroup(), timing.TimingGroup(),
-                       masters.MastersGroup(), drives.DrivesGroup(), params.ParamsGroup(reference),
+                       masters.MastersGroup(), drives.DrivesGroup(), correlate.CorrelateGroup(),
+                       params.ParamsGroup(reference),
                        polls.PollsGroup()]
         self._resolved: dict = {}
         self._registries: dict = {}
@@ -90,6 +91,9 @@ class Diagnosis:
                 link.due = None
             elif f.role == RESPONSE:
                 link.due = None
+        # damaged: noise, a CRC error, a UART flag (the framer's flags are the annotations whose code says uart)
+        link.damage.add(f.t_ns, f.protocol == "noise" or f.crc_ok is False
+                        or bool(codes) and not UART.isdisjoint(codes))
         if f.protocol == "noise":
             link.noise_frames += 1
             link.noise_bytes += n

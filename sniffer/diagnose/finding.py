@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from sniffer.diagnose.episodes import Episode, keep, words
 from sniffer.diagnose.kinds import BY_NAME, ORDER, SEVERITY_RANK
 
 MAX_FRAMES = 8  # frames named per finding
@@ -31,11 +32,15 @@ class Finding:
     evidence: dict = field(default_factory=dict)  # numbers: counts, rates, quantiles
     frames: list[int] = field(default_factory=list)  # frame numbers to look at
     statistic: dict | None = None  # where the verdict rests on one: {"test", "value", "p", ...}
+    episodes: list[Episode] = field(default_factory=list)  # when it happened (episodes.py), first and last kept
+    episode_count: int = 0  # how many episodes in all (more than `episodes` lists when it came often)
 
     def __post_init__(self) -> None:
         if self.kind not in BY_NAME:
             raise ValueError(f"unknown finding kind {self.kind!r}")
         self.frames = sorted(set(self.frames))[:MAX_FRAMES]
+        self.episode_count = max(self.episode_count, len(self.episodes))
+        self.episodes = keep(self.episodes)
 
     @property
     def where(self) -> str:
@@ -50,7 +55,12 @@ class Finding:
             "kind": self.kind, "severity": self.severity, "link": self.link or None, "unit": self.unit,
             "t_start": _round(self.t_start), "t_end": _round(self.t_end), "text": self.text, "action": self.action,
             "evidence": self.evidence, "frames": self.frames, "statistic": self.statistic,
+            "episodes": [e.to_dict() for e in self.episodes], "episode_count": self.episode_count,
         }
+
+    def when(self) -> str:
+        """Its episodes in words ('' when none were judged)."""
+        return words(self.episodes, self.episode_count)
 
     def headline(self) -> str:
         """One line: severity, kind, where, when."""
@@ -59,11 +69,12 @@ class Finding:
 
     def text_lines(self) -> list[str]:
         out = [self.headline(), f"  {self.text}"]
+        if self.episodes:
+            out.append(f"  when: {self.when()}")
         if self.evidence:
-            out.append("  evidence: " + ", ".join(f"{k.replace('_', ' ')} {fmt_value(v)}"
-                                                  for k, v in self.evidence.items()))
+            out.append("  evidence: " + evidence_words(self.evidence))
         if self.statistic:
-            out.append("  statistic: " + ", ".join(f"{k} {fmt_value(v)}" for k, v in self.statistic.items()))
+            out.append("  statistic: " + evidence_words(self.statistic))
         if self.frames:
             out.append("  frames: " + " ".join(f"#{i}" for i in self.frames))
         out.append(f"  do: {self.action}")
@@ -83,14 +94,39 @@ def _round(v: float | None) -> float | None:
     return None if v is None else round(v, 3)
 
 
+MAX_ITEMS = 6  # of a list or table named in text; the rest is in --format json
+
+
+def evidence_words(ev: dict) -> str:
+    """'requests 200, retries 400, refusals: fc03 3000H x2 (12 requests, 12 refused, exception 02H)'."""
+    return ", ".join(f"{k.replace('_', ' ')}{':' if isinstance(v, (dict, list, tuple)) and v else ''} "
+                     f"{fmt_value(v)}" for k, v in ev.items())
+
+
 def fmt_value(v) -> str:
-    """A number (or a list or dict of them) for text: floats short, large and tiny ones in exponent form."""
+    """A value for people: floats short (large and tiny ones in exponent form), nothing as 'none', yes/no, a
+    list as its items and a table as 'name (field value, ...)'; long ones summarised ('6 of 18 shown, the
+    rest in --format json').  Never Python's own spelling of a dict, list or None."""
+    if v is None:
+        return "none"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
     if isinstance(v, float):
         if v != 0 and (abs(v) < 0.001 or abs(v) >= 1e6):
             return f"{v:.2g}"
         return f"{v:.3f}".rstrip("0").rstrip(".")
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(fmt_value(x) for x in v) + "]"
+        items = [fmt_value(x) for x in v[:MAX_ITEMS]]
+        return _more("; ".join(items) if any(isinstance(x, dict) for x in v) else ", ".join(items), len(v))
     if isinstance(v, dict):
-        return "{" + ", ".join(f"{k}: {fmt_value(x)}" for k, x in v.items()) + "}"
+        items = list(v.items())[:MAX_ITEMS]
+        parts = [f"{k.replace('_', ' ') if isinstance(k, str) else k} "
+                 f"{'(' + fmt_value(x) + ')' if isinstance(x, dict) else fmt_value(x)}" for k, x in items]
+        return _more(", ".join(parts), len(v))
     return str(v)
+
+
+def _more(text: str, n: int) -> str:
+    if not n:
+        return "none"
+    return text if n <= MAX_ITEMS else f"{text} ({MAX_ITEMS} of {n} shown, the rest in --format json)"

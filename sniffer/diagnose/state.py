@@ -6,6 +6,7 @@ from collections import OrderedDict
 from typing import TYPE_CHECKING
 
 from sniffer.frame import Frame
+from sniffer.diagnose.episodes import Windows
 from sniffer.diagnose.finding import Finding
 from sniffer.diagnose.stats import Quantiles, TimeBins
 
@@ -68,7 +69,7 @@ class Link:
 
     __slots__ = ("name", "resolved", "registry", "line", "char_ns", "t35_ns", "units", "first_ns", "last_ns", "frames",
                  "bytes", "good_frames", "good_bytes", "matched_bytes", "crc_bad", "noise_frames", "noise_bytes",
-                 "last_role", "last_unit", "due", "slot", "time_sources", "requests", "echo_retries")
+                 "last_role", "last_unit", "due", "slot", "time_sources", "requests", "echo_retries", "damage")
 
     def __init__(self, name: str, resolved=None, registry=None) -> None:
         self.name = name
@@ -97,6 +98,7 @@ class Link:
         self.time_sources: dict[str, int] = {}
         self.requests: OrderedDict[int, tuple] = OrderedDict()  # index -> (unit, request, its request_type)
         self.echo_retries: OrderedDict[int, None] = OrderedDict()  # "answers" that are the master's retry
+        self.damage = Windows()  # frames per window of time, and those damaged (noise, CRC errors, UART flags)
 
     @property
     def busy_ns(self) -> int:

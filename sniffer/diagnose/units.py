@@ -1,7 +1,9 @@
 """Units that do not do what they are asked: unit_silent, unit_refuses, answers_broadcast.
 
 * unit_silent: CRC-good requests to a unit (their address byte is checked, so the unit is the one the
-  master meant), and over the whole span no answer from it, good or damaged;
+  master meant), and over the whole span no answer from it, good or damaged; or, for a unit that does
+  answer, stretches of time in which it answered none (at least SILENT_REQUESTS requests over SILENT_S
+  seconds: more than a power blink or a run of lost answers), each an episode;
 * unit_refuses: the master keeps sending a unit one request it answers with an exception every time
   (an address it does not have, a write it does not allow in this mode); requests refused now and then
   (busy) are no finding;
@@ -19,6 +21,7 @@ from sniffer.diagnose.codesets import RETRY
 from sniffer.codes import ERROR, WARNING
 from sniffer.analysis.diff import key_text
 from sniffer.diagnose.state import Group, Link, Unit
+from sniffer.diagnose.episodes import Episode
 from sniffer.diagnose.finding import Finding
 
 if TYPE_CHECKING:
@@ -28,6 +31,9 @@ MIN_REQUESTS = 3
 MIN_SPAN_NS = 1_000_000_000
 REFUSED_SHARE = 0.5  # of one request's tries answered with an exception
 MAX_KEYS = 4096
+_ECHOES = frozenset((0x05, 0x06, 0x08))
+SILENT_REQUESTS = 8  # unanswered requests in a row, at least ...
+SILENT_S = 3.0  # ... over this long: a unit that stopped answering for a while
 
 
 class UnitsGroup(Group):
@@ -35,8 +41,42 @@ class UnitsGroup(Group):
         self.plain_by: Counter = Counter()  # (link, unit) -> CRC-good answers naming it to no request known, not echoes
         self.keys: dict[tuple, list] = {}  # (link, unit, key) -> [requests, refusals Counter, frames]
         self.broadcast: dict[tuple, list] = {}  # (link, unit) -> [count, frames]
+        # (link, unit) -> [first request's t, last request's end, requests, first request's frame] since its
+        # last answer; and the stretches that were long enough (first and last kept, all counted)
+        self.quiet: dict[tuple, list] = {}
+        self.gaps: dict[tuple, list] = {}
+        self.gap_count: Counter = Counter()
+
+    def _answered(self, link: Link, unit: int) -> None:
+        run = self.quiet.pop((link.name, unit), None)
+        if run is not None and run[2] - 1 >= SILENT_REQUESTS:
+            # the last request of the run is the one answered now: the silence ended with the one before
+            self._gap(link, unit, run[0], run[4], run[2] - 1, run[3])
+
+    def _gap(self, link: Link, unit: int, t0: int, t1: int, n: int, frame: int) -> None:
+        if t1 - t0 < SILENT_S * 1e9:
+            return
+        k = (link.name, unit)
+        gaps = self.gaps.setdefault(k, [])
+        self.gap_count[k] += 1
+        gaps.append((t0, t1, n, frame))
+        if len(gaps) > 6:
+            del gaps[3]
+
+    def other(self, f, link: Link, unit: Unit | None, codes: frozenset) -> None:
+        if link.slot is not None:
+            self._answered(link, link.slot.unit)  # a damaged burst where its answer was due: it answered
+
+    def noise(self, f, link: Link, codes: frozenset) -> None:
+        if link.slot is not None:
+            self._answered(link, link.slot.unit)
 
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
+        if self.quiet:
+            who = unit.unit if unit is not None else f.unit if f.crc_ok else None
+            if who is not None and not (req is not None and f.function in _ECHOES and f.raw == req[1].raw):
+                # (an "answer" byte for byte its request is the master's retry of it, not an answer)
+                self._answered(link, who)
         if not f.crc_ok or f.unit is None or (req is not None and not codes and not f.exception):
             return  # (a paired answer counts in its Unit already)
         if req is None and f.function not in (0x05, 0x06, 0x08):
@@ -54,6 +94,14 @@ class UnitsGroup(Group):
                     e[2].append(f.index)
 
     def request(self, f, link: Link, unit: Unit, codes: frozenset, key: tuple) -> None:
+        if f.unit:
+            run = self.quiet.get((link.name, f.unit))
+            if run is None:
+                self.quiet[(link.name, f.unit)] = [f.t_ns, f.t_end_ns, 1, f.index, f.t_end_ns]
+            else:
+                run[4] = run[1]  # the end of the request before: where a silence ends if this one is answered
+                run[1] = f.t_end_ns
+                run[2] += 1
         if f.unit and not (codes and not RETRY.isdisjoint(codes)):
             e = self._key(link, key)
             if e is not None:
@@ -75,6 +123,8 @@ class UnitsGroup(Group):
                 if u.unit == 0:
                     continue
                 f = self._silent(d, link, u)
+                if f is None:
+                    f = self._stretches(d, link, u)
                 if f is not None:
                     out.append(f)
         out += self._refused(d)
@@ -112,6 +162,33 @@ class UnitsGroup(Group):
             action=f"Check that a drive is set to address {u.unit}, is powered and wired to this line (A/B), and "
                    f"uses the line's baud rate and parity; if no drive should be there, take unit {u.unit} out of "
                    f"the PLC's poll list (each request waits out the master's timeout).")
+
+    def _stretches(self, d: Diagnosis, link: Link, u: Unit) -> Finding | None:
+        """A unit that answers, silent for stretches: one episode each (the open one runs to the end)."""
+        k = (link.name, u.unit)
+        gaps = list(self.gaps.get(k, ()))
+        count = self.gap_count.get(k, 0)
+        run = self.quiet.get(k)
+        if run is not None and run[2] >= SILENT_REQUESTS and run[1] - run[0] >= SILENT_S * 1e9:
+            gaps.append((run[0], run[1], run[2], run[3]))
+            count += 1
+        if not gaps:
+            return None
+        eps = [Episode(d.seconds(a), d.seconds(b), n, "requests unanswered") for a, b, n, _ in gaps]
+        silent_s = sum(e.to_s - e.from_s for e in eps)
+        longest = max(eps, key=lambda e: e.to_s - e.from_s)
+        times = "once" if count == 1 else f"{count} times"
+        end = " and was still silent at the end of the capture" if run is not None and gaps[-1][0] == run[0] else ""
+        return Finding(
+            "unit_silent", ERROR, unit=u.unit, link=link.name, t_start=eps[0].from_s, t_end=eps[-1].to_s,
+            frames=[g[3] for g in gaps], episodes=eps, episode_count=count,
+            evidence={"silent_stretches": count, "requests_unanswered": sum(g[2] for g in gaps),
+                      "longest_s": round(longest.to_s - longest.from_s, 1), "answers_outside": u.answers},
+            text=f"Unit {u.unit} stopped answering {times} ({silent_s:.0f} s in all, the longest from "
+                 f"{longest.from_s:.1f} s to {longest.to_s:.1f} s){end}; it answers before and after, so the "
+                 f"master's data from it is stale meanwhile.",
+            action=f"Check unit {u.unit}'s power supply and connector (a loose A/B wire or a brown-out makes it drop "
+                   f"out and come back), and whether it was reset or its communication parameters changed then.")
 
     def _refused(self, d: Diagnosis) -> list[Finding]:
         by_unit: dict[tuple, list] = {}

@@ -38,6 +38,8 @@ MIN_HITS = 5
 MIN_RATE = 0.05  # of a unit's answers
 DOMINANT = 0.5  # of its damaged answers
 OTHERS_BELOW = 0.2  # the other units' rate, as a share of this unit's
+SPARSE_STRAYS = 3  # stray bursts out of an idle line with no frame damage: a biased line makes none
+STRAY_RATE = 0.1  # of the transmissions, where damaged frames are about too
 _DE_KINDS = (("driver_enable_late", "on", "late", "turns on after the first start bit"),
              ("driver_disable_early", "off", "early", "turns off before the last stop bit"))
 _DIP = frozenset((0xFF << k) & 0xFF for k in range(9))  # 00, 80, C0 ... FE, FF: a floating line's shapes
@@ -273,23 +275,36 @@ class WiringGroup(Group):
         return out
 
     def _unbiased(self, d: Diagnosis, link: Link) -> Finding | None:
+        """Stray bursts out of the idle line.  A biased line's idle level is held: it makes none, so even a
+        handful (SPARSE_STRAYS) is reported when no frame damage explains them (the rate is stated); with
+        damaged frames about, strays must come after a good share of the transmissions (STRAY_RATE)."""
         s = self.strays.get(link.name)
         frames = link.frames - link.noise_frames
-        if s is None or frames <= 0 or s["short"] < 10:
+        if s is None or frames <= 0 or s["short"] < SPARSE_STRAYS:
             return None
         rate = s["short"] / frames
         floaty = (s["dip"] + s["flagged"]) / max(s["bytes"], 1)
         damaged = link.crc_bad / frames
-        if rate < 0.1 or floaty < 0.6 or damaged > 0.5 * rate or s["after_request"] < 0.2 * s["short"]:
+        if floaty < 0.6 or s["after_request"] < 0.2 * s["short"]:
             return None  # (strays only after answers: a transmitter's own cut-off, not the idle line)
+        sparse = link.crc_bad <= max(2, 0.5 * s["short"])  # no damage to speak of: the strays are the line's own
+        if not sparse and (rate < STRAY_RATE or damaged > 0.5 * rate or s["short"] < 10):
+            return None
+        span_h = max((link.last_ns - link.first_ns) / 3.6e12, 1e-9) if link.first_ns is not None else 1e-9
+        per_h = s["short"] / span_h
+        how = (f"after {rate:.0%} of the transmissions" if rate >= 0.01 else
+               f"after {rate:.2%} of the transmissions ({s['short']} in {span_h * 60:.1f} min, about {per_h:,.0f} "
+               f"an hour)")
         return Finding(
             "bus_unbiased", WARNING, link=link.name, t_start=d.seconds(link.first_ns), t_end=d.seconds(link.last_ns),
-            evidence={"stray_bursts": s["short"], "per_frame": round(rate, 3),
+            evidence={"stray_bursts": s["short"], "per_frame": round(rate, 4), "per_hour": round(per_h),
                       "bytes_00_ff_or_flagged": round(min(floaty, 1.0), 3), "after_requests": s["after_request"],
-                      "after_answers": s["after_answer"], "frames_crc_bad": round(damaged, 4)},
-            frames=s["frames"],
-            text=f"The idle line floats: after {rate:.0%} of the transmissions a stray character (00H with a framing "
-                 f"error, FFH and the like) comes out of the released line, in turnarounds ({s['after_request']}) and "
-                 f"idle gaps ({s['after_answer']}), while the frames themselves are intact.",
+                      "after_answers": s["after_answer"], "frames_crc_bad": link.crc_bad},
+            frames=s["frames"], episodes=link.damage.episodes(d.seconds, "stray bursts or damaged frames"),
+            text=f"The idle line floats: {how} a stray character (00H with a framing error, FFH and the like) comes "
+                 f"out of the released line, in turnarounds ({s['after_request']}) and idle gaps "
+                 f"({s['after_answer']}), while the frames themselves are "
+                 f"{'intact' if link.crc_bad == 0 else 'mostly intact'}. A biased line makes none: it is "
+                 f"beginning to float.",
             action="Add fail-safe bias (pull-up on A/D+, pull-down on B/D-, e.g. 680 ohm at one point of the line) and "
                    "check the 120 ohm termination at both ends only.")

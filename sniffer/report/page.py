@@ -127,24 +127,34 @@ def _verdicts(d: dict) -> str:
                 + ", ".join(f"{escape(str(k))} {_ev(v)}" for k, v in f["statistic"].items()) + "</p>"
                 if f.get("statistic") else "")
         frames = " ".join(f"#{i}" for i in f["frames"])
+        when = _when(f)
         items.append(
             f'<div class="finding sev-{escape(f["severity"])}"><p class="what">'
             f'<span class="sev">{escape(f["severity"])}</span> <b>{escape(f["kind"])}</b> · {escape(where)}{span}</p>'
             f'<p>{escape(f["text"])}</p>'
-            f'<p class="evidence">{ev}</p>{stat}'
+            + (f'<p class="when">when: {escape(when)}</p>' if when else "")
+            + f'<p class="evidence">{ev}</p>{stat}'
             + (f'<p class="frames">frames to look at: {escape(frames)}</p>' if frames else "")
             + f'<p class="todo">what to do: {escape(f["action"])}</p></div>')
     return _section("verdicts", "Verdicts", head + "".join(items))
 
 
 def _ev(v) -> str:
+    from sniffer.diagnose.finding import fmt_value
+
     if isinstance(v, float):
         return escape(f"{v:.3g}" if v and (abs(v) < 0.001 or abs(v) >= 1e6) else _n(v))
-    if isinstance(v, dict):
-        return escape(", ".join(f"{k}: {x}" for k, x in list(v.items())[:8]))
-    if isinstance(v, (list, tuple)):
-        return escape(", ".join(str(x) for x in v[:8]))
+    if isinstance(v, (dict, list, tuple)) or v is None or isinstance(v, bool):
+        return escape(fmt_value(v))  # in words: no Python spelling of a table, a list or None
     return _n(v)
+
+
+def _when(f: dict) -> str:
+    """A finding's episodes in words (from its JSON form)."""
+    from sniffer.diagnose.episodes import Episode, words
+
+    eps = [Episode(e["from_s"], e["to_s"], e["count"], e.get("what", "")) for e in f.get("episodes") or ()]
+    return words(eps, f.get("episode_count") or len(eps))
 
 
 def _dur(s: float) -> str:
@@ -167,7 +177,7 @@ def _captures(d: dict) -> str:
             _e(c.get("start_wall") or "unknown (no wall clock)"), _dur(c.get("duration_s") or 0),
             _line_cell(c), _devices_cell(c),
             _e(_settings(c)),
-            _e(c["time_source"]), _e(", ".join(f"{k}={v}" for k, v in ll.items()) or None),
+            _e(c["time_source"]), _ev(ll) if ll else _e(None),
             _n(c.get("frames")), _n(c.get("bytes")), _n(c.get("noise_bytes")),
             _e(c.get("source")) + (f" {_e(c['port'])}" if c.get("port") else ""), _e(c.get("recorded_by")),
             _n(c.get("size")), f'<code>{_e((c.get("sha256") or "")[:16])}</code>',

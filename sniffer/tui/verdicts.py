@@ -35,6 +35,10 @@ def detail_text(f) -> Text:
     from sniffer.diagnose.finding import fmt_value
 
     t = Text()
+    when = f.when() if hasattr(f, "when") else ""
+    if when:
+        t.append("when: ", style="bold")
+        t.append(f"{when}\n")
     for k, v in f.evidence.items():
         t.append(f"{k.replace('_', ' ')}: ", style="bold")
         t.append(f"{fmt_value(v)}\n")

@@ -1,0 +1,75 @@
+"""Findings carry their episodes (from, to, how often), judged in windows of time: a unit silent for 40 s in
+the middle of a capture is found though it answers before and after; a cause that comes twice gives two
+episodes; the text, the JSON, the HTML report and the TUI's Verdicts tab say so in words."""
+
+from __future__ import annotations
+
+import json
+
+from sniffer.diagnose import to_json, to_text
+from sniffer.diagnose.episodes import Windows
+
+from test_diagnose import diagnose_sim
+
+
+def _one(findings, kind, unit=None):
+    got = [f for f in findings if f.kind == kind and (unit is None or f.unit == unit)]
+    assert len(got) == 1, [(f.kind, f.unit) for f in findings]
+    return got[0]
+
+
+def test_a_unit_silent_for_40_s_mid_capture_is_found_with_its_span():
+    findings, _ = diagnose_sim("default", ("unit_silent:5@20-60",), 80.0)
+    f = _one(findings, "unit_silent", 5)
+    assert f.severity == "error"
+    (e,) = f.episodes
+    assert 19.5 < e.from_s < 21.0 and 59.0 < e.to_s < 61.0 and e.count >= 100
+    assert [x for x in findings if x.severity != "info" and x.kind != "unit_silent"] == []
+
+
+def test_a_silence_that_comes_twice_is_two_episodes():
+    findings, _ = diagnose_sim("default", ("unit_silent:2@10-18", "unit_silent:2@40-48"), 60.0)
+    f = _one(findings, "unit_silent", 2)
+    assert [(round(e.from_s), round(e.to_s)) for e in f.episodes] == [(10, 18), (40, 48)]
+    assert f.episode_count == 2
+
+
+def test_strays_that_come_twice_are_two_episodes():
+    findings, _ = diagnose_sim("default", ("bus_unbiased@10-20", "bus_unbiased@40-50"), 60.0)
+    f = _one(findings, "bus_unbiased")
+    assert [(round(e.from_s), round(e.to_s)) for e in f.episodes] == [(10, 20), (40, 50)]
+
+
+def test_a_steady_cause_is_one_episode_over_the_capture():
+    w = Windows()
+    for i in range(6000):  # 60 s, a frame each 10 ms, every 50th damaged
+        w.add(i * 10_000_000, i % 50 == 0)
+    (e,) = w.episodes(lambda t: t / 1e9, "damaged frames")
+    assert e.from_s == 0.0 and e.to_s >= 59.0 and e.count == 120
+
+
+def test_episodes_are_words_in_text_json_report_and_tui(tmp_path):
+    from sniffer.report.page import _verdicts
+    from sniffer.tui.verdicts import detail_text
+
+    findings, _ = diagnose_sim("default", ("unit_silent:2@10-18", "unit_silent:2@40-48"), 60.0)
+    text = to_text(findings)
+    assert "when: 2 episodes: 10.0-18.0 s (" in text.replace("10.1-", "10.0-") or "when: 2 episodes:" in text
+    doc = json.loads(to_json(findings))
+    (f,) = [x for x in doc["findings"] if x["kind"] == "unit_silent"]
+    assert len(f["episodes"]) == 2 and f["episodes"][0]["what"] == "requests unanswered"
+    html = _verdicts(doc)
+    assert "when: 2 episodes" in html
+    tui = detail_text(_one(findings, "unit_silent", 2)).plain
+    assert "when: 2 episodes" in tui
+    for out in (text, html, tui):
+        assert "None" not in out and "{'" not in out and "[{" not in out
+
+
+def test_drive_trips_are_episodes_not_python_in_the_evidence():
+    findings, _ = diagnose_sim("a510", (), 40.0)
+    f = next(x for x in findings if x.kind == "drive_fault")
+    assert f.episodes and f.episode_count >= len(f.episodes)
+    text = "\n".join(f.text_lines())
+    assert "None" not in text and "{" not in text and "[" not in text
+    assert "when: " in text
