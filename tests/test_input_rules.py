@@ -43,6 +43,7 @@ ARGS = {
     "--mqtt-ca": FILE, "--mqtt-cert": FILE, "--mqtt-key": FILE,
     "check file": FILE, "diagnose file": FILE, "diff a": FILE, "diff b": FILE, "export file": FILE,
     "learn file": FILE, "replay file": FILE, "report captures": FILE, "repair file": FILE, "status path": FILE,
+    "mcp sources": FILE,
     # folders read
     "ingest folder": FOLDER, "query dataset": FOLDER,
     # serial ports (or, for detect, capture files too)
@@ -52,7 +53,7 @@ ARGS = {
     "--dask": ADDRESS, "--mqtt": ADDRESS,
     # written, never read (tests/test_output_safety.py holds them to the output rules)
     "--out": OUTPUT, "--write-bus": OUTPUT, "--windows": OUTPUT, "--status": OUTPUT, "--publish": OUTPUT,
-    "--socket": OUTPUT, "--pty": OUTPUT, "--to": OUTPUT,
+    "--socket": OUTPUT, "--pty": OUTPUT, "--to": OUTPUT, "--junit": OUTPUT,
     # values
     **dict.fromkeys([
         "--input-format", "--rx", "--tx", "--de", "--time-tol-ms", "--latency-tol-ms", "--jobs", "--baud", "--parity",
@@ -62,12 +63,13 @@ ARGS = {
         "--foxglove-device", "--mqtt-interval", "--mqtt-ha-prefix", "--mqtt-queue", "--samplerate", "--bauds",
         "--max-time", "--quiet-time", "--units-time", "--link", "--title", "query sql", "--preset", "--max-rows",
         "--host", "--http-port", "--public-url", "--adapter", "--param", "--receiver-baud", "--receiver-parity",
-        "--receiver-stopbits"], VALUE),
+        "--receiver-stopbits", "--ignore", "--tolerance", "--identify-time"], VALUE),
 }
 # what is deliberately not held to a rule, and why
 EXCEPTIONS = {
     ("ingest folder", "directory"): "a folder of captures is what ingest reads",
     ("query dataset", "directory"): "a dataset is a folder",
+    ("mcp sources", "directory"): "mcp serves a folder of captures or a dataset as well as a capture",
     ("status path", "directory"): "a capture's --out folder: status finds its status file there",
     ("live ports", "chardev"): "a serial port is a character device: /dev/zero is refused as no tty, checked here",
     ("--mqtt-ca", "*"): "read by the TLS library only with --mqtt mqtts://; checked (a regular file) with it below",
@@ -144,6 +146,7 @@ def _base(cmd: str, tmp: Path) -> list[str]:
         "demo": ["demo", "--duration", "0.1s", "--format", "jsonl"],
         "serve": ["serve", "--demo", "--scenario", "a510"], "attach": ["attach", str(tmp / "sock")],
         "simulate": ["simulate", "--out", str(tmp / "sim.mcap"), "--duration", "0.1s"],
+        "mcp": ["mcp", c],
     }[cmd]
 
 

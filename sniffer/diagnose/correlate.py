@@ -46,7 +46,7 @@ _SIGNALS = {
 
 class CorrelateGroup(Group):
     def __init__(self) -> None:
-        self.registers: dict[tuple, dict[int, str]] = {}  # (link, unit) -> register address -> signal
+        self.registers: dict[tuple, dict[int, str]] = {}  # (link, unit, model) -> register address -> signal
         self.now: dict[str, dict[tuple, float]] = {}  # link -> (unit, signal) -> its value now (a bin)
         self.last: dict[tuple, tuple] = {}  # (link, unit, signal) -> (t_ns, value): for the rates of change
         self.bins: dict[tuple, dict[int, list]] = {}  # (link, unit, signal) -> bin -> [frames, damaged]
