@@ -79,7 +79,9 @@ def parse(items: Iterable[str] | None) -> tuple[tuple[str, int | None], ...]:
         kind, sep, arg = item.partition(":")
         kind = kind.strip().replace("-", "_")
         if kind not in KINDS:
-            raise FaultError(f"--fault {item!r}: unknown kind; known: {', '.join(KINDS)}")
+            from sniffer.stderr import did_you_mean
+
+            raise FaultError(f"--fault {item!r}: unknown kind; known: {', '.join(KINDS)}{did_you_mean(kind, KINDS)}")
         num = None
         if sep:
             try:
