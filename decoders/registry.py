@@ -43,8 +43,11 @@ class DecoderRegistry:
         self.devices: dict[int, str] = {}
         for unit, model in (devices or {}).items():
             if model not in self.decoders:
+                from sniffer.stderr import did_you_mean
+
                 known = ", ".join(sorted(self.decoders))
-                raise DeviceMapError(f"unknown model {model!r} for unit {unit} (known: {known})")
+                raise DeviceMapError(f"unknown model {model!r} for unit {unit} (known: {known})"
+                                     f"{did_you_mean(model, self.decoders)}")
             self.devices[int(unit)] = model
         self.states: dict[int, UnitState] = {}
         # unit -> (model, decoder.decode, state) once nothing can change the unit's model

@@ -144,7 +144,10 @@ def get(name: str) -> Protocol:
     """The protocol named `name`, or SettingsError naming the ones there are."""
     p = (PROTOCOLS.get(name) or known().get(name)) if isinstance(name, str) else None
     if p is None:
-        raise SettingsError(f"protocol {str(name)[:60]!r} is not one of {', '.join(known())}")
+        from sniffer.stderr import did_you_mean
+
+        raise SettingsError(f"protocol {str(name)[:60]!r} is not one of {', '.join(known())}"
+                            f"{did_you_mean(name, known())}")
     return p
 
 

@@ -118,3 +118,85 @@ def test_the_page_renders(manpage, tmp_path):
 def test_man_prints_the_page():
     assert subprocess.run([sys.executable, "-m", "sniffer", "man"], capture_output=True, text=True,
                           timeout=120).stdout.startswith(".TH SNIFFER 1")
+
+
+# ------------------------------------------------- values the parser checks later, and "did you mean"
+def _complete_words(bash_script, line: str, words: list[str]) -> list[str]:
+    """As _complete, with COMP_WORDS as bash cuts them (at '=' too: COMP_WORDBREAKS)."""
+    prog = f"""
+source {bash_script}
+fn=$(sed -E 's/.* -F ([^ ]+) .*/\\1/' <<<"$(complete -p sniffer)")
+COMP_LINE={line!r}; COMP_POINT=${{#COMP_LINE}}
+COMP_WORDS=({" ".join(repr(w) for w in words)}); COMP_CWORD={len(words) - 1}
+"$fn" sniffer {words[-1]!r} {words[-2]!r}
+printf '%s\\n' "${{COMPREPLY[@]}}"
+"""
+    r = subprocess.run(["bash", "--norc", "--noprofile", "-c", prog], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    return r.stdout.split()
+
+
+@pytest.mark.skipif(shutil.which("bash") is None, reason="no bash here")
+def test_bash_completes_scenarios_faults_formats_and_models(bash_script):
+    from decoders.registry import builtin_decoders
+    from sniffer.simulator.faults import KINDS
+
+    assert _complete(bash_script, "sniffer demo --scenario a5") == ["a510", "a510-ascii"]
+    assert _complete(bash_script, "sniffer simulate --scenario pd") == ["pd-series", "pd-series-ascii"]
+    assert _complete(bash_script, "sniffer demo --fault unit") == ["unit_silent"]
+    assert set(_complete(bash_script, "sniffer demo --fault ")) == set(KINDS)
+    assert _complete(bash_script, "sniffer export x.mcap --to pc") == ["pcap", "pcapng"]
+    assert "dataset" in _complete(bash_script, "sniffer export x.mcap --to ")
+    # --device UNIT=MODEL: the word as bash keeps it without '=' splitting, and as it cuts it at '='
+    assert _complete(bash_script, "sniffer replay x.mcap --device 1=a5") == ["1=a510", "1=a510-hf"]
+    line = "sniffer replay x.mcap --device 1=a5"
+    assert _complete_words(bash_script, line, ["sniffer", "replay", "x.mcap", "--device", "1", "=", "a5"]) == \
+        ["a510", "a510-hf"]
+    line = "sniffer live --device 12="
+    assert set(_complete_words(bash_script, line, ["sniffer", "live", "--device", "12", "="])) == \
+        set(builtin_decoders())
+    assert set(_complete(bash_script, "sniffer replay x.mcap --device 3")) == {f"3={m}" for m in builtin_decoders()}
+    # the words after a UNIT=MODEL are read as before: flags, and their values
+    line = "sniffer replay x.mcap --device 2=tds-v8 --parity "
+    assert _complete_words(bash_script, line, ["sniffer", "replay", "x.mcap", "--device", "2", "=", "tds-v8",
+                                               "--parity", ""]) == ["N", "E", "O"]
+
+
+@pytest.mark.parametrize("shell", ["zsh", "fish"])
+def test_zsh_and_fish_complete_models_after_the_unit(shell):
+    text = script(shell)
+    assert "_sniffer_device" in text and "a510-hf" in text and "unit_silent" in text and "pd-series-ascii" in text
+
+
+@pytest.mark.parametrize("argv,said", [
+    (["dignose", "x.mcap"], "invalid choice: 'dignose'"),
+    (["replay", "x.mcap", "--quite"], "unrecognized arguments: --quite; did you mean '--quiet'?"),
+    (["replay", "x.mcap", "--bsud=9600"], "did you mean '--baud'?"),
+    (["replay", "{a510}", "--quiet", "--device", "1=tdsv8"], "unknown model 'tdsv8' for unit 1"),
+    (["decode", "0103", "--protocol", "modbus-rt"], "did you mean 'modbus-rtu'?"),
+    (["simulate", "--scenario", "defualt", "--out", "{out}"], "unknown scenario 'defualt'"),
+    (["simulate", "--fault", "unit_slient:2", "--out", "{out}"], "--fault 'unit_slient:2': unknown kind"),
+])
+def test_a_mistyped_name_gets_the_closest_one_in_one_line_exit_2(argv, said, tmp_path, capsys):
+    from pathlib import Path
+
+    a510 = Path(__file__).resolve().parents[1] / "captures" / "sim" / "a510.mcap"
+    out = tmp_path / "out.mcap"
+    assert main([a.format(a510=a510, out=out) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and said in err, err
+    want = {"dignose": "diagnose", "tdsv8": "tds-v8", "defualt": "default", "unit_slient:2": "unit_silent"}
+    for typo, right in want.items():
+        if typo in argv:
+            assert err.rstrip().endswith(f"did you mean '{right}'?"), err
+    assert not out.exists()
+
+
+def test_no_suggestion_when_nothing_is_close(capsys):
+    from sniffer.stderr import did_you_mean
+
+    assert did_you_mean("a150", ["a510", "tds-v8"]) == "; did you mean 'a510'?"
+    assert did_you_mean("A510", ["a510"]) == "; did you mean 'a510'?"
+    assert did_you_mean("zzzz", ["a510", "tds-v8"]) == ""
+    assert main(["decode", "0103", "--protocol", "xyz"]) == 2
+    assert "did you mean" not in capsys.readouterr().err

@@ -26,7 +26,7 @@ from test_extras import CASES, extra_inputs
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(1200)]
 
 ROOT = Path(__file__).resolve().parents[1]
-EXTRA_MODULES = ("pyarrow", "duckdb", "paho", "textual_serve", "yaml")
+EXTRA_MODULES = ("pyarrow", "duckdb", "paho", "textual_serve", "yaml", "mcp")
 SKIP = shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info", "build")
 
 

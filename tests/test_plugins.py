@@ -149,8 +149,10 @@ def test_the_example_plugin_captures_a_simulated_line(venv, tmp_path):
     frames = [x for x in recs if x["protocol"] == "acme-link"]
     assert len(frames) > 10 and all(x["model"] == "acme-vfd" for x in frames)
     sent = {raw.hex() for raw in line.sent}
-    assert {x["raw"] for x in frames} <= sent  # every frame is one the line sent, whole
-    answers = [x for x in frames if x["role"] == "response" and x["function"] == 1]
+    # every frame is one the line sent, whole; but the capture starts and ends where it does, perhaps inside one
+    inner = [x for x in frames if x["index"] not in (recs[0]["index"], recs[-1]["index"])]
+    assert {x["raw"] for x in inner} <= sent
+    answers = [x for x in inner if x["role"] == "response" and x["function"] == 1]
     assert answers and all(x["pair"] is not None for x in answers)
     good = [x for x in answers if x["crc_ok"]]
     assert good and all(p["name"] == "Speed setpoint" and p["unit"] == "Hz" for p in (x["points"][0] for x in good))

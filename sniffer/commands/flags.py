@@ -78,8 +78,36 @@ class Parser(argparse.ArgumentParser):
         ns.__dict__.pop("_given_once", None)
         return ns, rest
 
+    def parse_args(self, args=None, namespace=None):
+        ns, rest = self.parse_known_args(args, namespace)
+        if rest:  # argparse's own message, with the command's flag a mistyped one is closest to
+            self.error(f"unrecognized arguments: {' '.join(rest)}{self._closest_flag(ns, rest)}")
+        return ns
+
+    def _closest_flag(self, ns, rest: list[str]) -> str:
+        from sniffer.stderr import did_you_mean
+
+        flags = list(self._option_string_actions)
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction) and getattr(ns, action.dest, None) in action.choices:
+                flags += list(action.choices[getattr(ns, action.dest)]._option_string_actions)
+        for word in rest:
+            if word.startswith("--"):
+                hint = did_you_mean(word.partition("=")[0], [f for f in flags if f.startswith("--")])
+                if hint:
+                    return hint
+        return ""
+
     def error(self, message: str):  # one line, not usage + line
+        m = _INVALID_CHOICE.search(message)
+        if m:  # a mistyped command or choice: the closest one
+            from sniffer.stderr import did_you_mean
+
+            message += did_you_mean(m.group(1), re.findall(r"'([^']*)'", m.group(2)))
         raise UsageError(message)
+
+
+_INVALID_CHOICE = re.compile(r"invalid choice: '([^']*)' \(choose from (.*)\)$")
 
 
 WIDTH = 78

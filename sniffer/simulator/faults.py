@@ -104,7 +104,9 @@ def _one(item: str) -> Fault:
     kind, sep, arg = head.partition(":")
     kind = kind.strip().replace("-", "_")
     if kind not in KINDS:
-        raise FaultError(f"--fault {item!r}: unknown kind; known: {', '.join(KINDS)}")
+        from sniffer.stderr import did_you_mean
+
+        raise FaultError(f"--fault {item!r}: unknown kind; known: {', '.join(KINDS)}{did_you_mean(kind, KINDS)}")
     k = KINDS[kind]
     num = None
     if sep:

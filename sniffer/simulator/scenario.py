@@ -371,4 +371,7 @@ def get_scenario(name: str) -> Scenario:
     try:
         return SCENARIOS[name]
     except KeyError:
-        raise ValueError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}") from None
+        from sniffer.stderr import did_you_mean
+
+        raise ValueError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}"
+                         f"{did_you_mean(name, SCENARIOS)}") from None
