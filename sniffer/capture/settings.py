@@ -241,7 +241,7 @@ class CaptureSpec:
     duration_s: float = 0.0
     # where it goes
     out: str | None = None  # the MCAP file a live capture or demo writes (None: none)
-    stream: str | None = "text"  # frames on stdout: "text", "jsonl" or None (quiet)
+    stream: str | None = "text"  # frames on stdout: "text", "jsonl", "pcapng" or None (quiet)
     headless: bool = False
     publish: str | None = None
     publish_backlog: int = 100_000
@@ -308,7 +308,7 @@ class CaptureSpec:
             scenario=opt("scenario"), seed=opt("seed", 1) or 1, faults=tuple(opt("fault") or ()),
             duration_s=finite(duration, "--duration", upper=MAX_DURATION_S),
             out=None if opt("no_out") else opt("out"),
-            stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl") else "text"),
+            stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl", "pcapng") else "text"),
             headless=bool(opt("headless")), publish=opt("publish"),
             publish_backlog=opt("publish_backlog", 100_000), trigger=trigger, mqtt=MqttSpec.from_args(args),
             rotate=rotate, keep=keep, status=opt("status"), wait_port=bool(opt("wait_port")),

@@ -33,7 +33,7 @@ def need_posix_tty(what: str) -> None:
 
 
 def stream_sink(spec: CaptureSpec, line_buffered: bool):
-    """The text or JSONL stream on stdout (None with --quiet)."""
+    """The text, JSONL or pcapng stream on stdout (None with --quiet)."""
     if spec.stream == "jsonl":
         from sniffer.formats.jsonl import JsonlSink
 
@@ -42,6 +42,10 @@ def stream_sink(spec: CaptureSpec, line_buffered: bool):
         from sniffer.formats.text import TextSink
 
         return TextSink(sys.stdout, flush=line_buffered)
+    if spec.stream == "pcapng":
+        from sniffer.formats.pcap.writer import PcapSink
+
+        return PcapSink(sys.stdout.buffer, ng=True, comments=True, flush=line_buffered)
     return None
 
 

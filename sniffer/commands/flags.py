@@ -314,8 +314,9 @@ def input_flags(p) -> None:
 
 def stream_flags(p, quiet: str = "") -> None:
     """--format text|jsonl of the frames on stdout; `quiet`: the help of --quiet (what is still written)."""
-    p.add_argument("--format", choices=["text", "jsonl"], default="text", help="the frames on stdout: one line "
-                   "each (text) or one JSON object each (jsonl)")
+    p.add_argument("--format", choices=["text", "jsonl", "pcapng"], default="text", help="the frames on stdout: one "
+                   "line each (text), one JSON object each (jsonl), or a pcapng stream for Wireshark (`| wireshark -k "
+                   "-i -`: Modbus RTU packets, each with a comment of the registers, CRC, pair and latency)")
     if quiet:
         p.add_argument("--quiet", action="store_true", help=f"no frame lines on stdout ({quiet})")
 

@@ -28,7 +28,6 @@ def add_parser(subparsers) -> None:
             Settings come from the flags, then the --bus file, then the defaults; `sniffer detect PORT
             --write-bus line.toml` writes a bus file for a line whose settings you do not know.""",
         examples=["sniffer live /dev/ttyUSB0 --baud 19200 --parity E --out cabinet3.mcap",
-                  "sniffer live /dev/ttyUSB0 --bus line.toml --headless --format jsonl > line.jsonl",
                   "sniffer live /dev/ttyUSB0 --bus line.toml --wait-port --headless --quiet --rotate 1h "
                   "--keep 14d --out /var/lib/sniffer/cab3",
                   "sniffer live --bus plant.toml --out plant.mcap        # the [[links]] of a bus file",

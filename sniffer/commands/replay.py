@@ -60,7 +60,7 @@ def run(spec: CaptureSpec, args) -> int:
         rc = run_session_tui(session, sink, source_label=spec.input, source_path=spec.input)
         return rc or report(session, label=spec.input)
     jobs = jobs_for(spec, args)
-    if jobs > 1:
+    if jobs > 1 and spec.stream != "pcapng":  # one pcapng stream: its header once, then packets in order
         return _parallel(spec, source, args, jobs)
     bar = None
     sinks = [s for s in (stream_sink(spec, line_buffered=False),) if s is not None]

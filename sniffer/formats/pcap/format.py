@@ -39,6 +39,7 @@ RTAC_HEADER = 12
 MAGIC_NS = 0xA1B23C4D
 MAGIC_US = 0xA1B2C3D4
 SNAPLEN = 65535
+MAX_COMMENT = 4000  # bytes of a packet comment (an option's length is 16 bits; Wireshark shows one line of it)
 TSHARK_ARGS = ["-o", 'uat:user_dlts:"User 0 (DLT=147)","mbrtu","0","","0",""']
 
 # -- reading -------------------------------------------------------------------------------------
@@ -254,6 +255,10 @@ def pcapng_header(info: CaptureInfo, linktype: int = LINKTYPE_USER0) -> bytes:
     return shb + idbs
 
 
-def pcapng_packet(t_ns: int, data: bytes, interface: int = 0) -> bytes:
+def pcapng_packet(t_ns: int, data: bytes, interface: int = 0, comment: str = "") -> bytes:
+    """An enhanced packet block; `comment`: its opt_comment (UTF-8, what Wireshark shows as the packet's comment)."""
     t = max(t_ns, 0)
-    return _block(6, struct.pack("<IIIII", interface, t >> 32, t & 0xFFFFFFFF, len(data), len(data)) + data)
+    body = struct.pack("<IIIII", interface, t >> 32, t & 0xFFFFFFFF, len(data), len(data)) + data
+    if comment:
+        body += b"\0" * (-len(body) % 4) + _opt(1, comment.encode()[:MAX_COMMENT]) + _opt(0, b"")
+    return _block(6, body)

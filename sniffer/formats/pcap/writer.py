@@ -24,6 +24,7 @@ import os
 
 from sniffer.events import CaptureInfo
 from sniffer.frame import Frame
+from sniffer.formats.pcap.comments import frame_comment
 from sniffer.formats.pcap.format import TSHARK_ARGS, global_header, packet, pcapng_header, pcapng_packet
 from sniffer.sinks.base import Sink
 
@@ -33,8 +34,11 @@ __all__ = ["PcapSink", "TSHARK_ARGS", "global_header", "packet"]
 class PcapSink(Sink):
     """Pipeline sink: one pcap (or pcapng) packet per frame."""
 
-    def __init__(self, out, include_noise: bool = True, ng: bool | None = None) -> None:
-        """`out`: a path, or a binary file (closed with the sink)."""
+    def __init__(self, out, include_noise: bool = True, ng: bool | None = None, *, comments: bool = False,
+                 flush: bool = False) -> None:
+        """`out`: a path, or a binary file (closed with the sink).  `comments` (pcapng): each packet with a
+        comment of what the sniffer knows of it (formats/pcap/comments.py); `flush`: after every packet (a
+        live stream: Wireshark reading a pipe)."""
         if isinstance(out, (str, os.PathLike)):
             self.path = os.fspath(out)
             self._fh = open(self.path, "wb", buffering=1 << 16)
@@ -42,6 +46,8 @@ class PcapSink(Sink):
             self.path, self._fh = getattr(out, "name", ""), out
         self.ng = self.path.endswith(".pcapng") if ng is None else ng  # pcapng by extension
         self.include_noise = include_noise
+        self.comments = comments and self.ng
+        self.flush = flush
         self._t0 = 0
         self._anchor = 0
         self._interface: dict[str, int] = {}  # link -> pcapng interface
@@ -58,8 +64,14 @@ class PcapSink(Sink):
         if f.is_noise and not self.include_noise:
             return
         t = self._anchor + (f.t_ns - self._t0)
-        self._fh.write(pcapng_packet(t, f.raw, self._interface.get(f.link, 0)) if self.ng else packet(t, f.raw))
+        if self.ng:
+            note = frame_comment(f) if self.comments else ""
+            self._fh.write(pcapng_packet(t, f.raw, self._interface.get(f.link, 0), note))
+        else:
+            self._fh.write(packet(t, f.raw))
         self.frames += 1
+        if self.flush:
+            self._fh.flush()
 
     def close(self) -> None:
         self._fh.close()

@@ -1,0 +1,133 @@
+"""`sniffer extcap`: Wireshark's extcap interface, driven by the real tshark on a simulated line (a pty).
+
+The launcher is installed into a personal extcap folder (HOME is the test's folder, so `tshark -G folders`
+names one there); tshark lists the line, runs the capture through the launcher and stops it (its
+`-a duration`), and the pcapng it wrote decodes as Modbus RTU with our comment on every packet."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+
+import pytest
+from helpers import SimulatedLine
+
+from sniffer.formats.pcap.format import TSHARK_ARGS
+
+pytestmark = pytest.mark.skipif(shutil.which("tshark") is None,
+                                reason="tshark not installed (scripts/install-system-deps.sh installs it)")
+SNIFFER = [sys.executable, "-m", "sniffer"]
+
+
+def _env(home) -> dict:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("XDG_")}
+    return {**env, "HOME": str(home)}
+
+
+def _sniffer(*args, home) -> subprocess.CompletedProcess:
+    return subprocess.run([*SNIFFER, *args], capture_output=True, text=True, timeout=120, env=_env(home))
+
+
+def _pref(value: str, name: str, setting: str) -> list[str]:
+    """tshark's -o for an extcap interface's dialog value (Wireshark names it extcap.<interface>.<flag>)."""
+    iface = "".join(c if c.isalnum() else "_" for c in value.lower())
+    return ["-o", f"extcap.{iface}.{name}:{setting}"]
+
+
+def _install(tmp_path, *extra) -> str:
+    r = _sniffer("extcap", "--install", "--no-sigrok", *extra, home=tmp_path)
+    assert r.returncode == 0, r.stderr
+    launcher = r.stderr.split("wrote ", 1)[1].split(":", 1)[0]
+    assert launcher.startswith(str(tmp_path)) and os.access(launcher, os.X_OK)
+    return launcher
+
+
+def _tshark_capture(tmp_path, value: str, seconds: int, *prefs: str) -> tuple[subprocess.CompletedProcess, str]:
+    out = str(tmp_path / "out.pcapng")
+    r = subprocess.run(["tshark", "-i", value, *prefs, "-a", f"duration:{seconds}", "-w", out],
+                       capture_output=True, text=True, timeout=180, env=_env(tmp_path))
+    return r, out
+
+
+def _packets(path: str) -> list[list[str]]:
+    r = subprocess.run(["tshark", "-r", path, *TSHARK_ARGS, "-T", "fields", "-E", "separator=|",
+                        "-e", "frame.protocols", "-e", "mbrtu.unit_id", "-e", "frame.comment"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    return [line.split("|") for line in r.stdout.splitlines()]
+
+
+def _left_running(marker: str) -> list[str]:
+    """Command lines of processes still running that mention `marker` (a capture that did not stop)."""
+    left = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                cmd = f.read().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        if marker in cmd and "--capture" in cmd:
+            left.append(cmd)
+    return left
+
+
+def test_the_extcap_sentences(tmp_path):
+    r = _sniffer("extcap", "--extcap-interfaces", "--extcap-version=4.0", "--no-sigrok", "--list-port", "COM7",
+                 "--list-port", "socket://10.0.0.7:4001", home=tmp_path)
+    assert r.returncode == 0 and r.stderr == ""
+    lines = r.stdout.splitlines()
+    assert lines[0].startswith("extcap {version=")
+    assert "interface {value=rs485:COM7}" in r.stdout and "interface {value=rs485:socket://10.0.0.7:4001}" in r.stdout
+    r = _sniffer("extcap", "--extcap-dlts", "--extcap-interface", "rs485:COM7", home=tmp_path)
+    assert r.stdout.startswith("dlt {number=147}")
+    r = _sniffer("extcap", "--extcap-config", "--extcap-interface", "rs485:COM7", home=tmp_path)
+    calls = [x.split("{call=")[1].split("}")[0] for x in r.stdout.splitlines() if x.startswith("arg ")]
+    assert calls == ["--line-baud", "--line-parity", "--line-stopbits", "--line-bus"]
+    defaults = [x for x in r.stdout.splitlines() if "{default=true}" in x]
+    assert all("{value=detect}" in x for x in defaults) and len(defaults) == 3
+    r = _sniffer("extcap", "--extcap-config", "--extcap-interface", "nothing:here", home=tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "not an interface" in r.stderr
+
+
+def test_tshark_captures_a_simulated_line_with_our_comments(tmp_path):
+    with SimulatedLine(tmp_path, "default", "19200 8E1") as line:
+        _install(tmp_path, "--list-port", line.path)
+        value = f"rs485:{line.path}"
+        listed = subprocess.run(["tshark", "-D"], capture_output=True, text=True, timeout=120, env=_env(tmp_path))
+        assert value in listed.stdout
+        r, out = _tshark_capture(tmp_path, value, 5, *_pref(value, "linebaud", "19200"),
+                                 *_pref(value, "lineparity", "E"), *_pref(value, "linestopbits", "1"))
+        written = line.pty.bytes_received_from_sniffer
+    assert r.returncode == 0 and "Error" not in r.stderr, r.stderr
+    assert written == 0  # passive
+    assert not _left_running(str(tmp_path))  # the capture stopped with tshark
+    packets = _packets(out)
+    assert len(packets) > 50
+    modbus = [p for p in packets if "mbrtu" in p[0]]
+    assert len(modbus) >= 0.9 * len(packets) and {p[1] for p in modbus} >= {"1"}  # Wireshark's own dissector
+    assert all(p[2].startswith("rs485-sniffer #") for p in packets)  # a comment on every packet
+    assert any("answers #" in p[2] for p in packets) and any("CRC ok" in p[2] for p in packets)
+    assert all("time per read" in p[2] for p in packets)  # how the time was taken
+
+
+def test_detect_is_the_default(tmp_path):
+    with SimulatedLine(tmp_path, "default", "19200 8E1") as line:
+        _install(tmp_path, "--list-port", line.path)
+        r, out = _tshark_capture(tmp_path, f"rs485:{line.path}", 40)
+        written = line.pty.bytes_received_from_sniffer
+    assert r.returncode == 0 and "Error" not in r.stderr, r.stderr
+    assert written == 0
+    packets = _packets(out)
+    assert len(packets) > 20 and sum("mbrtu" in p[0] for p in packets) >= 0.9 * len(packets)
+
+
+def test_a_port_that_is_not_there_is_one_line_in_tshark(tmp_path):
+    missing = str(tmp_path / "ttyUSB9")
+    _install(tmp_path, "--list-port", missing)
+    value = f"rs485:{missing}"
+    r, _ = _tshark_capture(tmp_path, value, 5, *_pref(value, "linebaud", "9600"), *_pref(value, "lineparity", "N"),
+                           *_pref(value, "linestopbits", "1"))
+    assert "no such port" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert not _left_running(str(tmp_path))
