@@ -207,3 +207,16 @@ def test_bad_tolerance_is_one_line(capsys):
     assert cli.main(["check", str(TDS), "--golden", str(TDS_GOLDEN), "--tolerance", "Output current"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "FIELD=AMOUNT" in err[0]
+
+
+@pytest.mark.parametrize("inserted", [1, 20, 300])  # within the first window, the second, the last
+def test_a_block_of_inserted_frames_is_one_hunk_whatever_its_size(inserted):
+    from sniffer.analysis.check import compare_text
+
+    old = [f"{i / 10:.6f} - | request u1 generic fc03 crc=ok pair=+1 read holding {i}" for i in range(600)]
+    added = [f"9.{k:06d} - | request u9 generic fc03 crc=ok pair=- read x" for k in range(inserted)]
+    new = old[:100] + added + old[100:]
+    d = compare_text("\n".join(old), "\n".join(new)).splitlines()
+    assert sum(x.startswith("@@") for x in d) == 1
+    assert sum(x.startswith("+") and not x.startswith("+++") for x in d) == inserted
+    assert not any(x.startswith("-") and not x.startswith("---") for x in d)

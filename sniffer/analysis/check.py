@@ -30,6 +30,7 @@ import os
 
 import difflib
 from collections import deque
+from itertools import islice
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,6 +44,7 @@ GOLDEN_HEADER = ("# sniffer golden v2: t_s latency_ms | role unit model fc crc p
 GOLDEN_V1 = "# sniffer golden v1: t_s latency_ms | role unit model fc crc pair(offset) summary [codes]"
 SHOWN = 6  # points a summary shows (decoders.generic.decoder._points_summary)
 WINDOW = 2000  # unmatched lines held per side while re-aligning
+WINDOWS = (16, 256, WINDOW)  # the windows tried in turn: the cost of a realignment grows with its square
 MAX_SHOWN = 2000  # changed lines shown in a diff (the rest are counted)
 CONTEXT = 3
 
@@ -196,16 +198,17 @@ def _range(start: int, n: int) -> str:
 
 def compare_lines(old: Iterable[str], new: Iterable[str], tol: Tolerances = Tolerances(),
                   names: tuple[str, str] = ("golden", "capture"), on_change=None,
-                  point_names: Names | None = None) -> str:
+                  point_names: Names | None = None, start: tuple[int, int] = (1, 1)) -> str:
     """'' when the two line streams agree within tolerance, else a unified diff (timing-only noise hidden).
     `on_change(old_lines, new_lines, at_old, at_new)` hears each changed block (the summary is built from
-    them); `point_names` anchor the field rules' split of a line (sniffer.analysis.goldenfields)."""
+    them); `point_names` anchor the field rules' split of a line (sniffer.analysis.goldenfields); `start`: the
+    file line numbers of the streams' first lines (the hunks name lines of the files)."""
     a_it, b_it = iter(old), iter(new)
     key = _keyer(tol.rules, point_names)
     a: deque[str] = deque()
     b: deque[str] = deque()
     a_end = b_end = False
-    line_a = line_b = 1  # line number of a[0], b[0]
+    line_a, line_b = start  # line number of a[0], b[0]
     d = _Diff(names)
 
     def fill(buf, it, end, n):
@@ -227,9 +230,14 @@ def compare_lines(old: Iterable[str], new: Iterable[str], tol: Tolerances = Tole
             line_a += 1
             line_b += 1
             continue
-        a_end = fill(a, a_it, a_end, WINDOW)
-        b_end = fill(b, b_it, b_end, WINDOW)
-        i, j = _realign(list(a), list(b), a_end, b_end, key)
+        for size in WINDOWS:  # a small window first: most changes are a line or a few, realigned at once
+            a_end = fill(a, a_it, a_end, size)
+            b_end = fill(b, b_it, b_end, size)
+            wa, wb = list(islice(a, size)), list(islice(b, size))
+            got = _realign(wa, wb, a_end and len(wa) == len(a), b_end and len(wb) == len(b), key)
+            if got is not None:
+                break
+        i, j = got if got is not None else (len(wa), len(wb))  # nothing agrees within WINDOW: all a change
         old_lines = [a.popleft() for _ in range(i)]
         new_lines = [b.popleft() for _ in range(j)]
         if not old_lines and not new_lines:  # same content, timing beyond tolerance
@@ -256,8 +264,9 @@ def _keyer(rules: FieldRules, names: Names | None):
     return key
 
 
-def _realign(a: list[str], b: list[str], a_end: bool, b_end: bool, key=None) -> tuple[int, int]:
-    """How many lines of a and b differ before the two agree again (content keys, difflib)."""
+def _realign(a: list[str], b: list[str], a_end: bool, b_end: bool, key=None) -> tuple[int, int] | None:
+    """How many lines of a and b differ before the two agree again (content keys, difflib); None if they do
+    not agree again within a and b."""
     key = key or (lambda line: _split(line)[2])
     ka = [key(x) for x in a]
     kb = [key(x) for x in b]
@@ -266,7 +275,7 @@ def _realign(a: list[str], b: list[str], a_end: bool, b_end: bool, key=None) -> 
         reaches_end = i + n == len(a) and j + n == len(b) and a_end and b_end
         if n >= CONTEXT or (n and reaches_end):
             return i, j
-    return len(a), len(b)  # nothing agrees within the window: all of it is a change
+    return None
 
 
 def compare_text(old: str, new: str, tol: Tolerances = Tolerances(), names=("golden", "capture")) -> str:

@@ -19,6 +19,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 from collections.abc import Iterable, Iterator
+from itertools import chain
 
 from sniffer.analysis.check import FINDING, Tolerances, compare_lines, split_line
 from sniffer.analysis.goldenfields import Content, FieldRules, Names, differences, parse
@@ -152,12 +153,14 @@ def _unit_label(c: Content) -> str:
 class Collector:
     """Builds a CheckSummary from compare_lines' changed blocks (its on_change) and the findings lines."""
 
-    def __init__(self, summary: CheckSummary, rules: FieldRules, names: Names) -> None:
+    def __init__(self, summary: CheckSummary, rules: FieldRules, names: Names, first=(1, 1)) -> None:
         self.s = summary
         self.rules = rules
         self.names = names
+        self.first = first  # the file line numbers of frame 0 (golden, capture)
 
     def change(self, old: list[str], new: list[str], at_old: int, at_new: int) -> None:
+        at_old, at_new = at_old - self.first[0] + 1, at_new - self.first[1] + 1
         po = [_line(x, self.names) for x in old]
         pn = [_line(x, self.names) for x in new]
         sm = difflib.SequenceMatcher(None, [c.key for _, _, c in po], [c.key for _, _, c in pn], autojunk=False)
@@ -213,8 +216,19 @@ def _line(line: str, names: Names) -> tuple[float | None, float | None, Content]
     return t, lat, parse(content, names)
 
 
+def _headed(lines: Iterable[str]) -> tuple[int, Iterator[str]]:
+    """(header lines, the stream after them): the hunks and frame numbers count from the first frame line."""
+    it = iter(lines)
+    n = 0
+    for line in it:
+        if not line.startswith("#"):
+            return n, chain([line], it)
+        n += 1
+    return n, iter(())
+
+
 def _frames(lines: Iterable[str], count: list[int], findings: Counter) -> Iterator[str]:
-    """The frame lines of a golden stream: header comments left out, findings counted aside."""
+    """The frame lines of a golden stream (after its header), findings counted aside."""
     for line in lines:
         if line.startswith("#"):
             continue
@@ -233,9 +247,11 @@ def summarize(old: Iterable[str], new: Iterable[str], tol: Tolerances, names: tu
         point_names.add(n)
     s = CheckSummary(*names)
     n_old, n_new = [0], [0]
-    collect = Collector(s, tol.rules, point_names)
+    h_old, old = _headed(old)
+    h_new, new = _headed(new)
+    collect = Collector(s, tol.rules, point_names, (h_old + 1, h_new + 1))
     d = compare_lines(_frames(old, n_old, s.findings_golden), _frames(new, n_new, s.findings_capture), tol, names,
-                      on_change=collect.change, point_names=point_names)
+                      on_change=collect.change, point_names=point_names, start=(h_old + 1, h_new + 1))
     s.golden_frames, s.capture_frames = n_old[0], n_new[0]
     gone, added = s.findings_gone, s.findings_added
     if gone or added:
