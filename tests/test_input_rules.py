@@ -213,6 +213,35 @@ MALFORMED = ["tcp://", "tcp://[::1", "tcp://[::1]x", "tcp://host:0", "tcp://host
              "http://host:8786", "tcp://a b:1", "::1", "tcp://h:1:2", "tcp://[zz]:1", ""]
 
 
+# every address argument -> malformed values its command must refuse in one line (a new one needs its own)
+ADDRESS_CASES = {
+    "--dask": ["tcp://", "tcp://[::1", "tcp://host:99999", "tcp://[::1]x", "udp://h:1", "tcp://h:1:2"],
+    "--mqtt": ["tcp://", "mqtt://", "mqtt://[::1", "mqtt://h:99999", "x", "mqtt://[zz]:1/p"],
+}
+
+
+def _addressed():
+    for cmd, key, name, action in _arguments():
+        if ARGS.get(key) == ADDRESS:
+            marks = [pytest.mark.slow] if cmd in SLOW_COMMANDS else []
+            for text in ADDRESS_CASES.get(name, ["(no cases: add them to ADDRESS_CASES)"]):
+                yield pytest.param(cmd, name, action, text, id=f"{cmd}-{name}-{text}", marks=marks)
+
+
+@pytest.mark.parametrize("cmd, name, action, text", _addressed())
+def test_every_address_argument_refuses_a_malformed_address_in_one_line(cmd, name, action, text, tmp_path, capfd):
+    assert name in ADDRESS_CASES, f"{name}: give ADDRESS_CASES its malformed addresses"
+    if name == "--dask":
+        pytest.importorskip("distributed")
+    argv = _with(_base(cmd, tmp_path), action, name, text)
+    with _alarm(RUN_TIMEOUT_S, " ".join(argv)):
+        code = main(argv)
+    err = capfd.readouterr().err
+    errors = [x for x in err.splitlines() if x.startswith("sniffer: error: ")]
+    assert code == 2 and len(errors) == 1 and "Traceback" not in err, (argv, code, err[-2000:])
+    assert name in errors[0]
+
+
 @pytest.mark.parametrize("text", MALFORMED)
 def test_a_malformed_address_is_one_line_before_any_connection(text):
     with pytest.raises(InputError) as e:
@@ -269,18 +298,6 @@ def test_probe_of_a_refused_port_is_one_line():
         port = s.getsockname()[1]
     with pytest.raises(InputError, match="cannot connect"):
         probe(parse_address(f"tcp://127.0.0.1:{port}", "--dask"), "--dask", reply=8)
-
-
-@pytest.mark.parametrize("text", ["tcp://", "tcp://[::1", "tcp://host:99999", "tcp://[::1]x", "udp://h:1"])
-def test_ingest_dask_malformed_is_one_line(text, tmp_path, capsys):
-    pytest.importorskip("distributed")
-    (tmp_path / "in").mkdir()
-    (tmp_path / "in" / "a.mcap").write_bytes(CAPTURE.read_bytes())
-    with _alarm(RUN_TIMEOUT_S, text):
-        code = main(["ingest", str(tmp_path / "in"), "--to", str(tmp_path / "ds"), "--dask", text])
-    err = capsys.readouterr().err
-    assert code == 2 and "Traceback" not in err, err
-    assert "--dask" in err and len([x for x in err.splitlines() if "error" in x]) == 1, err
 
 
 @pytest.mark.parametrize("answer, says", [(HTTP, "answers as no Dask scheduler does"), (None, "no answer within")])
