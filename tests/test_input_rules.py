@@ -519,7 +519,7 @@ def test_sigrok_cli_stopping_short_of_the_file_is_an_error(tmp_path):
                        ["RX", "TX"])
     src.total_samples = total
     got = b""
-    says = (rf"sigrok-cli stopped after sample 65,536 of the {total:,} the file holds \(\d+%; [\d,]+ samples not "
+    says = (rf"sigrok-cli stopped after sample 65,536 of the {total:,} the file holds \([\d.]+%; [\d,]+ samples not "
             r"decoded\); the frames before it are kept")
     with pytest.raises(CaptureError, match=says):
         for ev in src.events():
@@ -531,6 +531,34 @@ def test_sigrok_cli_stopping_short_of_the_file_is_an_error(tmp_path):
                               if i.filename.startswith("logic-1-"))
     assert sum(len(getattr(ev, "data", b"")) for ev in whole.events()) == 30 * 8
     assert whole.short_of() is None
+
+
+def test_replay_of_a_member_sigrok_cli_cannot_finish_is_exit_2_with_the_frames_before(tmp_path, capfd):
+    """Damage inside a member's deflate stream (its header is sound, so it passes the zip helper): sigrok-cli
+    stops short of the file's samples with exit 0; replay says so, exit 2, and keeps what came before."""
+    from sigrok_tools import need_sigrok_cli
+
+    need_sigrok_cli()
+    from srgen import Trace
+
+    t = Trace(1_000_000, ["RX", "TX"])
+    s = 1000
+    for k in range(30):
+        s = t.uart("RX", s, bytes.fromhex("010300000001840a"), 9600, "N", 1) + 3000 + 97 * k % 500
+    sr = t.write(tmp_path / "line.sr", member_size=1 << 16)
+    args = ["--rx", "RX", "--baud", "9600", "--parity", "N"]
+    assert main(["replay", str(sr), *args]) == 0
+    whole = capfd.readouterr().out.splitlines()
+    data = bytearray(sr.read_bytes())
+    i = data.index(b"logic-1-3") + 200  # inside the member's compressed samples
+    data[i:i + 8] = b"\xff" * 8
+    (bad := tmp_path / "bad.sr").write_bytes(bytes(data))
+    assert main(["replay", str(bad), *args]) == 2
+    got = capfd.readouterr()
+    assert "Traceback" not in got.err
+    assert f"sniffer: error: {bad}: sigrok-cli stopped after sample " in got.err and "not decoded" in got.err
+    kept = got.out.splitlines()
+    assert 0 < len(kept) < len(whole)
 
 
 def _cut(tmp_path: Path) -> Path:
