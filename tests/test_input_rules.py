@@ -19,6 +19,7 @@ import os
 import signal
 import socket
 import threading
+import time
 import zipfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -117,12 +118,15 @@ def _alarm(seconds: int, what: str):
         raise TimeoutError(f"{what}: no answer in {seconds} s (blocked on the input?)")
 
     old = signal.signal(signal.SIGALRM, hung)
-    signal.alarm(seconds)
+    start = time.monotonic()
+    before = signal.alarm(seconds)  # pytest-timeout's own alarm, if it set one: given back below
     try:
         yield
     finally:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
+        if before:
+            signal.alarm(max(1, before - int(time.monotonic() - start)))
 
 
 def _base(cmd: str, tmp: Path) -> list[str]:
