@@ -90,4 +90,4 @@ def test_a_dask_address_nobody_listens_on_is_one_line(capfd, tmp_path, fleet):
     pytest.importorskip("distributed", reason="dask[distributed] is in the test extra")
     rc, err = _ingest(capfd, fleet, tmp_path / "ds", "--dask", "tcp://127.0.0.1:9")
     assert rc == 2
-    assert err.count("\n") == 1 and "--dask tcp://127.0.0.1:9: cannot reach the scheduler" in err
+    assert err.count("\n") == 1 and "--dask tcp://127.0.0.1:9: cannot connect (Connection refused)" in err

@@ -93,6 +93,20 @@ def test_a_field_of_the_wrong_kind_is_shown_as_a_question_mark_and_named(tmp_pat
     assert err == [f"sniffer: warning: {p}: frames, pid, segments.bytes not as a capture writes them (shown as ?)"]
 
 
+@pytest.mark.parametrize("number", ["NaN", "Infinity", "-Infinity", "1e400"])
+def test_a_number_that_is_not_finite_is_no_number(tmp_path, capsys, number):
+    """JSON as Python reads it takes NaN, Infinity and 1e400 (inf): they read as no number (the field is shown
+    as ?, as one the file lacks), and --json writes null (it could not write them back as JSON)."""
+    p = tmp_path / "status.json"
+    p.write_text(json.dumps(STATUS).replace('"frames": 81234', f'"frames": {number}'))
+    code, out, err = _run(capsys, p)
+    said = dict(line.split(None, 1) for line in out.splitlines() if line[:1].strip())
+    assert said["frames"].startswith("? (1.62MB received)")
+    assert not any("Traceback" in line for line in err)
+    main(["status", str(p), "--json"])
+    assert json.loads(capsys.readouterr().out)["frames"] is None
+
+
 @pytest.mark.parametrize("text, why", [
     ("[" * 100_000 + "]" * 100_000, "nested too deep to be a status file"),
     ('{"a": ' * 100_000 + "1" + "}" * 100_000, "nested too deep to be a status file"),

@@ -89,7 +89,8 @@ def read_status(path: str) -> dict:
     if len(raw) > MAX_STATUS_BYTES:
         raise UsageError(f"{shown(path)}: over {MAX_STATUS_BYTES >> 20} MB: not a status file {hint}")
     try:
-        d = json.loads(raw)
+        # NaN, Infinity, 1e400 read as no number: the field is shown as ? (as one the file lacks), --json: null
+        d = json.loads(raw, parse_constant=lambda text: None, parse_float=_finite)
     except RecursionError:
         raise UsageError(f"{shown(path)}: nested too deep to be a status file {hint}") from None
     except ValueError:  # not JSON, not UTF-8
@@ -97,6 +98,11 @@ def read_status(path: str) -> dict:
     if not isinstance(d, dict):
         raise UsageError(f"{shown(path)}: not a status file (JSON object) {hint}")
     return d
+
+
+def _finite(text: str) -> float | None:
+    x = float(text)
+    return x if math.isfinite(x) else None
 
 
 class Fields:

@@ -24,7 +24,7 @@ from sniffer import __version__
 from sniffer.formats.outputs import FILE_MODE, make_folders, shown
 from sniffer.formats.schemas import DATASET_TABLES, PARTITIONS, SCHEMA_VERSION, dataset_schemas, described
 from sniffer.events import CaptureError
-from sniffer.formats.reading import open_regular
+from sniffer.inputs import open_regular
 
 FORMAT = "sniffer-dataset"
 META = "dataset.json"

@@ -35,7 +35,8 @@ from collections.abc import Iterator
 
 from sniffer.events import CaptureInfo, Chunk, Gap
 from sniffer.events import CaptureError
-from sniffer.formats.reading import DamageLog, gap_before, open_regular, quote
+from sniffer.formats.reading import DamageLog, gap_before, quote
+from sniffer.inputs import open_regular
 
 PER_BYTE_CHUNK = 4096  # per-byte chunks: up to this many bytes of one channel
 REORDER_WINDOW = 8192  # rows held back to merge channels recorded as separate columns of time

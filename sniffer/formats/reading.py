@@ -1,11 +1,8 @@
-"""What every file reader shares: opening only regular files (sniffer.inputs' rules), a bounded damage log, gaps."""
+"""What every capture reader shares besides sniffer.inputs' rules: a bounded damage log, gaps, quoting bad input."""
 
 from __future__ import annotations
 
 from sniffer.events import CaptureError
-from sniffer.inputs import not_regular, open_regular
-
-__all__ = ["DamageLog", "EmptyCapture", "file_position", "gap_before", "not_regular", "open_regular", "quote"]
 
 
 class EmptyCapture(CaptureError):

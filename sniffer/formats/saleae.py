@@ -22,7 +22,8 @@ from collections.abc import Iterator
 
 from sniffer.events import FLAG_FRAMING, FLAG_PARITY, CaptureInfo, Chunk
 from sniffer.events import CaptureError
-from sniffer.formats.reading import open_regular, quote
+from sniffer.formats.reading import quote
+from sniffer.inputs import open_regular
 from sniffer.formats.csvstream import CsvRowSource, Row
 from sniffer.formats.timeparse import seconds_to_ns
 

@@ -24,7 +24,8 @@ from collections.abc import Iterator
 from sniffer.events import CaptureInfo, Chunk, Gap, Tick
 from sniffer.events import CaptureError
 from sniffer.formats.reading import EmptyCapture
-from sniffer.formats.reading import not_regular, quote
+from sniffer.formats.reading import quote
+from sniffer.inputs import not_regular
 
 FORMATS = ("auto", "mcap", "csv", "saleae", "pcap", "sigrok")
 # --input-format NAME -> the format table's name (a "csv" input is the byte CSV)

@@ -305,9 +305,9 @@ class SigrokSource:
         cannot read; the frames after it would be lost without a word."""
         if self.live or self.total_samples is None or self.watermark >= self.total_samples:
             return None
-        done = self.watermark / self.total_samples
+        done = self.watermark * 1000 // self.total_samples / 10  # rounded down: 99.96% is not 100%
         return (f"sigrok-cli stopped after sample {self.watermark:,} of the {self.total_samples:,} the file holds "
-                f"({done:.0%}; {self.total_samples - self.watermark:,} samples not decoded){self._why()}; "
+                f"({done:.1f}%; {self.total_samples - self.watermark:,} samples not decoded){self._why()}; "
                 "the frames before it are kept")
 
     def _ask_stop(self) -> bool:

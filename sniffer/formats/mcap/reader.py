@@ -26,7 +26,8 @@ from sniffer.formats.mcap.format import (
 )
 from sniffer.formats.records import loads
 from sniffer.events import CaptureError
-from sniffer.formats.reading import DamageLog, file_position, gap_before, open_regular, quote
+from sniffer.formats.reading import DamageLog, file_position, gap_before, quote
+from sniffer.inputs import open_regular
 from sniffer.formats.reading import EmptyCapture
 from sniffer.formats.mcap.scan import Corrupt, Hole, Scan, open_file
 

@@ -37,7 +37,7 @@ from mcap.stream_reader import breakup_chunk, get_chunk_data_stream
 
 from sniffer.formats.mcap.format import MAGIC
 from sniffer.events import CaptureError
-from sniffer.formats.reading import open_regular
+from sniffer.inputs import open_regular
 
 _READERS = {
     Opcode.HEADER: Header.read,

@@ -45,7 +45,8 @@ from sniffer.formats.pcap.format import (
     pcapng_body_problem, reads_as_packet, tsresol,
 )
 from sniffer.events import CaptureError
-from sniffer.formats.reading import DamageLog, file_position, gap_before, open_regular
+from sniffer.formats.reading import DamageLog, file_position, gap_before
+from sniffer.inputs import open_regular
 
 __all__ = ["LINKTYPE_RTAC_SERIAL", "LINKTYPE_USER0", "PcapSource", "open_pcap", "read_packets", "sniff"]
 
