@@ -67,6 +67,7 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_dataset.py::test_export_of_a_rotated_folder_takes_its_segments",
     "test_value_parts.py::test_a_dataset_of_segments_keeps_one_unit_per_name",
     "test_simulated_models.py::test_every_simulated_frame_recovered_and_paired",
+    "test_simulate_faults.py::test_every_fault_simulates_or_is_refused_in_one_line",  # 264 short simulations
     "test_sources_stream.py::test_memory_does_not_grow_with_the_file",
     "test_sources_stream.py::test_long_single_channel_run_is_cut_at_4096_bytes",
     "test_sources_stream.py::test_two_channels_written_apart_are_merged_by_time",

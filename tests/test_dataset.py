@@ -230,6 +230,33 @@ def test_query_read_only_gives_the_same_answers_and_no_access(tmp_path, capsys):
     assert sorted(p.relative_to(ds) for p in ds.rglob("*")) == before
 
 
+def test_query_read_only_has_no_temporary_folder_and_takes_its_flags_anywhere(tmp_path, capsys, monkeypatch):
+    """DuckDB's temporary folder is ./.tmp of the current folder, and external access off still lets SQL read and
+    write there: --read-only has none.  Its flags may come before the SQL, the dataset, or after both."""
+    ds = tmp_path / "fleet"
+    assert main(["export", str(A510), "--to", "dataset", str(ds)]) == 0
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / ".tmp").mkdir()
+    (tmp_path / ".tmp" / "secret.csv").write_text("who,pin\nops,1234\n")
+    for sql in ("SELECT * FROM '.tmp/secret.csv'", f"SELECT * FROM read_csv('{tmp_path}/.tmp/secret.csv')",
+                "COPY (SELECT 1) TO '.tmp/out.csv'", "SET temp_directory = '.tmp'"):
+        capsys.readouterr()
+        assert main(["query", str(ds), sql, "--read-only"]) == 2, sql
+        err = capsys.readouterr().err
+        assert err.startswith("sniffer: error: query:") and "1234" not in err and len(err.splitlines()) == 1, err
+    assert sorted(os.listdir(tmp_path / ".tmp")) == ["secret.csv"]
+    sql = "SELECT count(*) AS n FROM frames"
+    outs = []
+    for argv in ([str(ds), sql, "--read-only", "--format", "csv"], [str(ds), "--read-only", sql, "--format", "csv"],
+                 ["--read-only", "--format", "csv", str(ds), sql], ["--format", "csv", str(ds), "--read-only", sql]):
+        capsys.readouterr()
+        assert main(["query", *argv]) == 0, argv
+        outs.append(capsys.readouterr().out)
+    assert len(set(outs)) == 1 and outs[0].startswith("n\n") and int(outs[0].split()[1]) > 0
+    assert main(["query", str(ds), "--read-only", sql, "more"]) == 2  # a word too many is still refused
+    assert "unrecognized arguments: more" in capsys.readouterr().err
+
+
 def test_query_of_an_empty_table_and_a_new_dataset(tmp_path, capsys):
     ds = tmp_path / "fleet"
     assert main(["ingest", str(tmp_path), "--to", str(ds)]) == 0  # no captures: an empty dataset

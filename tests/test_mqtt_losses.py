@@ -95,3 +95,37 @@ def test_a_broker_that_accepts_and_never_answers_holds_the_end_no_longer_than_cl
     assert not pub._thread.is_alive()  # its last connect was bounded by what was left of the close's time
     assert took < 1.0 + 1.5  # the bound, with slack for a loaded machine (it waited 3 s: a connect of 5)
     assert said[-1].endswith("1 not delivered (no answer from the broker)")
+
+
+def test_retained_values_superseded_while_the_broker_was_away_are_counted(mqtt_broker):
+    """A register's value that changed while the broker was away: on the reconnect the client sends each
+    retained topic's latest value, not the older ones still queued; those are counted superseded, so every
+    message the capture handed over is counted once (published, dropped, lost, superseded or not delivered)."""
+    said: list[str] = []
+    pub = Publisher(parse_url(mqtt_broker.url("p")), report=said.append)
+    pub.start()
+    try:
+        until(lambda: pub.connected, "connected")
+        mqtt_broker.stop()  # the broker goes away
+        until(lambda: not pub.connected, "the client noticing")
+        for value in range(5):  # three registers change five times while the broker is away
+            for reg in range(3):
+                pub.send(f"p/reg/{reg}", b"%d" % (10 * reg + value), True)
+        pub.send("p/event/x", b"e", False)  # an event: kept, sent after the snapshot
+        assert pub.q.qsize() == 16
+        mqtt_broker.start()
+        until(lambda: pub.connects >= 2 and not pub.q.qsize(), "reconnected and the queue sent")
+        sub = Subscriber(mqtt_broker, "p/#")
+        got = sub.wait_for(lambda m: all(f"p/reg/{r}" in m for r in range(3)), what="the retained values")
+        sub.close()
+        published_before_close = pub.published
+        pub.close()
+    finally:
+        if mqtt_broker.proc is None:
+            mqtt_broker.start()
+    assert {t: p for t, (p, _) in got.items() if t.startswith("p/reg/")} == {f"p/reg/{r}": b"%d" % (10 * r + 4)
+                                                                            for r in range(3)}
+    assert pub.superseded == 15 and pub.status()["superseded"] == 15
+    assert pub.dropped == 0 and published_before_close >= 3 + 1  # the snapshot's three and the event
+    summary = [s for s in said if "messages published" in s]
+    assert len(summary) == 1 and ", 15 retained values superseded while the broker was away" in summary[0], said

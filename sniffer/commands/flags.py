@@ -76,7 +76,22 @@ class Parser(argparse.ArgumentParser):
     def parse_known_args(self, args=None, namespace=None):
         ns, rest = super().parse_known_args(args, namespace)
         ns.__dict__.pop("_given_once", None)
-        return ns, rest
+        return ns, self._late_positionals(ns, rest)
+
+    def _late_positionals(self, ns, rest: list[str]) -> list[str]:
+        """argparse matches positionals in runs between flags: in `query DIR --read-only "SQL"` the optional SQL
+        is matched (empty) with DIR and "SQL" is left over.  A left-over word fills the optional positionals
+        still empty, in order, so flags may stand anywhere."""
+        for action in self._actions:
+            if not rest or rest[0].startswith("-"):
+                break
+            if action.option_strings or action.nargs != "?" or getattr(ns, action.dest, None) != action.default:
+                continue
+            try:
+                action(self, ns, self._get_values(action, [rest.pop(0)]))
+            except argparse.ArgumentError as e:
+                self.error(str(e))
+        return rest
 
     def parse_args(self, args=None, namespace=None):
         ns, rest = self.parse_known_args(args, namespace)

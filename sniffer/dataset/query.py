@@ -12,7 +12,8 @@ DuckDB runs with the user's rights: SQL may read any file, write one (`COPY ... 
 database or install an extension from the network.  `read_only=True` (query --read-only, for SQL
 that comes from elsewhere) reads the tables through pyarrow datasets handed to DuckDB, then turns
 DuckDB's external access off and locks its configuration: no file is opened by SQL, the dataset's
-included (nothing can be written into it), and no extension is installed or loaded.
+included (nothing can be written into it), and no extension is installed or loaded; it has no temporary
+folder either (DuckDB's default, `./.tmp` of the current folder, stays open to SQL with external access off).
 """
 
 from __future__ import annotations
@@ -202,7 +203,10 @@ def connect(ds: Dataset, *, threads: int | None = None, read_only: bool = False)
     con.register("_captures", _captures(ds))
     con.execute("CREATE VIEW captures AS SELECT * FROM _captures")
     if read_only:
-        for setting in ("SET enable_external_access = false", "SET autoinstall_known_extensions = false",
+        # temp_directory: DuckDB spills to ./.tmp of the current folder by default, and external access off still
+        # allows its temp directory: SQL could read and write files there.  None: a query too big for memory fails.
+        for setting in ("SET temp_directory = ''", "SET enable_external_access = false",
+                        "SET autoinstall_known_extensions = false",
                         "SET autoload_known_extensions = false",
                         "SET python_enable_replacements = false",  # no Python variable is a table either
                         "SET lock_configuration = true"):

@@ -8,7 +8,7 @@ it inherits its port, listens as `detect PORT` does and sends back what the repo
 (`PortResult`, plain data: the table, the verdict's line, the [[links]] table for the bus file).  A
 process each, not a thread: detect times the characters by when the reads come, and a reader thread
 that waits for the interpreter while another port's bytes are framed would blur that.  The children
-ignore Ctrl-C (the command's to handle: it ends them).
+ignore Ctrl-C (the command's to handle: it ends them) and end with it if it is killed outright.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from sniffer.capture.busfile import BusFile
 from sniffer.detect.report import headline, link_table, table, units
 from sniffer.detect.search import Verdict
 from sniffer.events import CaptureError
+from sniffer.processes.parent_death import worker_args, worker_ends_with_parent
 
 
 @dataclass
@@ -62,7 +63,8 @@ def settle(opened: dict, listen_one: Callable[[object], Verdict]) -> list[PortRe
     try:
         for name, port in opened.items():
             rx, tx = ctx.Pipe(duplex=False)
-            child = ctx.Process(target=_child, args=(port, name, listen_one, tx), name=f"detect {name}", daemon=True)
+            child = ctx.Process(target=_child, args=(port, name, listen_one, tx, *worker_args()), name=f"detect {name}",
+                                daemon=True)
             child.start()
             tx.close()
             port.close()  # the child's now
@@ -87,7 +89,8 @@ def settle(opened: dict, listen_one: Callable[[object], Verdict]) -> list[PortRe
             port.close()
 
 
-def _child(port, name: str, listen_one, tx) -> None:
+def _child(port, name: str, listen_one, tx, parent_pid: int, from_main_thread: bool) -> None:
+    worker_ends_with_parent(parent_pid, from_main_thread)  # a detect killed outright: no port listened to on
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         res = result_of(listen_one(port), port.path, name)

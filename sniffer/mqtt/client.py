@@ -16,9 +16,12 @@ and a retry every 0.5 .. 5 s; the capture goes on.  PREFIX/status is `online` wh
 
 What happened to each message is counted: `published` once paho wrote it to the socket (its
 on_publish), `dropped` from a full queue, `lost` when the connection died with it handed to paho
-but not yet written (paho drops those on reconnecting), and what is left at the end "not
-delivered".  A message written to the socket of a broker that then died is not known to be lost
-(QoS 0 has no acknowledgement).  The end (close) takes at most `CLOSE_S` in all: a broker that
+but not yet written (paho drops those on reconnecting), `superseded`: a retained value still queued
+when the broker came back (the snapshot sends its topic's latest instead), and what is left at the
+end "not delivered".  So every message `send` took is counted once: published (the snapshot's and
+the stale topics' re-sends are published on top), dropped, lost, superseded or not delivered.
+A message written to the socket of a broker that then died is not known to be lost (QoS 0 has no
+acknowledgement).  The end (close) takes at most `CLOSE_S` in all: a broker that
 accepts and never answers holds it no longer (the last connect's timeout is what is left of it).
 """
 
@@ -50,6 +53,7 @@ class Publisher:
         self.published = 0  # written to the socket (on_publish)
         self.dropped = 0  # a full queue
         self.lost = 0  # handed to paho, not yet written when the connection died
+        self.superseded = 0  # retained values queued while the broker was away: its latest went in their place
         self._unwritten = 0  # handed to paho and not yet written (on this connection)
         self.connects = 0
         self.connected = False
@@ -78,6 +82,7 @@ class Publisher:
         return {"broker": self.spec.broker, "prefix": self.spec.prefix, "tls": self.spec.tls,
                 "connected": self.connected, "published": self.published, "queued": self.q.qsize(),
                 "queue_max": self.spec.queue, "dropped": self.dropped, "lost": self.lost,
+                "superseded": self.superseded,
                 "retained": len(self.retained),
                 "connects": self.connects, "last_error": self.last_error}
 
@@ -92,9 +97,11 @@ class Publisher:
         if self._thread is not None:
             self._thread.join(max(0.0, self._close_by - time.monotonic()) + 0.5)  # the thread ends by _close_by
         left = self.q.qsize() + self._unwritten
-        if self.connects or left or self.dropped or self.lost:
+        if self.connects or left or self.dropped or self.lost or self.superseded:
             self.report(f"mqtt: {self.published} messages published to {self.spec.broker}"
                         + (f", {self.dropped} dropped (queue full)" if self.dropped else "")
+                        + (f", {self.superseded} retained values superseded while the broker was away (their "
+                           "topics' latest sent instead)" if self.superseded else "")
                         + (f", {self.lost} lost with the connection (handed over, not yet sent when the broker "
                            "went)" if self.lost else "")
                         + (f", {left} not delivered ({self.last_error or 'not connected'})" if left else ""))
@@ -212,6 +219,8 @@ class Publisher:
                 break
             if not item[2]:
                 events.append(item)
+            else:  # an older (or the same) value of a topic the snapshot sends as it is now: not sent itself
+                self.superseded += 1
         self.stale.clear()
         snapshot = self.retained.copy()
         self._publish(availability(self.spec.prefix), b"online", True)

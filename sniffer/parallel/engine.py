@@ -43,6 +43,7 @@ from sniffer.parallel.events import Indexed, NotIndexed, RawRange, Stream
 from sniffer.parallel.part import Counted, Runner, Task, encode, run_part
 from sniffer.parallel.truth import Truth
 from sniffer.parallel.worker import recv, send, serve
+from sniffer.processes.parent_death import worker_args
 
 PART_EVENTS = 4096
 WARM_EVENTS = 64
@@ -65,7 +66,7 @@ class Part:
 class _Worker:
     def __init__(self, ctx, setup: bytes) -> None:
         self.conn, child = ctx.Pipe(duplex=True)
-        self.proc = ctx.Process(target=serve, args=(child,), daemon=True, name="sniffer-part")
+        self.proc = ctx.Process(target=serve, args=(child, *worker_args()), daemon=True, name="sniffer-part")
         self.proc.start()
         child.close()
         self.conn.send_bytes(setup)

@@ -28,8 +28,12 @@ def _local(jobs: int):
     import os
     from concurrent.futures import ProcessPoolExecutor
 
+    from sniffer.processes.parent_death import worker_args, worker_ends_with_parent
+
     ctx = multiprocessing.get_context("fork" if hasattr(os, "fork") else "spawn")
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
+    # the pool starts its workers at the first submit, from this thread: a killed ingest leaves none behind
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=worker_ends_with_parent,
+                               initargs=worker_args())
     return pool, lambda job: pool.submit(_stage, job), jobs, pool.shutdown
 
 

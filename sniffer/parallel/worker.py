@@ -11,7 +11,8 @@ The conversation on the worker's pipe (each message one pickle):
                              ("error", text)                a bug: the traceback's last line
     coordinator -> worker    ("stop",)
 
-The worker ignores Ctrl-C (the coordinator ends it by its pipe or by terminate())
+The worker ignores Ctrl-C (the coordinator ends it by its pipe or by terminate(); a
+coordinator killed outright, by the kernel or a watcher: processes/parent_death.py)
 and holds one part at a time, so its memory is one part's frames.
 """
 
@@ -30,11 +31,14 @@ def recv(conn):
     return pickle.loads(conn.recv_bytes())
 
 
-def serve(conn) -> None:
-    """The worker's main loop (a multiprocessing.Process target)."""
+def serve(conn, parent_pid: int, from_main_thread: bool) -> None:
+    """The worker's main loop (a multiprocessing.Process target); it ends with the coordinator's process even
+    killed outright (processes/parent_death.py)."""
     from sniffer.parallel.events import NotIndexed
     from sniffer.parallel.part import Counted, run_part
+    from sniffer.processes.parent_death import worker_ends_with_parent
 
+    worker_ends_with_parent(parent_pid, from_main_thread)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     spec = info = plans = None
     try:

@@ -218,12 +218,13 @@ def _with_unit(sc: Scenario, unit: int, what: str, **changes) -> Scenario:
 
 
 def _model(sc: Scenario, unit: int, what: str, need_save: bool = False):
-    from sniffer.simulator.profiles import get_model
+    from sniffer.simulator.profiles import PROFILES, get_model
 
     _spec(sc, unit, what)
     model_id = sc.devices.get(unit)
-    models = ("tds-v8",) if need_save else ("tds-v8", "a510", "spl")
-    if model_id is None or (need_save and model_id not in models):
+    # a model the simulator has a register-level drive of (a PD-series drive speaks its own framing: no registers)
+    models = ("tds-v8",) if need_save else tuple(PROFILES)
+    if model_id not in models:
         raise FaultError(f"--fault {what}:{unit}: needs a drive of a real model{' with a save register' * need_save} "
                          f"(--scenario {' or '.join(models)})")
     return get_model(model_id)
@@ -272,6 +273,15 @@ def _params_not_saved(sc: Scenario, unit: int) -> Scenario:
     return dataclasses.replace(sc, polls=polls)
 
 
+def _second_master(sc: Scenario, unit: int) -> Scenario:
+    """The second PLC polls with Modbus reads: a line of another protocol (PD-series) cannot carry them."""
+    _spec(sc, unit, "second_master")
+    if not sc.protocol.startswith("modbus"):
+        raise FaultError(f"--fault second_master:{unit}: the second master polls with Modbus reads; scenario "
+                         f"{sc.name!r} speaks {sc.protocol}")
+    return sc
+
+
 def _needs_unit(kind: str):
     def check(sc: Scenario, unit: int) -> Scenario:
         _spec(sc, unit, kind)
@@ -294,7 +304,7 @@ _SCENARIO_CHANGES = {
     "driver_disable_early": _needs_unit("driver_disable_early"),
     "noise_correlated_with_load": _needs_model("noise_correlated_with_load"),
     "noise_during_ramps": _needs_unit("noise_during_ramps"),
-    "second_master": _needs_unit("second_master"),
+    "second_master": _second_master,
 }
 
 

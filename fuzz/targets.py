@@ -1,0 +1,144 @@
+"""The fuzz targets: every reader and parser of the sniffer, each a function of one input's bytes.
+
+    one("mcap", data)          # runs the target on `data`; raises only for a bug (a crash to keep)
+
+A file surface writes the bytes to a file of its kind and runs the command that reads it in-process
+(sniffer.cli.main, as the console script runs it): main turns every error the project means (a
+capture refused, a map, bus file, golden or status file that is wrong) into one line and an exit
+code, so any exception that escapes it is a bug, and so is an exit code the command does not give.
+The framers and the filter language are called directly (they are the hot path: more inputs a
+second), with their own properties: every byte fed ends in exactly one frame; a filter is parsed or
+refused with FilterError.
+
+fuzz/run.py runs a target under atheris (coverage-guided, libFuzzer); fuzz/corpus/TARGET/ holds its
+seeds (and every crash found, once fixed: tests/test_fuzz_targets.py replays the corpus in the fast
+lane).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+CORPUS = Path(__file__).resolve().parent / "corpus"
+WIZ = ROOT / "captures" / "refcaptures" / "sigrok" / "wizmodbus.bytes.csv"
+SIM = ROOT / "captures" / "sim" / "tds-v8.mcap"
+SMALL = CORPUS / "bytecsv" / "seed-wiz"  # 40 bytes of WIZ: what the golden seed was made from
+FRAMES = ["010300000002C40B", "0103040001000290", "0104000A0002", "011000140002040001000A"]
+
+
+@dataclass(frozen=True)
+class FileTarget:
+    """A file of kind `ext` read by `sniffer ARGV` (the file's path where ARGV says "{}"), exit codes `codes`."""
+
+    ext: str
+    argv: tuple[str, ...]
+    codes: tuple[int, ...] = (0, 2)
+
+
+FILE_TARGETS: dict[str, FileTarget] = {
+    "mcap": FileTarget("mcap", ("replay", "{}", "--baud", "9600")),
+    "pcap": FileTarget("pcap", ("replay", "{}", "--baud", "9600")),
+    "pcapng": FileTarget("pcapng", ("replay", "{}", "--baud", "9600")),
+    "bytecsv": FileTarget("csv", ("replay", "{}", "--baud", "9600")),
+    "saleae": FileTarget("csv", ("replay", "{}", "--input-format", "saleae", "--baud", "9600")),
+    "sigrok": FileTarget("sr", ("replay", "{}", "--rx", "0", "--baud", "9600")),
+    "bus": FileTarget("toml", ("replay", str(WIZ), "--bus", "{}")),
+    "map_toml": FileTarget("toml", ("decode", *FRAMES, "--model-file", "{}", "--device", "1=fuzz")),
+    "map_csv": FileTarget("csv", ("decode", *FRAMES, "--model-file", "{}", "--device", "1=fuzz")),
+    # a Home Assistant map's model is named by its file: input.yaml
+    "map_yaml": FileTarget("yaml", ("decode", *FRAMES, "--model-file", "{}", "--device", "1=input")),
+    "golden": FileTarget("txt", ("check", str(SMALL), "--baud", "9600", "--golden", "{}"), (0, 1, 2)),
+    "params": FileTarget("csv", ("diagnose", str(SIM), "--params", "{}", "--format", "json")),
+    "status": FileTarget("json", ("status", "{}", "--json"), (0, 1, 2)),
+}
+
+
+class Unexpected(AssertionError):
+    """A target's input gave what no input may: an exit code the command does not give, a byte lost."""
+
+
+_WORK: str | None = None
+
+
+def _path(ext: str) -> str:
+    global _WORK
+    if _WORK is None:
+        _WORK = tempfile.mkdtemp(prefix="sniffer-fuzz-")
+    return os.path.join(_WORK, f"input.{ext}")
+
+
+def run_file(name: str, data: bytes) -> int:
+    """The file target `name` on `data`: its exit code (an exception escaping main is a bug: raised)."""
+    from sniffer.cli import main
+
+    t = FILE_TARGETS[name]
+    path = _path(t.ext)
+    with open(path, "wb") as f:
+        f.write(data)
+    argv = [a.replace("{}", path) for a in t.argv]
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+        try:
+            rc = main(argv)
+        except SystemExit as e:  # argparse's --help and the like: not reached by a file's bytes, but not a crash
+            rc = e.code if isinstance(e.code, int) else 2
+    if rc not in t.codes:
+        raise Unexpected(f"{name}: exit {rc}, not one of {t.codes}: {out.getvalue()[-500:]}")
+    if "Traceback" in out.getvalue():
+        raise Unexpected(f"{name}: a traceback was printed: {out.getvalue()[-1500:]}")
+    return rc
+
+
+def run_framers(data: bytes) -> None:
+    """The first byte picks the read sizes and the silences between reads; the rest is the line.  Every framer
+    gets the same reads; every byte fed comes out in exactly one frame, in order."""
+    from sniffer.events import Chunk
+    from sniffer.framing import AsciiFramer, PdAsciiFramer, PdRtuFramer, RtuFramer
+    from sniffer.line import LineSettings
+
+    if not data:
+        return
+    shape, line = data[0], data[1:]
+    size = 1 + (shape & 0x1F)  # 1..32 bytes a read
+    gap_ns = (shape >> 5) * 2_000_000  # 0..14 ms between reads: within and past the 3.5 character silence
+    settings = LineSettings(9600, "N", 1, 8)
+    for framer_class in (RtuFramer, AsciiFramer, PdRtuFramer, PdAsciiFramer):
+        framer = framer_class(settings)
+        frames = []
+        t = 1_000_000
+        for i in range(0, len(line), size):
+            frames += framer.feed(Chunk(t, line[i:i + size]))
+            t += gap_ns + size * 1_042_000
+        frames += framer.flush()
+        out = b"".join(f.raw for f in frames)
+        if out != line:
+            raise Unexpected(f"{framer_class.__name__}: {len(line)} bytes fed, {len(out)} came out in frames"
+                             f"{' (reordered)' if len(out) == len(line) else ''}")
+
+
+def run_filter(data: bytes) -> None:
+    from sniffer.filterlang.parser import FilterError, parse
+
+    text = data.decode("utf-8", "replace")
+    try:
+        parse(text)
+    except FilterError:
+        pass
+
+
+TARGETS: dict[str, Callable[[bytes], object]] = {
+    **{name: (lambda data, name=name: run_file(name, data)) for name in FILE_TARGETS},
+    "framers": run_framers,
+    "filter": run_filter,
+}
+
+
+def one(name: str, data: bytes):
+    return TARGETS[name](data)
