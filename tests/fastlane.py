@@ -60,6 +60,9 @@ SLOW_FILES: frozenset[str] = frozenset({
 # single tests slow by their work (seconds of simulation, decoding or memory tracing), not by a part the rule
 # sees: "file.py::test_name", parameters left out.  `pytest -m "not slow" --durations=30` shows candidates.
 SLOW_TESTS: frozenset[str] = frozenset({
+    "test_diagnose_masters.py::test_each_second_master_form_is_found_on_the_unit_it_polls",  # 8 plants x 60 s each
+    "test_diagnose_masters.py::test_healthy_plants_give_nothing_above_info",  # 8 plants x 60 s
+    "test_diagnose_masters.py::test_a_timeout_exceeded_by_the_slowest_answers_only_is_found_with_a_timeout_to_set",
     # several captures into a dataset: by worker processes, as `--jobs` defaults to every core
     "test_dataset.py::test_ingest_is_incremental",
     "test_dataset.py::test_query_formats_and_presets",

@@ -61,6 +61,7 @@ class _Link:
         self.first_ns: int | None = None
         self.last_ns = 0
         self.indices: dict[tuple, list[int]] = {}
+        self.times: dict[tuple, list[int]] = {}  # type -> [first t_ns, last t_ns, first tries]
         self.windows = 0
 
 
@@ -92,14 +93,17 @@ def _phases(win: list, anchor: tuple, counts: Counter) -> dict[tuple, tuple]:
             # per-read times are estimated back from the read: a frame may carry a time before the anchor's
             m = (t - t_a) * BINS // span
             x[0 if m < 0 else m if m < top else top] += 1
-            x[BINS + (i - a) * BINS // size] += 1
+            # a rank in a cycle of a few requests says nothing (any type keeps one of a few places)
+            if size > BINS:
+                x[BINS + (i - a) * BINS // size] += 1
     out = {}
     for k, x in bins.items():
         n = sum(x[:BINS])
         if n < MIN_TYPE:
             continue
         best = (0.0, 0.0)
-        for h in (x[:BINS], x[BINS:]):
+        # ranks only where every cycle was long enough to give one
+        for h in (x[:BINS], x[BINS:]) if sum(x[BINS:]) == n else (x[:BINS],):
             top2 = sum(sorted(h)[-2:]) / n
             c = sum(v * _COS[m] for m, v in enumerate(h))
             si = sum(v * _SIN[m] for m, v in enumerate(h))
@@ -162,6 +166,12 @@ class MastersGroup(Group):
             return
         k = key
         s.window.append((f.t_ns, k))
+        tt = s.times.get(k)
+        if tt is None:
+            s.times[k] = [f.t_ns, f.t_ns, 1]
+        else:
+            tt[1] = f.t_ns
+            tt[2] += 1
         idx = s.indices.setdefault(k, [])
         if len(idx) < 4:
             idx.append(f.index)
@@ -180,14 +190,12 @@ class MastersGroup(Group):
         frequent = [k for k, n in counts.most_common(ANCHORS) if n >= MIN_TYPE]
         if len(frequent) < 2:
             return
-        best: dict[tuple, list] = {}  # type -> [n, best share, best R]
-        for anchor in frequent:
-            for k, (n, share, r) in _phases(win, anchor, counts).items():
-                e = best.get(k)
-                if e is None:
-                    best[k] = [n, share, r]
-                else:
-                    e[1], e[2] = max(e[1], share), max(e[2], r)
+        # the master's cycle is the anchor that holds the most types in place (a second master's type, if
+        # frequent, holds none of the first master's): every type is judged against that one
+        by_anchor = [(anchor, _phases(win, anchor, counts)) for anchor in frequent]
+        ref, best = max(by_anchor, key=lambda ab: sum(1 for _, sh, r in ab[1].values()
+                                                        if sh >= HELD_SHARE or r >= HELD_R))
+        s.held.add(ref)
         for k, (n, share, r) in best.items():
             if share >= HELD_SHARE or r >= HELD_R:
                 s.held.add(k)
@@ -220,27 +228,39 @@ class MastersGroup(Group):
             med = u.typical() if u is not None and u.lat.n >= 5 else None
             if med is not None and gap < 0.5 * med:
                 interrupts += 1
-        if interrupts + s.bursts + s.late < 2:
+        k0, e0 = max(spread.items(), key=lambda kv: kv[1][1])
+        meets = interrupts + s.bursts + s.late
+        # one that never meets the first master (it waits for a quiet line) shows by its schedule alone
+        if meets < 2 and e0[1] < 2 * MIN_TYPE:
             return None
         units = sorted({k[0] for k in spread})
         unit = units[0] if len(units) == 1 else None
-        k0, e0 = max(spread.items(), key=lambda kv: kv[1][1])
         types = [f"u{k[0]} {key_text(k[1:])}" for k in sorted(spread, key=str)][:6]
-        ev = {"request_types_on_their_own_schedule": types, "request_types_in_the_cycle": len(s.held),
-              "requests_sent_before_the_unit_could_answer": interrupts, "late_answers": s.late,
-              "bursts_of_two_transmitters": s.bursts}
+        sent = sum(s.times[k][2] for k in spread if k in s.times)
+        periods = sorted((s.times[k][1] - s.times[k][0]) / 1e6 / (s.times[k][2] - 1)
+                         for k in spread if k in s.times and s.times[k][2] > 1)
+        period = periods[len(periods) // 2] if periods else 0.0
+        collided = s.bursts  # CRC-damaged bursts: two transmitters at once
+        ev = {"its_requests": sent, "its_period_ms": round(period, 1), "it_reads": "; ".join(types),
+              "request_types_in_the_first_masters_cycle": len(s.held),
+              "collisions_crc_damaged_frames": collided,
+              "first_master_requests_cut_short": interrupts, "late_answers": s.late}
         who = f"unit {unit}" if unit is not None else f"units {', '.join(map(str, units))}"
         frames = [i for k in spread for i in s.indices.get(k, [])[:2]] + s.late_frames[:2] + s.burst_frames[:2]
+        meet = (f"It collides with the first master: {collided} CRC-damaged frames are two transmitters at once, "
+                f"{interrupts} of the first master's requests were cut short before their answer"
+                f"{f', {s.late} answers came late' if s.late else ''}." if meets >= 2 else
+                "It never talks over the first master (it waits for a quiet line), but its requests fit no slot "
+                "of the first master's cycle.")
         return Finding(
-            "second_master", ERROR, unit=unit, link=link.name, t_start=d.seconds(s.first_ns),
-            t_end=d.seconds(s.last_ns), evidence=ev, frames=frames,
+            "second_master", ERROR if meets >= 2 else WARNING, unit=unit, link=link.name,
+            t_start=d.seconds(s.first_ns), t_end=d.seconds(s.last_ns), evidence=ev, frames=frames,
             statistic={"test": "phase in the poll cycle: share in the two busiest twelfths (a request of the "
                                "cycle: 0.7 or more), and its mean resultant length R", "type": types[0],
                        "n": e0[1], "share": round(e0[4], 3), "R": round(e0[2], 3)},
-            text=f"Another master polls {who} on a schedule of its own: its requests ({', '.join(types[:3])}) drift "
-                 f"through the poll cycle while {len(s.held)} other request types hold their place, and the two meet "
-                 f"({interrupts} requests sent before the unit asked could answer, {s.late} late answers, "
-                 f"{s.bursts} bursts of two transmitters at once).",
+            text=f"Another master polls {who} on a clock of its own, about every {period:.0f} ms: it reads "
+                 f"{', '.join(types[:3])} ({sent} requests), drifting through the poll cycle while {len(s.held)} "
+                 f"request types of the first master hold their place. {meet}",
             action="Find the second master (an HMI, a gateway, a laptop left connected) and take it off this line, "
                    "or make it a slave of the PLC: Modbus RTU has one master per line, and answers go to "
                    "whichever request came last.")

@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from sniffer.diagnose.engine import Diagnosis
 
 MIN_LATE = 3
+TAIL_NEAR = 0.6  # a slowest answer in time this close to the master's wait: a tail that crosses it
 MIN_BINS = 8
 DRIFT_P = 1e-3
 DRIFT_RATIO = 1.5
@@ -59,8 +60,13 @@ class TimingGroup(Group):
     def request(self, f, link: Link, unit: Unit, codes: frozenset, key: tuple) -> None:
         if f.unit:
             last = self.last_req.get(link.name)
-            if last is not None and last[2]:  # the one before got no answer: the master waited this long
-                self._w(link, last[0]).gave_up.add((f.t_ns - last[1]) / 1e6)
+            if last is not None and last[2]:  # the one before got no answer: the master waited this long ...
+                wait = (f.t_ns - last[1]) / 1e6
+                u = link.units.get(last[0])
+                # ... unless the next request came inside the unit's own answer time: another master's request
+                # (or a collision) cut the exchange short, which says nothing of the first master's timeout
+                if u is None or u.lat.n < 5 or wait > 2 * u.typical() + 2 * link.char_ns / 1e6:
+                    self._w(link, last[0]).gave_up.add(wait)
             unanswered = not UNANSWERED.isdisjoint(codes)
             if not codes:
                 self.last_req[link.name] = (f.unit, f.t_end_ns, False)
@@ -120,13 +126,26 @@ class TimingGroup(Group):
         floor = max(2 * p99, p99 + 2 * link.char_ns / 1e6)
         slow = [(a, b, i) for n, x, a, b, i in self.retry_answers
                 if n == link.name and x == u.unit and a > floor and b <= reach]
-        late = [(ms, i) for ms, i in w.late if ms <= reach]
+        # an answer paired late that came within the unit's ordinary answer time was cut short by a request
+        # sent inside its turnaround (a second master, a collision): not a slow answer
+        late = [(ms, i) for ms, i in w.late if floor < ms <= reach]
         hits = len(late) + len(slow)
+        tail = ordinary.pct(1.0) if ordinary.n else 0.0
+        if (hits < MIN_LATE or hits < 0.01 * max(u.answers, 1)) and master is not None and ordinary.n >= 20 \
+                and tail >= TAIL_NEAR * master:
+            # a mild one: the unit's slowest answers in time come close to the master's wait, so the answers
+            # that came only after the master's retry (counted from the first try, past the wait) are its tail
+            # beyond the timeout, not lost requests answered again
+            slow = [(a, b, i) for n, x, a, b, i in self.retry_answers
+                    if n == link.name and x == u.unit and master < b <= reach]
+            late = [(ms, i) for ms, i in w.late if master < ms <= reach]
+            hits = len(late) + len(slow)
         if hits < MIN_LATE or hits < 0.01 * max(u.answers, 1):
             return None
         worst = max([w.true_lat.pct(1.0) or 0.0, *(b for _, b, _ in slow), *(ms for ms, _ in late)])
         advice = max(10 * math.ceil(worst * 1.5 / 10), 10 * math.ceil(((master or 0) + 10) / 10))
         ev = {"answers": u.answers, "late_answers": len(late), "answers_after_a_retry": len(slow),
+              "share_after_the_timeout": round(hits / max(u.answers, 1), 3),
               "latency_p50_ms": round(ordinary.pct(0.5), 2) if ordinary.n else None,
               "latency_p95_ms": round(ordinary.pct(0.95), 2) if ordinary.n else None,
               "latency_max_ms": round(worst, 2), "recommended_timeout_ms": advice}

@@ -122,6 +122,8 @@ class _Bus:
         cycle_start = self.now
         plan = self.plan
         while self.now < end_ns:
+            if plan is not None:  # the line is quiet from here to the next cycle's start
+                plan.free_ns = self.now
             self.now = max(self.now, cycle_start)
             if plan is not None:
                 yield from plan.between(self.now, end_ns)
@@ -133,6 +135,7 @@ class _Bus:
                 if self.now >= end_ns:
                     return
                 if plan is not None:
+                    plan.free_ns = self.now
                     yield from plan.between(self.now, end_ns)
                 yield from self._exchange(req)
                 yield from self._idle()

@@ -79,10 +79,25 @@ KINDS: dict[str, FaultKind] = {k.name: k for k in (
     FaultKind("second_master", "a second PLC polls the unit on its own schedule"),
     FaultKind("latency_drift", "the unit's turnaround grows through the capture", levels=(0.5, 4.0, 10.0),
               severity="growth of its turnaround per minute, as a share of itself"),
+    FaultKind("second_master_blind", "a second PLC polls the unit on its own clock and never listens first: "
+                                     "it collides with the first master"),
+    FaultKind("second_master_fc04", "a second PLC reads the unit's registers with fc04 (the first master uses fc03)"),
+    FaultKind("second_master_polite", "a second PLC polls the unit only when the line is quiet: no collision, "
+                                      "but its requests fit no slot of the first master's cycle"),
+    FaultKind("timeout_mild", "the unit's slowest answers (about 5 %) come after the master's timeout, "
+                              "after its retry"),
 )}
 
 SECOND_MASTER_PERIOD_MS = 270.0  # unrelated to any scenario's poll period
 M2_LISTENS = 0.6  # share of the second master's requests sent into a quiet line (the rest: when its timer says)
+# the second-master kinds: (function it reads with, share of its requests sent into a quiet line)
+SECOND_MASTERS: dict[str, tuple[int, float]] = {
+    "second_master": (0x03, M2_LISTENS), "second_master_blind": (0x03, 0.0),
+    "second_master_fc04": (0x04, M2_LISTENS), "second_master_polite": (0x03, 1.0),
+}
+MILD_LATE_SHARE = 0.05  # timeout_mild: share of the unit's answers that come after the master's timeout ...
+MILD_LATE_TIMEOUTS = (1.02, 1.3)  # ... this many timeouts after the request
+MILD_SLOW_SHARE = 0.15  # ... and this share comes slow but in time (0.3-0.95 timeouts): a tail, not a cliff
 POWER_OFF_S = 1.5  # params_not_saved: how long the drive is without power
 _WORDS = {"mild": 0, "usual": 1, "gross": 2}
 
@@ -244,6 +259,16 @@ def _timeout_too_short(sc: Scenario, unit: int) -> Scenario:
     return dataclasses.replace(sc, retries=max(sc.retries, 1))
 
 
+def _timeout_mild(sc: Scenario, unit: int) -> Scenario:
+    """A unit whose answer time has a long tail: most answers quick, some slow, the slowest 5 % after the
+    master's timeout (they come after its retry, which the busy unit does not hear)."""
+    char_ms = sc.line.char_ns / 1e6
+    slow = (0.3 * sc.timeout_ms / char_ms, 0.95 * sc.timeout_ms / char_ms)
+    sc = _with_unit(sc, unit, "timeout_mild", late_prob=MILD_LATE_SHARE, late_timeouts=MILD_LATE_TIMEOUTS,
+                    slow_prob=MILD_SLOW_SHARE, slow_turnaround_chars=slow)
+    return dataclasses.replace(sc, retries=max(sc.retries, 1))
+
+
 def _latency_drift(sc: Scenario, unit: int) -> Scenario:
     return _with_unit(sc, unit, "latency_drift", turnaround_growth_per_min=level(_this(sc)))
 
@@ -273,13 +298,15 @@ def _params_not_saved(sc: Scenario, unit: int) -> Scenario:
     return dataclasses.replace(sc, polls=polls)
 
 
-def _second_master(sc: Scenario, unit: int) -> Scenario:
+def _second_master(kind: str):
     """The second PLC polls with Modbus reads: a line of another protocol (PD-series) cannot carry them."""
-    _spec(sc, unit, "second_master")
-    if not sc.protocol.startswith("modbus"):
-        raise FaultError(f"--fault second_master:{unit}: the second master polls with Modbus reads; scenario "
-                         f"{sc.name!r} speaks {sc.protocol}")
-    return sc
+    def check(sc: Scenario, unit: int) -> Scenario:
+        _spec(sc, unit, kind)
+        if not sc.protocol.startswith("modbus"):
+            raise FaultError(f"--fault {kind}:{unit}: the second master polls with Modbus reads; scenario "
+                             f"{sc.name!r} speaks {sc.protocol}")
+        return sc
+    return check
 
 
 def _needs_unit(kind: str):
@@ -304,7 +331,8 @@ _SCENARIO_CHANGES = {
     "driver_disable_early": _needs_unit("driver_disable_early"),
     "noise_correlated_with_load": _needs_model("noise_correlated_with_load"),
     "noise_during_ramps": _needs_unit("noise_during_ramps"),
-    "second_master": _second_master,
+    "timeout_mild": _timeout_mild,
+    **{k: _second_master(k) for k in SECOND_MASTERS},
 }
 
 
@@ -318,9 +346,12 @@ class BusFaults:
         self.load = find(bus.sc, "noise_correlated_with_load")
         self.ramps = find(bus.sc, "noise_during_ramps")
         self.silent = [f for f in find(bus.sc, "unit_silent") if f.spanned]
-        self.m2_unit = faults.get("second_master")
+        m2 = next((k for k in SECOND_MASTERS if k in faults), None)
+        self.m2_unit = faults.get(m2) if m2 is not None else None
+        self.m2_function, self.m2_listens = SECOND_MASTERS.get(m2, (0x03, M2_LISTENS))
         self.m2_next = int(bus.sc.start_ms * 1e6) + int(0.4 * SECOND_MASTER_PERIOD_MS * 1e6)
         self._m2_end = 0
+        self.free_ns = 0  # the bus time from which the line was quiet before `between` was called (bus.run)
         self.power_unit = faults.get("params_not_saved")
         self.power_off: tuple[int, int] | None = None  # (from, to) in bus time
 
@@ -360,11 +391,14 @@ class BusFaults:
         if self.m2_unit is None:
             return
         while self.m2_next <= now and self.m2_next < end_ns:
-            if bus.rng.random() < M2_LISTENS:
-                # it waits for a quiet line (between the first master's exchanges), and the first master,
-                # which also waits for silence before it sends, lets it finish
-                yield from self._second_master(now)
-                now = bus.now = max(bus.now, self._m2_end + bus.line.t35_ns + bus.char)
+            if self.m2_listens and bus.rng.random() < self.m2_listens:
+                # it waits for a quiet line: when its timer says if the line was idle then (the first master
+                # between its cycles), else after the first master's exchange; the first master, which also
+                # waits for silence before it sends, lets it finish
+                t = self.m2_next if self.m2_next >= self.free_ns else now
+                yield from self._second_master(t)
+                self.free_ns = self._m2_end + bus.line.t35_ns + bus.char
+                now = bus.now = max(bus.now, self.free_ns)
             else:  # it sends when its timer says, over whatever is on the line
                 yield from self._second_master(self.m2_next)
             self.m2_next += int(SECOND_MASTER_PERIOD_MS * 1e6) + bus.rng.randint(0, 4 * bus.char)
@@ -377,7 +411,9 @@ class BusFaults:
         bus, unit = self.bus, self.m2_unit
         model = bus.master.models.get(unit)
         first = model.profile.monitor[0] if model is not None else bus.sc.drive_map.monitor
-        req = Request(unit, bus.master.build(unit, PollSpec(0x03, first, 2)))
+        if self.m2_function == 0x04:  # input registers: the generic drive answers fc04 from address 0
+            first = 0
+        req = Request(unit, bus.master.build(unit, PollSpec(self.m2_function, first, 2)))
         bus.txn += 1
         adu = bytes((unit,)) + req.pdu
         fr = bus._frame(bus._encode(adu), t, KIND_REQUEST, adu, expects_answer=True, answered=True, txn=bus.txn,
