@@ -80,6 +80,13 @@ class Diagnosis:
         link.frames += 1
         link.bytes += n
         codes = frozenset(a.code for a in f.annotations) if f.annotations else _NONE
+        gap = f.idle_before_ns
+        if gap is None:
+            link.gaps_ns += link.t35_ns
+        else:
+            # an answer's turnaround, and the master's wait before a retry, hold the line; other gaps up to t3.5
+            held = f.role == RESPONSE or codes and f.role == REQUEST and not RETRY.isdisjoint(codes)
+            link.gaps_ns += min(gap, SLOT_NS if held else link.t35_ns)
         due = link.due
         link.slot = None
         if due is not None and f.role != REQUEST:

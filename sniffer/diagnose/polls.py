@@ -1,8 +1,10 @@
 """How the master uses the line: poll_cycle, poll_redundant (both info: what to know, not what is wrong).
 
 * poll_cycle: the cycle (the median interval of the most frequent request), how much of the line the
-  exchanges take (their characters, the answers' turnarounds and a t3.5 silence after each frame) and
-  the room left at this baud: how many more units polled alike fit in the cycle;
+  exchanges take (their characters, the answers' turnarounds and the silence before each other frame, up
+  to t3.5) and the room left at this baud: how many more units polled alike fit in the cycle.  A line
+  that is full (FULL) has no time for a retry or a slow answer: said, with what to do, and a warning
+  where retries or unanswered requests show it already stretching the cycle;
 * poll_redundant: reads whose answer never (or almost never) changes, asked often: their share of the
   line could go to something else (read them less often, or after a write).
 """
@@ -12,7 +14,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from sniffer.diagnose.codesets import RETRY
-from sniffer.codes import INFO
+from sniffer.codes import INFO, WARNING
 from sniffer.analysis.diff import key_text
 from sniffer.diagnose.state import Group, Link, Unit
 from sniffer.diagnose.finding import Finding
@@ -25,6 +27,8 @@ MAX_TYPES = 256
 MIN_CYCLES = 20
 REDUNDANT_READS = 50
 REDUNDANT_RATE = 1.0  # reads a second
+BUSY = 0.7  # of the line: above, retries and slow answers start to stretch the cycle
+FULL = 0.95  # of the line: no room for anything more
 
 
 class _Type:
@@ -44,7 +48,6 @@ class _Type:
 class PollsGroup(Group):
     def __init__(self) -> None:
         self.types: dict[str, dict[tuple, _Type]] = {}
-        self.turnaround_ns: dict[str, int] = {}
 
     def request(self, f, link: Link, unit: Unit, codes: frozenset, key: tuple) -> None:
         if codes and not RETRY.isdisjoint(codes):
@@ -65,8 +68,6 @@ class PollsGroup(Group):
         t.bytes += len(f.raw)
 
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
-        if f.latency_ms is not None:
-            self.turnaround_ns[link.name] = self.turnaround_ns.get(link.name, 0) + int(f.latency_ms * 1e6)
         if req is None or not f.crc_ok or f.exception or f.function not in (1, 2, 3, 4):
             return
         types = self.types.get(link.name)
@@ -100,23 +101,39 @@ class PollsGroup(Group):
         cycle = top.intervals.median() if top.intervals.n else None
         if cycle is None or cycle <= 0 or span_s * 1e3 / cycle < MIN_CYCLES or link.line is None:
             return None
-        frames = link.frames
-        used_ns = link.busy_ns + self.turnaround_ns.get(link.name, 0) + frames * link.t35_ns
+        used_ns = link.busy_ns + link.gaps_ns
         share = used_ns / max(span_s * 1e9, 1)
         units = sorted({k[0] for k in types if k[0]})
         per_unit = share / max(len(units), 1)
         room = int((1 - share) / per_unit) if per_unit > 0 and share < 1 else 0
         fastest = cycle * share
+        retried = sum(u.retries + u.no_response for u in link.units.values() if u.answered)
+        ev = {"cycle_ms": round(cycle, 1), "units_polled": len(units), "line_busy_share": round(min(share, 1.0), 3),
+              "baud": link.line.baud, "room_for_units": room, "shortest_cycle_ms": round(fastest, 1)}
+        severity = INFO
+        if share >= FULL:
+            ev["retries_and_unanswered"] = retried
+            severity = WARNING if retried else INFO
+            said = (f"the exchanges fill {min(share, 1.0):.0%} of the line at {link.line.baud} baud: no room for "
+                    f"another unit, and a retry or a slow answer stretches the cycle"
+                    + (f" (it did: {retried} retries or unanswered requests)" if retried else ""))
+            action = ("Make room before anything is added: lengthen the cycle, read the slow-changing values less "
+                      "often, raise the baud rate (every drive and the PLC together), or split the drives over two "
+                      "lines.")
+        elif share >= BUSY:
+            said = (f"the exchanges take {share:.0%} of the line at {link.line.baud} baud: room for about {room} more "
+                    f"unit(s) polled alike, little for retries and slow answers")
+            action = ("Before adding drives or polls, lengthen the cycle or raise the baud rate: above about 70 % busy "
+                      "a retry or a slow answer delays the whole cycle.")
+        else:
+            said = (f"the exchanges take {share:.0%} of the line at {link.line.baud} baud: room for about {room} more "
+                    f"unit(s) polled alike, or a cycle of about {fastest:.0f} ms for these")
+            action = ("Nothing to fix; before adding drives or polls, keep the line below about 70 % busy (retries and "
+                      "slow answers need the rest).")
         return Finding(
-            "poll_cycle", INFO, link=link.name, t_start=d.seconds(link.first_ns), t_end=d.seconds(link.last_ns),
-            evidence={"cycle_ms": round(cycle, 1), "units_polled": len(units), "line_busy_share": round(share, 3),
-                      "baud": link.line.baud, "room_for_units": room, "shortest_cycle_ms": round(fastest, 1)},
-            frames=[top.first_index],
-            text=f"The master polls {len(units)} unit(s) in a cycle of {cycle:.0f} ms; the exchanges take "
-                 f"{share:.0%} of the line at {link.line.baud} baud: room for about {room} more unit(s) polled "
-                 f"alike, or a cycle of about {fastest:.0f} ms for these.",
-            action="Nothing to fix; before adding drives or polls, keep the line below about 70 % busy (retries and "
-                   "slow answers need the rest).")
+            "poll_cycle", severity, link=link.name, t_start=d.seconds(link.first_ns), t_end=d.seconds(link.last_ns),
+            evidence=ev, frames=[top.first_index],
+            text=f"The master polls {len(units)} unit(s) in a cycle of {cycle:.0f} ms; {said}.", action=action)
 
     def _redundant(self, d: Diagnosis, link: Link, types: dict, span_s: float) -> Finding | None:
         if span_s <= 0:

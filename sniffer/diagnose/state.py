@@ -69,7 +69,8 @@ class Link:
 
     __slots__ = ("name", "resolved", "registry", "line", "char_ns", "t35_ns", "units", "first_ns", "last_ns", "frames",
                  "bytes", "good_frames", "good_bytes", "matched_bytes", "crc_bad", "noise_frames", "noise_bytes",
-                 "last_role", "last_unit", "due", "slot", "time_sources", "requests", "echo_retries", "damage")
+                 "last_role", "last_unit", "due", "slot", "time_sources", "requests", "echo_retries", "damage",
+                 "gaps_ns")
 
     def __init__(self, name: str, resolved=None, registry=None) -> None:
         self.name = name
@@ -98,6 +99,9 @@ class Link:
         self.time_sources: dict[str, int] = {}
         self.requests: OrderedDict[int, tuple] = OrderedDict()  # index -> (unit, request, its request_type)
         self.echo_retries: OrderedDict[int, None] = OrderedDict()  # "answers" that are the master's retry
+        # the silence the line needs around its frames: before a request or other frame the gap seen up to t3.5,
+        # before an answer the whole turnaround (the line is the unit's until it answers)
+        self.gaps_ns = 0
         self.damage = Windows()  # frames per window of time, and those damaged (noise, CRC errors, UART flags)
 
     @property

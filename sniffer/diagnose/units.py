@@ -201,15 +201,33 @@ class UnitsGroup(Group):
         out = []
         for (name, unit), rows in by_unit.items():
             rows.sort(key=lambda r: -r[2])
-            what = "; ".join(f"{key_text(k)}: {r} of {n} refused with {c:02X}H" for k, n, r, c, _ in rows[:4])
+            link = d.links[name]
+            what = "; ".join(f"{key_text(k)}{_register(link, unit, k)}: {r} of {n} refused with {c:02X}H"
+                             for k, n, r, c, _ in rows[:4])
             more = f" and {len(rows) - 4} more" if len(rows) > 4 else ""
             out.append(Finding(
                 "unit_refuses", WARNING, unit=unit, link=name,
                 evidence={"requests_refused": sum(r[2] for r in rows), "kinds_of_request": len(rows),
-                          "refusals": {key_text(k): {"requests": n, "refused": r, "exception": f"{c:02X}H"}
+                          "refusals": {key_text(k) + _register(link, unit, k):
+                                       {"requests": n, "refused": r, "exception": f"{c:02X}H"}
                                        for k, n, r, c, _ in rows[:8]}},
                 frames=[i for r in rows for i in r[4][:2]],
                 text=f"The master keeps asking unit {unit} for what it refuses every time: {what}{more}.",
                 action="Fix the PLC's request (address, count or function the drive's manual allows; a parameter "
                        "the drive takes only in another mode) or take it out of the poll list."))
         return out
+
+
+def _register(link: Link, unit: int, key: tuple) -> str:
+    """' (Cn-27 Communication timeout)': the first register a request names, as the unit's map names it."""
+    reg = link.registry
+    fc, addr = key[0], key[1]
+    if reg is None or addr is None or fc not in (3, 4, 6, 16):
+        return ""
+    try:
+        row = reg.decoders.get(reg.model_for(unit)).map.registers.get(addr)
+    except AttributeError:
+        return ""
+    if row is None or not row.name:
+        return ""
+    return f" ({row.id + ' ' if row.id else ''}{row.name})"
