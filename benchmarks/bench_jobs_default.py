@@ -71,6 +71,16 @@ def measured(argv: list[str]) -> dict:
             "rc": p.returncode}
 
 
+def _default(argv: list[str], cap: Path, out: Path) -> int:
+    """What the default --jobs chose for this command (sniffer.parallel.options.default_jobs)."""
+    from sniffer.capture.settings import CaptureSpec
+    from sniffer.cli import build_parser
+    from sniffer.parallel.options import default_jobs
+
+    args = build_parser().parse_args([x.format(cap=cap, o=out, j="d") for x in argv])
+    return default_jobs(CaptureSpec.from_args(args), args)
+
+
 def links_capture(folder: Path, frames: int) -> tuple[Path, int]:
     """Two links (errors and tds-v8) read by USB adapters, about `frames` frames."""
     cap = folder / f"links-{frames}.mcap"
@@ -125,7 +135,7 @@ def main() -> None:
                 a = [x.format(cap=cap, o=out, j=j or "d") for x in argv]
                 res[j] = measured([*SNIFFER, *a, *(["--jobs", j] if j else [])])
             r1, rn, rd = res["1"], res[str(jobs)], res[None]
-            chose = "N" if rd["cpu"] > r1["cpu"] * 1.15 else "1"  # parts cost CPU: the default's choice shows
+            chose = "N" if _default(argv, cap, out) > 1 else "1"
             best = min(r1["wall"], rn["wall"])
             ok = "yes" if rd["wall"] <= best * 1.05 else "no"
             print(f"{name:15s} {label:12s} {r1['wall']:6.1f} {rn['wall']:6.1f} {rd['wall']:6.1f} {chose:>4s} {ok:>5s} "
