@@ -134,3 +134,27 @@ def test_check_and_its_findings_are_what_one_process_gives(capfd, tmp_path, smal
     assert any(line.startswith("finding ") and "eeprom_wear" in line for line in one.read_text().splitlines())
     _same(capfd, tmp_path, ["check", captures[links], "--golden", one])
 
+
+
+@pytest.mark.parametrize("argv,parts", [
+    (["replay", "{1}"], True),
+    (["export", "{1}", "--to", "csv", "--out", "x.csv"], True),
+    (["replay", "{2}"], False),  # several links: never quiet, decoded in order anyway
+    (["replay", "{3}"], False),
+    (["diagnose", "{1}"], False),  # bound by the one diagnosis in the coordinator
+    (["report", "{1}", "--out", "r.html"], False),
+    (["check", "{1}", "--golden", "g.txt"], False),
+    (["export", "{1}", "--to", "mcap", "--out", "x.mcap"], False),
+])
+def test_without_jobs_parts_are_used_only_where_they_are_faster(monkeypatch, captures, argv, parts):
+    import sniffer.parallel.options as options
+    from sniffer.capture.settings import CaptureSpec
+    from sniffer.cli import build_parser
+
+    monkeypatch.setattr(options, "cores", lambda: 2)
+    args = build_parser().parse_args([captures[int(a[1])] if a[0] == "{" else a for a in argv])
+    spec = CaptureSpec.from_args(args)
+    monkeypatch.setattr(options, "MIN_PARTS_BYTES", 1)
+    assert options.default_jobs(spec, args) == (2 if parts else 1)
+    monkeypatch.setattr(options, "MIN_PARTS_BYTES", os.path.getsize(captures[1]) + 1)  # a small capture
+    assert options.default_jobs(spec, args) == 1

@@ -71,6 +71,7 @@ def test_status_says_what_keep_holds_on_three_slow_links(tmp_path, capsys):
     rate = lines["rate"]
     assert f"{round(line_rate)}B/s from the line" in rate or f"{line_rate / 1e3:.3g}kB/s from the line" in rate
     assert f"{disk_rate / 1e3:.3g}kB/s into the segments" in rate
+    assert f"({seg['written'] / d['bytes']:.1f}x the line, " in rate  # what the segments cost per byte on the line
 
     keeps = lines["keeps"]
     m = re.search(r"about ([\d.]+) (d|h) of capture", keeps)

@@ -127,9 +127,9 @@ def report(session: Session, *, label: str = "") -> int:
 def jobs_for(spec: CaptureSpec, args) -> int:
     """The processes a decoding command runs with (sniffer.parallel): 1 where a part cannot carry what the
     command needs across its cut (said in one line when --jobs asked for more)."""
-    from sniffer.parallel.options import jobs_of, one_process_why
+    from sniffer.parallel.options import default_jobs, jobs_of, one_process_why
 
-    jobs = jobs_of(args)
+    jobs = jobs_of(args) if getattr(args, "jobs", None) else default_jobs(spec, args)
     if jobs > 1:
         why = one_process_why(spec, args)
         if why:

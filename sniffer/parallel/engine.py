@@ -45,7 +45,7 @@ from sniffer.parallel.truth import Truth
 from sniffer.parallel.worker import recv, send, serve
 from sniffer.processes.parent_death import worker_args
 
-PART_EVENTS = 4096
+PART_EVENTS = 1024  # a part's frames and pieces are held whole (worker and coordinator): 4096 held 100+ MB
 WARM_EVENTS = 64
 OVER_EVENTS = 2048
 READ_BATCH = 512  # events read between two looks at the workers' pipes

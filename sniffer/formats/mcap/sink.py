@@ -51,6 +51,9 @@ from sniffer.sinks.base import Sink
 # uncompressed bytes per chunk: a damaged byte loses one chunk; 512 KiB files are 1 % larger than with
 # 1 MiB chunks (mcap's default), 128 KiB ones 14 % (measured on a 256k-frame export)
 CHUNK_SIZE = 512 * 1024
+# zstd's level: an export's chunks are full and many (3: fast); a live capture writes a small chunk every
+# flush interval, where level 9 packs 12 % tighter for about 7 ms a chunk (benchmarks/bench_segment_bytes.py)
+EXPORT_LEVEL, LIVE_LEVEL = 3, 9
 
 
 class CaptureStorageError(Exception):
@@ -210,7 +213,9 @@ class McapSink(Sink):
         self._t0 = info.t0_ns
         self._anchor = info.wall_anchor_ns
         # chunks of at most CHUNK_SIZE: a damaged byte loses one chunk (`replay` and `repair` go on after it)
-        w = McapWriter(self._file, compression=self._compression, chunk_size=CHUNK_SIZE, packing=self._packing)
+        level = LIVE_LEVEL if self._interval_ns < 1 << 62 else EXPORT_LEVEL
+        w = McapWriter(self._file, compression=self._compression, chunk_size=CHUNK_SIZE, packing=self._packing,
+                       level=level)
         self._writer = w
         try:
             w.start(profile="", library=f"sniffer/{__version__}")

@@ -54,13 +54,13 @@ def _record(opcode: int, body: bytes) -> bytes:
 
 class McapWriter:
     def __init__(self, out, *, chunk_size: int = 1 << 20, compression: str = "zstd",
-                 packing: tuple[int, int] = (0, 0)) -> None:
+                 packing: tuple[int, int] = (0, 0), level: int = 3) -> None:
         if compression not in ("zstd", ""):
             raise ValueError(f"compression {compression!r}: zstd or none")
         self._out = out
         self.chunk_size = chunk_size
         self.compression = compression
-        self._zstd = zstandard.ZstdCompressor(level=3) if compression == "zstd" else None
+        self._zstd = zstandard.ZstdCompressor(level=level) if compression == "zstd" else None
         self._schemas: list[bytes] = []  # schema records, for the summary
         self._channels: list[bytes] = []
         self._channel_ids: list[int] = []
