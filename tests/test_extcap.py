@@ -131,3 +131,24 @@ def test_a_port_that_is_not_there_is_one_line_in_tshark(tmp_path):
                            *_pref(value, "linestopbits", "1"))
     assert "no such port" in r.stderr and "Traceback" not in r.stderr, r.stderr
     assert not _left_running(str(tmp_path))
+
+
+def test_a_bus_files_links_are_the_interfaces_of_one_capture(tmp_path):
+    with SimulatedLine(tmp_path, "default", "19200 8E1", name="a") as a, \
+            SimulatedLine(tmp_path, "default", "19200 8E1", name="b", seed=9) as b:
+        bus = tmp_path / "plant.toml"
+        bus.write_text(f'[serial]\nbaud = 19200\nparity = "E"\n\n[[links]]\nname = "drives"\nport = "{a.path}"\n\n'
+                       f'[[links]]\nname = "pumps"\nport = "{b.path}"\n')
+        _install(tmp_path, "--list-bus", str(bus))
+        value = f"rs485-bus:{bus}"
+        listed = subprocess.run(["tshark", "-D"], capture_output=True, text=True, timeout=120, env=_env(tmp_path))
+        assert value in listed.stdout and "(drives, pumps)" in listed.stdout
+        r, out = _tshark_capture(tmp_path, value, 6)
+        written = a.pty.bytes_received_from_sniffer + b.pty.bytes_received_from_sniffer
+    assert r.returncode == 0 and "Error" not in r.stderr, r.stderr
+    assert written == 0
+    names = subprocess.run(["tshark", "-r", out, "-T", "fields", "-e", "frame.interface_name"], capture_output=True,
+                           text=True, timeout=120).stdout.split("\n")
+    assert {n.split(" ")[0] for n in names if n} == {"drives", "pumps"}  # each link an interface
+    packets = _packets(out)
+    assert len(packets) > 50 and all(p[2].startswith("rs485-sniffer #") for p in packets)
