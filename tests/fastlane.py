@@ -48,6 +48,7 @@ SLOW_NAMES: dict[str, str] = {
 SLOW_COMMANDS: frozenset[str] = frozenset({"live", "demo", "serve", "attach"})
 # whole files that are slow by what every test in them does
 SLOW_FILES: frozenset[str] = frozenset({
+    "test_diagnose_sweeps.py",  # seeded sweeps of simulated plants through diagnose: minutes in all
     "test_unattended_live.py",  # `live` on ptys for minutes: segments, SIGKILL, wait-port
     "test_trigger_day.py",  # four simulated hours replayed
     "test_segments.py",  # every test writes a rotated set of MCAP segments and replays it
@@ -58,6 +59,10 @@ SLOW_FILES: frozenset[str] = frozenset({
 # single tests slow by their work (seconds of simulation, decoding or memory tracing), not by a part the rule
 # sees: "file.py::test_name", parameters left out.  `pytest -m "not slow" --durations=30` shows candidates.
 SLOW_TESTS: frozenset[str] = frozenset({
+    # minutes of simulated line through diagnose
+    "test_diagnose_thresholds.py::test_a_full_line_is_not_nothing_to_fix_and_a_warning_once_it_stretches",
+    "test_diagnose_thresholds.py::test_strays_after_0_7_percent_of_transmissions_are_bus_unbiased_with_their_rate",
+    "test_diagnose_episodes.py::test_a_silence_that_comes_twice_is_two_episodes",
     # several captures into a dataset: by worker processes, as `--jobs` defaults to every core
     "test_dataset.py::test_ingest_is_incremental",
     "test_dataset.py::test_query_formats_and_presets",
