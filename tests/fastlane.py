@@ -49,6 +49,7 @@ SLOW_NAMES: dict[str, str] = {
 SLOW_COMMANDS: frozenset[str] = frozenset({"live", "demo", "serve", "attach"})
 # whole files that are slow by what every test in them does
 SLOW_FILES: frozenset[str] = frozenset({
+    "test_diagnose_sweeps.py",  # seeded sweeps of simulated plants through diagnose: minutes in all
     "test_unattended_live.py",  # `live` on ptys for minutes: segments, SIGKILL, wait-port
     "test_trigger_day.py",  # four simulated hours replayed
     "test_segments.py",  # every test writes a rotated set of MCAP segments and replays it
@@ -63,6 +64,10 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_diagnose_masters.py::test_each_second_master_form_is_found_on_the_unit_it_polls",  # 8 plants x 60 s each
     "test_diagnose_masters.py::test_healthy_plants_give_nothing_above_info",  # 8 plants x 60 s
     "test_diagnose_masters.py::test_a_timeout_exceeded_by_the_slowest_answers_only_is_found_with_a_timeout_to_set",
+    # minutes of simulated line through diagnose
+    "test_diagnose_thresholds.py::test_a_full_line_is_not_nothing_to_fix_and_a_warning_once_it_stretches",
+    "test_diagnose_thresholds.py::test_strays_after_0_7_percent_of_transmissions_are_bus_unbiased_with_their_rate",
+    "test_diagnose_episodes.py::test_a_silence_that_comes_twice_is_two_episodes",
     # several captures into a dataset: by worker processes, as `--jobs` defaults to every core
     "test_dataset.py::test_ingest_is_incremental",
     "test_dataset.py::test_query_formats_and_presets",

@@ -23,8 +23,9 @@ if TYPE_CHECKING:
 _WRITES = frozenset((0x05, 0x06, 0x0F, 0x10))
 
 
+
 class _Episode:
-    __slots__ = ("text", "key", "start_ns", "end_ns", "first", "writes", "written", "last_write", "closed")
+    __slots__ = ("text", "key", "start_ns", "end_ns", "first", "writes", "written", "last_write", "closed", "seen")
 
     def __init__(self, text: str, key, t: int, index: int) -> None:
         self.text = text
@@ -36,6 +37,7 @@ class _Episode:
         self.written: set[str] = set()
         self.last_write: tuple[int, str] | None = None
         self.closed = False
+        self.seen = 0  # answers that reported it
 
 
 class DrivesGroup(Group):
@@ -78,6 +80,7 @@ class DrivesGroup(Group):
             if e is None:
                 e = eps[text] = _Episode(text, rk, f.t_ns, f.index)
             e.end_ns = f.t_end_ns
+            e.seen += 1
         for text in [t for t, e in eps.items() if t not in seen and e.key == rk]:
             self._close(key, eps.pop(text), f.t_ns)
 
@@ -91,6 +94,8 @@ class DrivesGroup(Group):
             self._close(key, eps.pop(text), f.t_ns)
 
     def _close(self, key: tuple, e: _Episode, t: int) -> None:
+        if e.seen < 2 and not e.writes:
+            return  # one answer said so, the next not, and nobody reset it: a damaged frame whose CRC held by chance
         e.end_ns = t
         e.closed = True
         k = (*key, e.text)

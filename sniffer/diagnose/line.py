@@ -33,6 +33,7 @@ if TYPE_CHECKING:
 
 MIN_BYTES = 300
 GOOD_SHARE = 0.3  # below: the bytes are not the line's frames
+GOOD_FRAMES = 0.2  # ... and fewer frames than this share hold their CRC
 FLAGGED_SHARE = 0.15  # of the bytes of good frames: the character format is off
 BAUDS = (1200, 2400, 4800, 9600, 14400, 19200, 38400, 57600, 115200, 230400)
 MAX_DURATIONS = 4096
@@ -103,7 +104,9 @@ class LineGroup(Group):
               "framing_errors": s["framing"], "parity_errors": s["parity"], "read_at": line.label()}
         span = dict(link=link.name, t_start=d.seconds(link.first_ns), t_end=d.seconds(link.last_ns),
                     frames=s["frames"] or s["bad"])
-        if share < GOOD_SHARE:
+        if share < GOOD_SHARE and link.good_frames < GOOD_FRAMES * link.frames:
+            # (at the wrong settings hardly a frame holds; a line whose requests hold and answers break is a unit's
+            # fault, not the capture's)
             baud = _baud_from_bursts(s["durations"])
             if baud:
                 try_ = f"the bursts' timing points to {baud[0]} baud ({baud[1]}): try --baud {baud[0]}"

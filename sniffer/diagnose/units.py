@@ -64,12 +64,13 @@ class UnitsGroup(Group):
             del gaps[3]
 
     def other(self, f, link: Link, unit: Unit | None, codes: frozenset) -> None:
-        if link.slot is not None:
-            self._answered(link, link.slot.unit)  # a damaged burst where its answer was due: it answered
+        self.noise(f, link, codes)
 
     def noise(self, f, link: Link, codes: frozenset) -> None:
         if link.slot is not None:
-            self._answered(link, link.slot.unit)
+            self._answered(link, link.slot.unit)  # a damaged burst where its answer was due: it answered
+        elif self.quiet and link.last_role == "request" and link.last_unit is not None and len(f.raw) >= 3:
+            self._answered(link, link.last_unit.unit)  # something answered it, damaged past telling: not silence
 
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
         if self.quiet:
