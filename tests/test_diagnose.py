@@ -251,6 +251,9 @@ def test_check_holds_the_findings_in_the_golden(tmp_path, capsys):
     capsys.readouterr()
     assert main(["check", str(cap), "--golden", str(golden)]) == 1
     out = capsys.readouterr().out
+    assert "findings: 1 added (error unit_silent u5); 1 gone (error unit_silent u2)" in out
+    assert main(["check", str(cap), "--golden", str(golden), "--diff"]) == 1
+    out = capsys.readouterr().out
     assert "+finding error unit_silent link=- unit=5" in out and "-finding error unit_silent link=- unit=2" in out
     plain = tmp_path / "plain.txt"  # a golden without findings is compared as before
     assert main(["check", str(cap), "--golden", str(plain), "--update-golden"]) == 0
