@@ -16,6 +16,11 @@ from sniffer.triggers import read_trigger
 
 SNIFFER = [sys.executable, "-m", "sniffer"]
 HOURS = 4
+# Each test is minutes of CPU (four simulated hours, simulated and replayed); on a loaded machine the wall time
+# stretches several-fold (2 cores, a load of 13: the first test took over pytest's 300 s default, with the
+# day's simulation).  What the tests check does not depend on time; the bounds only catch a hang.
+LOADED_S = 3600
+pytestmark = pytest.mark.timeout(LOADED_S)
 
 
 def _rss_kb(pid: int) -> int | None:
@@ -35,7 +40,7 @@ def day(tmp_path_factory):
     r = subprocess.run(SNIFFER + ["simulate", "--scenario", "tds-v8", "--duration", str(HOURS * 3600), "--seed", "5",
                                   "--param", "poll_period_ms=1000", "--param", "unit1.trip_every_s=(600.0, 1800.0)",
                                   "--param", "unit2.trip_every_s=(900.0, 1800.0)", "--out", str(path)],
-                       capture_output=True, text=True, timeout=600)
+                       capture_output=True, text=True, timeout=LOADED_S)
     assert r.returncode == 0, r.stderr
     return path
 
@@ -105,7 +110,7 @@ def test_the_day_rotated_hourly_with_triggers_replays_whole(day, day_frames, tmp
     windows.mkdir()
     r = subprocess.run(SNIFFER + ["replay", str(day), "--quiet", "--rotate", "1h", "--out", str(out),
                                   "--windows", str(windows), "--trigger", "fault", "--pre", "2m", "--post", "30s"],
-                       capture_output=True, text=True, timeout=900)
+                       capture_output=True, text=True, timeout=LOADED_S)
     assert r.returncode == 0, r.stderr
     segments = sorted(out.glob("*.mcap"))
     assert HOURS <= len(segments) <= HOURS + 1, [s.name for s in segments]
@@ -121,7 +126,7 @@ def test_the_day_rotated_hourly_with_triggers_replays_whole(day, day_frames, tmp
     # the same bytes at the same times: one clock across the segments
     assert whole == [(t, raw) for t, raw, _ in day_frames]
     as_one = subprocess.run(SNIFFER + ["replay", str(out), "--format", "jsonl"], capture_output=True, text=True,
-                            timeout=600)
+                            timeout=LOADED_S)
     assert as_one.returncode == 0, as_one.stderr
     assert len(as_one.stdout.splitlines()) == len(day_frames)
     files = sorted(windows.glob("*.trigger-*.mcap"))

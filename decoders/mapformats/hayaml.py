@@ -123,8 +123,9 @@ def load_ha_yaml(path: str, base: str | None = None) -> list[RegisterMap]:
     import yaml
 
     text = read_text(path)
-    loader = _loader()(text)
+    loader = None
     try:
+        loader = _loader()(text)  # its reader refuses unprintable characters (a NUL) as it is made
         node = loader.get_single_node()
         if node is not None:
             _check_expansion(node, path)
@@ -137,7 +138,8 @@ def load_ha_yaml(path: str, base: str | None = None) -> list[RegisterMap]:
     except RecursionError:
         raise MapError(f"{path}: nested too deeply to be a register map") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
     groups: dict[object, tuple[list[dict], list[str], dict[int, tuple[str, str]]]] = {}
     fname = os.path.basename(path)
     n = 0

@@ -49,10 +49,12 @@ def stream_sink(spec: CaptureSpec, line_buffered: bool):
     return None
 
 
-def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=(), line_buffered=True) -> list:
+def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=(), line_buffered=True,
+                  timed_flush=True) -> list:
     """A capture's sinks: the stdout stream, the MCAP file (or its segments, --rotate), viewers on a
     socket (last: the file is closed before viewers are let go).  Outputs are checked (and the socket
-    bound) now, before the port opens."""
+    bound) now, before the port opens.  `timed_flush=False` (a file decoded again): the MCAP is written as
+    its writer fills it, not every second of wall time, so its bytes depend on the capture alone."""
     from sniffer.capture.status import check_status
     from sniffer.processes.publish_sink import PublishSink
 
@@ -67,9 +69,9 @@ def capture_sinks(spec: CaptureSpec, label: str, *, stream=True, inputs=(), line
     if spec.out and spec.rotate is not None and not ring:
         from sniffer.formats.mcap.rotating import SegmentPlan
 
-        sinks.append(SegmentPlan(spec.out, spec.rotate, spec.keep, inputs=inputs))
+        sinks.append(SegmentPlan(spec.out, spec.rotate, spec.keep, inputs=inputs, timed_flush=timed_flush))
     elif spec.out and not ring:
-        sinks.append(FileSink("mcap", spec.out, inputs=inputs))
+        sinks.append(FileSink("mcap", spec.out, inputs=inputs, timed_flush=timed_flush))
     if spec.publish:
         sinks.append(PublishSink(spec.publish, label=label, capture_path=spec.out, backlog=spec.publish_backlog))
         say(f"publishing on {sinks[-1].address} (view: sniffer attach {sinks[-1].address})")

@@ -104,7 +104,8 @@ def _rotate(spec: CaptureSpec, source) -> int:
     """replay --rotate --out FOLDER: the capture written again as segments, as a live capture writes them."""
     from sniffer.commands.common import capture_sinks, destination, summary_line
 
-    sinks = capture_sinks(spec, spec.input, inputs=spec.inputs or [spec.input], line_buffered=False)
+    sinks = capture_sinks(spec, spec.input, inputs=spec.inputs or [spec.input], line_buffered=False,
+                          timed_flush=False)
     session = Session(spec, source, [line_warning(file=spec.input), *sinks], label=f"replay {spec.input}")
     session.open()
     say(f"replaying {spec.input}{destination(spec, session)}")

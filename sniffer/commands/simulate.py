@@ -104,9 +104,9 @@ def run(spec: CaptureSpec, args) -> int:
     if fmt == "segments":
         from sniffer.formats.mcap.rotating import SegmentPlan
 
-        sink = SegmentPlan(out, spec.rotate, spec.keep, inputs=spec.read_paths())
-    else:
-        sink = FileSink(fmt, out, inputs=spec.read_paths())
+        sink = SegmentPlan(out, spec.rotate, spec.keep, inputs=spec.read_paths(), timed_flush=False)
+    else:  # the simulated capture's bytes depend on the scenario and seed alone, not on the machine's load
+        sink = FileSink(fmt, out, inputs=spec.read_paths(), timed_flush=False)
     # the simulated bus is what it is: the flags set its line, the scenario its protocol and drives
     session = Session(spec.with_(duration_s=0.0), source, [sink], keep_partial=True, label=f"simulate {scenario.name}")
     session.run()

@@ -74,9 +74,14 @@ class SegmentPlan:
 
     outputs: tuple = ()  # segments are renamed into place as they close, not by the session
 
-    def __init__(self, out: str, rotate: Rotate, keep: Keep | None = None, *, inputs=()) -> None:
+    def __init__(self, out: str, rotate: Rotate, keep: Keep | None = None, *, inputs=(),
+                 timed_flush: bool = True) -> None:
         self.folder = folder_for(out)
         self.rotate, self.keep = rotate, keep
+        # a capture's segments are flushed every second of wall time (what a kill loses); segments made from a
+        # file (replay, simulate) as their writer fills them, so their chunks, sizes and the size rotations and
+        # retention that follow depend on the messages alone, not on how loaded the machine was
+        self.flush_interval_s = 1.0 if timed_flush else float("inf")
         f = shown(self.folder)
         parent = os.path.dirname(os.path.abspath(self.folder))
         if os.path.exists(self.folder) and not os.path.isdir(self.folder):
@@ -96,7 +101,8 @@ class SegmentPlan:
         self.sink: SegmentSink | None = None
 
     def open(self) -> SegmentSink:
-        self.sink = SegmentSink(self.folder, self.rotate, self.keep, lock_fd=self.lock_fd)
+        self.sink = SegmentSink(self.folder, self.rotate, self.keep, lock_fd=self.lock_fd,
+                                flush_interval_s=self.flush_interval_s)
         return self.sink
 
 

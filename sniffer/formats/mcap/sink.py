@@ -155,7 +155,7 @@ class McapSink(Sink):
     ) -> None:
         self.path = os.fspath(path)
         self._packing = packing  # how the chunks of the file before (a segment's) compressed
-        self._interval_ns = int(flush_interval_s * 1e9)
+        self._interval_ns = int(flush_interval_s * 1e9) if flush_interval_s < 1e9 else 1 << 62  # inf: when full
         self._clock = clock
         self._compression = "zstd" if compress else ""
         self._writer: McapWriter | None = None
