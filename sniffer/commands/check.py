@@ -40,12 +40,10 @@ def add_parser(subparsers) -> None:
             --diff adds the unified diff), 2 an error.  --update-golden writes the golden: review its diff
             before you commit it.  --ignore, --tolerance and the time tolerances given with --update-golden
             are kept in the golden's header, so the next run uses them.""",
-        examples=["sniffer check captures/a510.mcap --golden captures/golden/a510.txt",
-                  "sniffer check cab3.mcap --golden cab3.txt --update-golden && git diff cab3.txt",
-                  "sniffer check cab3.mcap --golden cab3.txt --findings --update-golden",
-                  "sniffer check cab3.mcap --golden cab3.txt --time-tol-ms 5",
+        examples=["sniffer check captures/a510.mcap --golden captures/golden/a510.txt --diff",
+                  "sniffer check cab3.mcap --golden cab3.txt --findings --update-golden && git diff cab3.txt",
                   "sniffer check cab3.mcap --golden cab3.txt --tolerance 'Output current=0.2A' "
-                  "--ignore 'Analog input*' --update-golden",
+                  "--ignore 'Analog input*' --time-tol-ms 5 --update-golden",
                   "sniffer check cab3.mcap --golden cab3.txt --format json --junit check.xml"])
     input_flags(p)
     p.add_argument("--golden", required=True, metavar="FILE.txt", help="the reviewed golden decode")
