@@ -63,6 +63,7 @@ SLOW_FILES: frozenset[str] = frozenset({
 SLOW_TESTS: frozenset[str] = frozenset({
     "test_diagnose_masters.py::test_each_second_master_form_is_found_on_the_unit_it_polls",  # 8 plants x 60 s each
     "test_diagnose_masters.py::test_healthy_plants_give_nothing_above_info",  # 8 plants x 60 s
+    "test_diagnose_masters.py::test_busy_healthy_plants_give_nothing_above_info",  # 8 busy plants x 30 s
     "test_diagnose_masters.py::test_a_timeout_exceeded_by_the_slowest_answers_only_is_found_with_a_timeout_to_set",
     # minutes of simulated line through diagnose
     "test_diagnose_thresholds.py::test_a_full_line_is_not_nothing_to_fix_and_a_warning_once_it_stretches",

@@ -63,9 +63,15 @@ def draw(seed: int, n_units: tuple[int, int] = (2, 4)) -> Plant:
 def scenario(plant: Plant, **changes):
     """The plant as a simulator scenario (the default drive map; turnarounds of 2.5-4 characters)."""
     units = tuple(UnitSpec(u, turnaround_chars=(2.5, 4.0)) for u in plant.units)
-    return dataclasses.replace(DEFAULT, name=f"sweep{plant.seed}", units=units, polls=_MIXES[plant.mix],
-                               line=plant.line, poll_period_ms=plant.cycle_ms, timeout_ms=plant.timeout_ms,
-                               **changes)
+    fields = {"name": f"sweep{plant.seed}", "units": units, "polls": _MIXES[plant.mix], "line": plant.line,
+              "poll_period_ms": plant.cycle_ms, "timeout_ms": plant.timeout_ms}
+    return dataclasses.replace(DEFAULT, **{**fields, **changes})
+
+
+def busy(plant: Plant) -> dict:
+    """Scenario changes for a busy but healthy line: cycles back to back (the line 90 % busy and more), the
+    drives started and stopped (a new setpoint, 0 Hz among them) every second."""
+    return {"poll_period_ms": 0.0, "gap_chars": (3.5, 5.0), "setpoint_change_s": 1.0}
 
 
 def faults_for(plant: Plant, faults) -> list[str]:

@@ -10,7 +10,7 @@ import pytest
 from sniffer.simulator.faults import SECOND_MASTERS, apply, parse
 from sniffer.simulator.bus import simulate
 
-from sweeps import alarms, diagnose_plant, draw, scenario, tally
+from sweeps import alarms, busy, diagnose_plant, draw, scenario, tally
 
 SEEDS = range(1, 9)
 FOUND_AT_LEAST = 0.6  # the share of plants each form is found in (measured: see docs/diagnose.md)
@@ -71,3 +71,9 @@ def test_a_timeout_exceeded_by_the_slowest_answers_only_is_found_with_a_timeout_
     assert t["found"] >= FOUND_AT_LEAST * t["runs"], t["missed_runs"]
     assert t["false_alarms"] == 0, t["false_runs"]
     assert advice and all(set_ms > timeout for set_ms, timeout in advice), advice
+
+
+def test_busy_healthy_plants_give_nothing_above_info():
+    """Cycles back to back and drives started and stopped every second: no second master, no short timeout."""
+    t = tally([(draw(s).label(), None, diagnose_plant(draw(s), (), seconds=30, **busy(draw(s)))) for s in SEEDS])
+    assert t["false_alarms"] == 0, t["false_runs"]

@@ -42,6 +42,8 @@ HELD_SHARE = 0.7  # a type whose phases fall mostly in two twelfths of the cycle
 SPREAD_SHARE = 0.45  # one whose two busiest twelfths hold less than this (both ways) keeps none ...
 HELD_R = 0.6  # ... a mean resultant length of its phases (one place, across the cycle's wrap) of this holds one
 SPREAD_R = 0.35  # ... below this (both ways), none
+LOOSE_SHARE = 0.5  # one under this and under HELD_R is loose: a second master's if it cuts requests short ...
+LOOSE_CUT = 0.2  # ... with requests cut short as many as this share of its requests
 RETRY_SHARE = 0.1
 
 
@@ -50,6 +52,7 @@ class _Link:
         self.window: list[tuple[int, tuple]] = []  # (t_ns, (unit, fc, addr)) of CRC-good first tries
         self.spread: dict[tuple, list] = {}  # type -> [windows found spread, n, R, p, frames]
         self.held: set[tuple] = set()
+        self.loose: dict[tuple, list] = {}  # types neither held nor spread: [windows, n, R, p, share]
         self.gaps: list[tuple[int, float]] = []  # (unit, ms) a request waited unanswered before the next came
         self.last: tuple | None = None  # (unit, t_end_ns, unanswered, index)
         self.bursts = 0
@@ -190,17 +193,22 @@ class MastersGroup(Group):
         frequent = [k for k, n in counts.most_common(ANCHORS) if n >= MIN_TYPE]
         if len(frequent) < 2:
             return
-        # the master's cycle is the anchor that holds the most types in place (a second master's type, if
-        # frequent, holds none of the first master's): every type is judged against that one
+        # the master's cycle is the anchor that holds the other types closest to their places (a second
+        # master's type, if frequent, holds none of the first master's): every type is judged against that one
         by_anchor = [(anchor, _phases(win, anchor, counts)) for anchor in frequent]
-        ref, best = max(by_anchor, key=lambda ab: sum(1 for _, sh, r in ab[1].values()
-                                                        if sh >= HELD_SHARE or r >= HELD_R))
+        ref, best = max(by_anchor, key=lambda ab: sum(max(sh, r) for _, sh, r in ab[1].values()) / max(len(ab[1]), 1))
         s.held.add(ref)
         for k, (n, share, r) in best.items():
             if share >= HELD_SHARE or r >= HELD_R:
                 s.held.add(k)
             elif share < SPREAD_SHARE and r < SPREAD_R:
                 e = s.spread.setdefault(k, [0, 0, 0.0, 0.0, 0.0])
+                e[0] += 1
+                e[1], e[2], e[3], e[4] = n, r, rayleigh(n, r * n, 0.0)[1], share
+            elif share < LOOSE_SHARE and r < HELD_R:
+                # loose: what survives of a second master that collides is what it sent into the gaps, which
+                # sit at a few places in the cycle; judged with the collisions (`_second`)
+                e = s.loose.setdefault(k, [0, 0, 0.0, 0.0, 0.0])
                 e[0] += 1
                 e[1], e[2], e[3], e[4] = n, r, rayleigh(n, r * n, 0.0)[1], share
 
@@ -219,15 +227,20 @@ class MastersGroup(Group):
         return out
 
     def _second(self, d: Diagnosis, link: Link, s: _Link) -> Finding | None:
-        spread = {k: e for k, e in s.spread.items() if k not in s.held}
-        if not spread or not s.held:
-            return None
         interrupts = 0
         for unit, gap in s.gaps:
             u = link.units.get(unit)
             med = u.typical() if u is not None and u.lat.n >= 5 else None
             if med is not None and gap < 0.5 * med:
                 interrupts += 1
+        spread = {k: e for k, e in s.spread.items() if k not in s.held}
+        # a loose type is a second master's when requests keep being sent before the unit could answer (a noisy
+        # line's damaged bursts do not count: they come with one master too)
+        if interrupts >= 10:
+            spread.update({k: e for k, e in s.loose.items()
+                           if k not in s.held and k not in spread and interrupts >= LOOSE_CUT * e[1]})
+        if not spread or not s.held:
+            return None
         k0, e0 = max(spread.items(), key=lambda kv: kv[1][1])
         meets = interrupts + s.bursts + s.late
         # one that never meets the first master (it waits for a quiet line) shows by its schedule alone
