@@ -303,19 +303,18 @@ def golden_tolerances(path: Path) -> dict:
     """The options a golden's header keeps ({} if none): time_tol_ms, latency_tol_ms, rules (FieldRules)."""
     import orjson
 
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for line in fh:
-            if not line.startswith("#"):
-                break
-            if line.startswith(OPTIONS):
-                try:
-                    d = orjson.loads(line[len(OPTIONS):])
-                    if not isinstance(d, dict):
-                        raise ValueError("not an object")
-                    d["rules"] = FieldRules.from_json(d)
-                except ValueError as e:
-                    raise ValueError(f"{path}: unreadable options line in the header ({e})") from None
-                return d
+    for line in read_lines(path):  # a FIFO, a device, a folder: one line (sniffer.inputs)
+        if not line.startswith("#"):
+            break
+        if line.startswith(OPTIONS):
+            try:
+                d = orjson.loads(line[len(OPTIONS):])
+                if not isinstance(d, dict):
+                    raise ValueError("not an object")
+                d["rules"] = FieldRules.from_json(d)
+            except ValueError as e:
+                raise ValueError(f"{path}: unreadable options line in the header ({e})") from None
+            return d
     return {}
 
 
