@@ -168,7 +168,7 @@ def test_an_inserted_frame_is_one_diff_line(tmp_path, a510_golden):
     g.write_text("\n".join(lines) + "\n")
     rc, text = check(A510, g, diff=True)
     assert rc == EXIT_DIFFERENT
-    assert "1 of 501 frames differ (0 changed, 1 added, 0 missing)" in text
+    assert "1 of 502 frames differ (0 changed, 1 added, 0 missing)" in text
     assert "first: frame 9 at " in text and ": added" in text
     unified = text[text.index("\n--- ") + 1:]
     changed = [x for x in unified.splitlines()[2:] if x[:1] in "+-"]

@@ -102,3 +102,30 @@ def test_live_on_a_port_with_no_traffic_says_so(tmp_path):
     line = next(x for x in p.stderr.splitlines() if "no traffic on" in x)
     assert line.startswith(f"sniffer: warning: no traffic on {port}:") and f"sniffer detect {port}" in line
     assert "Traceback" not in p.stderr
+
+
+def test_a_trigger_on_a_mistyped_field_says_what_it_reads_as_it_starts(tmp_path, capsys):
+    capture = tmp_path / "tds-v8.mcap"
+    shutil.copy(ROOT / "captures" / "sim" / "tds-v8.mcap", capture)
+    assert main(["replay", str(capture), "--quiet", "--trigger", "unti == 1", "--windows", str(tmp_path / "w")]) == 0
+    err = capsys.readouterr().err.splitlines()
+    note = next(i for i, x in enumerate(err) if "'unti' is read as a point's name; did you mean the field 'unit'?" in x)
+    assert note < next(i for i, x in enumerate(err) if "0 windows" in x)  # before the capture's end
+    assert main(["replay", str(capture), "--quiet", "--trigger", "unit == 77", "--windows", str(tmp_path / "w")]) == 0
+    assert "did you mean" not in capsys.readouterr().err  # a field spelt right: no note
+
+
+def test_check_rules_that_match_no_field_are_said_with_the_closest_name(tmp_path, capsys):
+    from sniffer.analysis.goldenfields import FieldRules, matches
+
+    assert matches("holding[8451]", "holding[8451]") and matches("Analog input 1", "Analog input*")
+    assert not matches("holding[8451]", "holding[8452]")  # brackets are literal, not a glob's set
+    assert FieldRules(("Outptu current", "crc", "Output*")).unmatched({"Output current", "Output frequency"}) == [
+        "Outptu current"]
+    capture = tmp_path / "tds-v8.mcap"
+    shutil.copy(ROOT / "captures" / "sim" / "tds-v8.mcap", capture)
+    golden = tmp_path / "g.txt"
+    shutil.copy(ROOT / "captures" / "golden" / "sim-tds-v8.txt", golden)
+    assert main(["check", str(capture), "--golden", str(golden), "--ignore", "Outptu current", "--jobs", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "'Outptu current' matched no field of the capture; did you mean 'Output current'?" in err

@@ -72,6 +72,8 @@ class CheckSummary:
     findings_golden: Counter = field(default_factory=Counter)
     findings_capture: Counter = field(default_factory=Counter)
     diff: str = ""  # the unified diff (shown with --diff)
+    unmatched: list[str] = field(default_factory=list)  # --ignore/--tolerance rules no field of the capture matches
+    known: set[str] = field(default_factory=set, repr=False)  # the capture's field names (for "did you mean")
 
     @property
     def findings_added(self) -> list[str]:
@@ -87,10 +89,18 @@ class CheckSummary:
 
     def ok_line(self) -> str:
         n = sum(self.findings_golden.values())
-        return f"ok: {self.capture_frames} frames, {n} findings match\n"
+        return f"ok: {self.capture_frames} frames, {n} findings match\n" + self.unmatched_text()
+
+    def unmatched_text(self) -> str:
+        """A note per --ignore/--tolerance rule that matched no field (a mistyped name ignores nothing)."""
+        from sniffer.stderr import did_you_mean
+
+        return "".join(f"note: --ignore/--tolerance {p!r} matched no field of the capture"
+                       f"{did_you_mean(p, sorted(self.known))}\n" for p in self.unmatched)
 
     def headline(self) -> str:
-        return (f"{self.changed + self.added + self.missing} of {self.golden_frames} frames differ "
+        # of the frames in either: the golden's, and those only the capture has (changed + missing <= golden)
+        return (f"{self.changed + self.added + self.missing} of {self.golden_frames + self.added} frames differ "
                 f"({self.changed} changed, {self.added} added, {self.missing} missing)")
 
     def text(self, with_diff: bool = False, hint: str = "") -> str:
@@ -105,6 +115,7 @@ class CheckSummary:
             if len(rows) > GROUPS_SHOWN:
                 out.append(f"    ... {len(rows) - GROUPS_SHOWN} more (--format json lists them all)")
         out.append("  " + self._findings_text())
+        out += ["  " + line for line in self.unmatched_text().splitlines()]
         if with_diff:
             return "\n".join(out) + "\n" + self.diff
         out.append(hint or "  --diff shows the unified diff; `sniffer diff` compares two captures in the drives' terms")
@@ -135,6 +146,7 @@ class CheckSummary:
             "findings": {"golden": sum(self.findings_golden.values()),
                          "capture": sum(self.findings_capture.values()),
                          "added": self.findings_added, "gone": self.findings_gone},
+            "rules_matching_no_field": self.unmatched,
         }
 
 
@@ -253,6 +265,8 @@ def summarize(old: Iterable[str], new: Iterable[str], tol: Tolerances, names: tu
     d = compare_lines(_frames(old, n_old, s.findings_golden), _frames(new, n_new, s.findings_capture), tol, names,
                       on_change=collect.change, point_names=point_names, start=(h_old + 1, h_new + 1))
     s.golden_frames, s.capture_frames = n_old[0], n_new[0]
+    s.unmatched = tol.rules.unmatched(point_names.seen)
+    s.known = point_names.seen
     gone, added = s.findings_gone, s.findings_added
     if gone or added:
         if not d:

@@ -28,6 +28,7 @@ _WORD_NAME = re.compile(r"(?:^| )([^\s=\[\]]+(?:\[\d+\])?)=")
 _NUMBER = re.compile(r"^(?P<n>[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?)(?: (?P<unit>[^\s\[]+))?")
 _TOL = re.compile(r"^(?P<n>\d+(?:\.\d+)?(?:[eE][-+]?\d+)?)\s*(?P<unit>\S*)$")
 HEAD_FIELDS = ("role", "model", "crc", "pair")
+LINE_FIELDS = frozenset({*HEAD_FIELDS, "codes", "noise"})  # a golden line's fields besides its points
 
 
 @dataclass(frozen=True)
@@ -50,11 +51,18 @@ class Names:
 
     def __init__(self, names: Iterable[str] = ()) -> None:
         self.names: set[str] = set(names)
+        self.seen: set[str] = set(names)  # the names frames had (not those added as anchors only)
         self._rx: re.Pattern | None = None
         self._n = -1
 
     def add(self, name: str) -> None:
         self.names.add(name)
+
+    def add_seen(self, names: Iterable[str]) -> None:
+        """Names the frames of a part had (check by parts)."""
+        names = set(names)
+        self.names |= names
+        self.seen |= names
 
     def add_frame(self, f) -> None:
         pts = f._points
@@ -62,7 +70,9 @@ class Names:
             return
         samples = getattr(pts, "samples", None)  # a register block: its names without building the dicts
         for p in (samples() if samples else pts):
-            self.names.add(p[0] if samples else p["name"])
+            name = p[0] if samples else p["name"]
+            self.names.add(name)
+            self.seen.add(name)
 
     def regex(self) -> re.Pattern | None:
         if self._n != len(self.names):
@@ -167,6 +177,12 @@ def parse_tolerance(text: str) -> tuple[str, Tolerance]:
     return name.strip(), Tolerance(float(m.group("n")), m.group("unit"))
 
 
+def matches(name: str, pattern: str) -> bool:
+    """A field name against a rule: the name itself, or a glob of * and ? (brackets are literal: register names
+    such as 'holding[8451]' carry them)."""
+    return name == pattern or fnmatch.fnmatchcase(name, pattern.replace("[", "[[]"))
+
+
 @dataclass(frozen=True)
 class FieldRules:
     """Fields a comparison leaves out (`ignore`, names or globs) or compares within a tolerance."""
@@ -179,17 +195,25 @@ class FieldRules:
 
     def ignored(self, name: str) -> bool:
         base = name.split("#", 1)[0]
-        return any(fnmatch.fnmatchcase(base, g) for g in self.ignore)
+        return any(matches(base, g) for g in self.ignore)
 
     def tolerance_of(self, name: str) -> Tolerance | None:
         base = name.split("#", 1)[0]
         for pattern, tol in self.tolerance:
-            if fnmatch.fnmatchcase(base, pattern):
+            if matches(base, pattern):
                 return tol
         return None
 
+    def patterns(self) -> list[str]:
+        return [*self.ignore, *(p for p, _ in self.tolerance)]
+
     def exact_names(self) -> list[str]:
-        return [n for n in (*self.ignore, *(p for p, _ in self.tolerance)) if not any(c in n for c in "*?[")]
+        return [n for n in self.patterns() if not any(c in n for c in "*?")]
+
+    def unmatched(self, names: Iterable[str]) -> list[str]:
+        """The rules that match none of `names` (the fields the capture has): a mistyped name ignores nothing."""
+        bases = {n.split("#", 1)[0] for n in names} | LINE_FIELDS
+        return [p for p in self.patterns() if not any(matches(b, p) for b in bases)]
 
     def merged(self, other: FieldRules) -> FieldRules:
         """These rules with `other`'s added (other's tolerance wins for the same field)."""

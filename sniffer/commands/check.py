@@ -257,7 +257,7 @@ def _check_parts(capture, golden: Path, spec, tol: Tolerances, update: bool, job
             yield kept
         for part in run.parts([GoldenPlan(version)]):
             part_lines, part_names = part.pieces[0]
-            names.names.update(part_names)
+            names.add_seen(part_names)
             yield from part_lines
 
     if out is None:

@@ -110,7 +110,9 @@ def run(spec: CaptureSpec, args) -> int:
         say(f"error: {line}")
         return EXIT_FAILED
     print(f"\nline: {line}")
-    print(f"settled in {verdict.decided_s:.1f} s of listening ({len(verdict.windows)} settings)")
+    more = sum(w.seconds for w in verdict.windows) - verdict.decided_s
+    more = f", then {more:.1f} s more for the units and their models" if more >= 0.05 else ""
+    print(f"settled in {verdict.decided_s:.1f} s of listening ({len(verdict.windows)} settings){more}")
     named = naming.feed(verdict.best.answers, verdict.best.best.protocol)
     seen = units(verdict.best, named)
     if seen:

@@ -119,7 +119,7 @@ def bus_file(v: Verdict, port: str, named: dict | None = None) -> str:
     bus = BusFile(line.baud, line.parity, line.stopbits, ev.best.protocol,
                   line.databits if line.databits != 8 else None, devices=models)
     comments = [f"written by `sniffer detect {port}`: {headline(v, port)}"]
-    comments += [f"unit {u.unit}: {text}" for u, text in zip(ev.units, units(ev, named)) if u.unit in models]
+    comments += [text for u, text in zip(ev.units, units(ev, named)) if u.unit in models]
     left = [(u, text) for u, text in zip(ev.units, units(ev, named)) if u.unit not in models]
     trailer = []
     if left:

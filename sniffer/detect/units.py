@@ -22,8 +22,9 @@ class UnitSeen:
 
     def describe(self, seconds: float) -> str:
         every = f"polled every {self.period_s * 1e3:.0f} ms" if self.period_s else "no request repeated yet"
-        fcs = " ".join(f"{f:02X}" for f in self.functions)
-        return f"unit {self.unit}: {every}, {self.requests} requests in {seconds:.1f} s, function code {fcs}"
+        fcs = " ".join(f"{f:02X}H" for f in self.functions)
+        code = "function code" + ("s" if len(self.functions) > 1 else "")
+        return f"unit {self.unit}: {every}, {self.requests} requests in {seconds:.1f} s, {code} {fcs}"
 
 
 class UnitPolls:

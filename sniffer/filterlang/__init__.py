@@ -126,5 +126,34 @@ class Query:
         return sorted(sure)
 
 
-__all__ = ["FLAGS", "KEYS", "ROLES", "Context", "Facts", "FilterError", "Query", "conjuncts", "matches_text",
-           "parse", "register_cell", "register_ids", "registers_of", "search_text"]
+def point_names(node: Node | None) -> list[str]:
+    """The names of the points a filter compares (lower case), in order."""
+    from sniffer.filterlang.nodes import Compare
+
+    if node is None:
+        return []
+    if isinstance(node, Compare):
+        return [node.name] if node.name else []
+    out = []
+    for child in (*getattr(node, "items", ()), getattr(node, "item", None)):
+        if isinstance(child, Node):
+            out += point_names(child)
+    return out
+
+
+def keyword_typos(node: Node | None) -> list[str]:
+    """A note for each point name that is a field or flag mistyped ('unti == 1' compares a point named unti,
+    which no frame has: it never matches, and says nothing)."""
+    import difflib
+
+    words = sorted({*KEYS, *FLAGS})
+    out = []
+    for name in dict.fromkeys(point_names(node)):
+        close = difflib.get_close_matches(name, words, n=1, cutoff=0.75)
+        if close and name not in words:
+            out.append(f"{name!r} is read as a point's name; did you mean the field {close[0]!r}?")
+    return out
+
+
+__all__ = ["FLAGS", "KEYS", "ROLES", "Context", "Facts", "FilterError", "Query", "conjuncts", "keyword_typos",
+           "matches_text", "parse", "point_names", "register_cell", "register_ids", "registers_of", "search_text"]

@@ -54,6 +54,11 @@ class TriggerSink(Sink):
         self.char_ns = char_ns
         self.report = report or say
         self.queries = [Query(r) for r in spec.rules]
+        from sniffer.filterlang import keyword_typos
+
+        for q in self.queries:  # said as the capture starts: an overnight trigger that can never fire
+            for note in keyword_typos(q.node):
+                self.report(f"note: --trigger: {note}")
         pre, post = int(spec.pre_s * _NS), int(spec.post_s * _NS)
         self.plan = Plan(len(self.queries), pre, post, settle_ns=settle_ns,
                          max_window_ns=None if spec.max_window_s is None else int(spec.max_window_s * _NS))
