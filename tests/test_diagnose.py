@@ -495,3 +495,18 @@ def test_a_request_timed_before_its_cycles_anchor_counts_in_the_first_twelfth():
     win = [(10_000, "A"), (0, "B"), (10_100, "A")] * 40
     phases = masters._phases(win, "A", Counter({"A": 100, "B": 100}))
     assert phases["B"][0] == 40  # every B counted once
+
+
+def test_readings_of_a_running_drive_are_no_changed_parameters(tmp_path, capsys):
+    """--params EARLIER.mcap holds what the map lets the master write; a monitor register (output frequency,
+    current: access R) read at another value later is the drive working, not a changed parameter."""
+    from sniffer.cli import main
+
+    a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
+    for path, seed in ((a, "1"), (b, "2")):
+        assert main(["simulate", "--scenario", "tds-v8", "--duration", "20", "--seed", seed, "--out", str(path)]) == 0
+    capsys.readouterr()
+    main(["diagnose", str(b), "--params", str(a), "--jobs", "1", "--format", "json"])
+    findings = json.loads(capsys.readouterr().out)["findings"]
+    changed = [x for x in findings if x["kind"] == "params_changed"]
+    assert not changed, changed

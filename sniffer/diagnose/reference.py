@@ -147,6 +147,7 @@ def load_capture(path: str, spec) -> Reference:
     cspec = spec.with_(input=path, inputs=(path,))
     session = Session(cspec, file_source(cspec), [])
     last: dict[tuple, tuple] = {}
+    settable: dict[tuple, bool] = {}
     for f in session:
         if f.role != "response" or not f.crc_ok or f.exception or not f.writes or f.unit is None:
             continue
@@ -154,11 +155,26 @@ def load_capture(path: str, spec) -> Reference:
             v = pt.get("value")
             if isinstance(v, float) and not math.isfinite(v):  # a float register's NaN: nothing to hold against
                 continue
-            if pt.get("id") and pt.get("address") is not None and v is not None:
+            addr = pt.get("address")
+            if not (pt.get("id") and addr is not None and v is not None):
+                continue
+            key = (f.model, addr)
+            if key not in settable:
+                settable[key] = _settable(session.registry, f.model, addr)
+            if settable[key]:
                 last[(f.link, f.unit, pt["id"])] = v
     if session.error:
         raise ReferenceError(f"--params {path}: {session.error}")
     return Reference(path, [(ln, u, pid, v) for (ln, u, pid), v in last.items()])
+
+
+def _settable(registry, model: str | None, addr: int) -> bool:
+    """Is the register a parameter (the map lets the master write it)?  A monitor register (output frequency,
+    current: access R) changes with the drive's work: another value later is no changed parameter."""
+    dec = registry.decoders.get(model) if registry is not None and model else None
+    regmap = getattr(dec, "map", None)
+    r = regmap.registers.get(addr) if regmap is not None else None
+    return r is None or "W" in (getattr(r, "access", "RW") or "RW")
 
 
 def load(path: str, spec) -> Reference:
