@@ -157,13 +157,14 @@ def test_wrong_line_settings_say_what_to_try():
 @pytest.mark.parametrize("seconds,seed", [(30.0, 1), (60.0, 11), (60.0, 4)])
 def test_the_errors_scenario(seconds, seed):
     """What the README shows: the silent unit 9 (a stray burst or a damaged frame after one of its requests
-    does not make it a unit that answers), the refused requests, unit 3 answering broadcasts; and no second
+    does not make it a unit that answers), the refused requests, unit 3 answering broadcasts, the damage; no second
     master (its cycle stretched by timeouts and retries, a request type still keeps its place in it)."""
     findings, engine = diagnose_sim("errors", (), seconds, "usb", seed)
     got = worst(findings)
     assert ("unit_silent", 9) in got and ("answers_broadcast", 3) in got
     assert {u for k, u in got if k == "unit_refuses"} == {1, 2, 3}
-    assert {k for k, _ in got} == {"unit_silent", "unit_refuses", "answers_broadcast"}
+    # and the scenario's damage (corrupted answers of units 1 and 3, noise bursts) that no cause explains
+    assert {k for k, _ in got} == {"unit_silent", "unit_refuses", "answers_broadcast", "line_damage"}
     assert_blames_only_present_units(findings, engine)
     assert findings == sorted(findings, key=lambda f: f.sort_key())  # most severe first
     assert [f.severity for f in findings][0] == "error"
@@ -510,3 +511,32 @@ def test_readings_of_a_running_drive_are_no_changed_parameters(tmp_path, capsys)
     findings = json.loads(capsys.readouterr().out)["findings"]
     changed = [x for x in findings if x["kind"] == "params_changed"]
     assert not changed, changed
+
+
+@pytest.mark.parametrize("scenario, faults", [("errors", []), ("default", ["--fault", "second_master_blind:2"])])
+def test_damage_no_rule_explains_is_still_said(tmp_path, capsys, scenario, faults):
+    """A line whose frames are damaged by something no kind recognises is not "nothing to report": line_damage
+    says how much, when, and whose answers carry it."""
+    from sniffer.cli import main
+
+    cap = tmp_path / "x.mcap"
+    assert main(["simulate", "--scenario", scenario, "--duration", "40", *faults, "--out", str(cap)]) == 0
+    capsys.readouterr()
+    main(["diagnose", str(cap), "--jobs", "1", "--format", "json"])
+    findings = json.loads(capsys.readouterr().out)["findings"]
+    assert [f["kind"] for f in findings if f["severity"] != "info"], findings  # never silent about it
+    damage = [f for f in findings if f["kind"] == "line_damage"]
+    causes = {"second_master", "bus_unbiased", "driver_enable_late", "driver_disable_early"}
+    if not any(f["kind"] in causes for f in findings):
+        (f,) = damage
+        assert f["severity"] == "warning" and f["evidence"]["damaged"] >= 10 and f["episodes"]
+
+
+def test_a_healthy_line_has_no_line_damage(tmp_path, capsys):
+    from sniffer.cli import main
+
+    cap = tmp_path / "x.mcap"
+    assert main(["simulate", "--scenario", "stress", "--duration", "20", "--out", str(cap)]) == 0
+    capsys.readouterr()
+    main(["diagnose", str(cap), "--jobs", "1", "--format", "json"])
+    assert not [f for f in json.loads(capsys.readouterr().out)["findings"] if f["kind"] == "line_damage"]

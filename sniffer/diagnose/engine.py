@@ -208,7 +208,9 @@ class Diagnosis:
         wrong = {f.link for f in out if f.kind == "wrong_line_settings"}
         if wrong:  # what a link read at the wrong settings shows is noise: nothing else on it is judged
             out = [f for f in out if f.kind == "wrong_line_settings" or f.link not in wrong]
-        return sort(out)
+        from sniffer.diagnose.damage import unexplained
+
+        return sort(out + unexplained(out, self))
 
 
 def request_type(f: Frame) -> tuple:

@@ -38,6 +38,7 @@ KINDS: tuple[Kind, ...] = (
     Kind("latency_drift", WARNING, "a unit's response time grows (or shrinks) through the capture", "timing"),
     Kind("unit_refuses", WARNING, "the master keeps asking a unit for something it refuses (exceptions)", "units"),
     Kind("answers_broadcast", WARNING, "a unit answers broadcasts (unit 0), which no unit may", "units"),
+    Kind("line_damage", WARNING, "frames damaged on the line and no cause told from the bytes", "damage"),
     Kind("poll_redundant", INFO, "registers polled far more often than they change", "polls"),
     Kind("poll_cycle", INFO, "the poll cycle, how busy the line is, and the room left at this baud", "polls"),
 )
