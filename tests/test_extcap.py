@@ -152,3 +152,82 @@ def test_a_bus_files_links_are_the_interfaces_of_one_capture(tmp_path):
     assert {n.split(" ")[0] for n in names if n} == {"drives", "pumps"}  # each link an interface
     packets = _packets(out)
     assert len(packets) > 50 and all(p[2].startswith("rs485-sniffer #") for p in packets)
+
+
+def _two_link_bus(tmp_path, a: str, b: str):
+    bus = tmp_path / "plant.toml"
+    bus.write_text(f'[serial]\nbaud = 19200\nparity = "E"\n\n[[links]]\nname = "drives"\nport = "{a}"\n\n'
+                   f'[[links]]\nname = "pumps"\nport = "{b}"\nbaud = 9600\n')
+    return bus
+
+
+def test_each_link_of_a_bus_file_is_an_interface_too(tmp_path):
+    from sniffer.capture.settings import CaptureSpec
+    from sniffer.cli import build_parser
+    from sniffer.extcap.capture import detect_argv, live_argv
+    from sniffer.extcap.interfaces import Target
+
+    bus = _two_link_bus(tmp_path, "/dev/ttyUSB1", "/dev/ttyUSB2")
+    plain = tmp_path / "line.toml"
+    plain.write_text('[serial]\nbaud = 9600\n')
+    r = _sniffer("extcap", "--extcap-interfaces", "--no-sigrok", "--list-bus", str(bus), "--list-bus", str(plain),
+                 home=tmp_path)
+    assert r.returncode == 0 and r.stderr == ""
+    shown = dict(x[len("interface {value="):-1].split("}{display=") for x in r.stdout.splitlines()
+                 if x.startswith("interface {value=") and "rs485-" in x)
+    assert shown == {
+        f"rs485-bus:{bus}": "RS-485 Modbus: bus file plant.toml (drives, pumps)",  # the whole file: all links
+        f"rs485-link:{bus}#drives": "RS-485 Modbus: plant.toml: drives (ttyUSB1)",
+        f"rs485-link:{bus}#pumps": "RS-485 Modbus: plant.toml: pumps (ttyUSB2)",
+        f"rs485-bus:{plain}": "RS-485 Modbus: bus file line.toml",  # no [[links]]: one interface
+    }
+    value = f"rs485-link:{bus}#pumps"
+    assert Target.parse(value) == Target("link", str(bus), "pumps") and Target.parse(value).value == value
+    r = _sniffer("extcap", "--extcap-dlts", "--extcap-interface", value, home=tmp_path)
+    assert r.returncode == 0 and r.stdout.startswith("dlt {number=147}")
+    r = _sniffer("extcap", "--extcap-config", "--extcap-interface", value, home=tmp_path)
+    calls = [x.split("{call=")[1].split("}")[0] for x in r.stdout.splitlines() if x.startswith("arg ")]
+    assert calls == ["--line-baud", "--line-parity", "--line-stopbits"]  # the interface is its bus file
+
+    odd = Target("link", "/x/a#b.toml", "pump#2%")  # a '#' in the file's path or the link's name reads back
+    assert odd.value == "rs485-link:/x/a#b.toml#pump%232%25" and Target.parse(odd.value) == odd
+    target = Target.parse(value)
+    assert detect_argv(target, "detect", "detect", "detect", None, "x.toml") is None  # the bus file says
+    argv = live_argv(target, "detect", "detect", "detect", None, None)
+    assert argv[:3] == ["live", "--bus", str(bus)] and "--only-link=pumps" in argv
+    spec = CaptureSpec.from_args(build_parser().parse_args(argv))
+    assert [(p.name, p.ports) for p in spec.links] == [("pumps", ("/dev/ttyUSB2",))]
+    assert spec.resolve_link("pumps", need_baud=False).line.baud == 9600  # its own table's settings
+    whole = CaptureSpec.from_args(build_parser().parse_args(live_argv(Target("bus", str(bus)), "detect", "detect",
+                                                                                 "detect", None, None)))
+    assert [p.name for p in whole.links] == ["drives", "pumps"]
+
+
+def test_only_link_names_a_link_of_the_bus_file(tmp_path):
+    bus = _two_link_bus(tmp_path, str(tmp_path / "a"), str(tmp_path / "b"))
+    r = _sniffer("live", "--bus", str(bus), "--only-link", "fans", "--headless", "--no-out", home=tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "no [[links]] named 'fans'" in r.stderr
+    assert "(it has: drives, pumps)" in r.stderr
+    r = _sniffer("live", str(tmp_path / "a"), "--only-link", "drives", "--headless", "--no-out", home=tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--bus file with [[links]]" in r.stderr
+
+
+def test_tshark_captures_one_link_of_a_bus_file(tmp_path):
+    with SimulatedLine(tmp_path, "default", "19200 8E1", name="a") as a, \
+            SimulatedLine(tmp_path, "default", "9600 8E1", name="b", seed=9) as b:
+        bus = _two_link_bus(tmp_path, a.path, b.path)
+        _install(tmp_path, "--list-bus", str(bus))
+        value = f"rs485-link:{bus}#pumps"
+        listed = subprocess.run(["tshark", "-D"], capture_output=True, text=True, timeout=120, env=_env(tmp_path))
+        assert value in listed.stdout and "plant.toml: pumps" in listed.stdout
+        r, out = _tshark_capture(tmp_path, value, 6)
+        written = a.pty.bytes_received_from_sniffer + b.pty.bytes_received_from_sniffer
+    assert r.returncode == 0 and "Error" not in r.stderr, r.stderr
+    assert written == 0
+    assert not _left_running(str(tmp_path))
+    names = subprocess.run(["tshark", "-r", out, "-T", "fields", "-e", "frame.interface_name"], capture_output=True,
+                           text=True, timeout=120).stdout.split("\n")
+    assert {n for n in names if n} and all(n.startswith("pumps") for n in names if n)  # that link only
+    packets = _packets(out)
+    assert len(packets) > 20 and sum("mbrtu" in p[0] for p in packets) >= 0.9 * len(packets)
+    assert all("[pumps]" in p[2] for p in packets if "mbrtu" in p[0])  # each frame's comment names its link

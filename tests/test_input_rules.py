@@ -64,7 +64,7 @@ ARGS = {
         "--foxglove-device", "--mqtt-interval", "--mqtt-ha-prefix", "--mqtt-queue", "--samplerate", "--bauds",
         "--max-time", "--quiet-time", "--units-time", "--link", "--title", "query sql", "--preset", "--max-rows",
         "--host", "--http-port", "--public-url", "--adapter", "--param", "--receiver-baud", "--receiver-parity",
-        "--receiver-stopbits", "--ignore", "--tolerance", "--identify-time"], VALUE),
+        "--receiver-stopbits", "--ignore", "--tolerance", "--identify-time", "--only-link"], VALUE),
 }
 # what is deliberately not held to a rule, and why
 EXCEPTIONS = {

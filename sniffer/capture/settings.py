@@ -214,6 +214,20 @@ def link_plans(ports=(), taps=(), bus=None) -> tuple[LinkPlan, ...]:
     return tuple(LinkPlan(n, g, tap) for n, (g, tap) in zip(names, groups))
 
 
+def only_links(plans: tuple[LinkPlan, ...], names, bus) -> tuple[LinkPlan, ...]:
+    """The bus file's links named by `live --only-link` (all of them without it): one link of a bus file,
+    with its own table's settings, captured alone (Wireshark's interface of one link)."""
+    if not names:
+        return plans
+    if bus is None or not bus.links:
+        raise SettingsError("--only-link picks [[links]] of a --bus file: give a --bus file with [[links]]")
+    known = [p.name for p in plans]
+    for name in names:
+        if name not in known:
+            raise SettingsError(f"{bus.path}: no [[links]] named {name!r} (it has: {', '.join(known)})")
+    return tuple(p for p in plans if p.name in names)
+
+
 @dataclass(frozen=True)
 class CaptureSpec:
     """What the user asked for, in one object: built once from the flags and the bus file.
@@ -295,7 +309,7 @@ class CaptureSpec:
         bus_file = _bus_file(opt("bus"))
         logic = LogicSpec.from_args(args, layered(flags, LineChoice.from_bus(bus_file)))
         ports = list(opt("ports") or ())
-        links = link_plans(ports, opt("tap") or (), bus_file)
+        links = only_links(link_plans(ports, opt("tap") or (), bus_file), opt("only_link") or (), bus_file)
         port = opt("port") or (ports[0] if ports else None)
         if links:
             port = links[0].ports[0]

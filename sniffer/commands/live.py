@@ -33,6 +33,9 @@ def add_parser(subparsers) -> None:
                   "sniffer live --bus plant.toml --out plant.mcap        # the [[links]] of a bus file",
                   "sniffer live socket://10.0.0.7:4001 --baud 19200 --parity E   # behind a gateway (rfc2217:// too)"])
     port_flags(p)
+    p.add_argument("--only-link", action="append", metavar="NAME",
+                   help="capture only this [[links]] table of the --bus file, with its settings (repeatable; "
+                        "default: all of its links)")
     serial_flags(p, "live")
     logic_flags(p, live=True)
     decode_flags(p, "live")

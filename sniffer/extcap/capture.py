@@ -20,11 +20,13 @@ def live_argv(target: Target, baud: str, parity: str, stopbits: str, bus: str | 
     argv = ["live"]
     if target.kind == "bus":
         argv += ["--bus", target.what]
+    elif target.kind == "link":  # one [[links]] table of the bus file, alone
+        argv += ["--bus", target.what, f"--only-link={target.link}"]
     elif target.kind == "sigrok":
         argv += [f"sigrok:{target.what}", "--rx", rx or "D0"]
     else:
         argv.append(target.what)
-    if bus and target.kind != "bus":
+    if bus and target.kind not in ("bus", "link"):
         argv += ["--bus", bus]
     for flag, value in (("--baud", baud), ("--parity", parity), ("--stopbits", stopbits)):
         if value and value != DETECT:

@@ -4,6 +4,7 @@ An interface's value says what it captures (`Target.parse` reads it back when Wi
 
     rs485:/dev/serial/by-id/usb-FTDI_...   a serial adapter (or a port or gateway URL the launcher names)
     rs485-bus:/home/me/plant.toml          a bus file's [[links]], each link a pcapng interface
+    rs485-link:/home/me/plant.toml#pump    one [[links]] table of a bus file alone (its name %-quoted: no '#')
     rs485-sigrok:fx2lafw                    a logic analyzer sigrok-cli finds
 """
 
@@ -14,11 +15,12 @@ import os
 import shutil
 import subprocess
 from dataclasses import dataclass
+from urllib.parse import quote, unquote
 
 from sniffer import __version__
 from sniffer.formats.pcap.format import LINKTYPE_USER0
 
-PORT, BUS, SIGROK = "rs485:", "rs485-bus:", "rs485-sigrok:"
+PORT, BUS, LINK, SIGROK = "rs485:", "rs485-bus:", "rs485-link:", "rs485-sigrok:"
 BY_ID = "/dev/serial/by-id"
 BAUDS = (1200, 2400, 4800, 9600, 14400, 19200, 38400, 57600, 76800, 115200, 230400, 250000)
 SIGROK_SCAN_S = 8.0
@@ -26,20 +28,27 @@ SIGROK_SCAN_S = 8.0
 
 @dataclass(frozen=True)
 class Target:
-    kind: str  # "port", "bus" or "sigrok"
+    kind: str  # "port", "bus", "link" or "sigrok"
     what: str  # the port (path, COMn or URL), the bus file, or the sigrok driver
+    link: str | None = None  # kind "link": the name of its [[links]] table in bus file `what`
 
     @property
     def value(self) -> str:
+        if self.kind == "link":
+            return f"{LINK}{self.what}#{quote(self.link or '', safe='')}"
         return {"port": PORT, "bus": BUS, "sigrok": SIGROK}[self.kind] + self.what
 
     @classmethod
     def parse(cls, value: str) -> "Target":
+        if value.startswith(LINK):
+            path, sep, name = value[len(LINK):].rpartition("#")
+            if sep and path and name:
+                return cls("link", path, unquote(name))
         for prefix, kind in ((BUS, "bus"), (SIGROK, "sigrok"), (PORT, "port")):
             if value.startswith(prefix) and len(value) > len(prefix):
                 return cls(kind, value[len(prefix):])
         raise ValueError(f"{value!r} is not an interface of this tool "
-                         "(rs485:PORT, rs485-bus:FILE, rs485-sigrok:DRIVER)")
+                         "(rs485:PORT, rs485-bus:FILE, rs485-link:FILE#LINK, rs485-sigrok:DRIVER)")
 
 
 def version_line() -> str:
@@ -56,7 +65,12 @@ def targets(ports=(), bus_files=(), sigrok: bool = True) -> list[tuple[Target, s
             out.append((Target("port", p), f"RS-485 Modbus: {os.path.basename(p) if p.startswith('/') else p}"))
     for b in bus_files:
         path = os.path.abspath(b)
-        out.append((Target("bus", path), f"RS-485 Modbus: bus file {os.path.basename(path)}{_links_of(path)}"))
+        links = _links_of(path)
+        names = f" ({', '.join(name for name, _ in links)})" if links else ""
+        out.append((Target("bus", path), f"RS-485 Modbus: bus file {os.path.basename(path)}{names}"))
+        for name, ports in links:  # and each link alone (the whole file's interface captures them all)
+            out.append((Target("link", path, name), f"RS-485 Modbus: {os.path.basename(path)}: {name} "
+                        f"({' + '.join(os.path.basename(p) if p.startswith('/') else p for p in ports)})"))
     if sigrok:
         for driver, text in sigrok_analyzers():
             out.append((Target("sigrok", driver), f"RS-485 Modbus: logic analyzer {text}"))
@@ -96,7 +110,7 @@ def config_lines(target: Target) -> list[str]:
     if target.kind == "sigrok":
         lines.append("arg {number=4}{call=--line-rx}{display=Receive channel}{type=string}{default=D0}"
                      "{tooltip=the analyzer channel on the line's receive side (A/B through a transceiver)}")
-    if target.kind == "bus":
+    if target.kind in ("bus", "link"):
         lines = [x for x in lines if "{arg=3}" not in x and "{number=3}" not in x]  # the interface is the bus file
     return lines
 
@@ -134,15 +148,15 @@ def sigrok_analyzers() -> list[tuple[str, str]]:
     return found
 
 
-def _links_of(path: str) -> str:
+def _links_of(path: str) -> list[tuple[str, tuple[str, ...]]]:
+    """(name, ports) of each [[links]] table of the bus file; none where it has none or does not read."""
     try:
         from sniffer.capture.busfile import load_bus_file
 
         bus = load_bus_file(path)
     except Exception:  # noqa: BLE001 - a bus file that does not read is said when it is captured
-        return ""
-    links = getattr(bus, "links", None) or ()
-    return f" ({', '.join(link.name for link in links)})" if links else ""
+        return []
+    return [(link.name, tuple(link.ports)) for link in getattr(bus, "links", None) or ()]
 
 
 def _clean(text: str) -> str:
