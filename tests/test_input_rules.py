@@ -44,7 +44,7 @@ ARGS = {
     "--mqtt-ca": FILE, "--mqtt-cert": FILE, "--mqtt-key": FILE,
     "check file": FILE, "diagnose file": FILE, "diff a": FILE, "diff b": FILE, "export file": FILE,
     "learn file": FILE, "replay file": FILE, "report captures": FILE, "repair file": FILE, "status path": FILE,
-    "mcp sources": FILE,
+    "mcp sources": FILE, "--list-bus": FILE, "--line-bus": FILE,
     # folders read
     "ingest folder": FOLDER, "query dataset": FOLDER,
     # serial ports (or, for detect, capture files too)
@@ -54,7 +54,8 @@ ARGS = {
     "--dask": ADDRESS, "--mqtt": ADDRESS,
     # written, never read (tests/test_output_safety.py holds them to the output rules)
     "--out": OUTPUT, "--write-bus": OUTPUT, "--windows": OUTPUT, "--status": OUTPUT, "--publish": OUTPUT,
-    "--socket": OUTPUT, "--pty": OUTPUT, "--to": OUTPUT, "--junit": OUTPUT,
+    "--socket": OUTPUT, "--pty": OUTPUT, "--to": OUTPUT, "--junit": OUTPUT, "--debug-file": OUTPUT, "--fifo": OUTPUT,
+    "--folder": OUTPUT,
     # values
     **dict.fromkeys([
         "--input-format", "--rx", "--tx", "--de", "--time-tol-ms", "--latency-tol-ms", "--jobs", "--baud", "--parity",
@@ -64,12 +65,17 @@ ARGS = {
         "--foxglove-device", "--mqtt-interval", "--mqtt-ha-prefix", "--mqtt-queue", "--samplerate", "--bauds",
         "--max-time", "--quiet-time", "--units-time", "--link", "--title", "query sql", "--preset", "--max-rows",
         "--host", "--http-port", "--public-url", "--adapter", "--param", "--receiver-baud", "--receiver-parity",
-        "--receiver-stopbits", "--ignore", "--tolerance", "--identify-time", "--only-link"], VALUE),
+        "--receiver-stopbits", "--ignore", "--tolerance", "--identify-time", "--only-link", "--extcap-capture-filter",
+        "--extcap-interface", "--extcap-reload-option", "--extcap-version", "--line-baud", "--line-parity", "--line-rx",
+        "--line-stopbits", "--list-port"], VALUE),
 }
 # what is deliberately not held to a rule, and why
 EXCEPTIONS = {
     ("ingest folder", "directory"): "a folder of captures is what ingest reads",
     ("query dataset", "directory"): "a dataset is a folder",
+    ("--list-bus", "*"): "extcap lists a bus file without reading it (Wireshark's list must not fail for one file); "
+                         "capturing it runs live --bus, held to the rules as --bus",
+    ("--line-bus", "*"): "the extcap dialog's bus file is handed to live --bus, held to the rules as --bus",
     ("mcp sources", "directory"): "mcp serves a folder of captures or a dataset as well as a capture",
     ("status path", "directory"): "a capture's --out folder: status finds its status file there",
     ("live ports", "chardev"): "a serial port is a character device: /dev/zero is refused as no tty, checked here",
