@@ -146,7 +146,7 @@ class TriggerSink(Sink):
                 self.runner.close()
         p = self.plan
         if not (p.fired or p.suppressed):  # a trigger that never fired says so: silence would read as "not armed"
-            rules = "; ".join(f"'{r}'" for r in self.spec.rules)
+            rules = "; ".join(f"'{_shown(r)}'" for r in self.spec.rules)
             self.report(f"triggers: 0 fired, 0 windows (no frame matched {rules})")
         else:
             self.report(f"triggers: {p.fired} fired, {len(self.written)} window files"
@@ -333,3 +333,9 @@ class TriggerSink(Sink):
 
 
 __all__ = ["ALIGN_NS", "TriggerSink"]
+
+
+def _shown(rule: str, limit: int = 80) -> str:
+    """A rule as one line says it: control characters as '?', cut at `limit`."""
+    text = "".join(c if c.isprintable() else "?" for c in str(rule))
+    return text if len(text) <= limit else text[: limit - 3] + "..."
