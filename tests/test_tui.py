@@ -318,6 +318,10 @@ def test_new_frames_below_a_still_window_and_a_fast_tail(monkeypatch):
     TAIL_EVERY_S by the timer (a direct poll draws at once)."""
     import sniffer.tui.vlist as vlist_module
 
+    # a timer's poll (a budget given: the tail drawn at most every TAIL_EVERY_S); a budget no machine runs out of,
+    # so a loaded one takes every frame too (10 ms took 73 of 100 under load)
+    TIMER = 3600.0
+
     async def go():
         app, sink, frames = growing_app(100)
         async with app.run_test(size=SIZE) as pilot:
@@ -326,20 +330,20 @@ def test_new_frames_below_a_still_window_and_a_fast_tail(monkeypatch):
             fl = app.frame_list
             await pilot.press("home")
             sink.frames(frames[100:200])
-            app.poll(0.01)
+            app.poll(TIMER)
             assert fl.cursor == 0 and fl.virtual_size.height == 200 + fl.header_lines and fl.scroll_offset.y == 0
             await pilot.press("end")
             assert fl.cursor == 199 and fl.follow and app.detail.frame is app.store.frames[199]
             monkeypatch.setattr(vlist_module, "TAIL_EVERY_S", 3600.0)
             sink.frames(frames[200:200 + vlist_module.TAIL_ROWS])  # a slow tail: drawn at once
-            app.poll(0.01)
+            app.poll(TIMER)
             last = 199 + vlist_module.TAIL_ROWS
             assert fl.cursor == last
             sink.frames(frames[last + 1:last + 11])  # a fast one, just after a draw: at the next due poll
-            app.poll(0.01)
+            app.poll(TIMER)
             assert fl.cursor == last and len(app.store) == last + 11
             sink.frames(frames[last + 11:300])
-            app.poll(0.01)
+            app.poll(TIMER)
             assert fl.cursor == last and len(app.store) == 300
             app.poll()
             assert fl.cursor == 299
