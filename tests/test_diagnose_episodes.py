@@ -73,3 +73,30 @@ def test_drive_trips_are_episodes_not_python_in_the_evidence():
     text = "\n".join(f.text_lines())
     assert "None" not in text and "{" not in text and "[" not in text
     assert "when: " in text
+
+
+def _spans(f) -> list[tuple[int, int]]:
+    return [(round(e.from_s), round(e.to_s)) for e in f.episodes]
+
+
+def test_a_driver_cut_in_one_span_is_one_episode_over_it():
+    for kind in ("driver_enable_late", "driver_disable_early"):
+        findings, _ = diagnose_sim("default", (f"{kind}:2@10-25",), 40.0)
+        f = _one(findings, kind, 2)
+        assert _spans(f) == [(10, 25)], (kind, f.episodes)
+        assert "when: 1 episode: 10.0-25.0 s (" in "\n".join(f.text_lines()), kind
+
+
+def test_a_driver_cut_that_comes_twice_is_two_episodes_in_words():
+    for kind, what in (("driver_enable_late", "first"), ("driver_disable_early", "last")):
+        findings, _ = diagnose_sim("default", (f"{kind}:2@8-16", f"{kind}:2@30-38"), 45.0)
+        f = _one(findings, kind, 2)
+        assert _spans(f) == [(8, 16), (30, 38)], (kind, f.episodes)
+        text = to_text(findings)
+        assert "when: 2 episodes: 8.0-16.0 s (" in text and f"answers with the {what} byte damaged)" in text
+
+
+def test_a_driver_cut_all_along_is_one_episode_over_the_capture():
+    findings, _ = diagnose_sim("default", ("driver_enable_late:2",), 30.0)
+    (e,) = _one(findings, "driver_enable_late", 2).episodes
+    assert e.from_s < 1.0 and e.to_s > 29.0

@@ -96,9 +96,10 @@ class Windows:
     def total_hits(self) -> int:
         return sum(self.hits.values())
 
-    def episodes(self, seconds, what: str = "", min_hits: int = 3) -> list[Episode]:
+    def episodes(self, seconds, what: str = "", min_hits: int = 3, join: int = 2) -> list[Episode]:
         """The episodes of the hits (see the module doc); `seconds(t_ns)` turns capture time into seconds
-        from its start."""
+        from its start; hot windows `join` apart or less are one episode (a sparse cause leaves quiet windows
+        inside its episode)."""
         hits_total = self.total_hits
         if hits_total == 0 or self.t0 is None:
             return []
@@ -112,7 +113,7 @@ class Windows:
         hot = [k for k in keys if self._hot(self.hits.get(k, 0), self.n[k], base)]
         runs: list[list[int]] = []
         for k in hot:
-            if runs and k - runs[-1][1] <= 2:  # one quiet window between: the same episode
+            if runs and k - runs[-1][1] <= join:  # quiet windows between: the same episode
                 runs[-1][1] = k
             else:
                 runs.append([k, k])
