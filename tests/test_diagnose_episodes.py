@@ -100,3 +100,26 @@ def test_a_driver_cut_all_along_is_one_episode_over_the_capture():
     findings, _ = diagnose_sim("default", ("driver_enable_late:2",), 30.0)
     (e,) = _one(findings, "driver_enable_late", 2).episodes
     assert e.from_s < 1.0 and e.to_s > 29.0
+
+
+def test_requests_refused_in_one_span_are_one_episode_over_it():
+    findings, _ = diagnose_sim("default", ("unit_refuses:2@10-25",), 40.0)
+    f = _one(findings, "unit_refuses", 2)
+    assert _spans(f) == [(10, 25)] and f.episodes[0].count >= 100
+    assert "when: 1 episode: 10.1-25.2 s (" in "\n".join(f.text_lines()) or "when: 1 episode: 10." in to_text(findings)
+
+
+def test_requests_refused_twice_are_two_episodes_in_words():
+    findings, _ = diagnose_sim("default", ("unit_refuses:2@8-16", "unit_refuses:2@30-38"), 45.0)
+    f = _one(findings, "unit_refuses", 2)
+    assert _spans(f) == [(8, 16), (30, 38)]
+    assert "when: 2 episodes: 8.0-16.1 s (" in to_text(findings) and "requests refused)" in to_text(findings)
+
+
+def test_a_register_refused_all_along_is_one_episode():
+    findings, _ = diagnose_sim("tds-v8", (), 40.0)
+    f = _one(findings, "unit_refuses", 1)
+    (e,) = f.episodes  # a write refused at each of its polls, some seconds apart: one episode, all of them
+    assert e.count == f.evidence["requests_refused"] and e.to_s - e.from_s > 30.0
+    f = _one(findings, "unit_refuses", 2)  # (7 of its 10 reads refused: most of the time, and when)
+    assert f.episodes and sum(e.count for e in f.episodes) == f.evidence["requests_refused"]

@@ -28,6 +28,7 @@ class Episode:
     to_s: float
     count: int  # how many times it showed in the episode (what `what` counts)
     what: str = ""  # "damaged frames", "requests unanswered", a fault's name ...
+    chances: int = 0  # what was counted in the episode, hit or not (0: not known)
 
     def to_dict(self) -> dict:
         return {"from_s": round(self.from_s, 3), "to_s": round(self.to_s, 3), "count": self.count, "what": self.what}
@@ -47,6 +48,19 @@ def words(episodes: list[Episode], total: int | None = None) -> str:
     shown = ", ".join(e.words() for e in episodes)
     more = f" ({len(episodes)} of {n} shown, the rest in --format json)" if n > len(episodes) else ""
     return f"{head}: {shown}{more}"
+
+
+def merged(episodes: list[Episode]) -> list[Episode]:
+    """Episodes of several counts of one cause (a unit's refused requests of each kind) as one list: those that
+    overlap in time are one, their counts added."""
+    out: list[Episode] = []
+    for e in sorted(episodes, key=lambda e: e.from_s):
+        if out and e.from_s <= out[-1].to_s:
+            p = out[-1]
+            out[-1] = Episode(p.from_s, max(p.to_s, e.to_s), p.count + e.count, p.what, p.chances + e.chances)
+        else:
+            out.append(e)
+    return out
 
 
 def keep(episodes: list, limit: int = MAX_EPISODES) -> list:
@@ -147,7 +161,8 @@ class Windows:
 
     def _episode(self, seconds, a: int, b: int, count: int, what: str) -> Episode:
         t0 = self.t0 or 0
-        return Episode(seconds(t0 + a * self.width), seconds(t0 + (b + 1) * self.width), count, what)
+        chances = sum(self.n.get(k, 0) for k in range(a, b + 1))
+        return Episode(seconds(t0 + a * self.width), seconds(t0 + (b + 1) * self.width), count, what, chances)
 
 
 def poisson_tail(k: int, mu: float) -> float:
