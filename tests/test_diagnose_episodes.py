@@ -123,3 +123,25 @@ def test_a_register_refused_all_along_is_one_episode():
     assert e.count == f.evidence["requests_refused"] and e.to_s - e.from_s > 30.0
     f = _one(findings, "unit_refuses", 2)  # (7 of its 10 reads refused: most of the time, and when)
     assert f.episodes and sum(e.count for e in f.episodes) == f.evidence["requests_refused"]
+
+
+def test_retries_in_one_span_are_one_episode_of_the_storm():
+    findings, _ = diagnose_sim("a510", ("unit_silent:1@6-30",), 40.0)
+    f = _one(findings, "retry_storm")
+    assert _spans(f) == [(6, 30)] and f.episodes[0].what == "retries"
+
+
+def test_retries_that_come_twice_are_two_episodes_in_words():
+    findings, _ = diagnose_sim("a510", ("unit_silent:1@4-16", "unit_silent:1@24-36"), 40.0)
+    f = _one(findings, "retry_storm")
+    assert _spans(f) == [(4, 16), (24, 36)]
+    assert "when: 2 episodes: 4.0-16.0 s (" in to_text(findings) and " retries), 24.0-36.0 s (" in to_text(findings)
+
+
+def test_a_latency_drift_is_an_episode_from_where_it_left_to_the_end():
+    findings, engine = diagnose_sim("default", ("latency_drift:1",), 30.0, "wire")
+    f = _one(findings, "latency_drift", 1)
+    (e,) = f.episodes  # it grows all along: it has left the start by a quarter of the drift some seconds in
+    assert 3.0 < e.from_s < 20.0 and e.to_s > 29.0 and "slower than at the start" in e.what
+    assert e.count < engine.links[""].units[1].lat.n
+    assert "when: 1 episode: " in "\n".join(f.text_lines())
