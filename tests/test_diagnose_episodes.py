@@ -73,3 +73,75 @@ def test_drive_trips_are_episodes_not_python_in_the_evidence():
     text = "\n".join(f.text_lines())
     assert "None" not in text and "{" not in text and "[" not in text
     assert "when: " in text
+
+
+def _spans(f) -> list[tuple[int, int]]:
+    return [(round(e.from_s), round(e.to_s)) for e in f.episodes]
+
+
+def test_a_driver_cut_in_one_span_is_one_episode_over_it():
+    for kind in ("driver_enable_late", "driver_disable_early"):
+        findings, _ = diagnose_sim("default", (f"{kind}:2@10-25",), 40.0)
+        f = _one(findings, kind, 2)
+        assert _spans(f) == [(10, 25)], (kind, f.episodes)
+        assert "when: 1 episode: 10.0-25.0 s (" in "\n".join(f.text_lines()), kind
+
+
+def test_a_driver_cut_that_comes_twice_is_two_episodes_in_words():
+    for kind, what in (("driver_enable_late", "first"), ("driver_disable_early", "last")):
+        findings, _ = diagnose_sim("default", (f"{kind}:2@8-16", f"{kind}:2@30-38"), 45.0)
+        f = _one(findings, kind, 2)
+        assert _spans(f) == [(8, 16), (30, 38)], (kind, f.episodes)
+        text = to_text(findings)
+        assert "when: 2 episodes: 8.0-16.0 s (" in text and f"answers with the {what} byte damaged)" in text
+
+
+def test_a_driver_cut_all_along_is_one_episode_over_the_capture():
+    findings, _ = diagnose_sim("default", ("driver_enable_late:2",), 30.0)
+    (e,) = _one(findings, "driver_enable_late", 2).episodes
+    assert e.from_s < 1.0 and e.to_s > 29.0
+
+
+def test_requests_refused_in_one_span_are_one_episode_over_it():
+    findings, _ = diagnose_sim("default", ("unit_refuses:2@10-25",), 40.0)
+    f = _one(findings, "unit_refuses", 2)
+    assert _spans(f) == [(10, 25)] and f.episodes[0].count >= 100
+    assert "when: 1 episode: 10.1-25.2 s (" in "\n".join(f.text_lines()) or "when: 1 episode: 10." in to_text(findings)
+
+
+def test_requests_refused_twice_are_two_episodes_in_words():
+    findings, _ = diagnose_sim("default", ("unit_refuses:2@8-16", "unit_refuses:2@30-38"), 45.0)
+    f = _one(findings, "unit_refuses", 2)
+    assert _spans(f) == [(8, 16), (30, 38)]
+    assert "when: 2 episodes: 8.0-16.1 s (" in to_text(findings) and "requests refused)" in to_text(findings)
+
+
+def test_a_register_refused_all_along_is_one_episode():
+    findings, _ = diagnose_sim("tds-v8", (), 40.0)
+    f = _one(findings, "unit_refuses", 1)
+    (e,) = f.episodes  # a write refused at each of its polls, some seconds apart: one episode, all of them
+    assert e.count == f.evidence["requests_refused"] and e.to_s - e.from_s > 30.0
+    f = _one(findings, "unit_refuses", 2)  # (7 of its 10 reads refused: most of the time, and when)
+    assert f.episodes and sum(e.count for e in f.episodes) == f.evidence["requests_refused"]
+
+
+def test_retries_in_one_span_are_one_episode_of_the_storm():
+    findings, _ = diagnose_sim("a510", ("unit_silent:1@6-30",), 40.0)
+    f = _one(findings, "retry_storm")
+    assert _spans(f) == [(6, 30)] and f.episodes[0].what == "retries"
+
+
+def test_retries_that_come_twice_are_two_episodes_in_words():
+    findings, _ = diagnose_sim("a510", ("unit_silent:1@4-16", "unit_silent:1@24-36"), 40.0)
+    f = _one(findings, "retry_storm")
+    assert _spans(f) == [(4, 16), (24, 36)]
+    assert "when: 2 episodes: 4.0-16.0 s (" in to_text(findings) and " retries), 24.0-36.0 s (" in to_text(findings)
+
+
+def test_a_latency_drift_is_an_episode_from_where_it_left_to_the_end():
+    findings, engine = diagnose_sim("default", ("latency_drift:1",), 30.0, "wire")
+    f = _one(findings, "latency_drift", 1)
+    (e,) = f.episodes  # it grows all along: it has left the start by a quarter of the drift some seconds in
+    assert 3.0 < e.from_s < 20.0 and e.to_s > 29.0 and "slower than at the start" in e.what
+    assert e.count < engine.links[""].units[1].lat.n
+    assert "when: 1 episode: " in "\n".join(f.text_lines())

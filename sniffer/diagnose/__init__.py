@@ -13,6 +13,7 @@
     timing.py    timeout_too_short, latency_drift      masters.py  second_master, retry_storm
     drives.py    drive_fault                           correlate.py  noise_correlated_with_load
     episodes.py  when: windows of time, episodes
+    when.py      episodes of retry_storm and latency_drift (judged over the capture by their groups)
     params.py    params_not_saved, eeprom_wear, params_changed (reference.py: --params)
     polls.py     poll_cycle, poll_redundant
 

@@ -31,7 +31,7 @@ class Diagnosis:
     """Frames in, findings out (see the module doc)."""
 
     def __init__(self, reference=None) -> None:
-        from sniffer.diagnose import correlate, drives, line, masters, params, polls, timing, units, wiring
+        from sniffer.diagnose import correlate, drives, line, masters, params, polls, timing, units, when, wiring
 
         self.t0_ns = 0
         self.links: dict[str, Link] = {}
@@ -39,6 +39,8 @@ class Diagnosis:
                        masters.MastersGroup(), drives.DrivesGroup(), correlate.CorrelateGroup(),
                        params.ParamsGroup(reference),
                        polls.PollsGroup()]
+        self.when = when.WhenGroup()  # episodes for the findings judged over the whole capture (fill)
+        self.groups.append(self.when)
         self._resolved: dict = {}
         self._registries: dict = {}
         # each group's handlers, only where it has one: a frame costs the calls that can use it
@@ -205,6 +207,7 @@ class Diagnosis:
         out: list[Finding] = []
         for g in self.groups:
             out += g.findings(self)
+        self.when.fill(self, out)
         wrong = {f.link for f in out if f.kind == "wrong_line_settings"}
         if wrong:  # what a link read at the wrong settings shows is noise: nothing else on it is judged
             out = [f for f in out if f.kind == "wrong_line_settings" or f.link not in wrong]

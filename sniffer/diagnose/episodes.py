@@ -28,6 +28,7 @@ class Episode:
     to_s: float
     count: int  # how many times it showed in the episode (what `what` counts)
     what: str = ""  # "damaged frames", "requests unanswered", a fault's name ...
+    chances: int = 0  # what was counted in the episode, hit or not (0: not known)
 
     def to_dict(self) -> dict:
         return {"from_s": round(self.from_s, 3), "to_s": round(self.to_s, 3), "count": self.count, "what": self.what}
@@ -47,6 +48,19 @@ def words(episodes: list[Episode], total: int | None = None) -> str:
     shown = ", ".join(e.words() for e in episodes)
     more = f" ({len(episodes)} of {n} shown, the rest in --format json)" if n > len(episodes) else ""
     return f"{head}: {shown}{more}"
+
+
+def merged(episodes: list[Episode]) -> list[Episode]:
+    """Episodes of several counts of one cause (a unit's refused requests of each kind) as one list: those that
+    overlap in time are one, their counts added."""
+    out: list[Episode] = []
+    for e in sorted(episodes, key=lambda e: e.from_s):
+        if out and e.from_s <= out[-1].to_s:
+            p = out[-1]
+            out[-1] = Episode(p.from_s, max(p.to_s, e.to_s), p.count + e.count, p.what, p.chances + e.chances)
+        else:
+            out.append(e)
+    return out
 
 
 def keep(episodes: list, limit: int = MAX_EPISODES) -> list:
@@ -96,9 +110,10 @@ class Windows:
     def total_hits(self) -> int:
         return sum(self.hits.values())
 
-    def episodes(self, seconds, what: str = "", min_hits: int = 3) -> list[Episode]:
+    def episodes(self, seconds, what: str = "", min_hits: int = 3, join: int = 2) -> list[Episode]:
         """The episodes of the hits (see the module doc); `seconds(t_ns)` turns capture time into seconds
-        from its start."""
+        from its start; hot windows `join` apart or less are one episode (a sparse cause leaves quiet windows
+        inside its episode)."""
         hits_total = self.total_hits
         if hits_total == 0 or self.t0 is None:
             return []
@@ -112,7 +127,7 @@ class Windows:
         hot = [k for k in keys if self._hot(self.hits.get(k, 0), self.n[k], base)]
         runs: list[list[int]] = []
         for k in hot:
-            if runs and k - runs[-1][1] <= 2:  # one quiet window between: the same episode
+            if runs and k - runs[-1][1] <= join:  # quiet windows between: the same episode
                 runs[-1][1] = k
             else:
                 runs.append([k, k])
@@ -146,7 +161,8 @@ class Windows:
 
     def _episode(self, seconds, a: int, b: int, count: int, what: str) -> Episode:
         t0 = self.t0 or 0
-        return Episode(seconds(t0 + a * self.width), seconds(t0 + (b + 1) * self.width), count, what)
+        chances = sum(self.n.get(k, 0) for k in range(a, b + 1))
+        return Episode(seconds(t0 + a * self.width), seconds(t0 + (b + 1) * self.width), count, what, chances)
 
 
 def poisson_tail(k: int, mu: float) -> float:

@@ -5,8 +5,9 @@
   answer, stretches of time in which it answered none (at least SILENT_REQUESTS requests over SILENT_S
   seconds: more than a power blink or a run of lost answers), each an episode;
 * unit_refuses: the master keeps sending a unit one request it answers with an exception every time
-  (an address it does not have, a write it does not allow in this mode); requests refused now and then
-  (busy) are no finding;
+  (an address it does not have, a write it does not allow in this mode), over the capture or in stretches
+  of it (judged in windows from its first refusal on: each stretch an episode); requests refused now and
+  then (busy) are no finding;
 * answers_broadcast: CRC-good answers from a unit right after a broadcast (unit 0), which no unit may
   answer: they collide with whatever the master sends next.
 """
@@ -21,7 +22,7 @@ from sniffer.diagnose.codesets import RETRY
 from sniffer.codes import ERROR, WARNING
 from sniffer.analysis.diff import key_text
 from sniffer.diagnose.state import Group, Link, Unit
-from sniffer.diagnose.episodes import Episode
+from sniffer.diagnose.episodes import Episode, Windows, merged
 from sniffer.diagnose.finding import Finding
 
 if TYPE_CHECKING:
@@ -30,6 +31,7 @@ if TYPE_CHECKING:
 MIN_REQUESTS = 3
 MIN_SPAN_NS = 1_000_000_000
 REFUSED_SHARE = 0.5  # of one request's tries answered with an exception
+STRETCH_SHARE = 0.8  # ... or of its tries in a stretch of time (an episode: refused nearly every time then)
 MAX_KEYS = 4096
 _ECHOES = frozenset((0x05, 0x06, 0x08))
 SILENT_REQUESTS = 8  # unanswered requests in a row, at least ...
@@ -39,7 +41,8 @@ SILENT_S = 3.0  # ... over this long: a unit that stopped answering for a while
 class UnitsGroup(Group):
     def __init__(self) -> None:
         self.plain_by: Counter = Counter()  # (link, unit) -> CRC-good answers naming it to no request known, not echoes
-        self.keys: dict[tuple, list] = {}  # (link, unit, key) -> [requests, refusals Counter, frames]
+        # (link, unit, key) -> [requests, refusals Counter, frames, Windows of its answers from its first refusal on]
+        self.keys: dict[tuple, list] = {}
         self.broadcast: dict[tuple, list] = {}  # (link, unit) -> [count, frames]
         # (link, unit) -> [first request's t, last request's end, requests, first request's frame] since its
         # last answer; and the stretches that were long enough (first and last kept, all counted)
@@ -78,6 +81,10 @@ class UnitsGroup(Group):
             if who is not None and not (req is not None and f.function in _ECHOES and f.raw == req[1].raw):
                 # (an "answer" byte for byte its request is the master's retry of it, not an answer)
                 self._answered(link, who)
+        if req is not None and f.crc_ok and not f.exception:
+            e = self.keys.get((link.name, req[2]))
+            if e is not None and e[3] is not None:
+                e[3].add(f.t_ns)  # answered, not refused: a chance in time for the key's refusals
         if not f.crc_ok or f.unit is None or (req is not None and not codes and not f.exception):
             return  # (a paired answer counts in its Unit already)
         if req is None and f.function not in (0x05, 0x06, 0x08):
@@ -91,6 +98,9 @@ class UnitsGroup(Group):
             e = self._key(link, req[2])
             if e is not None:
                 e[1][f.exception.get("code")] += 1
+                if e[3] is None:
+                    e[3] = Windows()
+                e[3].add(f.t_ns, True)
                 if len(e[2]) < 8:
                     e[2].append(f.index)
 
@@ -114,7 +124,7 @@ class UnitsGroup(Group):
         if e is None:
             if len(self.keys) >= MAX_KEYS:
                 return None
-            e = self.keys[k] = [0, Counter(), []]
+            e = self.keys[k] = [0, Counter(), [], None]
         return e
 
     def findings(self, d: Diagnosis) -> list[Finding]:
@@ -193,30 +203,41 @@ class UnitsGroup(Group):
 
     def _refused(self, d: Diagnosis) -> list[Finding]:
         by_unit: dict[tuple, list] = {}
-        for (name, (unit, *key)), (n, refusals, frames) in self.keys.items():
+        for (name, (unit, *key)), (n, refusals, frames, w) in self.keys.items():
             refused = sum(refusals.values())
-            if n < MIN_REQUESTS or refused < MIN_REQUESTS or refused < REFUSED_SHARE * n:
+            if n < MIN_REQUESTS or refused < MIN_REQUESTS:
+                continue
+            every = w.episodes(d.seconds, "requests refused") if w is not None else []
+            # refused every time over the capture, or in stretches of it (each stretch refused nearly every time)
+            eps = [e for e in every if e.count >= MIN_REQUESTS and e.count >= STRETCH_SHARE * e.chances]
+            if refused < REFUSED_SHARE * n and not eps:
                 continue
             code, _ = refusals.most_common(1)[0]
-            by_unit.setdefault((name, unit), []).append((tuple(key), n, refused, code, frames))
+            by_unit.setdefault((name, unit), []).append((tuple(key), n, refused, code, frames, (eps, every)))
         out = []
         for (name, unit), rows in by_unit.items():
             rows.sort(key=lambda r: -r[2])
             link = d.links[name]
             what = "; ".join(f"{key_text(k)}{_register(link, unit, k)}: {r} of {n} refused with {c:02X}H"
-                             for k, n, r, c, _ in rows[:4])
+                             for k, n, r, c, _, _ in rows[:4])
             more = f" and {len(rows) - 4} more" if len(rows) > 4 else ""
             out.append(Finding(
                 "unit_refuses", WARNING, unit=unit, link=name,
                 evidence={"requests_refused": sum(r[2] for r in rows), "kinds_of_request": len(rows),
                           "refusals": {key_text(k) + _register(link, unit, k):
                                        {"requests": n, "refused": r, "exception": f"{c:02X}H"}
-                                       for k, n, r, c, _ in rows[:8]}},
-                frames=[i for r in rows for i in r[4][:2]],
+                                       for k, n, r, c, _, _ in rows[:8]}},
+                frames=[i for r in rows for i in r[4][:2]], episodes=_when(rows),
                 text=f"The master keeps asking unit {unit} for what it refuses every time: {what}{more}.",
                 action="Fix the PLC's request (address, count or function the drive's manual allows; a parameter "
                        "the drive takes only in another mode) or take it out of the poll list."))
         return out
+
+
+def _when(rows: list) -> list[Episode]:
+    """A unit's refusals in time: the stretches its requests were refused nearly every time, or (a request
+    refused most of the time, no stretch of it every time) all its refusals."""
+    return merged([e for r in rows for e in r[5][0]]) or merged([e for r in rows for e in r[5][1]])
 
 
 def _register(link: Link, unit: int, key: tuple) -> str:

@@ -27,6 +27,7 @@ from collections import Counter
 
 from sniffer.diagnose.codesets import UART
 from sniffer.codes import ERROR, WARNING
+from sniffer.diagnose.episodes import Windows
 from sniffer.framing.crc import damaged_byte
 from sniffer.diagnose.state import Group, Link, Unit
 from sniffer.diagnose.finding import Finding
@@ -40,13 +41,15 @@ DOMINANT = 0.5  # of its damaged answers
 OTHERS_BELOW = 0.2  # the other units' rate, as a share of this unit's
 SPARSE_STRAYS = 3  # stray bursts out of an idle line with no frame damage: a biased line makes none
 STRAY_RATE = 0.1  # of the transmissions, where damaged frames are about too
+JOIN = 4  # windows: a cut on a share of the answers leaves quiet seconds inside its episode
 _DE_KINDS = (("driver_enable_late", "on", "late", "turns on after the first start bit"),
              ("driver_disable_early", "off", "early", "turns off before the last stop bit"))
 _DIP = frozenset((0xFF << k) & 0xFF for k in range(9))  # 00, 80, C0 ... FE, FF: a floating line's shapes
 
 
 class _Answers:
-    __slots__ = ("answers", "damaged", "first", "last", "addresses", "frames_first", "frames_last", "bursts", "orphans")
+    __slots__ = ("answers", "damaged", "first", "last", "addresses", "frames_first", "frames_last", "bursts", "orphans",
+                 "w_first", "w_last")
 
     def __init__(self) -> None:
         self.answers = 0
@@ -58,6 +61,9 @@ class _Answers:
         self.frames_last: list[int] = []
         self.bursts = 0  # first-byte hits that are damaged bursts (the receiver lost its step for longer)
         self.orphans = 0  # damaged answers to no request known, their address put back by the CRC
+        # every answer of the unit in time, and those with the first / the last byte damaged: when it happened
+        self.w_first = Windows()
+        self.w_last = Windows()
 
 
 class WiringGroup(Group):
@@ -71,7 +77,11 @@ class WiringGroup(Group):
         if (de_on is not None or de_off is not None) and unit is not None:
             self._de(link, unit, de_on, de_off, f.index)
         if f.crc_ok and not codes:
-            return  # a clean answer: counted in its Unit
+            if unit is not None:  # a clean answer: counted in its Unit, and a chance in time for its episodes
+                a = self._answers(link, unit)
+                a.w_first.add(f.t_ns)
+                a.w_last.add(f.t_ns)
+            return
         if unit is None:
             if f.crc_ok is False and "modbus.crc.one_byte" in codes:
                 hit = damaged_byte(f.raw)  # an orphan whose address alone broke: whose it was
@@ -83,9 +93,7 @@ class WiringGroup(Group):
                 return
         else:
             orphan = False
-        a = self.answers.get((link.name, unit.unit))
-        if a is None:
-            a = self.answers[(link.name, unit.unit)] = _Answers()
+        a = self._answers(link, unit)
         a.orphans += orphan
         burst = link.slot is unit  # a damaged burst where its answer was due
         if f.crc_ok is False or burst:
@@ -95,6 +103,8 @@ class WiringGroup(Group):
         if first:
             a.bursts += 1
         if not codes and not first:
+            a.w_first.add(f.t_ns)
+            a.w_last.add(f.t_ns)
             return
         n = len(f.raw)
         last = False
@@ -114,6 +124,14 @@ class WiringGroup(Group):
             a.last += 1
             if len(a.frames_last) < 8:
                 a.frames_last.append(f.index)
+        a.w_first.add(f.t_ns, first)
+        a.w_last.add(f.t_ns, last)
+
+    def _answers(self, link: Link, unit: Unit) -> _Answers:
+        a = self.answers.get((link.name, unit.unit))
+        if a is None:
+            a = self.answers[(link.name, unit.unit)] = _Answers()
+        return a
 
     def _de(self, link: Link, unit: Unit, on: int | None, off: int | None, index: int) -> None:
         """A logic capture's driver-enable times on an answer (Frame.de_on_ns: DE rise - first start bit;
@@ -150,12 +168,11 @@ class WiringGroup(Group):
                 and not UART.isdisjoint(codes)):
             # a flagged byte glued to an answer: its last byte, cut off it (a framer that keeps a flagged byte out
             # of a CRC-good frame leaves the answer a byte short and this after it)
-            a = self.answers.get((link.name, u.unit))
-            if a is None:
-                a = self.answers[(link.name, u.unit)] = _Answers()
+            a = self._answers(link, u)
             a.last += 1
             if len(a.frames_last) < 8:
                 a.frames_last.append(f.index)
+            a.w_last.add(f.t_ns, True)  # (the answer it came off was counted a clean chance: this is its hit)
         s = self.strays.get(link.name)
         if s is None:
             s = self.strays[link.name] = {"short": 0, "bytes": 0, "dip": 0, "flagged": 0, "after_request": 0,
@@ -233,6 +250,7 @@ class WiringGroup(Group):
                           f"the first start bit. Set its transmit delay / response delay longer, or fix the "
                           f"adapter's auto-direction; the master drops these answers.")
                 frames = a.frames_first
+                when = a.w_first.episodes(d.seconds, "answers with the first byte damaged", join=JOIN)
             else:
                 text = (f"Unit {unit}'s transmitter turns off early: {hits} of its {a.answers} answers ({rate:.0%}) "
                         f"have their last byte (the CRC's high byte) damaged or flagged; the other units' answers "
@@ -241,8 +259,10 @@ class WiringGroup(Group):
                           f"(direction switched on 'buffer empty' instead of 'transmission complete'); set its "
                           f"line to 2 stop bits or fix its direction control.")
                 frames = a.frames_last
+                when = a.w_last.episodes(d.seconds, "answers with the last byte damaged", join=JOIN)
             out.append(Finding(kind, ERROR, unit=unit, link=name, t_start=d.seconds(link.first_ns),
-                               t_end=d.seconds(link.last_ns), evidence=ev, frames=frames, text=text, action=action))
+                               t_end=d.seconds(link.last_ns), evidence=ev, frames=frames, text=text, action=action,
+                               episodes=when))
         return out
 
     def _with_de(self, d: Diagnosis, out: list[Finding]) -> list[Finding]:

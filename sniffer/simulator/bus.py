@@ -260,7 +260,9 @@ class _Bus:
         drive.advance(self.now)
         if self.plan is not None and not self.plan.powered(spec.unit, self.now):
             return None
-        if spec.busy_prob and rng.random() < spec.busy_prob:
+        if self.plan is not None and self.plan.refuses(spec.unit, self.now):
+            pdu = bytes((req.pdu[0] | 0x80, 0x02))  # illegal data address: what it no longer has
+        elif spec.busy_prob and rng.random() < spec.busy_prob:
             pdu = bytes((req.pdu[0] | 0x80, drive.busy_code))
         else:
             pdu = drive.handle(req.pdu)

@@ -12,6 +12,7 @@ it happens in a cabinet, so the tests, the demo and the report show it:
   drive_fault (a drive of a real model trips now and then), eeprom_wear (the PLC writes the save
   register every cycle), params_not_saved (the PLC writes a parameter and never saves it; the drive
   loses power half way and comes back with the saved value);
+* unit_refuses (BusFaults.refuses): the unit answers every request with exception 02H, in its span;
 * what the bus does (`BusFaults`, hooks the bus calls): second_master (a second PLC polls the unit
   on its own schedule: mostly into a quiet line between the first master's exchanges, which waits
   for it, and now and then over the first master's traffic: requests interleave and collide),
@@ -84,6 +85,8 @@ KINDS: dict[str, FaultKind] = {k.name: k for k in (
     FaultKind("second_master_fc04", "a second PLC reads the unit's registers with fc04 (the first master uses fc03)"),
     FaultKind("second_master_polite", "a second PLC polls the unit only when the line is quiet: no collision, "
                                       "but its requests fit no slot of the first master's cycle"),
+    FaultKind("unit_refuses", "the unit answers every request with exception 02H (illegal data address), as after "
+                              "a mode or firmware change (KIND@FROM-TO: only then)", spans=True),
     FaultKind("timeout_mild", "the unit's slowest answers (about 5 %) come after the master's timeout, "
                               "after its retry"),
 )}
@@ -176,6 +179,7 @@ def find(sc: Scenario, kind: str) -> tuple[Fault, ...]:
 def now(faults: tuple[Fault, ...], t_ns: int, unit: int | None = None) -> Fault | None:
     """The first of `faults` active at `t_ns` (on `unit`, if given), or None."""
     return next((f for f in faults if f.active(t_ns) and (unit is None or f.unit == unit)), None)
+
 
 
 def apply(sc: Scenario, items: Iterable[str] | None) -> Scenario:
@@ -328,6 +332,7 @@ _SCENARIO_CHANGES = {
     "unit_silent": _unit_silent, "timeout_too_short": _timeout_too_short, "latency_drift": _latency_drift,
     "drive_fault": _drive_fault, "eeprom_wear": _eeprom_wear, "params_not_saved": _params_not_saved,
     "driver_enable_late": _needs_unit("driver_enable_late"),
+    "unit_refuses": _needs_unit("unit_refuses"),
     "driver_disable_early": _needs_unit("driver_disable_early"),
     "noise_correlated_with_load": _needs_model("noise_correlated_with_load"),
     "noise_during_ramps": _needs_unit("noise_during_ramps"),
@@ -346,6 +351,7 @@ class BusFaults:
         self.load = find(bus.sc, "noise_correlated_with_load")
         self.ramps = find(bus.sc, "noise_during_ramps")
         self.silent = [f for f in find(bus.sc, "unit_silent") if f.spanned]
+        self.refusing = find(bus.sc, "unit_refuses")
         m2 = next((k for k in SECOND_MASTERS if k in faults), None)
         self.m2_unit = faults.get(m2) if m2 is not None else None
         self.m2_function, self.m2_listens = SECOND_MASTERS.get(m2, (0x03, M2_LISTENS))
@@ -381,6 +387,10 @@ class BusFaults:
             if f.unit == unit and f.active(now) and (f.severity is None or self.bus.rng.random() < f.severity):
                 return False
         return True
+
+    def refuses(self, unit: int, now: int) -> bool:
+        """Whether the unit refuses what it is asked now (unit_refuses, in its span)."""
+        return any(f.unit == unit and f.active(now) for f in self.refusing)
 
     def between(self, now: int, end_ns: int) -> Iterator[WireFrame]:
         """Called between two exchanges: the power loss, and the second master's exchanges that are due."""
