@@ -15,7 +15,7 @@ from sniffer.codes import ERROR
 from sniffer.diagnose.codesets import FAULT
 from sniffer.diagnose.state import Group, Link, Unit
 from sniffer.diagnose.episodes import Episode
-from sniffer.diagnose.finding import Finding
+from sniffer.diagnose.finding import Finding, count_of
 
 if TYPE_CHECKING:
     from sniffer.diagnose.engine import Diagnosis
@@ -147,7 +147,7 @@ class DrivesGroup(Group):
                 episodes=[Episode(d.seconds(e.start_ns), d.seconds(e.end_ns), max(e.writes, 0),
                                   _trip_words(e)) for e in episodes],
                 frames=[e.first for e in episodes[:4]] + [r[0] for r in resets[:2]],
-                text=f"Unit {unit} tripped {n} time(s): {faults}; first at {d.seconds(first.start_ns):.1f} s"
+                text=f"Unit {unit} tripped {count_of(n, 'time')}: {faults}; first at {d.seconds(first.start_ns):.1f} s"
                      f"{during}{reset}{tail}.",
                 action=f"Look up {rows[0][0].split(' (')[0]} (and the others) in the drive's manual and remove the "
                        f"cause; a PLC that resets the drive and runs it again at once only repeats the trip."))

@@ -130,3 +130,8 @@ def _more(text: str, n: int) -> str:
     if not n:
         return "none"
     return text if n <= MAX_ITEMS else f"{text} ({MAX_ITEMS} of {n} shown, the rest in --format json)"
+
+
+def count_of(n: int, word: str, plural: str | None = None) -> str:
+    """'1 unit', '3 units', '0 units': a count in words (no "unit(s)" in what people read)."""
+    return f"{n} {word if n == 1 else plural or word + 's'}"

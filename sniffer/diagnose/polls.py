@@ -17,7 +17,7 @@ from sniffer.diagnose.codesets import RETRY
 from sniffer.codes import INFO, WARNING
 from sniffer.analysis.diff import key_text
 from sniffer.diagnose.state import Group, Link, Unit
-from sniffer.diagnose.finding import Finding
+from sniffer.diagnose.finding import Finding, count_of
 from sniffer.diagnose.stats import Quantiles
 
 if TYPE_CHECKING:
@@ -121,19 +121,21 @@ class PollsGroup(Group):
                       "often, raise the baud rate (every drive and the PLC together), or split the drives over two "
                       "lines.")
         elif share >= BUSY:
-            said = (f"the exchanges take {share:.0%} of the line at {link.line.baud} baud: room for about {room} more "
-                    f"unit(s) polled alike, little for retries and slow answers")
+            said = (f"the exchanges take {share:.0%} of the line at {link.line.baud} baud: room for about "
+                    f"{count_of(room, 'more unit', 'more units')} polled alike, little for retries and slow answers")
             action = ("Before adding drives or polls, lengthen the cycle or raise the baud rate: above about 70 % busy "
                       "a retry or a slow answer delays the whole cycle.")
         else:
-            said = (f"the exchanges take {share:.0%} of the line at {link.line.baud} baud: room for about {room} more "
-                    f"unit(s) polled alike, or a cycle of about {fastest:.0f} ms for these")
+            said = (f"the exchanges take {share:.0%} of the line at {link.line.baud} baud: room for about "
+                    f"{count_of(room, 'more unit', 'more units')} polled alike, or a cycle of about {fastest:.0f} ms "
+                    f"for these")
             action = ("Nothing to fix; before adding drives or polls, keep the line below about 70 % busy (retries and "
                       "slow answers need the rest).")
         return Finding(
             "poll_cycle", severity, link=link.name, t_start=d.seconds(link.first_ns), t_end=d.seconds(link.last_ns),
             evidence=ev, frames=[top.first_index],
-            text=f"The master polls {len(units)} unit(s) in a cycle of {cycle:.0f} ms; {said}.", action=action)
+            text=f"The master polls {count_of(len(units), 'unit')} in a cycle of {cycle:.0f} ms; {said}.",
+            action=action)
 
     def _redundant(self, d: Diagnosis, link: Link, types: dict, span_s: float) -> Finding | None:
         if span_s <= 0:
@@ -153,6 +155,6 @@ class PollsGroup(Group):
                                 for _, text, t in rows[:8]},
                       "line_share": round(share, 3)},
             frames=[t.first_index for _, _, t in rows[:4]],
-            text=f"{len(rows)} read(s) asked often never change their answer ({', '.join(x for _, x, _ in rows[:3])}"
-                 f"{' ...' if len(rows) > 3 else ''}): {share:.1%} of the line.",
+            text=f"{count_of(len(rows), 'read')} asked often never change their answer "
+                 f"({', '.join(x for _, x, _ in rows[:3])}{' ...' if len(rows) > 3 else ''}): {share:.1%} of the line.",
             action="Read those less often (or once after a write): the time goes to the values that move.")
