@@ -540,3 +540,16 @@ def test_a_healthy_line_has_no_line_damage(tmp_path, capsys):
     capsys.readouterr()
     main(["diagnose", str(cap), "--jobs", "1", "--format", "json"])
     assert not [f for f in json.loads(capsys.readouterr().out)["findings"] if f["kind"] == "line_damage"]
+
+
+def test_a_params_csv_without_its_header_says_what_a_params_file_is(tmp_path, capsys):
+    from pathlib import Path
+
+    from sniffer.cli import main
+
+    root = Path(__file__).resolve().parent.parent
+    bad = tmp_path / "p.csv"
+    bad.write_text("2,Cn-02,60\n1,Cn-02,50\n")
+    assert main(["diagnose", str(root / "captures" / "sim" / "tds-v8.mcap"), "--params", str(bad), "--jobs", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "neither a parameter CSV (a header line with the columns unit, register, value)" in err[0]

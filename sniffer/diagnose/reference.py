@@ -185,7 +185,14 @@ def load(path: str, spec) -> Reference:
         raise ReferenceError(f"--params {e}") from None
     if path.lower().endswith(".csv") and _looks_like_params(path):
         return load_csv(path)
-    return load_capture(path, spec)
+    try:
+        return load_capture(path, spec)
+    except (CaptureError, ValueError) as e:
+        if not path.lower().endswith(".csv"):
+            raise
+        why = str(e).removeprefix("--params ")
+        raise ReferenceError(f"--params {path}: neither a parameter CSV (a header line with the columns unit, "
+                             f"register, value) nor a capture ({why})") from None
 
 
 def _looks_like_params(path: str) -> bool:
