@@ -94,3 +94,19 @@ def test_no_server_is_one_line(tmp_path):
     assert r.returncode != 0 and "Traceback" not in r.stderr
     assert r.stderr.count("\n") == 1 and f"socket://127.0.0.1:{port}" in r.stderr, r.stderr
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_a_gateway_nobody_listens_on_says_what_to_check(tmp_path):
+    """One line in words, not an errno: nothing listens at the port (a device server off, or in client mode)."""
+    import socket
+    import subprocess
+    import sys
+
+    with socket.socket() as s:  # a free port, closed again: nothing listens there
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    r = subprocess.run([sys.executable, "-m", "sniffer", "live", f"socket://127.0.0.1:{port}", "--headless",
+                        "--no-out", "--duration", "3"], capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    line = r.stderr.strip().splitlines()[-1]
+    assert "connection refused (nothing listens there" in line and "Errno" not in line

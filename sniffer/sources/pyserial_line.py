@@ -24,6 +24,8 @@ backoff (RECONNECT_FIRST_S doubling to RECONNECT_MAX_S), and the Gap's reason sa
 
 from __future__ import annotations
 
+import re
+
 import os
 import threading
 import time
@@ -240,4 +242,19 @@ def _text(e: BaseException) -> str:
     # pyserial says "Could not open port socket://h:p: [Errno 111] Connection refused"; the URL is said already
     if text.lower().startswith("could not open port ") and ": " in text[20:]:
         text = text[20:].split(": ", 1)[1]
+    # "[Errno 111] Connection refused" -> what it means for a gateway
+    m = re.match(r"\[Errno (-?\d+)\] (.*)", text)
+    if m:
+        errno_, why = int(m.group(1)), m.group(2)
+        hint = _HINTS.get(errno_)
+        text = f"{why[:1].lower()}{why[1:]}" + (f" ({hint})" if hint else "")
     return text
+
+
+_HINTS = {  # what the engineer checks, by errno (connect to a device server)
+    111: "nothing listens there: is the device server on, in TCP server mode, at that port?",
+    113: "no route to the device server: its address, the network cable, the subnet",
+    110: "the device server does not answer: its address, a firewall",
+    -2: "the host name is not known: check it, or give the device server's IP address",
+    -3: "the host name could not be looked up now: check the DNS, or give the IP address",
+}
