@@ -89,6 +89,9 @@ class Outcome:
 def run(spec: CaptureSpec, args) -> int:
     from sniffer.commands.common import jobs_for
 
+    import time
+
+    started = time.monotonic()
     rules = FieldRules(tuple(args.ignore), tuple(args.tolerance))
     o = check_outcome(spec.input, args.golden, spec=spec, update=args.update_golden, findings=args.findings,
                       jobs=jobs_for(spec, args), time_ms=args.time_tol_ms, latency_ms=args.latency_tol_ms,
@@ -98,7 +101,7 @@ def run(spec: CaptureSpec, args) -> int:
 
         try:
             write_junit(args.junit, [(os.fspath(spec.input), o.rc, o.summary, o.message)],
-                        inputs=[spec.input, args.golden])
+                        inputs=[spec.input, args.golden], seconds=time.monotonic() - started)
         except (OSError, ValueError) as e:
             why = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.filename else str(e)
             sys.stderr.write(f"sniffer check: error: --junit: {why}\n")
