@@ -175,8 +175,10 @@ class MastersGroup(Group):
         else:
             tt[1] = f.t_ns
             tt[2] += 1
-        idx = s.indices.setdefault(k, [])
-        if len(idx) < 4:
+        idx = s.indices.get(k)
+        if idx is None:  # (not setdefault: that builds a list at every request)
+            s.indices[k] = [f.index]
+        elif len(idx) < 4:
             idx.append(f.index)
         if len(s.window) >= WINDOW:
             s.windows += 1
