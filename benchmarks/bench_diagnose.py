@@ -11,6 +11,11 @@
    Each row K times (`--repeat`, default 2), the best (least CPU) run shown: the machine is shared.
 3. The engine alone, in this process: the N/4 capture decoded once into memory, then fed to
    `Diagnosis.frame` (best of 3), as microseconds a frame; and `findings()` at the end.
+4. The engine in the pipeline, in this process: a capture session read to its end alone (decoding) and
+   with `Diagnosis` fed as it passes, then `findings()` (alternately, best of 3 each): the difference is
+   what diagnose costs a frame including what it makes the frames build lazily (a decoder's block of
+   points becomes dicts when read), which step 3 hides (its frames were built in an earlier pass).
+   On the N/4 capture and on each `--also CAPTURE` (e.g. a two-link capture, a fault capture).
 
 Printed: frames/s of each row (by wall time, and by CPU time, which a shared machine disturbs less),
 diagnose against `replay --quiet` and against `replay` (the extra CPU time a frame costs), peak RSS
@@ -74,6 +79,48 @@ def engine_alone(path: Path) -> dict:
             "kinds": kinds}
 
 
+def in_pipeline(path: Path, repeat: int = 3) -> dict:
+    """Frames/CPU s of a session read alone and with the engine fed as the frames pass (best of `repeat`)."""
+    from sniffer.commands.replay import file_source
+    from sniffer.diagnose import Diagnosis
+    from sniffer.capture.session import CaptureSpec, Session
+
+    def one(diagnose: bool) -> tuple[float, int]:
+        spec = CaptureSpec.of(input=str(path), inputs=(str(path),))
+        session = Session(spec, file_source(spec), [])
+        session.open()
+        n = 0
+        t0 = time.process_time()
+        if diagnose:
+            d = Diagnosis()
+            d.start_session(session)
+            frame = d.frame
+            for f in session:
+                frame(f)
+                n += 1
+            d.findings()
+        else:
+            for _ in session:
+                n += 1
+        return time.process_time() - t0, n
+
+    one(True)  # the groups' modules imported, not timed
+    alone = both = float("inf")
+    n = 0
+    for _ in range(repeat):
+        a, n = one(False)
+        b, n = one(True)
+        alone, both = min(alone, a), min(both, b)
+    own = max(both - alone, 1e-9)
+    return {"frames": n, "decode_fps": n / alone, "both_fps": n / both, "own_us": own * 1e6 / max(n, 1),
+            "own_fps": n / own}
+
+
+def _pipeline_line(name: str, r: dict) -> str:
+    return (f"  {name}: {r['frames']:,} frames; decoding {r['decode_fps']:,.0f} frames/CPU s, decoding + diagnose "
+            f"{r['both_fps']:,.0f}; diagnose's own {r['own_us']:.1f} us a frame ({r['own_fps']:,.0f} frames/CPU s)")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int)
@@ -81,6 +128,8 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", metavar="DIR", help="keep (and reuse) the captures there (bench_commands' cache)")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--mem-limit-mb", type=int, default=8192)
+    ap.add_argument("--also", metavar="CAPTURE", nargs="*", default=[],
+                    help="more captures for the in-pipeline figures (step 4)")
     args = ap.parse_args(argv)
     n = args.frames or (50_000 if args.quick else 400_000)
     now = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
@@ -112,6 +161,9 @@ def main(argv=None) -> int:
                 print(f"  {row.name:<15} {size:<8} {bc._fps(best['frames'], best['wall']):>10,.0f} frames/s  "
                       f"{best['rss_mb']:6.1f} MB  {'; '.join(best['problems']) or 'ok'}", flush=True)
         alone = engine_alone(folder / "quarter.mcap")
+        piped = {"N/4 capture": in_pipeline(folder / "quarter.mcap")}
+        for extra in args.also:
+            piped[extra] = in_pipeline(Path(extra))
     finally:
         if tmp is not None:
             tmp.cleanup()
@@ -134,6 +186,9 @@ def main(argv=None) -> int:
     print(f"\ndiagnose costs {extra_us:.1f} us of CPU a frame over decoding it (whole command); the engine alone "
           f"{alone['us_per_frame']:.1f} us a frame ({alone['frames']:,} frames in memory, CPU time, best of 3), "
           f"findings() {alone['findings_ms']:.0f} ms; found: {', '.join(alone['kinds']) or 'nothing above info'}")
+    print("engine in the pipeline (this process, CPU time, best of 3):")
+    for name, r in piped.items():
+        print(_pipeline_line(name, r))
     print(f"load average at end {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 

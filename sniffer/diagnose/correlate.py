@@ -52,6 +52,9 @@ class CorrelateGroup(Group):
         self.bins: dict[tuple, dict[int, list]] = {}  # (link, unit, signal) -> bin -> [frames, damaged]
         self.examples: dict[tuple, list[int]] = {}  # (link, unit, signal) -> damaged frames while above its middle
         self.top: dict[tuple, int] = {}
+        # link -> [(key, step, [frames, damaged])] of its values now: the bins every frame counts in, found once
+        # per read of the drives (a frame between two reads costs no key, no division, no look-up)
+        self.cells: dict[str, list] = {}
 
     # ------------------------------------------------------------ frames
     def noise(self, f, link: Link, codes: frozenset) -> None:
@@ -69,8 +72,9 @@ class CorrelateGroup(Group):
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
         if self.now:
             self._count(link, _bad(f, codes), f.index)
-        if (unit is None or not f.crc_ok or not f.points or f.function not in (0x03, 0x04) or f.model is None
-                or f.model == "generic"):
+        # `points` last: reading it builds a block's dicts, which only a drive's own map can use here
+        if (unit is None or not f.crc_ok or f.function not in (0x03, 0x04) or f.model is None
+                or f.model == "generic" or not f.points):
             return
         key = (link.name, unit.unit, f.model)
         regs = self.registers.get(key)
@@ -81,6 +85,7 @@ class CorrelateGroup(Group):
 
     def _read(self, f, link: Link, unit: int, regs: dict[int, str]) -> None:
         now = self.now.setdefault(link.name, {})
+        self.cells.pop(link.name, None)  # the values change: the bins are found again at the next frame
         for p in f.points:
             sig = regs.get(p.get("address"))
             v = p.get("value")
@@ -102,7 +107,21 @@ class CorrelateGroup(Group):
         now = self.now.get(link.name)
         if not now:
             return
-        name = link.name
+        cells = self.cells.get(link.name)
+        if cells is None:
+            cells = self.cells[link.name] = self._cells(link.name, now)
+        for k, step, x in cells:
+            x[0] += 1
+            if bad:
+                x[1] += 1
+                top = self.top[k] = max(self.top.get(k, step), step)
+                if step > 0 and step * 2 >= top:
+                    ex = self.examples.setdefault(k, [])
+                    if len(ex) < 8:
+                        ex.append(index)
+
+    def _cells(self, name: str, now: dict) -> list:
+        cells = []
         for (unit, sig), v in now.items():
             k = (name, unit, sig)
             b = self.bins.get(k)
@@ -112,14 +131,8 @@ class CorrelateGroup(Group):
             x = b.get(step)
             if x is None:
                 x = b[step] = [0, 0]
-            x[0] += 1
-            if bad:
-                x[1] += 1
-                top = self.top[k] = max(self.top.get(k, step), step)
-                if step > 0 and step * 2 >= top:
-                    ex = self.examples.setdefault(k, [])
-                    if len(ex) < 8:
-                        ex.append(index)
+            cells.append((k, step, x))
+        return cells
 
     # ------------------------------------------------------------ verdicts
     def findings(self, d: Diagnosis) -> list[Finding]:

@@ -75,8 +75,10 @@ class Diagnosis:
         link = self._last
         if link is None or link.name != f.link:
             link = self._last = self.links.get(f.link) or self._link(f.link)
+        # each attribute read once: this runs for every frame of the capture
+        t, role, ok, noise = f.t_ns, f.role, f.crc_ok, f.protocol == "noise"
         if link.first_ns is None:
-            link.first_ns = f.t_ns
+            link.first_ns = t
         link.last_ns = f.t_end_ns
         n = len(f.raw)
         link.frames += 1
@@ -87,30 +89,28 @@ class Diagnosis:
             link.gaps_ns += link.t35_ns
         else:
             # an answer's turnaround, and the master's wait before a retry, hold the line; other gaps up to t3.5
-            held = f.role == RESPONSE or codes and f.role == REQUEST and not RETRY.isdisjoint(codes)
+            held = role == RESPONSE or codes and role == REQUEST and not RETRY.isdisjoint(codes)
             link.gaps_ns += min(gap, SLOT_NS if held else link.t35_ns)
         due = link.due
         link.slot = None
-        if due is not None and f.role != REQUEST:
+        if due is not None and role != REQUEST:
             # a damaged burst where an answer is due: the answer of that unit, as the line damaged it
-            if (not f.crc_ok and n >= 4 and f.t_ns - due[1] < SLOT_NS and f.pair is None
+            if (not ok and n >= 4 and t - due[1] < SLOT_NS and f.pair is None
                     and (due[2] is None or abs(n - due[2]) <= 2)):
                 link.slot = link.units[due[0]]
                 link.slot.garbled += 1
                 link.due = None
-            elif f.role == RESPONSE:
+            elif role == RESPONSE:
                 link.due = None
         # damaged: noise, a CRC error, a UART flag (the framer's flags are the annotations whose code says uart)
-        link.damage.add(f.t_ns, f.protocol == "noise" or f.crc_ok is False
-                        or bool(codes) and not UART.isdisjoint(codes))
-        if f.protocol == "noise":
+        link.damage.add(t, noise or ok is False or bool(codes) and not UART.isdisjoint(codes))
+        if noise:
             link.noise_frames += 1
             link.noise_bytes += n
             for g in self._noise:
                 g(f, link, codes)
             return
         unit = None
-        ok = f.crc_ok
         if ok or (codes and CRC_UNPROVEN.code in codes):
             link.matched_bytes += n
         if ok:
@@ -121,7 +121,7 @@ class Diagnosis:
                 unit.good += 1
         elif ok is False:
             link.crc_bad += 1
-        role = link.last_role = f.role
+        link.last_role = role
         link.last_unit = unit
         if role == REQUEST and ok and unit is not None:
             key = request_type(f)

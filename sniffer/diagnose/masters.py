@@ -79,22 +79,49 @@ def _phases(win: list, anchor: tuple, counts: Counter) -> dict[tuple, tuple]:
     by time (the time since the anchor over the cycle's length) and by rank (requests since the anchor over
     the cycle's requests: a cycle stretched by timeouts and retries shifts a type's time, not its place in
     the order); the better of the two.  R from the twelfths' centres."""
-    bins: dict[tuple, list] = {}
-    at = [i for i, (_, k) in enumerate(win) if k == anchor]
+    return _phases_in(_Window(win, counts), anchor)
+
+
+class _Window:
+    """A window of requests as _phases reads it once per anchor: each type as a small number (a type is a
+    tuple, hashed again at every look-up; the window is read ANCHORS times) and whether it is frequent."""
+
+    __slots__ = ("times", "ids", "types", "frequent", "id_of")
+
+    def __init__(self, win: list, counts: Counter) -> None:
+        self.id_of: dict[tuple, int] = {}
+        self.types: list[tuple] = []
+        self.times = [t for t, _ in win]
+        self.ids = ids = []
+        id_of, types = self.id_of, self.types
+        for _, k in win:
+            i = id_of.get(k)
+            if i is None:
+                i = id_of[k] = len(types)
+                types.append(k)
+            ids.append(i)
+        self.frequent = [counts[k] >= MIN_TYPE for k in types]
+
+
+def _phases_in(w: _Window, anchor: tuple) -> dict[tuple, tuple]:
+    bins: dict[int, list] = {}
+    times, ids, frequent = w.times, w.ids, w.frequent
+    a_id = w.id_of.get(anchor)
+    at = [i for i, k in enumerate(ids) if k == a_id]
     top = BINS - 1
     for a, b in zip(at, at[1:]):  # one cycle of the anchor
-        t_a = win[a][0]
-        span = max(win[b][0] - t_a, 1)
+        t_a = times[a]
+        span = max(times[b] - t_a, 1)
         size = b - a
         for i in range(a + 1, b):
-            t, k = win[i]
-            if counts[k] < MIN_TYPE:
+            k = ids[i]
+            if not frequent[k]:
                 continue
             x = bins.get(k)
             if x is None:
                 x = bins[k] = [0] * (2 * BINS)
             # per-read times are estimated back from the read: a frame may carry a time before the anchor's
-            m = (t - t_a) * BINS // span
+            m = (times[i] - t_a) * BINS // span
             x[0 if m < 0 else m if m < top else top] += 1
             # a rank in a cycle of a few requests says nothing (any type keeps one of a few places)
             if size > BINS:
@@ -111,7 +138,7 @@ def _phases(win: list, anchor: tuple, counts: Counter) -> dict[tuple, tuple]:
             c = sum(v * _COS[m] for m, v in enumerate(h))
             si = sum(v * _SIN[m] for m, v in enumerate(h))
             best = (max(best[0], top2), max(best[1], math.hypot(c, si) / n))
-        out[k] = (n, best[0], best[1])
+        out[w.types[k]] = (n, best[0], best[1])
     return out
 
 
@@ -175,8 +202,10 @@ class MastersGroup(Group):
         else:
             tt[1] = f.t_ns
             tt[2] += 1
-        idx = s.indices.setdefault(k, [])
-        if len(idx) < 4:
+        idx = s.indices.get(k)
+        if idx is None:  # (not setdefault: that builds a list at every request)
+            s.indices[k] = [f.index]
+        elif len(idx) < 4:
             idx.append(f.index)
         if len(s.window) >= WINDOW:
             s.windows += 1
@@ -195,7 +224,8 @@ class MastersGroup(Group):
             return
         # the master's cycle is the anchor that holds the other types closest to their places (a second
         # master's type, if frequent, holds none of the first master's): every type is judged against that one
-        by_anchor = [(anchor, _phases(win, anchor, counts)) for anchor in frequent]
+        w = _Window(win, counts)
+        by_anchor = [(anchor, _phases_in(w, anchor)) for anchor in frequent]
         ref, best = max(by_anchor, key=lambda ab: sum(max(sh, r) for _, sh, r in ab[1].values()) / max(len(ab[1]), 1))
         s.held.add(ref)
         for k, (n, share, r) in best.items():
