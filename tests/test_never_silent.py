@@ -129,3 +129,13 @@ def test_check_rules_that_match_no_field_are_said_with_the_closest_name(tmp_path
     assert main(["check", str(capture), "--golden", str(golden), "--ignore", "Outptu current", "--jobs", "1"]) == 0
     err = capsys.readouterr().err
     assert "'Outptu current' matched no field of the capture; did you mean 'Output current'?" in err
+
+
+def test_a_flag_the_tool_has_elsewhere_says_where(capsys):
+    """`replay --filter` is no typo of --invert: the tool filters in the TUI and query, and triggers on a filter."""
+    capture = str(ROOT / "captures" / "sim" / "tds-v8.mcap")
+    assert main(["replay", capture, "--filter", "u == 1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "frames are filtered in the TUI" in err[0] and "--invert" not in err[0]
+    assert main(["replay", capture, "--inverr"]) == 2
+    assert "did you mean '--invert'?" in capsys.readouterr().err

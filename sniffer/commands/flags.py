@@ -108,7 +108,10 @@ class Parser(argparse.ArgumentParser):
                 flags += list(action.choices[getattr(ns, action.dest)]._option_string_actions)
         for word in rest:
             if word.startswith("--"):
-                hint = did_you_mean(word.partition("=")[0], [f for f in flags if f.startswith("--")])
+                name = word.partition("=")[0]
+                if name in _ELSEWHERE and name not in flags:
+                    return "; " + _ELSEWHERE[name]
+                hint = did_you_mean(name, [f for f in flags if f.startswith("--")])
                 if hint:
                     return hint
         return ""
@@ -122,6 +125,12 @@ class Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
+# flags people try that the tool has in another form: where it is (a spelling-near flag would mislead)
+_ELSEWHERE = {
+    "--filter": "frames are filtered in the TUI (/ and the filter language, docs/filters.md) and by `sniffer query`; "
+                "--trigger EXPR keeps a window around each frame that passes one",
+    "--where": "frames are filtered in the TUI (/, docs/filters.md) and by `sniffer query`",
+}
 _INVALID_CHOICE = re.compile(r"invalid choice: '([^']*)' \(choose from (.*)\)$")
 
 
