@@ -25,7 +25,11 @@ def test_each_second_master_form_is_found_on_the_unit_it_polls(kind):
                         diagnose_plant(plant, [f"{kind}:{{u1}}"], seconds=60)))
     t = tally(results)
     assert t["found"] >= FOUND_AT_LEAST * t["runs"], t["missed_runs"]
-    wrong = [r for r in t["false_runs"] if any(k != "second_master" for k, _ in r[1])]
+    # where the second master is missed, the damage its collisions leave is still said (line_damage): true, not
+    # a false alarm; where it is found, that finding explains the damage and nothing else may be raised
+    missed = {label for label, _ in t["missed_runs"]}
+    wrong = [r for r in t["false_runs"]
+             if any(k != "second_master" and not (k == "line_damage" and r[0] in missed) for k, _ in r[1])]
     assert not wrong, wrong
 
 
