@@ -143,7 +143,8 @@ def test_bash_completes_scenarios_faults_formats_and_models(bash_script):
 
     assert _complete(bash_script, "sniffer demo --scenario a5") == ["a510", "a510-ascii"]
     assert _complete(bash_script, "sniffer simulate --scenario pd") == ["pd-series", "pd-series-ascii"]
-    assert _complete(bash_script, "sniffer demo --fault unit") == ["unit_silent"]
+    assert _complete(bash_script, "sniffer demo --fault unit_s") == ["unit_silent"]
+    assert sorted(_complete(bash_script, "sniffer demo --fault unit")) == ["unit_refuses", "unit_silent"]
     assert set(_complete(bash_script, "sniffer demo --fault ")) == set(KINDS)
     assert _complete(bash_script, "sniffer export x.mcap --to pc") == ["pcap", "pcapng"]
     assert "dataset" in _complete(bash_script, "sniffer export x.mcap --to ")
