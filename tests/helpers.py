@@ -179,3 +179,18 @@ class SimulatedLine:
         self.stop.set()
         self.thread.join(5)
         self.pty.close()
+
+
+def diagnose_source(source):
+    """(findings, engine) of `sniffer diagnose` on a source (a simulated line), made and read in this process."""
+    from sniffer.capture.session import Session
+    from sniffer.capture.settings import CaptureSpec
+    from sniffer.diagnose import Diagnosis
+
+    session = Session(CaptureSpec.of(), source, [])
+    session.open()
+    engine = Diagnosis()
+    engine.start_session(session)
+    for f in session:
+        engine.frame(f)
+    return engine.findings(), engine

@@ -18,14 +18,14 @@ import random
 import zlib
 from dataclasses import dataclass
 
-from sniffer.capture.session import Session
-from sniffer.capture.settings import CaptureSpec
 from sniffer.diagnose import Diagnosis
 from sniffer.line import LineSettings
 from sniffer.simulator.faults import apply
 from sniffer.simulator.profiles import PROFILES
 from sniffer.simulator.scenario import PollSpec, Scenario, UnitSpec
 from sniffer.simulator.sources import SimulatedSource
+
+from helpers import diagnose_source
 
 BAUDS = (9600, 19200, 38400, 57600, 115200)
 FORMATS = (("N", 1), ("E", 1), ("O", 1), ("N", 2))
@@ -104,14 +104,7 @@ def with_fault(p: Plant, fault: str, expect: tuple[tuple[str, int | None], ...],
 def diagnose(p: Plant) -> tuple[list, Diagnosis]:
     """The findings of `sniffer diagnose` on the plant's simulated capture (made and read in this process)."""
     sc = apply(p.scenario, list(p.faults))
-    source = SimulatedSource(sc, sc.line, p.seconds, p.seed, p.adapter)
-    session = Session(CaptureSpec.of(), source, [])
-    session.open()
-    engine = Diagnosis()
-    engine.start_session(session)
-    for f in session:
-        engine.frame(f)
-    return engine.findings(), engine
+    return diagnose_source(SimulatedSource(sc, sc.line, p.seconds, p.seed, p.adapter))
 
 
 def verdict(p: Plant, findings: list) -> tuple[bool, list]:

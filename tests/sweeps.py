@@ -16,13 +16,12 @@ import dataclasses
 import random
 from dataclasses import dataclass
 
-from sniffer.capture.session import Session
-from sniffer.capture.settings import CaptureSpec
-from sniffer.diagnose import Diagnosis
 from sniffer.line import LineSettings
 from sniffer.simulator.faults import apply
 from sniffer.simulator.scenario import DEFAULT, PollSpec, UnitSpec
 from sniffer.simulator.sources import SimulatedSource
+
+from helpers import diagnose_source
 
 BAUDS = (9600, 19200, 38400, 57600, 115200)
 FRAMINGS = (("N", 1), ("E", 1), ("O", 1), ("N", 2))
@@ -81,14 +80,7 @@ def faults_for(plant: Plant, faults) -> list[str]:
 def diagnose_plant(plant: Plant, faults=(), seconds: float = 60.0, adapter: str = "wire", **changes):
     """The findings of `seconds` of the plant's line with `faults` on it."""
     sc = apply(scenario(plant, **changes), faults_for(plant, faults))
-    source = SimulatedSource(sc, sc.line, seconds, plant.seed, adapter)
-    session = Session(CaptureSpec.of(), source, [])
-    session.open()
-    engine = Diagnosis()
-    engine.start_session(session)
-    for f in session:
-        engine.frame(f)
-    return engine.findings()
+    return diagnose_source(SimulatedSource(sc, sc.line, seconds, plant.seed, adapter))[0]
 
 
 def alarms(findings) -> list[tuple[str, int | None]]:
