@@ -87,6 +87,8 @@ def run(spec: CaptureSpec, args) -> int:
     else:
         session = _one_process(spec, source, engine, args.progress)
     findings = engine.findings()
+    for line in reference.notes() if reference is not None else ():
+        print(f"sniffer: note: {line}", file=sys.stderr)
     if args.format == "json":
         sys.stdout.write(to_json(findings))
     else:
