@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from sniffer.codes import ERROR, WARNING
 from sniffer.diagnose.state import Group, Link, Unit
-from sniffer.diagnose.finding import Finding
+from sniffer.diagnose.finding import Finding, count_of
 
 if TYPE_CHECKING:
     from sniffer.diagnose.engine import Diagnosis
@@ -155,7 +155,8 @@ class ParamsGroup(Group):
             failed = f" (the save after them was refused: {code}{name}, #{ix})"
             ev["save_refused"] = f"#{ix}"
             frames.append(ix)
-        text = (f"Unit {unit}: {', '.join(names[:4])} written and acknowledged ({writes} writes since the last save), "
+        since = count_of(writes, "write")
+        text = (f"Unit {unit}: {', '.join(names[:4])} written and acknowledged ({since} since the last save), "
                 f"and no save ({p.save:04X}H) after them{failed}: the drive loses them at its next power cycle.")
         sev = WARNING
         if p.reverted:
