@@ -38,6 +38,7 @@ from mcap.stream_reader import breakup_chunk, get_chunk_data_stream
 from sniffer.formats.mcap.format import MAGIC
 from sniffer.events import CaptureError
 from sniffer.inputs import open_regular
+from sniffer.hot import HOT
 
 _READERS = {
     Opcode.HEADER: Header.read,
@@ -338,11 +339,16 @@ def _name(opcode: int) -> str:
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 
 
-def _walk_chunk(body: bytes, channels: dict[int, Channel], skip) -> list[McapRecord]:
+# the run of plain messages in a chunk, read in C (sniffer/_hot.c chunk_messages); None: in Python
+_CHUNK_MESSAGES = None if HOT is None else HOT.chunk_messages
+
+
+def _walk_chunk(body: bytes, channels: dict[int, Channel], skip, messages=_CHUNK_MESSAGES) -> list[McapRecord]:
     """breakup_chunk (CRC checked) that does not build the messages of the topics `skip(topic)` leaves out.
 
     Channels defined in the chunk count from where they stand; a message whose
-    channel is not known yet is kept (its reader decides what it is).
+    channel is not known yet is kept (its reader decides what it is).  `messages` (the compiled loop)
+    reads runs of well-formed messages and stops before any other record, which the loop here reads.
     """
     chunk = _chunk(body)
     stream, n = get_chunk_data_stream(chunk, validate_crc=True)
@@ -353,6 +359,10 @@ def _walk_chunk(body: bytes, channels: dict[int, Channel], skip) -> list[McapRec
     unpack_head, unpack_msg = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
     pos = 0
     while pos < n:
+        if messages is not None:
+            pos = messages(data, pos, skipped, Message, out)
+            if pos >= n:
+                break
         opcode, length = unpack_head(data, pos)
         start, pos = pos + 9, pos + 9 + length
         if pos > n:
