@@ -759,6 +759,260 @@ fail:
     return result;
 }
 
+
+/* ------------------------------------------------------------------ table rows (formats/rows.py, csvexport.py) */
+
+static PyObject *s_raw, *s_value, *s_address, *s_name, *s_id, *s_text, *s_unit;
+
+/* d.get(key) as a borrowed reference (Py_None when absent); NULL with an error set */
+static PyObject *dget(PyObject *d, PyObject *key)
+{
+    PyObject *v = PyDict_GetItemWithError(d, key);
+    if (v == NULL && !PyErr_Occurred())
+        return Py_None;
+    return v;
+}
+
+/* rows.py point_rows' loop: point_rows(points, head, link, text) -> [row, ...], or None where a point is not a
+   plain dict (the Python loop reads those).  `text` is rows._text, asked for a value that is no str or number. */
+static PyObject *point_rows(PyObject *self, PyObject *args)
+{
+    PyObject *pts, *head, *link, *text_fn;
+    if (!PyArg_ParseTuple(args, "O!O!OO", &PyList_Type, &pts, &PyTuple_Type, &head, &link, &text_fn))
+        return NULL;
+    Py_ssize_t n = PyList_GET_SIZE(pts), nh = PyTuple_GET_SIZE(head);
+    for (Py_ssize_t k = 0; k < n; k++)
+        if (!PyDict_CheckExact(PyList_GET_ITEM(pts, k)))
+            Py_RETURN_NONE;
+    PyObject *out = PyList_New(n);
+    if (out == NULL)
+        return NULL;
+    for (Py_ssize_t k = 0; k < n; k++) {
+        PyObject *p = PyList_GET_ITEM(pts, k);
+        PyObject *raw = dget(p, s_raw), *v = dget(p, s_value), *addr = dget(p, s_address), *name = dget(p, s_name),
+                 *id = dget(p, s_id), *text = dget(p, s_text), *unit = dget(p, s_unit);
+        if (!raw || !v || !addr || !name || !id || !text || !unit)
+            goto fail;
+        int t;
+        if ((t = PyObject_IsTrue(name)) < 0)
+            goto fail;
+        if (!t)
+            name = s_empty;
+        if ((t = PyObject_IsTrue(id)) < 0)
+            goto fail;
+        if (!t)
+            id = s_empty;
+        PyObject *raw_out = Py_None;
+        if (PyLong_CheckExact(raw)) {
+            int overflow;
+            PyLong_AsLongLongAndOverflow(raw, &overflow);
+            if (PyErr_Occurred())
+                goto fail;
+            if (overflow <= 0)
+                raw_out = raw;  /* raw <= 2**63 - 1 */
+        }
+        PyObject *num;
+        if (PyLong_CheckExact(v) || PyFloat_CheckExact(v) || PyBool_Check(v)) {
+            num = PyNumber_Float(v);
+            if (num == NULL)
+                goto fail;
+        } else
+            num = Py_NewRef(Py_None);
+        PyObject *txt;
+        if ((t = PyObject_IsTrue(text)) < 0) {
+            Py_DECREF(num);
+            goto fail;
+        }
+        if (t)
+            txt = Py_NewRef(text);
+        else if (v == Py_None)
+            txt = Py_NewRef(Py_None);
+        else if (PyUnicode_Check(v))
+            txt = Py_NewRef(v);
+        else if (PyLong_Check(v) || PyFloat_Check(v))  /* bool is an int */
+            txt = PyObject_Str(v);
+        else
+            txt = PyObject_CallOneArg(text_fn, v);
+        if (txt == NULL) {
+            Py_DECREF(num);
+            goto fail;
+        }
+        PyObject *row = PyTuple_New(nh + 8);
+        if (row == NULL) {
+            Py_DECREF(num);
+            Py_DECREF(txt);
+            goto fail;
+        }
+        for (Py_ssize_t j = 0; j < nh; j++)
+            PyTuple_SET_ITEM(row, j, Py_NewRef(PyTuple_GET_ITEM(head, j)));
+        PyTuple_SET_ITEM(row, nh, Py_NewRef(addr));
+        PyTuple_SET_ITEM(row, nh + 1, Py_NewRef(name));
+        PyTuple_SET_ITEM(row, nh + 2, Py_NewRef(id));
+        PyTuple_SET_ITEM(row, nh + 3, Py_NewRef(raw_out));
+        PyTuple_SET_ITEM(row, nh + 4, num);
+        PyTuple_SET_ITEM(row, nh + 5, txt);
+        PyTuple_SET_ITEM(row, nh + 6, Py_NewRef(unit));
+        PyTuple_SET_ITEM(row, nh + 7, Py_NewRef(link));
+        PyList_SET_ITEM(out, k, row);
+    }
+    return out;
+fail:
+    Py_DECREF(out);  /* a list with NULL items is freed as one */
+    return NULL;
+}
+
+typedef struct {
+    char *p;
+    size_t n, cap;
+} obuf_t;
+
+static int put(obuf_t *b, const char *s, size_t n)
+{
+    if (b->n + n > b->cap) {
+        size_t cap = b->cap ? b->cap : 4096;
+        while (cap < b->n + n)
+            cap *= 2;
+        char *q = PyMem_Realloc(b->p, cap);
+        if (q == NULL) {
+            PyErr_NoMemory();
+            return -1;
+        }
+        b->p = q;
+        b->cap = cap;
+    }
+    memcpy(b->p + b->n, s, n);
+    b->n += n;
+    return 0;
+}
+
+enum { K_STR, K_INT, K_FLOAT, K_BOOL };
+
+/* csvexport.py csv_text: csv_text(rows, kinds, float_text) -> bytes, or None where a cell is not of its
+   column's plain type (a str column's non-str, an int column's bool ...: the Python code writes those).
+   kinds: "str" | "int" | "float" | "bool" a column; float_text: csvexport.float_text, asked for the floats
+   whose repr is not Arrow's text (an exponent, inf/nan, more than 10 digits before the point). */
+static PyObject *csv_text(PyObject *self, PyObject *args)
+{
+    PyObject *rows, *kinds_t, *float_text;
+    if (!PyArg_ParseTuple(args, "O!O!O", &PyList_Type, &rows, &PyTuple_Type, &kinds_t, &float_text))
+        return NULL;
+    Py_ssize_t nk = PyTuple_GET_SIZE(kinds_t), nr = PyList_GET_SIZE(rows);
+    if (nk == 0 || nk > 64)
+        Py_RETURN_NONE;
+    int kinds[64];
+    for (Py_ssize_t j = 0; j < nk; j++) {
+        const char *k = PyUnicode_AsUTF8(PyTuple_GET_ITEM(kinds_t, j));
+        if (k == NULL)
+            return NULL;
+        kinds[j] = !strcmp(k, "str") ? K_STR : !strcmp(k, "int") ? K_INT : !strcmp(k, "float") ? K_FLOAT : K_BOOL;
+    }
+    if (nr == 0)
+        return PyBytes_FromStringAndSize("\n", 1);  /* no rows: one empty line, as the Python join gives */
+    obuf_t b = {NULL, 0, 0};
+    char num[64];
+    for (Py_ssize_t i = 0; i < nr; i++) {
+        PyObject *row = PyList_GET_ITEM(rows, i);
+        if (!PyTuple_CheckExact(row) || PyTuple_GET_SIZE(row) != nk)
+            goto none;
+        if (i && put(&b, "\n", 1) < 0)
+            goto fail;
+        for (Py_ssize_t j = 0; j < nk; j++) {
+            PyObject *v = PyTuple_GET_ITEM(row, j);
+            if (j && put(&b, ",", 1) < 0)
+                goto fail;
+            if (v == Py_None)
+                continue;
+            switch (kinds[j]) {
+            case K_STR: {
+                if (!PyUnicode_CheckExact(v))
+                    goto none;
+                Py_ssize_t n;
+                const char *s = PyUnicode_AsUTF8AndSize(v, &n);
+                if (s == NULL) {
+                    PyErr_Clear();  /* a lone surrogate: the Python code raises it */
+                    goto none;
+                }
+                if (put(&b, "\"", 1) < 0)
+                    goto fail;
+                const char *q;
+                while ((q = memchr(s, '"', (size_t)n)) != NULL) {
+                    if (put(&b, s, (size_t)(q - s) + 1) < 0 || put(&b, "\"", 1) < 0)
+                        goto fail;
+                    n -= q - s + 1;
+                    s = q + 1;
+                }
+                if (put(&b, s, (size_t)n) < 0 || put(&b, "\"", 1) < 0)
+                    goto fail;
+                break;
+            }
+            case K_INT: {
+                if (!PyLong_CheckExact(v))
+                    goto none;
+                int overflow;
+                long long x = PyLong_AsLongLongAndOverflow(v, &overflow);
+                if (overflow || (x == -1 && PyErr_Occurred())) {
+                    PyErr_Clear();
+                    goto none;
+                }
+                int n = snprintf(num, sizeof num, "%lld", x);
+                if (put(&b, num, (size_t)n) < 0)
+                    goto fail;
+                break;
+            }
+            case K_FLOAT: {
+                if (!PyFloat_CheckExact(v))
+                    goto none;
+                char *r = PyOS_double_to_string(PyFloat_AS_DOUBLE(v), 'r', 0, Py_DTSF_ADD_DOT_0, NULL);
+                if (r == NULL)
+                    goto fail;
+                size_t n = strlen(r);
+                const char *dot = strchr(r, '.');
+                if (strchr(r, 'e') || strchr(r, 'n') || dot == NULL || dot == r || dot - r > 10) {
+                    PyMem_Free(r);
+                    PyObject *t = PyObject_CallOneArg(float_text, v);
+                    if (t == NULL)
+                        goto fail;
+                    Py_ssize_t tn;
+                    const char *ts = PyUnicode_AsUTF8AndSize(t, &tn);
+                    int bad = ts == NULL || put(&b, ts, (size_t)tn) < 0;
+                    Py_DECREF(t);
+                    if (bad)
+                        goto fail;
+                    break;
+                }
+                if (n >= 2 && r[n - 2] == '.' && r[n - 1] == '0')
+                    n -= 2;
+                int bad = put(&b, r, n) < 0;
+                PyMem_Free(r);
+                if (bad)
+                    goto fail;
+                break;
+            }
+            default: {
+                int t = PyObject_IsTrue(v);
+                if (t < 0)
+                    goto fail;
+                if (put(&b, t ? "true" : "false", t ? 4 : 5) < 0)
+                    goto fail;
+            }
+            }
+        }
+    }
+    if (put(&b, "\n", 1) < 0)
+        goto fail;
+    PyObject *out = PyBytes_FromStringAndSize(b.p, (Py_ssize_t)b.n);
+    PyMem_Free(b.p);
+    return out;
+none:
+    PyMem_Free(b.p);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_RETURN_NONE;
+fail:
+    PyMem_Free(b.p);
+    return NULL;
+}
+
 /* ------------------------------------------------------------------ the module */
 
 static PyMethodDef methods[] = {
@@ -768,6 +1022,10 @@ static PyMethodDef methods[] = {
      "scan._walk_chunk's message loop: chunk_messages(data, pos, skipped, Message, out) -> pos."},
     {"decode_raw", decode_raw, METH_VARARGS,
      "format.decode_event for this sniffer's own messages: decode_raw(data, Chunk, Tick) -> event or None."},
+    {"point_rows", point_rows, METH_VARARGS,
+     "rows.point_rows' loop: point_rows(points, head, link, text) -> rows, or None for points of another kind."},
+    {"csv_text", csv_text, METH_VARARGS,
+     "csvexport.csv_text: csv_text(rows, kinds, float_text) -> bytes, or None for cells of another type."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -801,6 +1059,13 @@ PyMODINIT_FUNC PyInit__hot(void)
     INTERN(s_log_time, "log_time");
     INTERN(s_publish_time, "publish_time");
     INTERN(s_empty, "");
+    INTERN(s_raw, "raw");
+    INTERN(s_value, "value");
+    INTERN(s_address, "address");
+    INTERN(s_name, "name");
+    INTERN(s_id, "id");
+    INTERN(s_text, "text");
+    INTERN(s_unit, "unit");
     msg_kwnames = Py_BuildValue("(sssss)", "channel_id", "sequence", "log_time", "publish_time", "data");
     if (msg_kwnames == NULL)
         return NULL;

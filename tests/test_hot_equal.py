@@ -434,3 +434,70 @@ def test_capture_chunks_walk_alike():
                 n += 1
             pos += 9 + length
     assert n > 10
+
+
+# ------------------------------------------------------------------ functions: table rows and CSV text
+
+_cell = st.one_of(st.none(), st.booleans(), st.integers(-2**70, 2**70), st.floats(allow_nan=True, allow_infinity=True),
+                  st.text(max_size=8), st.sampled_from(['"', 'a"b""', "\ud800", "é", ""]),
+                  st.lists(st.integers(0, 9), max_size=2))
+
+
+def _csv(fn, rows, columns):
+    try:
+        return ("ok", fn(rows, columns))
+    except Exception as e:  # noqa: BLE001 - the same error on both paths
+        return ("error", type(e).__name__)
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(st.tuples(_cell, _cell, _cell, _cell), max_size=6), st.permutations(("str", "int", "float", "bool")))
+def test_csv_text_alike(rows, kinds):
+    """Cells of every type in columns of every kind: the same bytes (or error) as the Python writer."""
+    _need_hot()
+    from sniffer.formats import csvexport
+
+    columns = tuple((f"c{k}", kind) for k, kind in enumerate(kinds))
+    assert _csv(csvexport.csv_text, rows, columns) == _csv(csvexport.csv_text_py, rows, columns)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.floats(allow_nan=True, allow_infinity=True), st.integers(-2**63, 2**63 - 1),
+                          st.text(max_size=6), st.booleans()), min_size=1, max_size=8))
+def test_csv_text_of_plain_cells_alike(rows):
+    """Cells of their columns' own types (what the compiled writer writes itself): floats of every size
+    (exponents, 1e10 and up, -0.0, inf, nan), ints of 64 bits, strings with quotes and non-ASCII."""
+    _need_hot()
+    from sniffer.formats import csvexport
+
+    columns = (("f", "float"), ("i", "int"), ("s", "str"), ("b", "bool"))
+    assert HOT.csv_text(rows, ("float", "int", "str", "bool"), csvexport.float_text) is not None
+    assert csvexport.csv_text(rows, columns) == csvexport.csv_text_py(rows, columns)
+
+
+_point = st.one_of(
+    st.fixed_dictionaries({}, optional={
+        "name": st.one_of(st.none(), st.text(max_size=4)), "address": st.one_of(st.none(), st.integers(0, 65535)),
+        "raw": st.one_of(st.none(), st.booleans(), st.integers(-2**70, 2**70), st.floats(), st.text(max_size=3)),
+        "value": _cell, "unit": st.one_of(st.none(), st.text(max_size=3)),
+        "id": st.one_of(st.none(), st.text(max_size=3)),
+        "text": st.one_of(st.none(), st.just(""), st.text(max_size=4))}),
+    st.builds(dict))
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(_point, min_size=1, max_size=6), st.one_of(st.none(), st.just("a")))
+def test_point_rows_alike(points, link):
+    _need_hot()
+    from sniffer.formats import rows
+
+    head = (3, 0.5, 1, 3, "response", True, "generic")
+    try:
+        want = ("ok", rows.point_rows_py(points, head, link))
+    except Exception as e:  # noqa: BLE001 - the same error on both paths
+        want = ("error", type(e).__name__)
+    try:
+        got = ("ok", HOT.point_rows(points, head, link, rows._text))
+    except Exception as e:  # noqa: BLE001
+        got = ("error", type(e).__name__)
+    assert repr(got) == repr(want)  # repr: nan is not equal to itself
