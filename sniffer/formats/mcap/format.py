@@ -37,6 +37,7 @@ import msgspec
 
 from sniffer.events import TIME_SOURCES, CaptureInfo, Chunk, Gap, Tick
 from sniffer.formats.records import FRAME_SCHEMA
+from sniffer.hot import HOT
 
 MAGIC = b"\x89MCAP0\r\n"
 CAPTURE_TOPIC = "/capture"
@@ -149,11 +150,25 @@ def encode_event(ev: Chunk | Tick | Gap) -> bytes:
     return msgspec.json.encode(d)
 
 
+# the messages this sniffer writes itself, read in C (sniffer/_hot.c decode_raw); None: every message by
+# decode_event_py, the reference
+_DECODE_RAW = None if HOT is None else HOT.decode_raw
+
+
 def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
     """Event from a /raw message; None for a kind this version does not know.
 
     Raises ValueError (or KeyError/TypeError) on a malformed message.
     """
+    if _DECODE_RAW is not None:
+        ev = _DECODE_RAW(data, Chunk, Tick)  # None: not a shape it reads (another tool's, damaged, a gap...)
+        if ev is not None:
+            return ev
+    return decode_event_py(data)
+
+
+def decode_event_py(data: bytes) -> Chunk | Tick | Gap | None:
+    """decode_event in Python: the reference, and the reader of every message the compiled one leaves."""
     d = msgspec.json.decode(data)
     kind = d["kind"]
     t = int(d["t_ns"])
