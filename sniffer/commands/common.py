@@ -141,31 +141,6 @@ def jobs_for(spec: CaptureSpec, args) -> int:
     return jobs
 
 
-def parallel_run(spec: CaptureSpec, source, outputs, jobs: int, progress_label: str | None = None):
-    """A ParallelRun (sniffer.parallel.run) of `source` into `outputs` [(plan, writer)], opened; with a progress
-    bar on stderr when `progress_label` is given (closed by `run_with_bar`)."""
-    from sniffer.parallel.run import ParallelRun
-
-    run = ParallelRun(spec, source, outputs, jobs=jobs)
-    run.bar = None
-    if progress_label is not None:
-        from sniffer.capture.progress import ReplayProgress
-
-        run.bar = ReplayProgress(progress_label, source=source, frames=lambda: run.frames_out)
-        run.on_event = run.bar.update
-    return run
-
-
-def run_with_bar(run) -> None:
-    """run.open(); run.run(), the progress bar (if any) closed whatever happens."""
-    try:
-        run.open()
-        run.run()
-    finally:
-        if run.bar is not None:
-            run.bar.close()
-
-
 def tui_wanted(spec: CaptureSpec) -> bool:
     """The TUI is the default on a terminal; --headless, --quiet, --format jsonl or a pipe keep the stream."""
     return (not spec.headless and spec.stream == "text" and sys.stdout.isatty() and sys.stdin.isatty())
