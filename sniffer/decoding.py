@@ -66,8 +66,9 @@ class Run(Protocol):
 
 
 def decode(spec: CaptureSpec, source, sinks: Iterable = (), *, jobs: int = 1, progress: str | None = None,
-           notes: bool = True, label: str = "") -> Run:
-    """The run of `source` into `sinks` (see the module doc); not opened yet."""
+           notes: bool = True, label: str = "", need_baud: bool = True) -> Run:
+    """The run of `source` into `sinks` (see the module doc); not opened yet.  `need_baud=False`: a source
+    without timing (hex frames typed in) decodes without a baud rate."""
     sinks = list(sinks)
     if jobs > 1 and sinks and all(split_of(s) is None for s in sinks):
         jobs = 1  # every sink would run in the coordinator: the workers would only add work
@@ -76,7 +77,7 @@ def decode(spec: CaptureSpec, source, sinks: Iterable = (), *, jobs: int = 1, pr
 
         run = ParallelRun(spec, source, sinks, jobs=jobs, label=label)
     else:
-        run = Session(spec, source, sinks, label=label)
+        run = Session(spec, source, sinks, label=label, need_baud=need_baud)
     if notes:
         run.hooks.append(UnfinishedNotes())
     if progress is not None:

@@ -127,7 +127,7 @@ class Session:
 
     @property
     def outputs(self) -> list:
-        return [o for s in self.planned for o in getattr(s, "outputs", ())]
+        return [o for s in self.planned if isinstance(s, (Sink, FileSink, SegmentPlan)) for o in s.outputs]
 
     # ------------------------------------------------------------ running
     def open(self) -> CaptureInfo:
