@@ -16,6 +16,7 @@ from mcap.reader import make_reader
 from sniffer.cli import main
 from sniffer.formats.mcap.segments import INDEX_NAME, STATUS_NAME, Keep, Rotate, Segment, read_index
 from sniffer.capture.session import CaptureSpec, decode_capture
+from sniffer.sinks.base import Sink
 
 _CACHE: dict = {}
 
@@ -349,8 +350,9 @@ def test_status_counts_what_the_frames_say(capsys, capture, tmp_path):
     assert isinstance(status["segments"]["disk_free"], int) and status["segments"]["disk_free"] > 0
 
 
-class _Triggers:
-    """A sink contributing a section to the status, as the triggers do."""
+class _Triggers(Sink):
+    """A sink contributing a section to the status, as the triggers do (a Sink: the session asks only Sinks
+    for the hooks past start/raw/frame/close)."""
 
     def __init__(self) -> None:
         self.seen = 0

@@ -35,16 +35,19 @@ class Format:
     reader: str | None = None  # "module" with `sniff(path)` and its source class `SOURCE`
     export: bool = False  # offered by `sniffer export --to`
     extra: str | None = None  # the optional extra its writer needs (sniffer.EXTRAS)
+    parts: bool = False  # written by parts (sniffer.parallel.outputs.file_output), else whole in the coordinator
 
 
 TABLE: tuple[Format, ...] = (
-    Format("mcap", (".mcap",), "sniffer.formats.mcap.sink:open_sink", "sniffer.formats.mcap.reader", True),
-    Format("csv", (".csv",), "sniffer.formats.csvexport:open_sink", None, True),
-    Format("parquet", (".parquet",), "sniffer.formats.parquet:open_sink", None, True, extra="fleet"),
-    Format("pcap", (".pcap",), "sniffer.formats.pcap.writer:open_sink", "sniffer.formats.pcap.reader", True),
-    Format("pcapng", (".pcapng",), "sniffer.formats.pcap.writer:open_sink", None, True),
-    Format("jsonl", (".jsonl",), "sniffer.formats.jsonl:open_sink", None, True),
-    Format("text", (".txt",), "sniffer.formats.text:open_sink"),
+    Format("mcap", (".mcap",), "sniffer.formats.mcap.sink:open_sink", "sniffer.formats.mcap.reader", True,
+           parts=True),
+    Format("csv", (".csv",), "sniffer.formats.csvexport:open_sink", None, True, parts=True),
+    Format("parquet", (".parquet",), "sniffer.formats.parquet:open_sink", None, True, extra="fleet", parts=True),
+    Format("pcap", (".pcap",), "sniffer.formats.pcap.writer:open_sink", "sniffer.formats.pcap.reader", True,
+           parts=True),
+    Format("pcapng", (".pcapng",), "sniffer.formats.pcap.writer:open_sink", None, True, parts=True),
+    Format("jsonl", (".jsonl",), "sniffer.formats.jsonl:open_sink", None, True, parts=True),
+    Format("text", (".txt",), "sniffer.formats.text:open_sink", parts=True),
     Format("bytecsv", (".csv",), "sniffer.formats.bytecsv.writer:open_sink", "sniffer.formats.bytecsv.reader"),
     Format("saleae", (".csv",), None, "sniffer.formats.saleae"),
     Format("sigrok", (".sr",), None, "sniffer.sources.srzip"),  # decoded by sigrok-cli (sources/sigrok_cli.py)
@@ -92,6 +95,7 @@ class FileSink:
         if WRITERS[fmt].extra:
             need(WRITERS[fmt].extra, f"--to {fmt}")
         self.fmt = fmt
+        self.split = "file" if WRITERS[fmt].parts else None  # how it is written by parts (sniffer.sinks.base.Sink)
         self.timed_flush = timed_flush
         self.path = os.fspath(out)
         if fmt in ("csv", "parquet"):

@@ -116,6 +116,9 @@ def link_width(info: CaptureInfo | None) -> int:
 
 
 class TextSink(StreamSink):
+    kind = "text"
+    split = "stream"  # by parts: its lines, written in order (sniffer.parallel.outputs)
+
     def __init__(self, out: TextIO | None = None, flush: bool = False, own: bool = False) -> None:
         super().__init__(out or sys.stdout, flush, own)
         self.link_width = 0

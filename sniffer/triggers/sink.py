@@ -81,6 +81,10 @@ class TriggerSink(Sink):
         self._state_moved = False
 
     # ------------------------------------------------------------ the sink
+    def bind(self, pipeline) -> None:
+        self.decoder_state = pipeline.decoder_state
+        self.state_version = pipeline.state_version
+
     def start(self, info) -> None:
         self.info = info
         self.t0 = info.t0_ns

@@ -181,6 +181,10 @@ class SegmentSink(Sink):
         self._cur.frame(frame)
         self._seg.frames += 1
 
+    def bind(self, pipeline) -> None:
+        self.decoder_state = pipeline.decoder_state
+        self.waiting = pipeline.waiting
+
     def maybe_flush(self) -> None:
         if self._cur is not None:
             self._cur.maybe_flush()
