@@ -54,6 +54,14 @@ def test_the_finding_says_in_words_what_the_second_master_reads_and_how_often():
     assert f.unit == plant.units[1]
     assert "about every" in f.text and "fc04" in f.text, f.text
     assert "None" not in f.text and "{" not in f.text
+    # each request type labelled with the master it most likely comes from: the fc04 reads the second's, the
+    # first master's cycle its own; in words, a table (the rest in --format json)
+    by = f.evidence["requests_by_master"]
+    second = {t for t, x in by.items() if x["master"] == "second"}
+    assert second and all(t.startswith(f"u{plant.units[1]} fc04") for t in second), by
+    assert sum(x["requests"] for t, x in by.items() if x["master"] == "first") > f.evidence["its_requests"], by
+    words = "\n".join(f.text_lines())
+    assert "master second" in words and "{" not in words and "None" not in words, words
 
 
 def test_new_kinds_parse():
