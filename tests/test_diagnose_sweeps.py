@@ -135,3 +135,19 @@ def test_a_drive_whose_answers_are_all_cut_still_trips_in_the_masters_resets():
         calm = dataclasses.replace(cut, scenario=no_trips(cut.scenario), faults=cut.faults[1:])
         findings, _ = diagnose(calm)
         assert not [f for f in findings if f.kind == "drive_fault"], calm.name
+
+
+def test_a_latency_drift_that_comes_and_goes_is_found_in_its_span():
+    """latency_drift@FROM-TO: the unit's turnaround grows from FROM and is back to what it was at TO; found on its
+    unit with an episode inside the span, and nothing else above info."""
+    for seed in range(4):
+        p = cause("latency_drift", seed, severity=10.0)
+        unit = p.expect[0][1]
+        span = max(30.0, 110 * p.cycle_s())  # (a median per stretch of 1/64 of the capture needs 5 answers)
+        q = with_fault(dataclasses.replace(p, faults=(), expect=()), f"latency_drift:{unit}@{span:g}-{2 * span:g},10",
+                       (("latency_drift", unit),), 3 * span)
+        findings, _ = diagnose(q)
+        found, false = verdict(q, findings)
+        assert found and not false, (q.name, [(f.kind, f.unit) for f in findings if f.severity != "info"])
+        (f,) = [x for x in findings if x.kind == "latency_drift"]
+        assert any(e.from_s < 2 * span and e.to_s > span for e in f.episodes), (q.name, f.when())
