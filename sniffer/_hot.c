@@ -584,6 +584,30 @@ fail:
     return NULL;
 }
 
+
+/* scan.py Scan._past_indexes' inner loop: index_run(buf) -> bytes of buf that are whole, well-formed message
+   index records, from its start (the Python loop's `i`) */
+static PyObject *index_run(PyObject *self, PyObject *arg)
+{
+    Py_buffer b;
+    if (PyObject_GetBuffer(arg, &b, PyBUF_SIMPLE) < 0)
+        return NULL;
+    const unsigned char *d = (const unsigned char *)b.buf;
+    Py_ssize_t n = b.len, i = 0;
+    while (i + 15 <= n) {
+        uint64_t length = le64(d + i + 1);
+        if (d[i] != 0x07 || length > (uint64_t)(n - i - 9) || length < 6 || (length - 6) % 16)
+            break;
+        uint32_t count = (uint32_t)d[i + 11] | ((uint32_t)d[i + 12] << 8) | ((uint32_t)d[i + 13] << 16)
+                         | ((uint32_t)d[i + 14] << 24);
+        if ((uint64_t)count != length - 6)
+            break;
+        i += 9 + (Py_ssize_t)length;
+    }
+    PyBuffer_Release(&b);
+    return PyLong_FromSsize_t(i);
+}
+
 /* ------------------------------------------------------------------ /raw events (formats/mcap/format.py) */
 
 static int hexval(unsigned char c)
@@ -1200,6 +1224,7 @@ static PyMethodDef methods[] = {
      "scan._walk_chunk's message loop: chunk_messages(data, pos, skipped, Message, out) -> pos."},
     {"decode_raw", decode_raw, METH_VARARGS,
      "format.decode_event for this sniffer's own messages: decode_raw(data, Chunk, Tick) -> event or None."},
+    {"index_run", index_run, METH_O, "Scan._past_indexes' loop: index_run(buf) -> bytes of whole message indexes."},
     {"point_rows", point_rows, METH_VARARGS,
      "rows.point_rows' loop: point_rows(points, head, link, text) -> rows, or None for points of another kind."},
     {"csv_text", csv_text, METH_VARARGS,

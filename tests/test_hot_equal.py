@@ -556,3 +556,18 @@ def test_frame_line_compiled_for_the_common_frame():
     f.role, f.pair, f.latency_ms, f.summary = "request", 8, 12.25, "read holding 0..1 (2)"
     want = "    1.499000    ->REQ u1   fc03 #7 #8   12.2ms  read holding 0..1 (2)"
     assert HOT.frame_line(f, 1_000_000) == text.frame_line_py(f, 1_000_000) == want
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from((0x07, 0x07, 0x07, 0x06, 0x05)), st.integers(0, 5), st.integers(-2, 2)),
+                max_size=12), st.integers(0, 40))
+def test_message_index_run_alike(records, cut):
+    """Message index records (one per channel after each chunk): whole ones, with a wrong count or length,
+    of another kind, cut off: as far as the Python loop reads, the compiled one reads."""
+    _need_hot()
+    buf = bytearray()
+    for op, entries, skew in records:
+        body = struct.pack("<HI", 1, 16 * entries + max(0, skew)) + bytes(16 * entries)
+        buf += struct.pack("<BQ", op, max(0, len(body) + skew)) + body
+    buf = bytes(buf[: max(0, len(buf) - cut)])
+    assert HOT.index_run(buf) == mcap_scan._index_run_py(buf)
