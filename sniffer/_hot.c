@@ -584,6 +584,30 @@ fail:
     return NULL;
 }
 
+
+/* scan.py Scan._past_indexes' inner loop: index_run(buf) -> bytes of buf that are whole, well-formed message
+   index records, from its start (the Python loop's `i`) */
+static PyObject *index_run(PyObject *self, PyObject *arg)
+{
+    Py_buffer b;
+    if (PyObject_GetBuffer(arg, &b, PyBUF_SIMPLE) < 0)
+        return NULL;
+    const unsigned char *d = (const unsigned char *)b.buf;
+    Py_ssize_t n = b.len, i = 0;
+    while (i + 15 <= n) {
+        uint64_t length = le64(d + i + 1);
+        if (d[i] != 0x07 || length > (uint64_t)(n - i - 9) || length < 6 || (length - 6) % 16)
+            break;
+        uint32_t count = (uint32_t)d[i + 11] | ((uint32_t)d[i + 12] << 8) | ((uint32_t)d[i + 13] << 16)
+                         | ((uint32_t)d[i + 14] << 24);
+        if ((uint64_t)count != length - 6)
+            break;
+        i += 9 + (Py_ssize_t)length;
+    }
+    PyBuffer_Release(&b);
+    return PyLong_FromSsize_t(i);
+}
+
 /* ------------------------------------------------------------------ /raw events (formats/mcap/format.py) */
 
 static int hexval(unsigned char c)
@@ -1013,6 +1037,184 @@ fail:
     return NULL;
 }
 
+
+/* ------------------------------------------------------------------ text lines (formats/text.py) */
+
+static PyObject *s_annotations, *s_time_source, *s_none, *s_protocol, *s_noise, *s_role, *s_pair, *s_latency_ms,
+    *s_de_on_ns, *s_de_off_ns, *s_function, *s_unit_attr, *s_crc_ok, *s_model, *s_generic, *s_summary, *s_t_ns_f;
+
+/* a str attribute's UTF-8, or NULL (no error left set) where it is not a plain str */
+static const char *utf8_of(PyObject *v, Py_ssize_t *n)
+{
+    if (!PyUnicode_CheckExact(v))
+        return NULL;
+    const char *s = PyUnicode_AsUTF8AndSize(v, n);
+    if (s == NULL)
+        PyErr_Clear();
+    return s;
+}
+
+/* text.py frame_line for the common frame (a time, no annotations, no link column, no DE, unit and function
+   in 0..255): frame_line(frame, t0_ns) -> str, or None where frame_line_py writes it. */
+static PyObject *frame_line(PyObject *self, PyObject *args)
+{
+    PyObject *f, *t0o;
+    if (!PyArg_ParseTuple(args, "OO", &f, &t0o))
+        return NULL;
+    PyObject *v[14] = {NULL};
+    enum { ANN, TS, PROTO, ROLE, PAIR, LAT, DE_ON, DE_OFF, FC, UNIT, CRC, MODEL, SUMMARY, TNS };
+    PyObject *names[14] = {s_annotations, s_time_source, s_protocol, s_role, s_pair, s_latency_ms, s_de_on_ns,
+                           s_de_off_ns, s_function, s_unit_attr, s_crc_ok, s_model, s_summary, s_t_ns_f};
+    PyObject *result = NULL;
+    char buf[512];
+    char *out = NULL;
+    for (int k = 0; k < 14; k++)
+        if ((v[k] = PyObject_GetAttr(f, names[k])) == NULL)
+            goto done;
+    if (!PyList_CheckExact(v[ANN]) || PyList_GET_SIZE(v[ANN]) != 0)
+        goto none;
+    if (!PyUnicode_CheckExact(v[TS]) || PyUnicode_Compare(v[TS], s_none) == 0)
+        goto none;
+    if (!PyUnicode_CheckExact(v[PROTO]) || PyUnicode_Compare(v[PROTO], s_noise) == 0)
+        goto none;
+    if (v[DE_ON] != Py_None || v[DE_OFF] != Py_None)
+        goto none;
+    if (!PyLong_CheckExact(v[TNS]) || !PyLong_CheckExact(t0o))
+        goto none;
+    int ovf;
+    long long tns = PyLong_AsLongLongAndOverflow(v[TNS], &ovf);
+    if (ovf)
+        goto none;
+    long long t0 = PyLong_AsLongLongAndOverflow(t0o, &ovf);
+    if (ovf)
+        goto none;
+    long long dt;
+    if (__builtin_sub_overflow(tns, t0, &dt))
+        goto none;
+    const char *dir;
+    if (!PyUnicode_CheckExact(v[ROLE]))
+        goto none;
+    if (PyUnicode_CompareWithASCIIString(v[ROLE], "request") == 0)
+        dir = "->REQ";
+    else if (PyUnicode_CompareWithASCIIString(v[ROLE], "response") == 0)
+        dir = "<-RSP";
+    else
+        dir = "<-???";
+    char pair[32] = "";
+    if (v[PAIR] != Py_None) {
+        if (!PyLong_CheckExact(v[PAIR]))
+            goto none;
+        long long x = PyLong_AsLongLongAndOverflow(v[PAIR], &ovf);
+        if (ovf)
+            goto none;
+        snprintf(pair, sizeof pair, " #%lld", x);
+    }
+    char lat[64] = "";
+    if (v[LAT] != Py_None) {
+        if (!PyFloat_CheckExact(v[LAT]))
+            goto none;
+        char *r = PyOS_double_to_string(PyFloat_AS_DOUBLE(v[LAT]), 'f', 1, 0, NULL);
+        if (r == NULL)
+            goto done;
+        if (strlen(r) > 40) {
+            PyMem_Free(r);
+            goto none;
+        }
+        snprintf(lat, sizeof lat, " %6s" "ms", r);
+        PyMem_Free(r);
+    }
+    char fc[4];
+    if (v[FC] == Py_None)
+        strcpy(fc, "--");
+    else {
+        if (!PyLong_CheckExact(v[FC]))
+            goto none;
+        long x = PyLong_AsLong(v[FC]);
+        if (x < 0 || x > 255) {
+            PyErr_Clear();
+            goto none;
+        }
+        snprintf(fc, sizeof fc, "%02X", (unsigned)x);
+    }
+    char unit[8];
+    if (v[UNIT] == Py_None)
+        strcpy(unit, "?  ");
+    else {
+        if (!PyLong_CheckExact(v[UNIT]))
+            goto none;
+        long x = PyLong_AsLong(v[UNIT]);
+        if (x < 0 || x > 255) {
+            PyErr_Clear();
+            goto none;
+        }
+        snprintf(unit, sizeof unit, "%-3ld", x);
+    }
+    int crc = PyObject_IsTrue(v[CRC]);
+    if (crc < 0)
+        goto done;
+    const char *model = "";
+    Py_ssize_t nmodel = 0;
+    if (v[MODEL] != Py_None) {
+        model = utf8_of(v[MODEL], &nmodel);
+        if (model == NULL)
+            goto none;
+        if (nmodel == 7 && memcmp(model, "generic", 7) == 0)
+            nmodel = 0;
+    }
+    Py_ssize_t nsum;
+    const char *summary = utf8_of(v[SUMMARY], &nsum);
+    if (summary == NULL)
+        goto none;
+    PyObject *idx = PyObject_GetAttr(f, s_index);
+    if (idx == NULL)
+        goto done;
+    long long index = PyLong_CheckExact(idx) ? PyLong_AsLongLongAndOverflow(idx, &ovf) : (ovf = 1, 0);
+    Py_DECREF(idx);
+    if (ovf)
+        goto none;
+    char *t = PyOS_double_to_string((double)dt / 1e9, 'f', 6, 0, NULL);
+    if (t == NULL)
+        goto done;
+    if (strlen(t) > 100) {
+        PyMem_Free(t);
+        goto none;
+    }
+    char head[256];
+    int nh = snprintf(head, sizeof head, "%12s    %s u%s", t, dir, unit);
+    PyMem_Free(t);
+    char mid[160];
+    int nm = snprintf(mid, sizeof mid, " fc%s%s #%lld%s%s  ", fc, crc ? "" : " CRC!", index, pair, lat);
+    size_t total = (size_t)nh + (nmodel ? 1 + (size_t)nmodel : 0) + (size_t)nm + (size_t)nsum;
+    out = total <= sizeof buf ? buf : PyMem_Malloc(total);
+    if (out == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    char *w = out;
+    memcpy(w, head, (size_t)nh);
+    w += nh;
+    if (nmodel) {
+        *w++ = ' ';
+        memcpy(w, model, (size_t)nmodel);
+        w += nmodel;
+    }
+    memcpy(w, mid, (size_t)nm);
+    w += nm;
+    memcpy(w, summary, (size_t)nsum);
+    w += nsum;
+    result = PyUnicode_DecodeUTF8(out, w - out, NULL);
+    goto done;
+none:
+    if (!PyErr_Occurred())
+        result = Py_NewRef(Py_None);
+done:
+    if (out != NULL && out != buf)
+        PyMem_Free(out);
+    for (int k = 0; k < 14; k++)
+        Py_XDECREF(v[k]);
+    return result;
+}
+
 /* ------------------------------------------------------------------ the module */
 
 static PyMethodDef methods[] = {
@@ -1022,10 +1224,13 @@ static PyMethodDef methods[] = {
      "scan._walk_chunk's message loop: chunk_messages(data, pos, skipped, Message, out) -> pos."},
     {"decode_raw", decode_raw, METH_VARARGS,
      "format.decode_event for this sniffer's own messages: decode_raw(data, Chunk, Tick) -> event or None."},
+    {"index_run", index_run, METH_O, "Scan._past_indexes' loop: index_run(buf) -> bytes of whole message indexes."},
     {"point_rows", point_rows, METH_VARARGS,
      "rows.point_rows' loop: point_rows(points, head, link, text) -> rows, or None for points of another kind."},
     {"csv_text", csv_text, METH_VARARGS,
      "csvexport.csv_text: csv_text(rows, kinds, float_text) -> bytes, or None for cells of another type."},
+    {"frame_line", frame_line, METH_VARARGS,
+     "text.frame_line for the common frame: frame_line(frame, t0_ns) -> str, or None for the others."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -1060,6 +1265,22 @@ PyMODINIT_FUNC PyInit__hot(void)
     INTERN(s_publish_time, "publish_time");
     INTERN(s_empty, "");
     INTERN(s_raw, "raw");
+    INTERN(s_annotations, "annotations");
+    INTERN(s_none, "none");
+    INTERN(s_protocol, "protocol");
+    INTERN(s_noise, "noise");
+    INTERN(s_role, "role");
+    INTERN(s_pair, "pair");
+    INTERN(s_latency_ms, "latency_ms");
+    INTERN(s_de_on_ns, "de_on_ns");
+    INTERN(s_de_off_ns, "de_off_ns");
+    INTERN(s_function, "function");
+    INTERN(s_unit_attr, "unit");
+    INTERN(s_crc_ok, "crc_ok");
+    INTERN(s_model, "model");
+    INTERN(s_generic, "generic");
+    INTERN(s_summary, "summary");
+    INTERN(s_t_ns_f, "t_ns");
     INTERN(s_value, "value");
     INTERN(s_address, "address");
     INTERN(s_name, "name");

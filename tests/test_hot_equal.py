@@ -501,3 +501,73 @@ def test_point_rows_alike(points, link):
     except Exception as e:  # noqa: BLE001
         got = ("error", type(e).__name__)
     assert repr(got) == repr(want)  # repr: nan is not equal to itself
+
+
+# ------------------------------------------------------------------ functions: text lines
+
+
+@st.composite
+def _any_frame(draw):
+    from sniffer.codes import note
+    from sniffer.codes import NOISE as NOISE_CODE
+
+    protocol = draw(st.sampled_from(("modbus-rtu", "modbus-rtu", "noise", "modbus-ascii")))
+    f = Frame(draw(st.integers(0, 2**64)), draw(st.integers(-2**64, 2**64)), 0, draw(st.binary(max_size=30)), protocol,
+              draw(st.one_of(st.none(), st.integers(-1, 300))), draw(st.one_of(st.none(), st.integers(-1, 300))),
+              time_source=draw(st.sampled_from(("byte", "read", "none"))))
+    f.role = draw(st.sampled_from(("request", "response", "unknown", "noise")))
+    f.pair = draw(st.one_of(st.none(), st.integers(0, 2**70)))
+    f.latency_ms = draw(st.one_of(st.none(), st.floats(allow_nan=True, allow_infinity=True),
+                                  st.floats(-1e6, 1e6)))
+    f.crc_ok = draw(st.one_of(st.none(), st.booleans()))
+    f.model = draw(st.one_of(st.none(), st.sampled_from(("generic", "a510", "")), st.text(max_size=4)))
+    f.summary = draw(st.text(max_size=20))
+    f.noise_reason = "why"
+    if draw(st.booleans()):
+        f.de_on_ns = draw(st.one_of(st.none(), st.integers(-10**6, 10**6)))
+    if draw(st.integers(0, 3)) == 0:
+        f.annotations.append(note(NOISE_CODE, "x", 0, 1))
+    return f
+
+
+@settings(max_examples=500, deadline=None)
+@given(_any_frame(), st.integers(-2**64, 2**64), st.sampled_from((0, 0, 3)))
+def test_frame_line_alike(f, t0, link_width):
+    _need_hot()
+    from sniffer.formats import text
+
+    f.link = "ab"
+
+    def line(fn):
+        try:
+            return "ok", fn(f, t0, link_width)
+        except Exception as e:  # noqa: BLE001 - the same error on both paths
+            return "error", type(e).__name__
+
+    assert line(text.frame_line) == line(text.frame_line_py)
+
+
+def test_frame_line_compiled_for_the_common_frame():
+    """The compiled writer does write the common frame's line (not only hand it back)."""
+    _need_hot()
+    from sniffer.formats import text
+
+    f = Frame(7, 1_500_000_000, 1_600_000_000, bytes.fromhex("010300000002C40B"), "modbus-rtu", 1, 3, crc_ok=True)
+    f.role, f.pair, f.latency_ms, f.summary = "request", 8, 12.25, "read holding 0..1 (2)"
+    want = "    1.499000    ->REQ u1   fc03 #7 #8   12.2ms  read holding 0..1 (2)"
+    assert HOT.frame_line(f, 1_000_000) == text.frame_line_py(f, 1_000_000) == want
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from((0x07, 0x07, 0x07, 0x06, 0x05)), st.integers(0, 5), st.integers(-2, 2)),
+                max_size=12), st.integers(0, 40))
+def test_message_index_run_alike(records, cut):
+    """Message index records (one per channel after each chunk): whole ones, with a wrong count or length,
+    of another kind, cut off: as far as the Python loop reads, the compiled one reads."""
+    _need_hot()
+    buf = bytearray()
+    for op, entries, skew in records:
+        body = struct.pack("<HI", 1, 16 * entries + max(0, skew)) + bytes(16 * entries)
+        buf += struct.pack("<BQ", op, max(0, len(body) + skew)) + body
+    buf = bytes(buf[: max(0, len(buf) - cut)])
+    assert HOT.index_run(buf) == mcap_scan._index_run_py(buf)

@@ -284,14 +284,7 @@ class Scan:
         while True:
             fh.seek(pos)
             buf = fh.read(_SCAN_BLOCK)
-            i, n = 0, len(buf)
-            while i + 15 <= n:
-                opcode, length = _RECORD_HEAD.unpack_from(buf, i)
-                end = i + 9 + length
-                if (opcode != Opcode.MESSAGE_INDEX or end > n or (length - 6) % 16
-                        or int.from_bytes(buf[i + 11 : i + 15], "little") != length - 6):
-                    break
-                i = end
+            i = _index_run(buf)
             if i == 0:
                 return pos
             pos += i
@@ -341,6 +334,20 @@ class Scan:
         return op in _VALID_OPCODES and length < 2**32
 
 
+def _index_run_py(buf: bytes) -> int:
+    """How many bytes from the start of `buf` are whole, well-formed message index records (the reference
+    of sniffer/_hot.c index_run)."""
+    i, n = 0, len(buf)
+    while i + 15 <= n:
+        opcode, length = _RECORD_HEAD.unpack_from(buf, i)
+        end = i + 9 + length
+        if (opcode != Opcode.MESSAGE_INDEX or end > n or (length - 6) % 16
+                or int.from_bytes(buf[i + 11 : i + 15], "little") != length - 6):
+            break
+        i = end
+    return i
+
+
 def _name(opcode: int) -> str:
     try:
         return Opcode(opcode).name.lower().replace("_", " ")
@@ -353,6 +360,7 @@ _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publis
 
 # the run of plain messages in a chunk, read in C (sniffer/_hot.c chunk_messages); None: in Python
 _CHUNK_MESSAGES = None if HOT is None else HOT.chunk_messages
+_index_run = _index_run_py if HOT is None else HOT.index_run
 
 
 def _walk_chunk(body: bytes, channels: dict[int, Channel], skip, messages=_CHUNK_MESSAGES,

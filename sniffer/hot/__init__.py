@@ -9,6 +9,7 @@ compiler at install time it is the only one.  `sniffer --version` says which pat
 
 from __future__ import annotations
 
+import importlib
 import os
 from types import ModuleType
 
@@ -17,10 +18,9 @@ def _load() -> tuple[ModuleType | None, str]:
     if os.environ.get("SNIFFER_PURE", "") not in ("", "0"):
         return None, "SNIFFER_PURE is set"
     try:
-        from sniffer import _hot
+        return importlib.import_module("sniffer._hot"), ""  # built beside the package: not a module of ours
     except ImportError as e:
         return None, f"sniffer._hot is not built: {e}"
-    return _hot, ""
 
 
 HOT, WHY_PURE = _load()
