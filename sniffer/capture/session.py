@@ -444,7 +444,8 @@ def run(spec: CaptureSpec, source, sinks: Iterable = (), **kw) -> Session:
 
 def decode_capture(path: str | os.PathLike[str], spec: CaptureSpec | None = None, sinks: Iterable = (),
                    *, on_event=None) -> Session:
-    """An opened session over a capture file: iterate it for its decoded frames, one at a time.
+    """An opened session over a capture file: iterate it for its decoded frames, one at a time (one process;
+    the commands take sniffer.decoding.decode_file, which decodes by parts too).
 
     `.info` is the capture's metadata with the settings used; CaptureError /
     SettingsError (one line) for unreadable input or impossible settings.
