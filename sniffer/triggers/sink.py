@@ -90,11 +90,12 @@ class TriggerSink(Sink):
 
     def raw(self, event) -> None:
         data = encode_event(event)
+        settled = self.settled(event.link) if event.link else self.settled()
         if type(event) is Chunk:
             bt = event.byte_t_ns
             t = bt[0] if bt else event.t_ns - len(event.data) * self.char_ns  # the first byte (as linebuf.py)
             # nothing pending (on its own link, with several): no orphan answer at a start
-            kind = RAW_CLEAN if (self.settled(event.link) if event.link else self.settled()) == 2 else RAW
+            kind = RAW_CLEAN if settled == 2 else RAW
         else:
             t, kind = event.t_ns, RAW
         if self._state_moved:  # what the frames before this event taught the decoders: from here on
@@ -104,11 +105,17 @@ class TriggerSink(Sink):
         self.ring.add(kind, t, event.t_ns, data)
         for w in self.plan.active:
             f = self.files.get(w.n)
-            if f is not None and t <= w.end_ns:
-                try:
-                    f.raw(t, event.t_ns, data)
-                except Exception as e:  # noqa: BLE001 - a full disk loses the window, never the capture
-                    self._drop(w, f, e)
+            if f is None:
+                continue
+            if t > w.end_ns and (settled or not f.tail_open):
+                # past its end, a window takes the reads that finish a frame begun (bytes wait in the framer):
+                # its file has no /frames, a replay of its /raw gives its frames, the last one whole
+                f.tail_open = False
+                continue
+            try:
+                f.raw(t, event.t_ns, data)
+            except Exception as e:  # noqa: BLE001 - a full disk loses the window, never the capture
+                self._drop(w, f, e)
 
     def frame(self, frame) -> None:
         data = frame_json(frame, self.t0)

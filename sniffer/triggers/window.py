@@ -53,11 +53,12 @@ class WindowFile:
         copy.extra = {**copy.extra, "trigger": first}
         if decoder_state is not None:
             record(copy, decoder_state)
-        self.sink = McapSink(self.output.part)
+        self.sink = McapSink(self.output.part, compact=True)
         self.sink.start(copy)
         self.raw_events = self.frames = 0
         self.first_ns: int | None = None  # the first raw event's time
         self.last_ns: int | None = None
+        self.tail_open = True  # past the window's end, the reads that finish a frame begun are still taken
 
     def raw(self, t_ns: int, log_ns: int, data: bytes) -> None:
         self.sink.encoded("raw", log_ns, data)
