@@ -130,6 +130,7 @@ def test_the_trigger_section_is_in_words(tmp_path, capsys):
         return f"{k:,} {word}{'s' if k != 1 else ''}"
 
     assert first.startswith(f"fired {n(t['fired'], 'time')}, {n(t['windows'], 'window')} written")
+    assert f", {t['window_bytes'] / t['window_line_bytes']:.1f}x the line's bytes they hold)" in first
     assert "held for --pre" in first and ("fired nothing" in first) == bool(t["suppressed"])
     assert last.startswith("last: 'exception' at ") and f"frame #{t['last']['frame']}" in last
     assert last.endswith(f"-> {t['last']['window']}")

@@ -148,6 +148,11 @@ def test_the_sink_reports_its_triggers_for_a_status_file(tmp_path):
     assert (st["fired"], st["windows"], st["open"], st["failed_windows"]) == (2, 2, 0, 0)
     assert st["last"]["rule"] == "exc" and st["last"]["t"] == pytest.approx(30.01)
     assert st["last"]["window"].endswith("sniffer.trigger-0002.mcap")
+    # the windows' bytes, and the line's bytes they hold: each window 8 s of polls, a request and an answer
+    # (8 and 7 bytes, or 5 for an exception) every 100 ms, the read that starts a window's span added
+    files = sorted(tmp_path.glob("*.mcap"))
+    assert st["window_bytes"] == sum(f.stat().st_size for f in files)
+    assert 2 * 81 * 15 - 4 <= st["window_line_bytes"] <= 2 * 82 * 15
 
 
 def test_the_trigger_flags_travel_to_a_capture_process_unchanged():
