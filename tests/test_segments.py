@@ -159,7 +159,7 @@ def test_export_and_check_read_a_set(capsys, capture, tmp_path):
 
 def test_size_rotation(capsys, tmp_path):
     sim = tmp_path / "stress.mcap"
-    assert main(["simulate", "--out", str(sim), "--scenario", "stress", "--duration", "40"]) == 0
+    assert main(["simulate", "--out", str(sim), "--scenario", "stress", "--duration", "90"]) == 0
     folder = tmp_path / "bysize"
     _rotate(capsys, sim, folder, "--rotate", "1MB")
     index = _index(folder)
