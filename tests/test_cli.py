@@ -129,7 +129,9 @@ def test_ctrl_c_closes_the_capture_cleanly(tmp_path):
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
         deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 10_000):
+        part = tmp_path / "stopped.mcap.part"  # written under that name until the capture ends (the final name
+        # only appears at the end: waiting on it waited the whole deadline)
+        while time.monotonic() < deadline and (not part.exists() or part.stat().st_size < 10_000):
             time.sleep(0.2)
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=30)

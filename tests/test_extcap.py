@@ -44,9 +44,13 @@ def _install(tmp_path, *extra) -> str:
     return launcher
 
 
-def _tshark_capture(tmp_path, value: str, seconds: int, *prefs: str) -> tuple[subprocess.CompletedProcess, str]:
+def _tshark_capture(tmp_path, value: str, seconds: int, *prefs: str, packets: int | None = None
+                    ) -> tuple[subprocess.CompletedProcess, str]:
+    """tshark's capture of `value` for `seconds`, or until `packets` are in where given (`-c`: the test needs no
+    more, and `seconds` only bounds a capture that never gets them)."""
     out = str(tmp_path / "out.pcapng")
-    r = subprocess.run(["tshark", "-i", value, *prefs, "-a", f"duration:{seconds}", "-w", out],
+    count = ["-c", str(packets)] if packets else []
+    r = subprocess.run(["tshark", "-i", value, *prefs, "-a", f"duration:{seconds}", *count, "-w", out],
                        capture_output=True, text=True, timeout=180, env=_env(tmp_path))
     return r, out
 
@@ -115,7 +119,8 @@ def test_tshark_captures_a_simulated_line_with_our_comments(tmp_path):
 def test_detect_is_the_default(tmp_path):
     with SimulatedLine(tmp_path, "default", "19200 8E1") as line:
         _install(tmp_path, "--list-port", line.path)
-        r, out = _tshark_capture(tmp_path, f"rs485:{line.path}", 40)
+        # the line's settings found first (detect), then packets: 40 s bounds the two on a loaded machine
+        r, out = _tshark_capture(tmp_path, f"rs485:{line.path}", 40, packets=30)
         written = line.pty.bytes_received_from_sniffer
     assert r.returncode == 0 and "Error" not in r.stderr, r.stderr
     assert written == 0

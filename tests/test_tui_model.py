@@ -266,7 +266,14 @@ FILTERS = [
 ]
 
 
-@pytest.mark.parametrize("kw", FILTERS, ids=lambda kw: " ".join(f"{k}={v}" for k, v in kw.items()))
+def _filter_id(kw: dict) -> str:
+    """A test id that is the same in every process: a set's members sorted (a frozenset of strings prints in its
+    hash order, which changes with the process, and pytest-xdist's workers must collect the same ids)."""
+    return " ".join(f"{k}={{{','.join(map(str, sorted(v)))}}}" if isinstance(v, frozenset) else f"{k}={v}"
+                    for k, v in kw.items())
+
+
+@pytest.mark.parametrize("kw", FILTERS, ids=_filter_id)
 def test_filters_give_the_rows_a_brute_force_check_gives(kw):
     info, frames = _all_frames()
     s = FrameStore(info.t0_ns, block=32)
