@@ -522,7 +522,8 @@ def test_port_notices_say_an_outage_shorter_than_a_look():
 def test_a_segment_closed_for_its_size_holds_frames_not_only_its_own_records(tmp_path):
     """Each segment declares its registers' channels (twice: in its data and its summary): on a line polling
     thousands of registers those records alone fill a 1MB segment, so it is closed only once a quarter of
-    it is messages (before: a new segment every half poll cycle, 6 % of it messages)."""
+    it is messages (before: a new segment every half poll cycle, 6 % of it messages).  No flush by wall time:
+    how many chunks a loaded machine cut changed the compressed sizes around the quarter."""
     from mcap.reader import make_reader
 
     from sniffer.events import CaptureInfo
@@ -540,7 +541,7 @@ def test_a_segment_closed_for_its_size_holds_frames_not_only_its_own_records(tmp
     info = CaptureInfo(baud=line.baud, parity=line.parity, stopbits=line.stopbits)
     size = 10**6
     Session(CaptureSpec(), EventSource(info, bursts(frames, line, gap_chars=40)),
-            [SegmentPlan(str(tmp_path / "wide"), Rotate(max_bytes=size))]).run()
+            [SegmentPlan(str(tmp_path / "wide"), Rotate(max_bytes=size), timed_flush=False)]).run()
     index = _index(tmp_path / "wide")
     assert len(index) >= 3
     for s in index[:-1]:
