@@ -98,9 +98,9 @@ def open_capture(path: str, n_keys: int, profile: str | None) -> dict:
 
     def on_gc(phase, info):
         if phase == "start":
-            started.append(time.perf_counter())
+            started.append(time.thread_time())
         elif started:
-            collections.append((info["generation"], time.perf_counter() - started.pop()))
+            collections.append((info["generation"], time.thread_time() - started.pop()))
 
     async def go():
         lag: list[float] = []

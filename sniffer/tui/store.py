@@ -19,6 +19,7 @@ text, `peek` for the frames), so it is answered from the columns first.
 from __future__ import annotations
 
 import bisect
+import time
 from array import array
 from dataclasses import dataclass
 
@@ -36,7 +37,7 @@ from sniffer.tui.framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, Row
 from sniffer.analysis.history import CAP
 from sniffer.analysis.register_book import RegisterBook, RegisterValue
 from sniffer.formats.records import frame_from_record
-from sniffer.analysis.unitfigures import UnitBook, UnitFigures
+from sniffer.analysis.unitfigures import UnitBook, UnitFigures, counted
 from sniffer.tui.timebase import TimeBase
 from sniffer.tui.transactions import Transactions
 
@@ -117,6 +118,7 @@ class FrameStore:
         self.transactions = Transactions()  # request + response as one entry, per-unit latency
         self.diagnosis = Diagnosis()  # sniffer diagnose's engine over the frames taken in (the Verdicts tab)
         self._diagnosis_of = None  # the CaptureInfo it was started with
+        self.booked = 0  # rows the register book and the diagnosis have taken (add(books=False): catch_up)
         self.bookmarks: set[int] = set()
         self.paused_at: int | None = None  # row count when the view was paused
         self.bytes_total = 0
@@ -153,21 +155,52 @@ class FrameStore:
     def last_t_ns(self) -> int:
         return self.t_ns[-1] if self.t_ns else 0
 
-    def add(self, frames) -> int:
-        """Append settled frames (UI thread); returns how many were added."""
+    def add(self, frames, books: bool = True) -> int:
+        """Append settled frames (UI thread); returns how many were added.
+
+        `books`: the register book and the diagnosis take them now (when they are not behind).  Without, the
+        frames reach the list and the filters only; the books take them later, in order, from the packed
+        blocks (`catch_up`): a replay loading fills the list first (the book and the diagnosis were 80 % of
+        a frame's cost here, and only the Registers, Plot and Verdicts tabs show them)."""
+        now = books and self.booked == len(self)
         n = 0
         for f in frames:
-            self._add_one(f)
+            self._add_one(f, now)
             n += 1
         if n:
             self.generation += 1
+            if now:
+                self.booked = len(self)
         return n
+
+    @property
+    def books_behind(self) -> int:
+        """Rows the register book and the diagnosis have not taken yet."""
+        return len(self) - self.booked
+
+    def catch_up(self, budget_s: float | None = None, clock=time.perf_counter) -> int:
+        """The register book and the diagnosis take the rows they are behind, in arrival order, for about
+        `budget_s` (None: all); returns how many they took."""
+        start, end = self.booked, len(self)
+        get, book, diagnose = self.blocks.peek, self.book, self.diagnosis.frame
+        t0 = clock()
+        r = start
+        while r < end:
+            f = get(r)
+            if counted(f):  # as in _add_one: a frame its unit's figures count
+                book.frame(f)
+            diagnose(f)
+            r += 1
+            if budget_s is not None and not (r - start) & 63 and clock() - t0 >= budget_s:
+                break
+        self.booked = r
+        return r - start
 
     def add_records(self, records) -> int:
         """Append JSONL / MCAP `/frames` records (sniffer.formats.records.frame_record) as frames."""
         return self.add(frame_from_record(r, self.t0_ns) for r in records)
 
-    def _add_one(self, f: Frame) -> None:
+    def _add_one(self, f: Frame, books: bool = True) -> None:
         row = len(self.flags)
         fl = frame_flags(f)
         self.blocks.append(f)
@@ -206,9 +239,10 @@ class FrameStore:
         self.transactions.add(row, f, fl)
         if self.paused_at is None and (not self._query or self._query.matches(f, self, fl, regs)):
             self.view.append(row)
-        if self.units.frame(f) is not None:
+        if self.units.frame(f) is not None and books:
             self.book.frame(f)
-        self.diagnosis.frame(f)
+        if books:
+            self.diagnosis.frame(f)
 
     def start_diagnosis(self, info, registry=None) -> None:
         """The diagnosis engine's settings: each link's line as the capture's metadata says it, the models of the
