@@ -399,7 +399,8 @@ def test_replay_feed_thread_end_to_end():
                     break
             assert app.feed_error is None
             assert len(app.store) == len(replay_frames()[1])
-            # the register watch (taken in after the list while the replay loaded, by itself: no tab asked) is the decoders' shadow: the writes the decoders recorded on the frames
+            # the register watch (taken in after the list while the replay loaded, by itself: no tab asked) is
+            # the decoders' shadow: the writes the decoders recorded on the frames
             shadow = registry_shadow(reg)
             assert {k: rv.raw for k, rv in app.store.registers.items()} == shadow
             await pilot.press("3")
