@@ -377,6 +377,35 @@ def test_bookmarks_units_registers_help():
     run(go())
 
 
+def test_books_a_loading_replay_left_behind_catch_up_by_themselves_and_the_status_bar_says_how_far():
+    """A replay loading fills the list first (the intake's add(books=False) while the Frames tab is open); the
+    register book and the diagnosis catch up in the App's turns with no key pressed, the status bar saying
+    how far, and a tab that shows them makes the intake give them the frames as they come again."""
+    from sniffer.tui.status import status_text
+
+    async def go():
+        info, frames, registry = replay_frames()
+        sink = TuiSink()
+        sink.start(info)
+        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            app.poll()  # the diagnosis started from the capture's info
+            assert not app._books_shown()
+            app._take_loading(frames[:-10])  # the Frames tab: the list only
+            store = app.store
+            assert store.books_behind == len(frames) - 10 and not store.registers
+            assert "registers, verdicts 0%" in status_text(app).plain
+            assert await until(pilot, lambda: not store.books_behind)
+            assert "registers, verdicts" not in status_text(app).plain
+            await pilot.press("3")
+            assert app._books_shown()
+            app._take_loading(frames[-10:])  # the Registers tab open: the books take them now
+            assert store.books_behind == 0 and len(store) == len(frames)
+            assert {k: rv.raw for k, rv in store.registers.items()} == registry_shadow(registry)
+            assert store.diagnosis.findings()  # errors.mcap: the diagnosis has something to say
+    run(go())
+
+
 def test_replay_feed_thread_end_to_end():
     """The real path: a replay decoded on the feed thread while the App polls."""
     from tui_helpers import SIM
