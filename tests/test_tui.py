@@ -406,6 +406,24 @@ def test_books_a_loading_replay_left_behind_catch_up_by_themselves_and_the_statu
     run(go())
 
 
+def test_a_poll_without_a_budget_takes_everything_in_the_books_too():
+    """poll() without a budget (what a caller that wants the store complete calls) leaves no book behind,
+    whatever an intake turn deferred."""
+    async def go():
+        info, frames, registry = replay_frames("a510.mcap")
+        sink = TuiSink()
+        sink.start(info)
+        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0)
+        async with app.run_test(size=SIZE):
+            app.poll()
+            app._take_loading(frames)
+            assert app.store.books_behind == len(frames)
+            app.poll()
+            assert app.store.books_behind == 0
+            assert {k: rv.raw for k, rv in app.store.registers.items()} == registry_shadow(registry)
+    run(go())
+
+
 def test_replay_feed_thread_end_to_end():
     """The real path: a replay decoded on the feed thread while the App polls."""
     from tui_helpers import SIM

@@ -359,7 +359,8 @@ class SnifferApp(App):
             await _loop_idle(loop)
 
     def poll(self, budget_s: float | None = None) -> None:
-        """Frames into the store (at most max_batch, and for at most `budget_s` if given), then the view."""
+        """Frames into the store (at most max_batch, and for at most `budget_s` if given), then the view; without
+        a budget the register book and the diagnosis catch up as well (FrameStore.catch_up)."""
         while self.notices:
             line = self.notices.popleft()
             if is_line_warning(line):
@@ -372,6 +373,8 @@ class SnifferApp(App):
             self.store.time.wall_anchor_ns = self.sink.info.wall_anchor_ns
             self.store.start_diagnosis(self.sink.info, self.registry)
         self.sink.drain_into(self._take, limit=self.max_batch, budget_s=budget_s)
+        if budget_s is None:  # a poll without a budget takes everything in: the books too, if an intake left them
+            self.store.catch_up()
         before = self._shown_rows  # frames _intake added count too
         # a replay loading (frames wait): the list's tail and the status bar are drawn a few times a second, not
         # at every poll (a redraw of the screen cost as much of the UI thread as the store did)
