@@ -273,7 +273,7 @@ def test_the_timer_takes_a_backlog_in_by_turns_every_frame_in_order(monkeypatch)
         app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0)
         turns = []
         add = app.store.add
-        app.store.add = lambda batch: turns.append(len(batch)) or add(batch)
+        app.store.add = lambda batch, books=True: turns.append(len(batch)) or add(batch, books)
         async with app.run_test(size=SIZE) as pilot:
             assert await until(pilot, lambda: app.caught_up and app.frame_list.cursor == len(frames) - 1)
             assert [f.index for f in app.store.frames] == [f.index for f in frames]
@@ -377,6 +377,53 @@ def test_bookmarks_units_registers_help():
     run(go())
 
 
+def test_books_a_loading_replay_left_behind_catch_up_by_themselves_and_the_status_bar_says_how_far():
+    """A replay loading fills the list first (the intake's add(books=False) while the Frames tab is open); the
+    register book and the diagnosis catch up in the App's turns with no key pressed, the status bar saying
+    how far, and a tab that shows them makes the intake give them the frames as they come again."""
+    from sniffer.tui.status import status_text
+
+    async def go():
+        info, frames, registry = replay_frames()
+        sink = TuiSink()
+        sink.start(info)
+        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0)
+        async with app.run_test(size=SIZE) as pilot:
+            app.poll()  # the diagnosis started from the capture's info
+            assert not app._books_shown()
+            app._take_loading(frames[:-10])  # the Frames tab: the list only
+            store = app.store
+            assert store.books_behind == len(frames) - 10 and not store.registers
+            assert "registers, verdicts 0%" in status_text(app).plain
+            assert await until(pilot, lambda: not store.books_behind)
+            assert "registers, verdicts" not in status_text(app).plain
+            await pilot.press("3")
+            assert app._books_shown()
+            app._take_loading(frames[-10:])  # the Registers tab open: the books take them now
+            assert store.books_behind == 0 and len(store) == len(frames)
+            assert {k: rv.raw for k, rv in store.registers.items()} == registry_shadow(registry)
+            assert store.diagnosis.findings()  # errors.mcap: the diagnosis has something to say
+    run(go())
+
+
+def test_a_poll_without_a_budget_takes_everything_in_the_books_too():
+    """poll() without a budget (what a caller that wants the store complete calls) leaves no book behind,
+    whatever an intake turn deferred."""
+    async def go():
+        info, frames, registry = replay_frames("a510.mcap")
+        sink = TuiSink()
+        sink.start(info)
+        app = SnifferApp(sink, None, registry=registry, clock=lambda: 0.0)
+        async with app.run_test(size=SIZE):
+            app.poll()
+            app._take_loading(frames)
+            assert app.store.books_behind == len(frames)
+            app.poll()
+            assert app.store.books_behind == 0
+            assert {k: rv.raw for k, rv in app.store.registers.items()} == registry_shadow(registry)
+    run(go())
+
+
 def test_replay_feed_thread_end_to_end():
     """The real path: a replay decoded on the feed thread while the App polls."""
     from tui_helpers import SIM
@@ -395,11 +442,12 @@ def test_replay_feed_thread_end_to_end():
         async with app.run_test(size=SIZE) as pilot:
             for _ in range(200):
                 await pilot.pause(0.05)
-                if app.caught_up and len(app.store) == app.sink.frames_in:
+                if app.caught_up and len(app.store) == app.sink.frames_in and not app.store.books_behind:
                     break
             assert app.feed_error is None
             assert len(app.store) == len(replay_frames()[1])
-            # the register watch is the decoders' shadow: the writes the decoders recorded on the frames
+            # the register watch (taken in after the list while the replay loaded, by itself: no tab asked) is
+            # the decoders' shadow: the writes the decoders recorded on the frames
             shadow = registry_shadow(reg)
             assert {k: rv.raw for k, rv in app.store.registers.items()} == shadow
             await pilot.press("3")
@@ -731,7 +779,8 @@ def test_verdicts_of_a_live_capture(tmp_path):
         async with app.run_test(size=SIZE) as pilot:
             assert await until(pilot, lambda: app.caught_up and len(app.store) == app.sink.frames_in, 300)
             await pilot.press("7")
-            await pilot.pause()
+            # frames a burst brought went to the list first: the diagnosis takes them in the App's turns
+            assert await until(pilot, lambda: not app.store.books_behind)
             app.refresh_tables()
             await pilot.pause()
             pane = app.query_one("#verdictspane")

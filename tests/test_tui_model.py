@@ -330,6 +330,35 @@ def test_register_watch_is_the_decoders_shadow_locally_and_from_records(name):
             assert rv.history[-1] == float(rv.value)
 
 
+@pytest.mark.parametrize("name", SIM_CAPTURES)
+def test_books_that_took_the_frames_later_are_the_books_that_took_them_as_they_came(name):
+    """A replay loading fills the list first (add(books=False)); the register book and the diagnosis take
+    the frames afterwards from the packed blocks (catch_up, in turns). They end as the books of a store
+    that took every frame as it came: every register's value, changes and history, every finding; and
+    frames added while they are behind wait their turn (order kept)."""
+    info, frames, registry = replay_frames(name)
+    now = FrameStore(info.t0_ns, block=16)
+    now.start_diagnosis(info, registry)
+    now.add(frames)
+    later = FrameStore(info.t0_ns, block=16)
+    later.start_diagnosis(info, registry)
+    half = len(frames) // 2
+    later.add(frames[:half], books=False)
+    assert later.books_behind == half and not later.registers
+    later.add(frames[half:half + 5])  # books behind: these wait too, not applied out of order
+    assert later.books_behind == half + 5 and not later.registers
+    later.add(frames[half + 5:], books=False)
+    turns = 0
+    while later.books_behind:
+        later.catch_up(budget_s=0.0)  # at least 64 frames a turn
+        turns += 1
+    assert turns > 1 and later.booked == len(later) == len(frames)
+    assert _watch(later) == _watch(now)
+    assert [x.to_dict() for x in later.diagnosis.findings()] == [x.to_dict() for x in now.diagnosis.findings()]
+    later.add(frames[:3])  # caught up: frames go to the books as they come again
+    assert later.books_behind == 0
+
+
 def _modbus(index, t_ms, role, pair=None, points=(), writes=(), unit=1, function=0x10, crc_ok=True):
     from sniffer.frame import Frame
 

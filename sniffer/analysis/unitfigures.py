@@ -299,6 +299,11 @@ def unit_name(unit) -> str:
     return "all" if unit is None else str(unit)
 
 
+def counted(f: Frame) -> bool:
+    """Does a frame count for its unit (UnitBook.frame)?  One that names no unit, or noise, does not."""
+    return f.unit is not None and f.protocol != "noise"
+
+
 class UnitBook:
     """Every unit's figures, and the latencies of all of them together (see the module doc)."""
 
@@ -308,7 +313,7 @@ class UnitBook:
 
     def frame(self, f: Frame) -> UnitFigures | None:
         """Count a frame; its unit's figures (None for a frame that names no unit, or noise)."""
-        if f.unit is None or f.protocol == "noise":
+        if not counted(f):
             return None
         key = unit_key(f)
         u = self.units.get(key)

@@ -43,7 +43,11 @@ from sniffer.tui.sink import INTAKE_BUDGET_S, INTAKE_GAP_S, INTAKE_TURN_S, TuiSi
 from sniffer.tui.status import status_text
 from sniffer.tui.txlist import TransactionList, TransactionsPane
 from sniffer.tui.units import UnitsTable
+from sniffer.tui.vlist import TAIL_EVERY_S
 from sniffer.tui.verdicts import VerdictsPane
+
+LOADING_DRAW_S = 0.3  # while a replay loads: the list's tail and the status bar drawn at most this often
+BOOK_TABS = ("registers", "plot", "verdicts")  # the tabs that show the register book or the diagnosis
 
 HELP = """\
 [b]rs485-sniffer TUI[/b] — keys
@@ -224,6 +228,7 @@ class SnifferApp(App):
         self._ticks = 0
         self._tables_at = None  # (store state, tab) the units / registers tables were last built for
         self._status_text = None
+        self._status_at = float("-inf")  # when the status bar was last drawn (monotonic)
         self._shown_rows = 0  # store rows when the list was last told
         self._intake_task: asyncio.Task | None = None  # taking a backlog in between polls (_intake)
         self.notices: deque[str] = deque()  # lines a capture process said on stderr: shown as notifications
@@ -328,19 +333,34 @@ class SnifferApp(App):
             self.exit(self.feed_result)
             return
         self.poll(INTAKE_BUDGET_S)
-        if self.sink.backlog and (self._intake_task is None or self._intake_task.done()):
+        if (self.sink.backlog or self.store.books_behind) and (self._intake_task is None or self._intake_task.done()):
             self._intake_task = asyncio.create_task(self._intake())
+
+    def _books_shown(self) -> bool:
+        """Is a tab that shows the register book or the diagnosis open (they must be current)?"""
+        return self.tabs.active in BOOK_TABS
 
     async def _intake(self) -> None:
         """Between two polls, while frames wait: turns of INTAKE_TURN_S taking them into the store, each
         followed by INTAKE_GAP_S of the event loop's own work (a key, a timer, a redraw), so a replay loads
-        at most of the UI thread's time and a key waits about one turn (the next poll shows the frames)."""
+        at most of the UI thread's time and a key waits about one turn (the next poll shows the frames).
+
+        Frames taken in here go to the list first: the register book and the diagnosis take them when no
+        frames wait (FrameStore.catch_up), or first while a tab that shows them is open."""
         loop = asyncio.get_running_loop()
-        while self.sink.drain_into(self._take, budget_s=INTAKE_TURN_S) and self.sink.backlog:
+        store, sink = self.store, self.sink
+        while True:
+            if sink.backlog and not (store.books_behind and self._books_shown()):
+                sink.drain_into(self._take_loading, budget_s=INTAKE_TURN_S)
+            elif store.books_behind:
+                store.catch_up(INTAKE_TURN_S)
+            else:
+                return
             await _loop_idle(loop)
 
     def poll(self, budget_s: float | None = None) -> None:
-        """Frames into the store (at most max_batch, and for at most `budget_s` if given), then the view."""
+        """Frames into the store (at most max_batch, and for at most `budget_s` if given), then the view; without
+        a budget the register book and the diagnosis catch up as well (FrameStore.catch_up)."""
         while self.notices:
             line = self.notices.popleft()
             if is_line_warning(line):
@@ -353,8 +373,15 @@ class SnifferApp(App):
             self.store.time.wall_anchor_ns = self.sink.info.wall_anchor_ns
             self.store.start_diagnosis(self.sink.info, self.registry)
         self.sink.drain_into(self._take, limit=self.max_batch, budget_s=budget_s)
+        if budget_s is None:  # a poll without a budget takes everything in: the books too, if an intake left them
+            self.store.catch_up()
         before = self._shown_rows  # frames _intake added count too
-        if len(self.store) != before and (budget_s is None or self.frame_list.tail_due(len(self.store) - before)):
+        # a replay loading (frames wait): the list's tail and the status bar are drawn a few times a second, not
+        # at every poll (a redraw of the screen cost as much of the UI thread as the store did)
+        loading = budget_s is not None and self.sink.backlog > 0
+        every = LOADING_DRAW_S if loading else TAIL_EVERY_S
+        if len(self.store) != before and (budget_s is None or self.frame_list.tail_due(len(self.store) - before,
+                                                                                     every)):
             self._shown_rows = len(self.store)
             self.frame_list.refresh_rows(grown=True)
             if self.tabs.active == "transactions":
@@ -376,16 +403,24 @@ class SnifferApp(App):
                 or not before and self._shown_rows):
             self._tables_at = shown
             self.refresh_tables()
+        if ((loading or self.store.books_behind) and budget_s is not None
+                and time.monotonic() - self._status_at < LOADING_DRAW_S):
+            return
         text = status_text(self)
         if text != self._status_text:
             self._status_text = text
+            self._status_at = time.monotonic()
             self.status.update(text, layout=False)  # one line, always: its text changing moves nothing else
 
-    def _take(self, frames: list) -> None:
+    def _take(self, frames: list, books: bool = True) -> None:
         """Frames into the store, and judged: a line whose frames are mostly bad is said once (linenotice.py)."""
-        self.store.add(frames)
+        self.store.add(frames, books)
         for text in self.line_notice.take(frames, self.sink.info):
             self.notify(text, title="line settings?", severity="warning", timeout=30, markup=False)
+
+    def _take_loading(self, frames: list) -> None:
+        """_take for a backlog: the books take the frames now only while a tab shows them (_intake)."""
+        self._take(frames, self._books_shown())
 
     def refresh_tables(self) -> None:
         active = self.tabs.active

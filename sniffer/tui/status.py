@@ -78,6 +78,8 @@ def status_text(app, width: int | None = None) -> Text:
                                               (sink.skipped_frames, "skipped")) if n]
     if missing:
         parts.append((7, "not here: " + ", ".join(missing)))
+    if store.books_behind:  # a replay loading: the list first, the register book and the diagnosis after it
+        parts.append((7, f"registers, verdicts {100 * store.booked // len(store)}%"))
     parts.append((3, f"{app.clock() - app.t_start:.0f}s"))
     if getattr(app, "export_status", None):  # an export on its worker thread
         parts.append((8, app.export_status))

@@ -19,6 +19,7 @@ text, `peek` for the frames), so it is answered from the columns first.
 from __future__ import annotations
 
 import bisect
+import time
 from array import array
 from dataclasses import dataclass
 
@@ -36,7 +37,7 @@ from sniffer.tui.framepack import BLOCK, FRAME_CACHE, FrameBlocks, FrameSeq, Row
 from sniffer.analysis.history import CAP
 from sniffer.analysis.register_book import RegisterBook, RegisterValue
 from sniffer.formats.records import frame_from_record
-from sniffer.analysis.unitfigures import UnitBook, UnitFigures
+from sniffer.analysis.unitfigures import UnitBook, UnitFigures, counted
 from sniffer.tui.timebase import TimeBase
 from sniffer.tui.transactions import Transactions
 
@@ -46,6 +47,15 @@ _NO_ROLE = 255  # a role outside ROLES (none today)
 
 __all__ = ["F_CRC", "F_ERROR", "F_EXC", "F_FAULT", "F_NOISE", "F_PROBLEM", "F_TIMEOUT", "F_WARN", "Filter",
            "FrameStore", "RegisterValue", "RowIndex", "UnitFigures", "frame_flags", "frame_from_record"]
+
+
+def _code(codes: dict, names: list, name) -> int:
+    """A name's code in a column of names (a model, a link): a new name gets the next (at most 255)."""
+    code = codes.get(name)
+    if code is None:
+        code = codes[name] = min(len(names), 255)
+        names.append(name)
+    return code
 
 
 @dataclass
@@ -117,6 +127,7 @@ class FrameStore:
         self.transactions = Transactions()  # request + response as one entry, per-unit latency
         self.diagnosis = Diagnosis()  # sniffer diagnose's engine over the frames taken in (the Verdicts tab)
         self._diagnosis_of = None  # the CaptureInfo it was started with
+        self.booked = 0  # rows the register book and the diagnosis have taken (add(books=False): catch_up)
         self.bookmarks: set[int] = set()
         self.paused_at: int | None = None  # row count when the view was paused
         self.bytes_total = 0
@@ -153,62 +164,97 @@ class FrameStore:
     def last_t_ns(self) -> int:
         return self.t_ns[-1] if self.t_ns else 0
 
-    def add(self, frames) -> int:
-        """Append settled frames (UI thread); returns how many were added."""
-        n = 0
-        for f in frames:
-            self._add_one(f)
-            n += 1
+    def add(self, frames, books: bool = True) -> int:
+        """Append settled frames (UI thread); returns how many were added.
+
+        `books`: the register book and the diagnosis take them now (when they are not behind).  Without, the
+        frames reach the list and the filters only; the books take them later, in order, from the packed
+        blocks (`catch_up`): a replay loading fills the list first (the book and the diagnosis were 80 % of
+        a frame's cost here, and only the Registers, Plot and Verdicts tabs show them)."""
+        now = books and self.booked == len(self)
+        frames = frames if type(frames) is list else list(frames)
+        n = len(frames)
         if n:
+            self._add_batch(frames, now)
             self.generation += 1
+            if now:
+                self.booked = len(self)
         return n
+
+    @property
+    def books_behind(self) -> int:
+        """Rows the register book and the diagnosis have not taken yet."""
+        return len(self) - self.booked
+
+    def catch_up(self, budget_s: float | None = None, clock=time.perf_counter) -> int:
+        """The register book and the diagnosis take the rows they are behind, in arrival order, for about
+        `budget_s` (None: all); returns how many they took."""
+        start, end = self.booked, len(self)
+        get, book, diagnose = self.blocks.peek, self.book, self.diagnosis.frame
+        t0 = clock()
+        r = start
+        while r < end:
+            f = get(r)
+            if counted(f):  # as in _add_batch: a frame its unit's figures count
+                book.frame(f)
+            diagnose(f)
+            r += 1
+            if budget_s is not None and not (r - start) & 63 and clock() - t0 >= budget_s:
+                break
+        self.booked = r
+        return r - start
 
     def add_records(self, records) -> int:
         """Append JSONL / MCAP `/frames` records (sniffer.formats.records.frame_record) as frames."""
         return self.add(frame_from_record(r, self.t0_ns) for r in records)
 
-    def _add_one(self, f: Frame) -> None:
-        row = len(self.flags)
-        fl = frame_flags(f)
-        self.blocks.append(f)
-        self.flags.append(fl)
-        self.t_ns.append(f.t_ns)
-        self.unit.append(-1 if f.unit is None else f.unit)
-        self.function.append(-1 if f.function is None else f.function)
-        self.role.append(ROLE_CODE.get(f.role, _NO_ROLE))
-        self.pair.append(-1 if f.pair is None else f.pair)
-        lat = f.latency_ms
-        self.lat_us.append(-1 if lat is None else min(round(lat * 1000), 0x7FFFFFFF))
-        regs = registers_of(f)
-        reg, n = register_cell(regs)
-        self.reg.append(reg)
-        self.nreg.append(n)
-        code = self._model_code.get(f.model)
-        if code is None:
-            code = self._model_code[f.model] = min(len(self.model_names), 255)
-            self.model_names.append(f.model)
-        self.model.append(code)
-        code = self._link_code.get(f.link)
-        if code is None:
-            code = self._link_code[f.link] = min(len(self.link_names), 255)
-            self.link_names.append(f.link)
-        self.link.append(code)
+    def _add_batch(self, frames: list, books: bool) -> None:
+        """Frames in as one block of rows: each column extended once from a list (a frame's dozen
+        `array.append` calls were a fifth of its cost while the books waited), then what goes frame by frame
+        in order (the transactions, the view's filter, the unit and register books, the diagnosis)."""
+        row0 = len(self.flags)
+        fls = [frame_flags(f) for f in frames]
+        regs = [registers_of(f) for f in frames]
+        cells = [register_cell(r) for r in regs]
+        blocks = self.blocks
+        for f in frames:
+            blocks.append(f)
+        self.flags.extend(fls)
+        self.t_ns.extend([f.t_ns for f in frames])
+        self.unit.extend([-1 if f.unit is None else f.unit for f in frames])
+        self.function.extend([-1 if f.function is None else f.function for f in frames])
+        role = ROLE_CODE.get
+        self.role.extend([role(f.role, _NO_ROLE) for f in frames])
+        self.pair.extend([-1 if f.pair is None else f.pair for f in frames])
+        self.lat_us.extend([-1 if (lat := f.latency_ms) is None else min(round(lat * 1000), 0x7FFFFFFF)
+                            for f in frames])
+        self.reg.extend([c[0] for c in cells])
+        self.nreg.extend([c[1] for c in cells])
+        self.model.extend([_code(self._model_code, self.model_names, f.model) for f in frames])
+        self.link.extend([_code(self._link_code, self.link_names, f.link) for f in frames])
         ix = self.row_of
-        if ix.rows is None and not ix.extra and (not ix.keys or f.index > ix.keys[-1]):
-            ix.keys.append(f.index)  # in order, as the pipeline numbers them: RowIndex.add's common case
+        idx = [f.index for f in frames]
+        if (ix.rows is None and not ix.extra and (not ix.keys or idx[0] > ix.keys[-1])
+                and all(a < b for a, b in zip(idx, idx[1:]))):
+            ix.keys.extend(idx)  # in order, as the pipeline numbers them: RowIndex.add's common case
         else:
-            ix.add(f.index, row)
-        self.bytes_total += len(f.raw)
-        if fl & F_NOISE:
-            self.noise_bytes += len(f.raw)
-        if fl & F_PROBLEM:
-            self.problems.append(row)
-        self.transactions.add(row, f, fl)
-        if self.paused_at is None and (not self._query or self._query.matches(f, self, fl, regs)):
-            self.view.append(row)
-        if self.units.frame(f) is not None:
-            self.book.frame(f)
-        self.diagnosis.frame(f)
+            for k, index in enumerate(idx):
+                ix.add(index, row0 + k)
+        self.bytes_total += sum([len(f.raw) for f in frames])
+        self.problems.extend([row0 + k for k, fl in enumerate(fls) if fl & F_PROBLEM])
+        query = None if self.paused_at is not None else self._query
+        view, tx, units, book, diagnose = self.view, self.transactions, self.units, self.book, self.diagnosis.frame
+        for k, f in enumerate(frames):
+            row, fl = row0 + k, fls[k]
+            if fl & F_NOISE:
+                self.noise_bytes += len(f.raw)
+            tx.add(row, f, fl)
+            if query is not None and (not query or query.matches(f, self, fl, regs[k])):
+                view.append(row)
+            if units.frame(f) is not None and books:
+                book.frame(f)
+            if books:
+                diagnose(f)
 
     def start_diagnosis(self, info, registry=None) -> None:
         """The diagnosis engine's settings: each link's line as the capture's metadata says it, the models of the

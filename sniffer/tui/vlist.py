@@ -89,13 +89,13 @@ class CursorList(ScrollView, can_focus=True):
             self.virtual_size = Size(self.virtual_width(), n + self.header_lines)
         return n
 
-    def tail_due(self, new_rows: int) -> bool:
+    def tail_due(self, new_rows: int, every: float = TAIL_EVERY_S) -> bool:
         """Should `new_rows` rows that came since the last draw be drawn now?  Followed, a fast tail (more
         than TAIL_ROWS rows since the last draw) scrolls the whole window at every draw, a blur that costs a
         screen of rows each time (and the viewer's CPU is taken from the capture on a small machine): it is
-        drawn at most every TAIL_EVERY_S.  A slow tail, or a list that does not follow, now."""
+        drawn at most every `every` seconds.  A slow tail, or a list that does not follow, now."""
         return (not self.follow or new_rows <= TAIL_ROWS
-                or time.monotonic() - self._tail_drawn_at >= TAIL_EVERY_S)
+                or time.monotonic() - self._tail_drawn_at >= every)
 
     def refresh_rows(self, grown: bool = False) -> None:
         """Called after the rows changed; `grown`: only rows at the end came (below a window that does not
