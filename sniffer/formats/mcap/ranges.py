@@ -83,37 +83,113 @@ def _offsets(fh, at: int, channel: int) -> list[int]:
 
 def raw_index(path: str) -> RawIndex | None:
     """The /raw messages' places in a finished capture, every chunk checked; None if it is not one to read so."""
-    from mcap.reader import make_reader
-
     try:
         with open(path, "rb") as fh:
-            summary = make_reader(fh).get_summary()
-            if summary is None or summary.statistics is None or not summary.chunk_indexes:
+            summary = _raw_summary(fh)
+            if summary is None:
                 return None
-            raw = [c.id for c in summary.channels.values() if c.topic == RAW_TOPIC]
-            if len(raw) != 1 or summary.channels[raw[0]].metadata.get("sniffer.format", RAW_FORMAT) != RAW_FORMAT:
-                return None  # a compact file's /raw message holds several events: numbered by message, read in order
-            channel = raw[0]
+            channel, counted, chunk_indexes = summary
             chunks, total = [], 0
-            for ci in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
-                at = ci.message_index_offsets.get(channel)
+            for start, length, at in sorted(chunk_indexes):
                 if at is None:
                     continue
                 fh.seek(at)
                 op, _length, cid, size = _INDEX_HEAD.unpack(fh.read(_INDEX_HEAD.size))
                 if op != 0x07 or cid != channel or size % 16:
                     return None
-                chunks.append((total, size // 16, ci.chunk_start_offset, ci.chunk_length, at))
+                chunks.append((total, size // 16, start, length, at))
                 total += size // 16
-            if summary.statistics.channel_message_counts.get(channel, 0) != total:
+            if counted != total:
                 return None  # a /raw message outside the chunks
-            if not _between_chunks_intact(fh, {c.chunk_start_offset: c.chunk_length for c in summary.chunk_indexes}):
+            if not _between_chunks_intact(fh, {start: length for start, length, _at in chunk_indexes}):
                 return None  # damage the reader skips and reports, where no worker looks
             return RawIndex(path, channel, total, tuple(chunks))
-    except (OSError, ValueError, KeyError, struct.error, ImportError):
+    except (OSError, ValueError, KeyError, struct.error, UnicodeDecodeError):
         return None
-    except Exception:  # noqa: BLE001 - mcap's own errors on a file it cannot read: the reader says why
+    except Exception:  # noqa: BLE001 - mcap's own errors on a record it cannot read: the reader says why
         return None
+
+
+_FOOTER = struct.Struct("<BQQQI")  # opcode 0x02, length, summary start, summary offset start, summary CRC
+_CHUNK_INDEX_HEAD = struct.Struct("<QQQQI")  # start and end time, chunk offset, chunk length, offsets' byte length
+_CHANNEL_OFFSET = struct.Struct("<HQ")
+
+
+def _raw_summary(fh) -> tuple | None:
+    """(the /raw channel, its message count, [(chunk offset, chunk length, its /raw message index offset or
+    None)]) from a finished file's summary section, its CRC checked; None without one (or no /raw channel).
+
+    Read here record by record rather than by the mcap library's get_summary(), which builds every chunk
+    index's map of every channel: a million-frame capture (3,576 chunks, 648 channels) held 50 MB of them in
+    the coordinator, and its worker processes, forked from it, started with that heap."""
+    size = fh.seek(0, 2)
+    if size < _FOOTER.size + 8:
+        return None
+    fh.seek(size - 8 - _FOOTER.size)
+    op, length, start, _offsets_at, crc = _FOOTER.unpack(fh.read(_FOOTER.size))
+    if op != 0x02 or length != _FOOTER.size - 9 or not 0 < start < size - 8 - _FOOTER.size:
+        return None
+    fh.seek(start)
+    body = fh.read(size - 8 - _FOOTER.size - start)
+    if crc and zlib.crc32(body + bytes([0x02]) + struct.pack("<QQQ", length, start, _offsets_at)) != crc:
+        return None
+    channel = counted = None
+    raw_ids: list[int] = []
+    indexes: list[tuple] = []  # (offset, length, the offsets' map as its bytes)
+    at, end = 0, len(body)
+    while at < end:
+        op, length = _RECORD.unpack_from(body, at)
+        rec = at + _RECORD.size
+        at = rec + length
+        if at > end:
+            return None
+        if op == 0x04:  # a channel: id, schema id, topic, message encoding, metadata
+            (cid, _schema, n) = struct.unpack_from("<HHI", body, rec)
+            if body[rec + 8: rec + 8 + n].decode() == RAW_TOPIC:
+                if _channel_format(body, rec + 8 + n, at) != RAW_FORMAT:
+                    return None  # a compact file: several events a /raw message, read in order
+                raw_ids.append(cid)
+        elif op == 0x08:  # a chunk index
+            _t0, _t1, offset, chunk_length, n = _CHUNK_INDEX_HEAD.unpack_from(body, rec)
+            first = rec + _CHUNK_INDEX_HEAD.size
+            if n % _CHANNEL_OFFSET.size or first + n > at:
+                return None
+            indexes.append((offset, chunk_length, body[first: first + n]))
+        elif op == 0x0B:  # statistics: counts, then the per-channel message counts
+            (n,) = struct.unpack_from("<I", body, rec + 8 + 2 + 4 + 4 + 4 + 4 + 8 + 8)
+            counts = body[rec + 46: rec + 46 + n]
+            counted = {cid: c for cid, c in _CHANNEL_OFFSET.iter_unpack(counts)}
+    if len(raw_ids) != 1 or counted is None or not indexes:
+        return None
+    channel = raw_ids[0]
+    chunks = [(offset, length, next((o for cid, o in _CHANNEL_OFFSET.iter_unpack(m) if cid == channel), None))
+              for offset, length, m in indexes]
+    return channel, counted.get(channel, 0), chunks
+
+
+def _channel_format(body: bytes, at: int, end: int) -> str:
+    """The `sniffer.format` of a channel record's metadata (what follows its topic: the message encoding, then a
+    map of strings), RAW_FORMAT where it has none; "" where the record does not read so."""
+    try:
+        (n,) = struct.unpack_from("<I", body, at)
+        at += 4 + n
+        (size,) = struct.unpack_from("<I", body, at)
+        at += 4
+        stop = at + size
+        if stop > end:
+            return ""
+        while at < stop:
+            (k,) = struct.unpack_from("<I", body, at)
+            key = body[at + 4: at + 4 + k]
+            at += 4 + k
+            (v,) = struct.unpack_from("<I", body, at)
+            value = body[at + 4: at + 4 + v]
+            at += 4 + v
+            if key == b"sniffer.format":
+                return value.decode("utf-8", "replace")
+    except struct.error:
+        return ""
+    return RAW_FORMAT
 
 
 def _between_chunks_intact(fh, chunks: dict[int, int]) -> bool:
