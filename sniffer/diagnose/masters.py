@@ -357,12 +357,13 @@ class MastersGroup(Group):
         return Finding(
             "second_master", ERROR, unit=unit, link=link.name, t_start=d.seconds(s.first_ns),
             t_end=d.seconds(s.last_ns), evidence=ev, frames=[i for _, i in chain[:4]],
-            statistic={"test": "spacing of the bursts of two transmitters at once: the share within 4 % of one "
-                               "period", "share": round(best / len(gaps), 3), "n": len(gaps)},
+            statistic={"test": "spacing of the bursts of two transmitters at once: the share in a window at one "
+                               "period (4 % of it or 24 characters wide)",
+                       "share": round(best / len(gaps), 3), "n": len(gaps)},
             text=f"Another master talks over the first on a clock of its own: bursts of two transmitters at once "
                  f"come about every {period / 1e6:.0f} ms ({best} of {len(gaps)} spacings between them), not with "
-                 f"the poll cycle; every request it sends collides, so what it reads cannot be told, but the bursts "
-                 f"start with {who}.",
+                 f"the poll cycle; its requests are lost in the collisions (too few survive to tell what it reads), "
+                 f"but the bursts start with {who}.",
             action="Find the second master (an HMI, a gateway, a laptop left connected) and take it off this line, "
                    "or make it a slave of the PLC: Modbus RTU has one master per line, and it never listens "
                    "before it talks.")
