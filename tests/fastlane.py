@@ -66,6 +66,7 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_diagnose_masters.py::test_busy_healthy_plants_give_nothing_above_info",  # 8 busy plants x 30 s
     "test_diagnose_masters.py::test_a_timeout_exceeded_by_the_slowest_answers_only_is_found_with_a_timeout_to_set",
     "test_diagnose_masters.py::test_a_silent_unit_only_written_is_silent_and_its_retries_are_no_echoes",  # 8 x 50 s
+    "test_diagnose_masters.py::test_a_blind_second_master_on_a_busy_line_is_found_by_its_clock",  # 8 busy x 60 s
     # minutes of simulated line through diagnose
     "test_diagnose_thresholds.py::test_a_full_line_is_not_nothing_to_fix_and_a_warning_once_it_stretches",
     "test_diagnose_thresholds.py::test_strays_after_0_7_percent_of_transmissions_are_bus_unbiased_with_their_rate",

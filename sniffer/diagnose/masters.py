@@ -21,7 +21,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import math
-from collections import Counter
+from bisect import bisect_right
+from collections import Counter, deque
 
 from sniffer.diagnose.codesets import LATE, RETRY, UNANSWERED
 from sniffer.codes import ERROR, WARNING
@@ -45,6 +46,11 @@ SPREAD_R = 0.35  # ... below this (both ways), none
 LOOSE_SHARE = 0.5  # one under this and under HELD_R is loose: a second master's if it cuts requests short ...
 LOOSE_CUT = 0.2  # ... with requests cut short as many as this share of its requests
 RETRY_SHARE = 0.1
+CLOCK_MIN = 25  # spacings of bursts at one period: a blind second master's clock
+CLOCK_SHARE = 0.4  # ... and this share of all the spacings
+CLOCK_APART_NS = 30_000_000  # bursts closer than this (or CLOCK_APART_CHARS) are pieces of one collision
+CLOCK_APART_CHARS = 48
+CLOCK_SPREAD_CHARS = 24  # the width of the window of spacings at one period (or 4 % of it)
 
 
 class _Link:
@@ -57,6 +63,7 @@ class _Link:
         self.last: tuple | None = None  # (unit, t_end_ns, unanswered, index)
         self.bursts = 0
         self.burst_frames: list[int] = []
+        self.burst_times: deque[tuple[int, int, int]] = deque(maxlen=4096)  # (t_ns, first byte, frame) of each
         self.late = 0
         self.late_frames: list[int] = []
         self.requests = 0
@@ -158,23 +165,25 @@ class MastersGroup(Group):
 
     def noise(self, f, link: Link, codes: frozenset) -> None:
         if len(f.raw) >= 4:
-            self._burst(self._l(link), f)
+            self._burst(self._l(link), f, link)
 
-    def _burst(self, s: _Link, f) -> None:
+    def _burst(self, s: _Link, f, link: Link) -> None:
         s.bursts += 1
+        if link.slot is None:  # (one where a unit's answer was due, of its length, is that answer damaged)
+            s.burst_times.append((f.t_ns, f.raw[0], f.index))
         if len(s.burst_frames) < 8:
             s.burst_frames.append(f.index)
 
     def other(self, f, link: Link, unit: Unit | None, codes: frozenset) -> None:
         if f.crc_ok is False and "modbus.length.mismatch" in codes:
-            self._burst(self._l(link), f)
+            self._burst(self._l(link), f, link)
 
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
         if not codes:
             return
         s = self._l(link)
         if f.crc_ok is False and "modbus.length.mismatch" in codes:
-            self._burst(s, f)
+            self._burst(s, f, link)
         if not LATE.isdisjoint(codes):
             s.late += 1
             if len(s.late_frames) < 8:
@@ -248,7 +257,7 @@ class MastersGroup(Group):
         for name, s in self.links.items():
             if len(s.window) >= 4 * MIN_TYPE:
                 self._test(s)
-            f = self._second(d, d.links[name], s)
+            f = self._second(d, d.links[name], s) or self._clock(d, d.links[name], s)
             if f is not None:
                 out.append(f)
             f = self._retries(d, d.links[name], s)
@@ -308,6 +317,62 @@ class MastersGroup(Group):
             action="Find the second master (an HMI, a gateway, a laptop left connected) and take it off this line, "
                    "or make it a slave of the PLC: Modbus RTU has one master per line, and answers go to "
                    "whichever request came last.")
+
+    def _clock(self, d: Diagnosis, link: Link, s: _Link) -> Finding | None:
+        """A blind second master on a line so busy that every request it sends collides: none of its requests
+        survives to be read, only the bursts of two transmitters at once, and those come on its clock.  Noise
+        comes at random times and a unit's faulty driver with the poll cycle; bursts whose spacing sits at one
+        period (CLOCK_SHARE of the spacings in a window of 4 % of it or CLOCK_SPREAD_CHARS) that is no multiple
+        or fraction of the first master's cycle are another master's.  The unit: the one the bursts start with
+        most (its request's first bytes go out before the collision), where it clearly leads."""
+        times = [t for t, _, _ in s.burst_times]
+        apart = max(CLOCK_APART_NS, CLOCK_APART_CHARS * link.char_ns)
+        gaps = sorted(b - a for a, b in zip(times, times[1:]) if b - a >= apart)
+        if len(gaps) < CLOCK_MIN:
+            return None
+        best, at = 0, 0
+        for i, g in enumerate(gaps):
+            if g < 1.5 * apart:
+                continue  # random damage's spacings crowd the shortest ones: a clock stands apart from them
+            # (a collision's burst starts anywhere in the frames it hits: at a slow baud, tens of ms either way)
+            j = bisect_right(gaps, g + max(0.04 * g, CLOCK_SPREAD_CHARS * link.char_ns))
+            if j - i > best:
+                best, at = j - i, i
+        if best < CLOCK_MIN or best < CLOCK_SHARE * len(gaps):
+            return None
+        period = gaps[at + best // 2]
+        cycle = self._cycle_ns(s)
+        if cycle and any(abs(period - k * cycle) < 0.05 * period or abs(period - cycle / k) < 0.05 * period
+                         for k in (1, 2, 3, 4)):
+            return None  # damage with the poll cycle: a unit's (its driver, its slot), not another clock
+        near = max(0.04 * period, CLOCK_SPREAD_CHARS * link.char_ns)
+        chain = [(b, i) for (ta, _, _), (t, b, i) in zip(s.burst_times, list(s.burst_times)[1:])
+                 if abs((t - ta) - period) < near]
+        firsts = Counter(b for b, _ in chain if b in link.units and link.units[b].present).most_common(2)
+        unit = firsts[0][0] if firsts and (len(firsts) == 1 or firsts[0][1] >= 1.3 * firsts[1][1]) else None
+        who = f"unit {unit}'s address most often" if unit is not None else "no one unit's address clearly"
+        ev = {"collisions_crc_damaged_frames": s.bursts, "its_period_ms": round(period / 1e6, 1),
+              "spacings_at_its_period": best, "spacings": len(gaps),
+              "first_master_cycle_ms": round(cycle / 1e6, 1) if cycle else None}
+        return Finding(
+            "second_master", ERROR, unit=unit, link=link.name, t_start=d.seconds(s.first_ns),
+            t_end=d.seconds(s.last_ns), evidence=ev, frames=[i for _, i in chain[:4]],
+            statistic={"test": "spacing of the bursts of two transmitters at once: the share in a window at one "
+                               "period (4 % of it or 24 characters wide)",
+                       "share": round(best / len(gaps), 3), "n": len(gaps)},
+            text=f"Another master talks over the first on a clock of its own: bursts of two transmitters at once "
+                 f"come about every {period / 1e6:.0f} ms ({best} of {len(gaps)} spacings between them), not with "
+                 f"the poll cycle; its requests are lost in the collisions (too few survive to tell what it reads), "
+                 f"but the bursts start with {who}.",
+            action="Find the second master (an HMI, a gateway, a laptop left connected) and take it off this line, "
+                   "or make it a slave of the PLC: Modbus RTU has one master per line, and it never listens "
+                   "before it talks.")
+
+    @staticmethod
+    def _cycle_ns(s: _Link) -> int | None:
+        """The first master's cycle: the most frequent request type's mean spacing."""
+        top = max(s.times.values(), key=lambda t: t[2], default=None)
+        return (top[1] - top[0]) // (top[2] - 1) if top is not None and top[2] > 1 else None
 
     def _retries(self, d: Diagnosis, link: Link, s: _Link) -> Finding | None:
         answering = {u: n for u, n in s.retries.items() if link.units.get(u) is not None and link.units[u].answered}
