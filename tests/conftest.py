@@ -1,3 +1,4 @@
+import os
 import sys
 import time
 from pathlib import Path
@@ -39,9 +40,21 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.slow)
         if _shares_a_fixture(item):
             item.add_marker(pytest.mark.xdist_group(item.module.__name__))
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        items[:] = sorted(items, key=lambda item: not _known_long(item))  # stable: the rest keep their order
 
 
 # --- the suite on several cores (README: `pytest -n auto --dist loadgroup`, pytest-xdist) ----------------------
+def _known_long(item) -> bool:
+    """A test tests/fastlane.py lists as long (SLOW_FILES, SLOW_TESTS: minutes of simulation, worker processes).
+    Under xdist these start first, and the many short tests fill in behind them: a long test taken last would
+    leave the other worker idle until it ends."""
+    from fastlane import SLOW_FILES, SLOW_TESTS
+
+    name = Path(str(item.fspath)).name
+    return name in SLOW_FILES or f"{name}::{getattr(item, 'originalname', None) or item.name}" in SLOW_TESTS
+
+
 def _shares_a_fixture(item) -> bool:
     """Whether a test uses a fixture made once for its module (or class): a built wheel and venv, a simulated
     day, a dataset.  Such a module runs whole on one worker (`--dist loadgroup` keeps an xdist_group together),
