@@ -36,6 +36,18 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 SNIFFER = [sys.executable, "-m", "sniffer"]
+
+
+def _compile_sources() -> None:
+    """Bytecode for the checkout, as a field install (pip, pipx) has: with PYTHONDONTWRITEBYTECODE set (these
+    machines) an editable install would compile every module again in each timed process (about 0.2 s)."""
+    import compileall
+
+    for package in ("sniffer", "decoders"):
+        compileall.compile_dir(str(HERE.parent / package), quiet=2)
+
+
+_compile_sources()
 STRESS_FPS_PROBE_S = 20
 
 # name, argv after the capture, outputs (compared between the two runs; {j} is the run's job count)

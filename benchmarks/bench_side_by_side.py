@@ -228,6 +228,9 @@ def main() -> None:
           "default = no --jobs flag (sniffer.parallel.options.default_jobs)")
     print(f"{os.cpu_count()} CPUs, {cores()} usable ({platform.processor() or platform.machine()}); "
           f"Python {platform.python_version()}; load average now {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    from sniffer.hot import describe
+
+    print(f"ours: {describe()} (SNIFFER_PURE=1 for the pure-Python path; docs/install.md)")
 
 
 if __name__ == "__main__":

@@ -380,9 +380,12 @@ def plugin_models() -> dict[str, tuple[Decoder, object]]:
     from .table_decoder import TableDecoder
     from .tables import MapError
 
+    plugins = (*model_plugins(), *protocol_plugins())
+    if not plugins:  # the usual case: no shipped map is loaded only to compare ids (every command's start-up)
+        return {}
     shipped = _builtin_decoders()
     found: dict[str, tuple[Decoder, object]] = {}
-    for plugin in (*model_plugins(), *protocol_plugins()):
+    for plugin in plugins:
         obj = getattr(plugin.obj, "decoder", plugin.obj)
         if isinstance(obj, str):  # a register map's path
             try:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import json
+import struct
 import sys
 import tempfile
 from contextlib import redirect_stderr, redirect_stdout
@@ -63,6 +64,13 @@ def seeds() -> dict[str, dict[str, bytes]]:
         "rtu": bytes([0x47]) + bytes.fromhex("010300000002C40B01030400010002" "2A32"),
         "ascii": bytes([0x8F]) + b":010300000002FA\r\n:0103040001000275\r\n",
         "noise": bytes([0x00]) + bytes(range(0, 256, 7)),
+    }
+    raw = b'{"kind":"chunk","t_ns":12,"data":"010300000002c40b","byte_dt_ns":null,"flags":[],"channel":""}'
+    message = struct.pack("<BQHIQQ", 5, 22 + len(raw), 1, 0, 5, 5) + raw
+    out["hot"] = {  # the first byte as for framers; the rest as RTU bytes, a /raw message, a chunk's records
+        "rtu": bytes([0x47]) + bytes.fromhex("010300000002C40B01030400010002" "2A32" "0110000A0002040001000AD3A1"),
+        "raw": bytes([0x00]) + raw,
+        "chunk": bytes([0x00]) + message * 2,
     }
     out["filter"] = {f"f{i}": f.encode() for i, f in enumerate([
         "crc", "u:1 fc:3", "lat>20ms", "rate(crc) > 5/min", '"Output frequency" > 50', "reg:2520H..2525H",

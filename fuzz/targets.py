@@ -123,6 +123,62 @@ def run_framers(data: bytes) -> None:
                              f"{' (reordered)' if len(out) == len(line) else ''}")
 
 
+def run_hot(data: bytes) -> None:
+    """The compiled path (sniffer._hot) against the pure-Python one on the same bytes: the RTU framer on reads
+    shaped by the first byte (as `framers`), the bytes as a /raw message and as the records of an MCAP chunk.
+    Any difference is a crash.  The other targets run whichever path the process loaded (the compiled one
+    unless SNIFFER_PURE=1); this one runs both.  Without the extension built it checks nothing."""
+    from sniffer.hot import HOT
+
+    if HOT is None or not data:
+        return
+    import struct
+    import zlib
+
+    from mcap.records import Channel
+
+    from sniffer.events import Chunk
+    from sniffer.formats.mcap.format import decode_event, decode_event_py
+    from sniffer.formats.mcap.scan import _walk_chunk
+    from sniffer.frame import Frame
+    from sniffer.framing.rtu import RtuFramer
+    from sniffer.line import LineSettings
+
+    class Pure(RtuFramer):
+        _compiled_fast = None
+
+    shape, line = data[0], data[1:]
+    size = 1 + (shape & 0x1F)
+    gap_ns = (shape >> 5) * 2_000_000
+    settings = LineSettings(9600, "N", 1, 8)
+    got = []
+    for framer_class in (RtuFramer, Pure):
+        framer, frames, t = framer_class(settings), [], 1_000_000
+        for i in range(0, len(line), size):
+            frames += framer.feed(Chunk(t, line[i:i + size]))
+            t += gap_ns + size * 1_042_000
+        frames += framer.flush()
+        got.append([tuple(repr(getattr(f, k)) for k in Frame.__slots__ if k not in ("peer", "encoded", "_points"))
+                    for f in frames])
+    if got[0] != got[1]:
+        raise Unexpected("the RTU framer's frames differ between the compiled and the pure path")
+
+    def outcome(fn, *args):
+        try:
+            return "ok", repr(fn(*args))
+        except Exception as e:  # noqa: BLE001 - the same exception on both paths is what is compared
+            return "error", type(e).__name__, str(e)
+
+    if outcome(decode_event, line) != outcome(decode_event_py, line):
+        raise Unexpected("a /raw message decodes differently on the compiled and the pure path")
+    known = {1: Channel(id=1, schema_id=1, topic="/raw", message_encoding="json", metadata={})}
+    body = (struct.pack("<QQQI", 0, 0, len(line), zlib.crc32(line)) + struct.pack("<I", 0)
+            + struct.pack("<Q", len(line)) + line)
+    skip = (lambda topic: topic != "/raw")  # noqa: E731
+    if outcome(_walk_chunk, body, dict(known), skip) != outcome(_walk_chunk, body, dict(known), skip, None):
+        raise Unexpected("an MCAP chunk's records differ between the compiled and the pure path")
+
+
 def run_filter(data: bytes) -> None:
     from sniffer.filterlang.parser import FilterError, parse
 
@@ -137,6 +193,7 @@ TARGETS: dict[str, Callable[[bytes], object]] = {
     **{name: (lambda data, name=name: run_file(name, data)) for name in FILE_TARGETS},
     "framers": run_framers,
     "filter": run_filter,
+    "hot": run_hot,
 }
 
 

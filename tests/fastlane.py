@@ -65,10 +65,12 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_diagnose_masters.py::test_healthy_plants_give_nothing_above_info",  # 8 plants x 60 s
     "test_diagnose_masters.py::test_busy_healthy_plants_give_nothing_above_info",  # 8 busy plants x 30 s
     "test_diagnose_masters.py::test_a_timeout_exceeded_by_the_slowest_answers_only_is_found_with_a_timeout_to_set",
+    "test_diagnose_masters.py::test_a_silent_unit_only_written_is_silent_and_its_retries_are_no_echoes",  # 8 x 50 s
     # minutes of simulated line through diagnose
     "test_diagnose_thresholds.py::test_a_full_line_is_not_nothing_to_fix_and_a_warning_once_it_stretches",
     "test_diagnose_thresholds.py::test_strays_after_0_7_percent_of_transmissions_are_bus_unbiased_with_their_rate",
     "test_diagnose_episodes.py::test_a_silence_that_comes_twice_is_two_episodes",
+    "test_diagnose_episodes.py::test_every_kind_found_says_when_in_episodes",  # five captures of 60 s
     # several captures into a dataset: by worker processes, as `--jobs` defaults to every core
     "test_dataset.py::test_ingest_is_incremental",
     "test_dataset.py::test_query_formats_and_presets",

@@ -194,3 +194,30 @@ def diagnose_source(source):
     for f in session:
         engine.frame(f)
     return engine.findings(), engine
+
+
+def frames_of(path) -> list[dict]:
+    """The frame records of an MCAP file: its /frames, or, a compact file having none (a segment, a trigger
+    window), the frames its /raw replays to alone, as `sniffer replay FILE` gives them."""
+    from mcap.reader import make_reader
+
+    from sniffer.capture.session import CaptureSpec, EventSource, Session
+    from sniffer.formats.mcap.reader import open_mcap, read_frames
+
+    with open(path, "rb") as fh:
+        topics = {c.topic for c in make_reader(fh).get_summary().channels.values()}
+    if "/frames" in topics:
+        return read_frames(str(path))
+    info, events = open_mcap(str(path))
+    out = ListSink()
+    Session(CaptureSpec(), EventSource(info, events), [out]).run()
+    return out.records
+
+
+def window_holds(held: list, capture: list, start_t: float, end_t: float) -> bool:
+    """A trigger window's frames (`held`: (t, ...) keys, from what it replays to) are the capture's (`capture`,
+    the same keys in order) from its start to its end, and past its end at most the frames that finish in
+    the reads it takes to end a frame begun (under a second), none skipped."""
+    ours = [k for k in capture if start_t - 1e-9 <= k[0]]
+    upto = sum(1 for k in ours if k[0] <= end_t + 1e-9)
+    return len(held) >= upto and held == ours[: len(held)] and (not held or held[-1][0] <= end_t + 1.0)

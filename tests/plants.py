@@ -120,9 +120,10 @@ def verdict(p: Plant, findings: list) -> tuple[bool, list]:
     return found, false
 
 
-# what a cause brings with it, named rightly beside it: a silent unit's retries fill the line
-CONSEQUENCES = {"unit_silent": ("retry_storm",), "driver_enable_late": ("retry_storm",),
-                "driver_disable_early": ("retry_storm",)}
+# what a cause brings with it, named rightly beside it: a silent unit's retries fill the line (and on a line already
+# full, stretch its cycle: poll_cycle's warning)
+CONSEQUENCES = {"unit_silent": ("retry_storm", "poll_cycle"), "driver_enable_late": ("retry_storm", "poll_cycle"),
+                "driver_disable_early": ("retry_storm", "poll_cycle")}
 
 
 # ------------------------------------------------------------ causes, each at a drawn severity

@@ -180,6 +180,22 @@ def test_params_against_a_reference(tmp_path):
     (f,) = [x for x in findings if x.kind == "params_changed"]
     assert f.unit == 2 and [c["parameter"] for c in f.evidence["changes"]] == ["An-01"]
     assert f.evidence["changes"][0]["now"] == 25.0  # the scenario writes and reads back 25.00 Hz
+    assert reference.notes() == []  # every row named a register of its unit's map, every unit answered
+
+
+def test_params_rows_compared_with_nothing_are_said(tmp_path):
+    """A register id its unit's map lacks (a typo) and a unit the capture never hears: a note each, not dropped."""
+    from sniffer.diagnose.reference import load_csv
+
+    ref = tmp_path / "drive2.csv"
+    ref.write_text("unit,register,value\n2,An-01,20.0\n2,An-O1,20.0\n2,Zz-99,1\n9,Cn-02,60.0\n")
+    reference = load_csv(str(ref))
+    findings, _ = diagnose_sim("tds-v8", (), 20.0, "usb", reference=reference)
+    assert [f.unit for f in findings if f.kind == "params_changed"] == [2]
+    notes = reference.notes()
+    assert len(notes) == 2, notes
+    assert "2 rows of unit 2 name no register of its map" in notes[0] and "'An-O1', 'Zz-99'" in notes[0]
+    assert notes[1] == "--params drive2.csv: unit 9 never answered in the capture; not compared"
 
 
 def test_json_has_every_field_a_script_needs():

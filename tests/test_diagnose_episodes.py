@@ -145,3 +145,24 @@ def test_a_latency_drift_is_an_episode_from_where_it_left_to_the_end():
     assert 3.0 < e.from_s < 20.0 and e.to_s > 29.0 and "slower than at the start" in e.what
     assert e.count < engine.links[""].units[1].lat.n
     assert "when: 1 episode: " in "\n".join(f.text_lines())
+
+
+def test_every_kind_found_says_when_in_episodes():
+    """The kinds judged over the whole capture say when too: broadcasts answered, saves, writes not saved, a line
+    read at the wrong settings, a unit that never answers, the poll cycle and its redundant reads (one episode
+    over the span where it is a state, not events); each episode in words, nothing of Python's."""
+    cases = [("errors", (), ()), ("tds-v8", ("eeprom_wear:2",), ()), ("tds-v8", ("params_not_saved:2",), ()),
+             ("default", ("wrong_line_settings:38400",), ()), ("default", (), ("poll_period_ms=0",))]
+    seen = set()
+    for scenario, faults, params in cases:
+        findings, _ = diagnose_sim(scenario, faults, 60.0, "wire", params=params)
+        for f in findings:
+            seen.add(f.kind)
+            assert f.episodes and f.episode_count >= len(f.episodes), (scenario, f.kind, f.unit)
+            for e in f.episodes:
+                # (a trip's count is the master's writes meanwhile: none is a count too)
+                assert 0.0 <= e.from_s <= e.to_s <= 62.0 and (e.count > 0 or f.kind == "drive_fault"), (f.kind, e)
+            words = f.when()
+            assert words and not any(x in words for x in ("None", "{", "[")), words
+    assert {"answers_broadcast", "eeprom_wear", "params_not_saved", "wrong_line_settings", "unit_silent",
+            "poll_cycle", "poll_redundant"} <= seen, seen

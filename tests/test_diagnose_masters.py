@@ -54,6 +54,14 @@ def test_the_finding_says_in_words_what_the_second_master_reads_and_how_often():
     assert f.unit == plant.units[1]
     assert "about every" in f.text and "fc04" in f.text, f.text
     assert "None" not in f.text and "{" not in f.text
+    # each request type labelled with the master it most likely comes from: the fc04 reads the second's, the
+    # first master's cycle its own; in words, a table (the rest in --format json)
+    by = f.evidence["requests_by_master"]
+    second = {t for t, x in by.items() if x["master"] == "second"}
+    assert second and all(t.startswith(f"u{plant.units[1]} fc04") for t in second), by
+    assert sum(x["requests"] for t, x in by.items() if x["master"] == "first") > f.evidence["its_requests"], by
+    words = "\n".join(f.text_lines())
+    assert "master second" in words and "{" not in words and "None" not in words, words
 
 
 def test_new_kinds_parse():
@@ -81,3 +89,53 @@ def test_busy_healthy_plants_give_nothing_above_info():
     """Cycles back to back and drives started and stopped every second: no second master, no short timeout."""
     t = tally([(draw(s).label(), None, diagnose_plant(draw(s), (), seconds=30, **busy(draw(s)))) for s in SEEDS])
     assert t["false_alarms"] == 0, t["false_runs"]
+
+
+def test_a_silent_unit_only_written_is_silent_and_its_retries_are_no_echoes():
+    """A unit the master only writes (05, 06, 08: answered by an echo of the request) goes silent: the master's
+    retries, byte for byte the request, are not paired as its echoes (the pairer tells them by their timing),
+    and unit_silent names it; every echo of the units that answer is still paired."""
+    from sniffer.capture.session import Session
+    from sniffer.capture.settings import CaptureSpec
+    from sniffer.simulator.scenario import PollSpec
+    from sniffer.simulator.sources import SimulatedSource
+    from helpers import diagnose_source
+
+    wrong = missed = echoes = 0
+    for seed in SEEDS:
+        plant = draw(seed)
+        silent = plant.units[1]
+        others = tuple(u for u in plant.units if u != silent)
+        polls = (PollSpec(0x03, 0x2100, 4, units=others), PollSpec(0x06, 0x2001),
+                 PollSpec(0x05, 0x0001, every=2, value=0xFF00), PollSpec(0x08, 0x0000, every=3, value=0x1234))
+        sc = apply(scenario(plant, polls=polls), [f"unit_silent:{silent}@10-40"])
+        session = Session(CaptureSpec.of(), SimulatedSource(sc, sc.line, 50, seed, "wire"), [])
+        session.open()
+        for f in session:
+            t = f.t_ns / 1e9 - session.info.t0_ns / 1e9
+            if f.unit == silent and f.function in (5, 6, 8) and 10.5 < t < 40:
+                wrong += f.role == "response"
+            elif f.unit in others and f.function in (5, 6, 8) and f.role == "request" and f.crc_ok:
+                echoes += 1
+                missed += f.pair is None
+        findings, _ = diagnose_source(SimulatedSource(sc, sc.line, 50, seed, "wire"))
+        assert ("unit_silent", silent) in alarms(findings), (plant.label(), alarms(findings))
+    assert wrong == 0 and echoes > 1000 and missed == 0, (wrong, echoes, missed)
+
+
+@pytest.mark.parametrize("first,second", [("noise_correlated_with_load", "driver_enable_late"),
+                                          ("driver_enable_late", "drive_fault"), ("latency_drift", "bus_unbiased")])
+def test_two_causes_whose_damage_overlaps_are_both_found_fast(first, second):
+    """The fast lane's share of test_diagnose_sweeps.py's two-cause sweep: the one seed of each pair that used to
+    miss (one cause's damage over the other's signs)."""
+    import dataclasses
+
+    from plants import cause, diagnose, verdict
+
+    p = cause(first, 0)
+    q = cause(second, 50, base=dataclasses.replace(p, faults=(), expect=()))
+    both = dataclasses.replace(q, faults=p.faults + q.faults, expect=p.expect + q.expect,
+                               seconds=max(p.seconds, q.seconds))
+    findings, _ = diagnose(both)
+    found, false = verdict(both, findings)
+    assert found and not false, (both.name, alarms(findings))

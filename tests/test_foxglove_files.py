@@ -6,12 +6,13 @@ anywhere else); and the files the other commands write from such a capture (expo
 window, repair) are Foxglove-native too and still replay.
 """
 
+import bisect
 import json
 import math
 
 import jsonschema
 import pytest
-from helpers import read_mcap as read
+from helpers import frames_of, read_mcap as read
 
 from sniffer.cli import main
 
@@ -130,13 +131,35 @@ def test_export_and_replay_of_a_foxglove_capture(captures, tmp_path, capsys):
 
 
 def foxglove_native_alone(path):
-    """A part of the a510 capture written as a file of its own (a window, a segment): the device, the map,
-    values that all come from its own frames.  Its messages."""
-    _s, meta, att, msgs = read(path)
+    """A part of the a510 capture written as a file of its own (a window, a segment): compact (no /frames,
+    /raw batched), every message fitting its channel's schema, the device, the map, values that all come
+    from the frames it replays to alone.  Its messages."""
+    summary, meta, att, msgs = read(path)
     assert meta["foxglove"]["deviceName"] == DEVICE and list(att) == ["a510.registers.toml"]
-    indexes = {d["index"] for ch, _t, d in msgs if ch.topic == "/frames"}
+    raw = [ch for ch in summary.channels.values() if ch.topic == "/raw"]
+    assert [ch.metadata["sniffer.format"] for ch in raw] == ["2"]
+    assert "/frames" not in {ch.topic for ch in summary.channels.values()}
+    validators = {}
+    for cid, ch in summary.channels.items():
+        doc = json.loads(summary.schemas[ch.schema_id].data)
+        validators[cid] = jsonschema.validators.validator_for(doc, default=jsonschema.Draft202012Validator)(doc)
+    for ch, _t, d in msgs:
+        validators[ch.id].validate(d)
+    # a value's frame is the capture's number of a frame this file replays to (numbered from 0 when it
+    # replays alone), at the value's time: one offset for all
+    from sniffer.formats.mcap.reader import open_mcap
+
+    info = open_mcap(path)[0]
+    at = {info.wall_anchor_ns + round(r["t"] * 1e9): r["index"] for r in frames_of(path)}  # log time -> number
+    times = sorted(at)
     values = topic_messages(msgs, "/values/")
-    assert values and all(d["frame"] in indexes for v in values.values() for _t, d in v)
+    offsets = set()
+    for v in values.values():
+        for t, d in v:
+            i = bisect.bisect_left(times, t - 1000)
+            assert i < len(times) and abs(times[i] - t) < 1000, (t, d)  # a frame of the file at the value's time
+            offsets.add(d["frame"] - at[times[i]])
+    assert values and len(offsets) == 1
     return msgs
 
 

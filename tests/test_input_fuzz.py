@@ -95,7 +95,7 @@ def seeds(tmp_path_factory) -> dict[str, bytes]:
     out = {"csv": WIZ.read_bytes()}
     info, events = open_replay(str(WIZ))
     info.baud = 9600
-    sink = McapSink(d / "wiz.mcap", flush_interval_s=0)  # a chunk per event: damage loses little
+    sink = McapSink(d / "wiz.mcap", flush_interval_s=0, seal_interval_s=0)  # a chunk per event: damage loses little
     sink.start(info)
     for ev in events:
         sink.raw(ev)

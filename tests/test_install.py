@@ -27,7 +27,8 @@ pytestmark = [pytest.mark.slow, pytest.mark.timeout(1200)]
 
 ROOT = Path(__file__).resolve().parents[1]
 EXTRA_MODULES = ("pyarrow", "duckdb", "paho", "textual_serve", "yaml", "mcp")
-SKIP = shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info", "build")
+# *.so: the compiled hot path an editable install built in place (the wheel builds its own from sniffer/_hot.c)
+SKIP = shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info", "build", "*.so")
 
 
 def _env() -> dict:
@@ -62,7 +63,7 @@ def here(*args, cwd) -> subprocess.CompletedProcess:
 def built(tmp_path_factory) -> tuple[Path, Path]:
     """(the wheel, the copy of the package it was built from)."""
     src = tmp_path_factory.mktemp("src")
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "setup.py", "README.md"):
         shutil.copy(ROOT / name, src / name)
     for package in ("sniffer", "decoders"):
         shutil.copytree(ROOT / package, src / package, ignore=SKIP)

@@ -16,7 +16,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 SNIFFER = ROOT / "sniffer"
 LOOSE_ALLOWED = 6  # beside __init__, __main__ and cli
-FACES = ("sniffer.framing", "sniffer.capture", "sniffer.sources", "sniffer.processes", "sniffer.analysis")
+FACES = ("sniffer.framing", "sniffer.capture", "sniffer.sources", "sniffer.processes", "sniffer.analysis",
+         "sniffer.decoding")
 
 
 def _py_files():

@@ -4,7 +4,7 @@ field, the bus file's [[links]], the flags (capture/links.py, capture/settings.p
 from __future__ import annotations
 
 import pytest
-from helpers import ListSink, bursts, fr
+from helpers import ListSink, bursts, fr, frames_of
 
 from sniffer.capture.busfile import BusFileError, load_bus_file
 from sniffer.cli import build_parser
@@ -180,7 +180,6 @@ def test_bus_file_link_errors_are_one_line(tmp_path, text, message):
 def test_trigger_windows_start_every_link_at_its_own_quiet_point(tmp_path):
     """Two links never quiet at once (a request is always waiting on one of them): a window starts each
     link where that link was quiet, so it replays without answers cut off from their requests."""
-    from sniffer.formats.mcap.reader import read_frames
     from sniffer.triggers import TriggerSpec
 
     ms = 1_000_000
@@ -211,5 +210,5 @@ def test_trigger_windows_start_every_link_at_its_own_quiet_point(tmp_path):
     def keys(records):
         return {(r["link"], r["t"], r["raw"]) for r in records}
 
-    assert keys(read_frames(str(window))) <= keys(recs)
+    assert keys(frames_of(window)) <= keys(recs)
     assert [r["role"] for r in got if r["link"] == "a"][:1] == ["request"]

@@ -219,12 +219,12 @@ def test_newer_raw_format_is_refused(tmp_path):
         w = Writer(fh)
         w.start()
         w.add_metadata("sniffer.capture", info_to_metadata(INFO))
-        ch = w.register_channel("/raw", "json", 0, {"sniffer.format": "2"})
+        ch = w.register_channel("/raw", "json", 0, {"sniffer.format": "3"})
         w.add_message(ch, 1, b'{"kind": "tick", "t_ns": 1}', 1)
         w.finish()
     info, it = open_mcap(p)
     assert info == INFO
-    with pytest.raises(CaptureError, match="format '2' is newer"):
+    with pytest.raises(CaptureError, match="format '3' is newer"):
         list(it)
 
 
@@ -236,7 +236,7 @@ def _chunk_offsets(path):
 def test_damaged_chunk_is_skipped_announced_and_repair_keeps_the_rest(tmp_path):
     p = tmp_path / "damaged.mcap"
     events = [make_event(i) for i in range(10)]
-    write_capture(p, events, flush_interval_s=0)  # one chunk per event: chunk k+1 holds event k
+    write_capture(p, events, flush_interval_s=0, seal_interval_s=0)  # one chunk per event: chunk k+1 holds event k
     start, length = _chunk_offsets(p)[4]
     data = bytearray(p.read_bytes())
     data[start + length - 6] ^= 0xFF
@@ -271,7 +271,7 @@ def test_cut_files_read_a_prefix(tmp_path):
     p = tmp_path / "full.mcap"
     events = [make_event(i) for i in range(6)]
     frames = real_frames()
-    write_capture(p, events, frames, flush_interval_s=0)
+    write_capture(p, events, frames, flush_interval_s=0, seal_interval_s=0)
     data = p.read_bytes()
     cuts = set(range(0, len(data), 7))
     pos = 8
@@ -297,6 +297,36 @@ def test_cut_files_read_a_prefix(tmp_path):
 
 
 # -- killed writer -------------------------------------------------------------------------
+
+def test_a_live_files_open_chunk_is_on_disk_every_flush_and_sealed_long(tmp_path):
+    """A live capture rewrites its open chunk every flush interval and seals it every seal interval: the
+    file as it is on disk at any moment (what a SIGKILL leaves) reads every event older than the flush
+    interval, and the finished file holds one chunk per seal interval, not one per flush."""
+    p = tmp_path / "live.mcap"
+    now = [T0]
+    sink = McapSink(p, clock=lambda: now[0], flush_interval_s=1.0, seal_interval_s=10.0)
+    sink.start(INFO)
+    events = [make_event(i) for i in range(4000)]  # 1 ms apart: 4 s of capture
+    for k, ev in enumerate(events):
+        now[0] = T0 + k * 10_000_000  # the sink's clock runs ten times the events': 40 s of writing
+        sink.raw(ev)
+        if k % 97 == 0:  # the file as a SIGKILL would leave it now
+            cut = tmp_path / "cut.mcap"
+            cut.write_bytes(p.read_bytes())
+            got = list(open_mcap(cut)[1]) if k else []
+            assert got == events[: len(got)]
+            assert len(got) >= k - 100  # all but the last second of the sink's clock (100 events)
+    size = sink.size  # what size rotation reads: the copy on disk and the open chunk are not counted twice
+    sink.close()
+    assert abs(p.stat().st_size - size) < 0.05 * size
+    chunks = _chunk_offsets(p)
+    assert 4 <= len(chunks) <= 6  # 40 s sealed every 10 s (and the /capture chunk), not 40 chunks
+    with open(p, "rb") as fh:
+        msgs = [m for _s, c, m in make_reader(fh).iter_messages() if c.topic == "/raw"]
+    assert len(msgs) == len(events)
+    assert list(open_mcap(p)[1]) == events
+
+
 
 KILL_CHILD = r"""
 import sys, time
@@ -365,7 +395,7 @@ from test_mcap import INFO, make_event, real_frames
 from sniffer.formats.mcap.sink import CaptureStorageError, McapSink
 limit = int(sys.argv[3])
 resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))  # writes past it fail with EFBIG
-sink = McapSink(sys.argv[1], flush_interval_s=0)
+sink = McapSink(sys.argv[1], flush_interval_s=0, seal_interval_s=0)
 sink.start(INFO)
 accepted = 0
 try:

@@ -69,12 +69,13 @@ def test_a_capture_summary_findings_frames_history_and_figures(tmp_path, capsys)
         ("capture_summary", {}),
         ("capture_summary", {"capture_name": "/etc/passwd"}),
         ("frames", {"capture_name": "a510.mcap", "limit": 100000}),
+        ("frames", {"capture_name": "errors.mcap", "fitler": "crc"}),
     ])
     assert {t.name for t in tools} == {"list_sources", "capture_summary", "diagnose", "frames", "register_history",
                                        "report_figures", "dataset_query", "live_view"}
     assert all(t.annotations.read_only_hint for t in tools)
     (sources, summary, findings, page1, page2, crc_all, big, bad_filter, hist, no_reg, figures, unnamed, outside,
-     too_many) = got
+     too_many, typo) = got
     assert sources[1] == {"sources": [{"name": str(cap), "kind": "capture"}, {"name": str(a510), "kind": "capture"}]}
 
     # the summary and the findings are the commands' own: frame count as decoded, findings as `sniffer diagnose`
@@ -101,6 +102,9 @@ def test_a_capture_summary_findings_frames_history_and_figures(tmp_path, capsys)
     assert big[1]["next_offset"] == len(big[1]["frames"]) < 200
     assert bad_filter[0] and "filter error at column 5" in bad_filter[1]
     assert too_many[0] and "limit must be from 1 to 200" in too_many[1]
+    # an argument the tool does not take is refused, not dropped (a typo would have answered every frame)
+    assert typo[0] and "fitler" in typo[1] and "Extra inputs are not permitted" in typo[1]
+    assert all(t.input_schema.get("additionalProperties") is False for t in tools)
 
     # a register's history: every change of Output frequency (2524H) of unit 1, in time order
     changes = hist[1]["changes"]

@@ -163,6 +163,8 @@ def test_a_name_the_model_gives_several_registers_gets_the_address_in_every_topi
     ("mqtt://host:99999/p", "Port out of range"),
     ("mqtt://host/plant/#", "may not hold '#'"),
     ("mqtt://u:pw@host:x/p", "--mqtt mqtt://u:***@host:x/p"),  # the password never in a message
+    ("mqtt://a b/x", "'a b' is not a host name or address"),  # urlsplit takes it: it would fail at connect
+    ("mqtt://-plc/x", "'-plc' is not a host name or address"),
 ])
 def test_a_bad_url_is_one_line_naming_what_is_wrong(url, says):
     with pytest.raises(SettingsError) as e:

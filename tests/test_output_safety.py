@@ -195,7 +195,7 @@ def test_a_segment_cut_short_stays_a_part_file_and_the_index_says_so(capture, tm
     import json
 
     r = run("replay", capture, "--quiet", "--rotate", "10MB", "--out", "segs", cwd=tmp_path,
-            preexec_fn=_file_limit(500_000))
+            preexec_fn=_file_limit(250_000))
     assert r.returncode == 1 and "kept as segs/" in r.stderr, r.stderr
     assert _readable_mcaps(tmp_path) == []
     (part,) = (tmp_path / "segs").glob("*.mcap.part")

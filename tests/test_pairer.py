@@ -242,6 +242,42 @@ def test_a_crc_bad_burst_that_fits_no_length_is_never_a_request():
     assert retry.role == UNKNOWN and (answer.role, answer.pair, req.pair) == (RESPONSE, 0, 2)
 
 
+def test_a_copy_of_an_echo_request_is_the_masters_retry_when_its_timing_says_so():
+    """_a_retry: a byte-for-byte copy of a pending 06 write, far later than the line's answers come, is the master's
+    retry (the write unanswered), not the unit's echo; an echo as soon as the unit answers stays the echo, and so
+    does a slow one (a write stored to EEPROM) well before the master's timer would run out."""
+    write = "020620010007"
+    frames, t = [], 0.0
+    for _ in range(4):  # unit 1 answers its reads within 3 ms
+        frames += [frame(len(frames), t, READ, CAN_REQ), frame(len(frames) + 1, t + 4, READ_RSP, CAN_RSP)]
+        t += 50
+    w0 = frame(len(frames), t, write, BOTH)
+    w1 = frame(len(frames) + 1, t + 101, write, BOTH)  # unit 2 silent: the master's retry 100 ms later
+    w2 = frame(len(frames) + 2, t + 202, write, BOTH)
+    run(frames + [w0, w1, w2])
+    assert w1.role == REQUEST and w1.pair is None and "pair.retry" in [c for c, _ in notes(w1)]
+    assert "pair.no_response" in [c for c, _ in notes(w0)]
+    assert any(c == "pair.role.ambiguous" and "master's retry of #" in d for c, d in notes(w1))
+    assert w2.role == REQUEST and "pair.retry" in [c for c, _ in notes(w2)]
+
+    frames, t = frames[:8], 200.0
+    echo_req, echo = frame(8, t, write, BOTH), frame(9, t + 4, write, BOTH)  # answered at once
+    run(frames + [echo_req, echo])
+    assert echo.role == RESPONSE and echo.pair == 8
+
+    # the master's timer known (it retried a read after 100 ms): a write echoed after 40 ms is still the echo
+    p = Pairer()
+    lost = [frame(8, 200, READ, CAN_REQ), frame(9, 301, READ, CAN_REQ), frame(10, 402, READ, CAN_REQ)]
+    slow_req, slow = frame(11, 500, write, BOTH), frame(12, 541, write, BOTH)
+    run(frames + lost + [slow_req, slow], p)
+    assert len(p.waits) == 2 and slow.role == RESPONSE and slow.pair == 11
+    # ... and one 100 ms later is its retry
+    p = Pairer()
+    late_req, retry = frame(11, 500, write, BOTH), frame(12, 601, write, BOTH)
+    run(frames + lost + [late_req, retry], p)
+    assert retry.role == REQUEST and "pair.retry" in [c for c, _ in notes(retry)]
+
+
 def test_pair_mismatch_from_response_mismatch():
     req, rsp = frame(0, 0, READ, CAN_REQ), frame(1, 5, "0103020001", CAN_RSP)  # 2 registers asked, 1 sent
     run([req, rsp])

@@ -89,6 +89,21 @@ def test_only_an_intact_file_is_read_by_number(captures):
     assert raw_index(str(captures / "outside.mcap")) is None
 
 
+def test_a_compact_segment_is_read_in_order_with_the_same_output(captures, tmp_path, capfd):
+    """A rotated segment's /raw message holds a second of events (format 2): not numbered by event, so the
+    workers do not read it by number; --jobs gives one process's output all the same."""
+    from sniffer.formats.mcap.ranges import raw_index
+
+    rc, _out, err = _run(capfd, "replay", captures / "small.mcap", "--quiet", "--rotate", "1h", "--out", tmp_path / "s")
+    assert rc == 0, err
+    (seg,) = (tmp_path / "s").glob("*.mcap")
+    assert raw_index(str(seg)) is None
+    one = _run(capfd, "replay", seg, "--format", "jsonl", "--jobs", "1")
+    assert one == _run(capfd, "replay", seg, "--format", "jsonl", "--jobs", "2")
+    whole = _run(capfd, "replay", captures / "small.mcap", "--format", "jsonl", "--jobs", "1")
+    assert one[0] == 0 and one[1] == whole[1] and one[1].count("\n") > 10
+
+
 @pytest.fixture(scope="module")
 def killed_set(tmp_path_factory):
     """A rotated capture's folder with a segment that was not closed cleanly (its capture killed)."""

@@ -11,6 +11,7 @@ as by parts.  A one-link capture of the same lines cuts into many parts.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
@@ -115,8 +116,47 @@ def test_replay_prints_what_one_process_prints(capfd, tmp_path, small_parts, cap
     assert out.count(b"\n") > 500
 
 
+class _Kept(io.BytesIO):
+    """A stream whose bytes outlive close() (the pcap sink closes its stream)."""
+
+    kept = b""
+
+    def close(self) -> None:
+        self.kept = self.getvalue()
+        super().close()
+
+
 @pytest.mark.parametrize("links", [1, 2, 3])
-@pytest.mark.parametrize("fmt", ["csv", "parquet", "mcap", "pcapng"])
+def test_a_stream_that_does_not_split_runs_in_the_coordinator_as_one_process_writes_it(small_parts, captures,
+                                                                                     links):
+    """`replay --format pcapng`'s stream (its header once, then packets in order) does not split: by parts it
+    runs in the coordinator, fed the parts' frames and raw events, beside the line warning that does split.
+    (In process: the CLI's pcapng stream closes stdout at its end.)"""
+    from sniffer.capture.settings import CaptureSpec
+    from sniffer.decoding import decode
+    from sniffer.formats.pcap.writer import PcapSink
+    from sniffer.parallel.run import ParallelRun
+    from sniffer.sources.segset import capture_source
+
+    got, said = [], []
+    for jobs in (1, 2):
+        from sniffer.analysis.linehealth import LineWarning
+
+        out, lines = _Kept(), []
+        spec = CaptureSpec(input=captures[links])
+        run = decode(spec, capture_source(captures[links]), [LineWarning(lambda info, link: "", lines.append),
+                                                            PcapSink(out, ng=True, comments=True)], jobs=jobs)
+        assert isinstance(run, ParallelRun) == (jobs == 2)
+        run.open()
+        run.run()
+        got.append(out.kept)
+        said.append(lines)
+    assert got[0][:4] == b"\x0a\x0d\x0d\x0a" and len(got[0]) > 10_000  # a Section Header Block first
+    assert got[0] == got[1] and said[0] == said[1]
+
+
+@pytest.mark.parametrize("links", [1, 2, 3])
+@pytest.mark.parametrize("fmt", ["csv", "parquet", "mcap", "pcap", "pcapng", "jsonl"])
 def test_export_writes_what_one_process_writes(capfd, tmp_path, small_parts, captures, links, fmt):
     points = ["X.points." + fmt] if fmt in ("csv", "parquet") else []
     _, files = _same(capfd, tmp_path, ["export", captures[links], "--to", fmt], f"X.{fmt}", points)

@@ -16,6 +16,7 @@ from mcap.reader import make_reader
 from sniffer.cli import main
 from sniffer.formats.mcap.segments import INDEX_NAME, STATUS_NAME, Keep, Rotate, Segment, read_index
 from sniffer.capture.session import CaptureSpec, decode_capture
+from sniffer.sinks.base import Sink
 
 _CACHE: dict = {}
 
@@ -158,7 +159,7 @@ def test_export_and_check_read_a_set(capsys, capture, tmp_path):
 
 def test_size_rotation(capsys, tmp_path):
     sim = tmp_path / "stress.mcap"
-    assert main(["simulate", "--out", str(sim), "--scenario", "stress", "--duration", "40"]) == 0
+    assert main(["simulate", "--out", str(sim), "--scenario", "stress", "--duration", "90"]) == 0
     folder = tmp_path / "bysize"
     _rotate(capsys, sim, folder, "--rotate", "1MB")
     index = _index(folder)
@@ -349,8 +350,9 @@ def test_status_counts_what_the_frames_say(capsys, capture, tmp_path):
     assert isinstance(status["segments"]["disk_free"], int) and status["segments"]["disk_free"] > 0
 
 
-class _Triggers:
-    """A sink contributing a section to the status, as the triggers do."""
+class _Triggers(Sink):
+    """A sink contributing a section to the status, as the triggers do (a Sink: the session asks only Sinks
+    for the hooks past start/raw/frame/close)."""
 
     def __init__(self) -> None:
         self.seen = 0

@@ -12,6 +12,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from sigrok_tools import need_sigrok_cli
 
 from sniffer.sources.logic_options import DeviceSpec, LogicSpec
@@ -51,3 +53,65 @@ def test_the_analyzer_is_only_read():
     argv = src.argv
     assert not {"--set", "-o", "--output-file", "-O", "--output-format", "-t", "--triggers"} & set(argv)
     assert [argv[i + 1] for i, a in enumerate(argv) if a == "-c"] == ["samplerate=2000000"]
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        text = open(f"/proc/{pid}/task/{pid}/children").read()
+    except OSError:
+        return []
+    return [int(x) for x in text.split()]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.parametrize("what", ["live", "file"])
+def test_a_killed_sniffer_leaves_no_sigrok_cli_behind(what, tmp_path):
+    """SIGKILL gives the sniffer no chance to stop its sigrok-cli: the kernel ends it (PR_SET_PDEATHSIG).
+
+    live: the demo analyzer's D7 carries no bytes, so sigrok-cli writes no frame; file: 300 MB of idle samples,
+    seconds of decoding with nothing to write and no stdin.  (sigrok-cli also ends on its own here: the end of file
+    on its stdin, live, and the broken pipe of the log lines `-l 4` writes; the kernel's signal does not depend
+    on either.)"""
+    need_sigrok_cli()
+    if not sys.platform.startswith("linux"):
+        pytest.skip("PR_SET_PDEATHSIG and /proc are Linux's")
+    import os
+    import signal
+    import time
+
+    if what == "live":
+        argv = ["live", "sigrok:demo", "--rx", "D7", "--baud", "25000", "--samplerate", "100k", "--headless", "--quiet"]
+    else:
+        from srgen import write_sr
+
+        write_sr(tmp_path / "idle.sr", 1_000_000, ["RX"], b"\x01" * (300 << 20), member_size=16 << 20)
+        argv = ["replay", str(tmp_path / "idle.sr"), "--rx", "RX", "--baud", "9600", "--quiet"]
+    proc = subprocess.Popen([sys.executable, "-m", "sniffer", *argv], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        kids: list[int] = []
+        while not kids and time.monotonic() < deadline and proc.poll() is None:
+            kids = [k for k in _children(proc.pid) if "sigrok" in open(f"/proc/{k}/cmdline").read()]
+            time.sleep(0.05)
+        assert kids, "sigrok-cli never started under the live capture"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        deadline = time.monotonic() + 2  # the kernel's signal is at once; 300 MB of samples take sigrok-cli longer
+        while any(_alive(k) for k in kids) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        left = [k for k in kids if _alive(k)]
+        for k in left:
+            os.kill(k, signal.SIGKILL)
+        assert not left, "sigrok-cli went on acquiring after the sniffer was killed"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

@@ -384,7 +384,7 @@ def test_mcap_damaged_length_in_the_middle_keeps_the_rest(tmp_path):
 
     p = tmp_path / "len.mcap"
     events = [make_event(i) for i in range(12)]
-    write_capture(p, events, flush_interval_s=0)
+    write_capture(p, events, flush_interval_s=0, seal_interval_s=0)
     start, _length = _chunk_offsets(p)[6]
     data = bytearray(p.read_bytes())
     data[start + 4] ^= 0x20  # the chunk's record length: now far past the end of the file
@@ -400,7 +400,7 @@ def test_mcap_cut_short_is_not_damage(tmp_path):
 
     p = tmp_path / "cut.mcap"
     events = [make_event(i) for i in range(12)]
-    write_capture(p, events, flush_interval_s=0)
+    write_capture(p, events, flush_interval_s=0, seal_interval_s=0)
     data = p.read_bytes()
     p.write_bytes(data[: len(data) * 2 // 3])
     src, info, got = replay(p)
@@ -462,7 +462,7 @@ def test_mcap_channels_lost_with_the_first_chunk_come_from_the_summary(tmp_path)
 
     p = tmp_path / "first.mcap"
     events = [make_event(i) for i in range(8)]
-    write_capture(p, events, flush_interval_s=0)  # chunk 0: schemas, channels and /capture
+    write_capture(p, events, flush_interval_s=0, seal_interval_s=0)  # chunk 0: schemas, channels and /capture
     start, length = _chunk_offsets(p)[0]
     data = bytearray(p.read_bytes())
     data[start + length - 6] ^= 0xFF

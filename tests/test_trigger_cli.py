@@ -10,6 +10,7 @@ import pytest
 
 from sniffer.formats.mcap.reader import read_frames
 from sniffer.triggers import read_trigger
+from helpers import frames_of, window_holds
 
 SNIFFER = [sys.executable, "-m", "sniffer"]
 
@@ -34,7 +35,7 @@ def _check_windows(folder, records, pre, post):
     metas = []
     for path in sorted(folder.glob("*.trigger-*.mcap")):
         m = read_trigger(str(path))
-        held = read_frames(str(path))
+        held = frames_of(path)  # a window has no /frames: what it replays to alone
         keys = [(r["t"], r["raw"]) for r in held]
         for firing in m["firings"]:
             assert (firing["record"]["t"], firing["record"]["raw"]) in keys
@@ -42,8 +43,7 @@ def _check_windows(folder, records, pre, post):
         assert m["end_t"] >= m["trigger_t"] + post - 1e-6
         if m["pre_complete"]:
             assert m["asked_start_t"] - 1.0 <= m["start_t"] <= m["asked_start_t"] == pytest.approx(m["trigger_t"] - pre)
-        want = [(r["t"], r["raw"]) for r in records if m["start_t"] - 1e-9 <= r["t"] <= m["end_t"] + 1e-9]
-        assert keys == want
+        assert window_holds(keys, [(r["t"], r["raw"]) for r in records], m["start_t"], m["end_t"])
         metas.append(m)
     return metas
 

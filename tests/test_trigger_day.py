@@ -13,6 +13,7 @@ import pytest
 from sniffer.capture.session import decode_capture
 from sniffer.formats.mcap.reader import read_frames
 from sniffer.triggers import read_trigger
+from helpers import frames_of, window_holds
 
 SNIFFER = [sys.executable, "-m", "sniffer"]
 HOURS = 4
@@ -81,17 +82,11 @@ def test_a_simulated_day_keeps_every_window_whole_with_flat_memory(day, day_fram
     spans = [(m["start_t"], m["end_t"]) for m in metas]
     # the capture's frames over each window's span, as the simulator recorded them (`day_frames`: the day's
     # /frames, which no replay wrote)
-    want: list[list] = [[] for _ in files]
-    faults = []
-    for t, raw, fault in day_frames:
-        for i, (lo, hi) in enumerate(spans):
-            if lo - 1e-9 <= t <= hi + 1e-9:
-                want[i].append((t, raw))
-        if fault:
-            faults.append(t)
-    for path, m, w in zip(files, metas, want, strict=True):
-        held = [(round(r["t"], 9), r["raw"]) for r in read_frames(str(path))]
-        assert held == w, path.name
+    faults = [t for t, _raw, fault in day_frames if fault]
+    day_keys = [(t, raw) for t, raw, _fault in day_frames]
+    for path, m in zip(files, metas, strict=True):
+        held = [(round(r["t"], 9), r["raw"]) for r in frames_of(path)]
+        assert window_holds(held, day_keys, m["start_t"], m["end_t"]), path.name
         for firing in m["firings"]:
             assert (round(firing["record"]["t"], 9), firing["record"]["raw"]) in held
         assert m["end_t"] - m["trigger_t"] >= 60 - 1e-6
@@ -133,5 +128,5 @@ def test_the_day_rotated_hourly_with_triggers_replays_whole(day, day_frames, tmp
     assert len(files) >= HOURS * 2
     for path in files:
         m = read_trigger(str(path))
-        held = {r["raw"] for r in read_frames(str(path))}
+        held = {r["raw"] for r in frames_of(path)}
         assert all(firing["record"]["raw"] in held for firing in m["firings"]), path.name

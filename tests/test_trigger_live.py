@@ -10,7 +10,8 @@ import subprocess
 import sys
 import time
 
-from sniffer.formats.mcap.reader import read_frames
+from helpers import frames_of, window_holds
+
 from sniffer.triggers import read_trigger
 
 SNIFFER = [sys.executable, "-m", "sniffer"]
@@ -42,12 +43,11 @@ def test_live_capture_on_a_pty_keeps_a_window_per_fault(tmp_path):
     assert windows, live.stderr
     for w in windows:
         m = read_trigger(str(w))
-        held = [(r["t"], r["raw"]) for r in read_frames(str(w))]
+        held = [(r["t"], r["raw"]) for r in frames_of(w)]
         for firing in m["firings"]:
             assert (firing["record"]["t"], firing["record"]["raw"]) in held
             assert any(a["code"] == "model.fault" for a in firing["record"]["annotations"])
-        printed = [(r["t"], r["raw"]) for r in stream if m["start_t"] - 1e-9 <= r["t"] <= m["end_t"] + 1e-9]
-        assert held == printed
+        assert window_holds(held, [(r["t"], r["raw"]) for r in stream], m["start_t"], m["end_t"])
         assert m["asked_start_t"] - 1.0 <= m["start_t"] <= m["asked_start_t"] or not m["pre_complete"]
         assert m["rules"] == ["fault"] and m["firings"][0]["time"].endswith("Z")  # live: a wall clock
     ran = log.read_text().splitlines()

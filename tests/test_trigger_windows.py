@@ -8,12 +8,12 @@ its replay gives those frames again, and its metadata names the rule, the frame 
 """
 
 import pytest
-from helpers import ListSink, fr
+from helpers import ListSink, fr, frames_of
 
 from sniffer.events import CaptureInfo, Chunk, Tick
 from sniffer.line import LineSettings
 from sniffer.capture.session import CaptureSpec, EventSource, Session
-from sniffer.formats.mcap.reader import open_mcap, read_frames
+from sniffer.formats.mcap.reader import open_mcap
 from sniffer.triggers import TriggerSpec, read_trigger
 from sniffer.triggers.ring import FRAME, RAW, Ring
 
@@ -72,13 +72,13 @@ def test_each_window_holds_its_frame_and_exactly_the_pre_and_post_spans(tmp_path
     assert m["trigger_t"] == pytest.approx(30.01) and m["asked_start_t"] == pytest.approx(25.01)
     assert m["start_t"] == pytest.approx(25.0)  # the request before: the last quiet point before t - pre
     assert m["end_t"] == pytest.approx(34.01) and m["pre_complete"] and m["post_complete"]
-    got = [(r["t"], r["raw"]) for r in read_frames(str(files[0]))]
+    got = [(r["t"], r["raw"]) for r in frames_of(files[0])]
     assert got == _between(records, 25.0, 34.01)
     assert (pytest.approx(30.01), EXC.hex()) in got and got[-1] == (pytest.approx(34.01), RSP.hex())
     # window 2: one exception at 120.01 s
     m2 = read_trigger(str(files[1]))
     assert (m2["start_t"], m2["end_t"]) == (pytest.approx(115.0), pytest.approx(123.01))
-    assert [(r["t"], r["raw"]) for r in read_frames(str(files[1]))] == _between(records, 115.0, 123.01)
+    assert [(r["t"], r["raw"]) for r in frames_of(files[1])] == _between(records, 115.0, 123.01)
     assert sum("trigger 'exc' at 30.010 s" in x for x in lines) == 1 and any("window " in x for x in lines)
 
 
@@ -88,7 +88,8 @@ def test_a_window_replays_alone_to_the_frames_it_holds(tmp_path):
     assert info.extra["trigger"]["rule"] == "exc" and info.baud == LINE.baud and info.t0_ns == 0
     replayed = ListSink()
     Session(CaptureSpec(), EventSource(info, events), [replayed]).run()
-    held = read_frames(str(files[0]))
+    m = read_trigger(str(files[0]))
+    held = [r for r in records if m["start_t"] - 1e-9 <= r["t"] <= m["end_t"] + 1e-9]  # the capture's, in its span
     assert [(r["t"], r["raw"], r["role"]) for r in replayed.records] == [(r["t"], r["raw"], r["role"]) for r in held]
     assert replayed.records[0]["role"] == "request"  # starts where nothing was pending: no orphan answer
 
@@ -109,7 +110,7 @@ def test_a_capture_that_starts_or_ends_inside_the_spans_says_so(tmp_path):
     records, files, _ = run(tmp_path, polls(50, {20}))
     m = read_trigger(str(files[0]))
     assert not m["pre_complete"] and m["start_t"] == 0.0 and not m["post_complete"]
-    assert [(r["t"], r["raw"]) for r in read_frames(str(files[0]))] == _between(records, 0, 5.01)
+    assert [(r["t"], r["raw"]) for r in frames_of(files[0])] == _between(records, 0, 5.01)
 
 
 def test_a_restarted_capture_numbers_its_windows_on(tmp_path):
@@ -147,6 +148,11 @@ def test_the_sink_reports_its_triggers_for_a_status_file(tmp_path):
     assert (st["fired"], st["windows"], st["open"], st["failed_windows"]) == (2, 2, 0, 0)
     assert st["last"]["rule"] == "exc" and st["last"]["t"] == pytest.approx(30.01)
     assert st["last"]["window"].endswith("sniffer.trigger-0002.mcap")
+    # the windows' bytes, and the line's bytes they hold: each window 8 s of polls, a request and an answer
+    # (8 and 7 bytes, or 5 for an exception) every 100 ms, the read that starts a window's span added
+    files = sorted(tmp_path.glob("*.mcap"))
+    assert st["window_bytes"] == sum(f.stat().st_size for f in files)
+    assert 2 * 81 * 15 - 4 <= st["window_line_bytes"] <= 2 * 82 * 15
 
 
 def test_the_trigger_flags_travel_to_a_capture_process_unchanged():

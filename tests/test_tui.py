@@ -261,6 +261,7 @@ def test_the_timer_takes_a_backlog_in_by_turns_every_frame_in_order(monkeypatch)
     import sniffer.tui.app as app_module
 
     monkeypatch.setattr(app_module, "INTAKE_BUDGET_S", 0.0)
+    monkeypatch.setattr(app_module, "INTAKE_TURN_S", 0.0)
 
     async def go():
         info, frames, registry = replay_frames()

@@ -346,36 +346,3 @@ def read_lines(path: Path) -> Iterator[str]:
         yield from lines
     finally:
         lines.close()
-
-
-class GoldenSink:
-    """Writes the golden text of the frames it gets to an Output's part file (check() renames it)."""
-
-    def __init__(self, out, options: str | None = None) -> None:
-        self.out = out
-        self.options = options  # the header line keeping the tolerances (options_line)
-        self._fh = None
-        self._t0 = 0
-        self.session = None  # set when the golden holds the findings: they follow the frames
-
-    def start(self, info) -> None:
-        self._t0 = info.t0_ns
-        self._fh = open(self.out.claim(), "w", encoding="utf-8")
-        self._fh.write(GOLDEN_HEADER + "\n")
-        if self.options:
-            self._fh.write(self.options + "\n")
-
-    def raw(self, event) -> None:
-        pass
-
-    def frame(self, f: Frame) -> None:
-        self._fh.write(golden_line(f, self._t0) + "\n")
-
-    def close(self) -> None:
-        if self._fh is not None:
-            diagnosis = getattr(self.session, "diagnosis", None)
-            if diagnosis is not None:
-                for f in diagnosis.findings():
-                    self._fh.write(f.golden_line() + "\n")
-            self._fh.close()
-            self._fh = None

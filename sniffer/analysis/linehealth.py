@@ -205,6 +205,8 @@ class LineWarning(Sink):
 
     `hint(info, link)` says what to do (sniffer.detect.hint); `say` writes the line (sniffer.stderr.say)."""
 
+    split = "health"  # by parts: a few numbers a frame cross, the warning itself runs in the coordinator
+
     def __init__(self, hint: Callable[[object, str], str], say: Callable[[str], None]) -> None:
         self.hint = hint
         self.say = say

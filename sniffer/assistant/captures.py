@@ -10,7 +10,7 @@ import os
 import threading
 
 from sniffer.assistant.bounds import ANSWER_BYTES, fit, scrub
-from sniffer.capture.session import decode_capture
+from sniffer.decoding import decode_file
 from sniffer.formats.records import frame_record
 
 MAX_FRAMES = 200  # frames of one page
@@ -24,7 +24,7 @@ class Analysis:
     def __init__(self, path: str) -> None:
         from sniffer.report import Collector
 
-        session = decode_capture(path)
+        session = decode_file(path)
         collector = Collector(compare=False)
         collector.begin(path, session)
         for f in session:
@@ -115,7 +115,7 @@ def frames(path: str, text: str = "", offset: int = 0, limit: int = 50) -> dict:
     from sniffer.filterlang import Context, Query
 
     query = Query(text or None)  # FilterError (a ValueError): the column and what is wrong
-    session = decode_capture(path)
+    session = decode_file(path)
     ctx = Context(session.info.t0_ns)
     page, seen, more = [], 0, False
     for f in session:
@@ -154,7 +154,7 @@ def history(path: str, unit: int, register: str, limit: int = 200) -> dict:
     """A register's decoded values over the capture for one unit: each change (time, value, text, frame), the
     first and last sample, and how many samples there were."""
     test = _register_test(register)
-    session = decode_capture(path)
+    session = decode_file(path)
     t0 = session.info.t0_ns
     changes, samples, last, name, first = [], 0, object(), None, None
     sample = None

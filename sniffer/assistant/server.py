@@ -22,6 +22,21 @@ FILTER_HELP = ("the sniffer's filter language, e.g. 'u:1 crc', 'exc or timeout',
                "'\"Output frequency\" > 50', 'reg:2520H..2525H', 't:10s..20s' (empty: every frame)")
 
 
+def _refuse_unknown_arguments(server, name: str) -> None:
+    """An argument the tool does not take is refused in one line, not dropped: an assistant that writes
+    `fitler` or `unit_id` would otherwise get every frame and never know.  The SDK builds each tool's argument
+    model from its signature and ignores extra keys; a subclass that forbids them takes its place (and the
+    published schema says additionalProperties: false)."""
+    from pydantic import ConfigDict
+
+    tool = server._tool_manager.get_tool(name)  # the SDK offers no public hook for this (mcp 2.3)
+    base = tool.fn_metadata.arg_model
+    strict = type(base.__name__, (base,), {"model_config": ConfigDict(arbitrary_types_allowed=True, extra="forbid"),
+                                            "__module__": base.__module__})
+    tool.fn_metadata.arg_model = strict
+    tool.parameters = strict.model_json_schema(by_alias=True)
+
+
 def build(given: dict[str, Source]):
     """The MCPServer with the sniffer's tools over `given` (sources.sources())."""
     from mcp.server.mcpserver import MCPServer
@@ -46,7 +61,9 @@ def build(given: dict[str, Source]):
             except (ValueError, CaptureError, SettingsError, MissingExtra, OSError) as e:
                 raise ToolError(clean(" ".join(str(e).split()) or type(e).__name__, 400)) from None
 
-        return server.tool(annotations=read_only)(answer)
+        server.tool(annotations=read_only)(answer)
+        _refuse_unknown_arguments(server, fn.__name__)
+        return answer
 
     def capture(name):
         return pick(given, name, CAPTURE).path

@@ -20,6 +20,11 @@ Rules (one master; each has a test of its name in tests/test_pairer.py):
     whose byte count does not fit the pending request, a request while one
     of the same unit and function is pending, or nothing pending at all),
     pair.role.ambiguous says which was chosen and why;
+  * a byte-for-byte copy of a pending 05/06/08/16 request is its echo, unless its timing says it is the
+    master's retry (`_a_retry`): it comes later than this unit's (or, not known yet, the line's) recent
+    answers by far (RETRY_TURNS times and RETRY_MIN_MS), or about when the master's recent retries came
+    (its implied timeout), and not as soon as the unit answers (pair.role.ambiguous says which and why).
+    Where the capture knows the direction (a tapped 4-wire link: `can`), the wire decides instead;
   * a new request while one is pending: the pending one is unanswered
     (`_unanswered`: pair.no_response "next request after X ms", and
     pair.timeout when X is past the unit's timeout); identical bytes mark
@@ -79,6 +84,12 @@ _MODBUS = frozenset(name for name, p in PROTOCOLS.items() if p.family == "modbus
 _ROLES = CAN_REQ | CAN_RSP
 _ECHOES = frozenset((0x05, 0x06, 0x08, 0x16))  # request and response are the same shape and meaning
 _WRITE_ECHOES = frozenset((0x05, 0x06, 0x16))  # ... and the response repeats the request byte for byte
+# a copy of the pending echo-shaped request this much later than the unit's slowest recent answer (and at least
+# RETRY_MIN_MS) is the master's retry; known once TIMING_SEEN answers (or retries) have been seen
+RETRY_TURNS = 8
+RETRY_MIN_NS = 20_000_000
+RETRY_AT_WAIT = 0.8  # ... or this share of the master's shortest recent wait before a retry
+TIMING_SEEN = 3
 
 
 class Pairer:
@@ -92,6 +103,11 @@ class Pairer:
         self._last_index: int | None = None
         self.recent: deque[tuple[Frame, str]] = deque(maxlen=_RECENT)  # (unanswered request, what ended its wait)
         self.latest: dict[tuple[int, int], Frame] = {}  # (unit, function) -> its latest request
+        # the timing that tells an echo from the master's retry: recent answer times (per unit and of the line)
+        # and the master's waits before a retry, ns (bounded; learned again by a part's warm-up)
+        self.turns: dict[int, deque[int]] = {}
+        self.line_turns: deque[int] = deque(maxlen=16)
+        self.waits: deque[int] = deque(maxlen=8)
 
     def timeout_for(self, unit: int) -> int:
         """How long a request to `unit` waits for its answer (ns)."""
@@ -122,6 +138,10 @@ class Pairer:
                 f.annotations.append(note(
                     codes.ROLE_AMBIGUOUS, f"not an echo of #{pending.index}: taken as a new request (as its "
                                           f"response it would be a mismatched echo)", 0, len(f.raw)))
+            elif (f.function in _ECHOES and f.raw == pending.raw and f.protocol in _MODBUS
+                  and (why := self._a_retry(pending, f)) is not None):
+                f.annotations.append(note(codes.ROLE_AMBIGUOUS, f"taken as the master's retry of #{pending.index}: "
+                                                                f"{why}", 0, len(f.raw)))
             elif f.t_ns - pending.t_end_ns <= self.timeout_for(pending.unit):
                 if f.function not in _ECHOES and f.protocol in _MODBUS and pending.crc_ok and f.crc_ok:
                     why = response_mismatch(pending.adu, f.adu)
@@ -145,6 +165,35 @@ class Pairer:
                                                             "so taken as a request", 0, len(f.raw)))
         f.role = REQUEST
         return self._request(f)
+
+    def _a_retry(self, req: Frame, f: Frame) -> str | None:
+        """Why a byte-for-byte copy of the pending echo-shaped request is the master's retry, not the unit's
+        echo (None: taken as the echo).  Only timing tells them apart on a half-duplex line: an echo comes as
+        soon as the unit answers, a retry when the master's timer runs out."""
+        if f.time_source == "none" or not (f.crc_ok and req.crc_ok):
+            return None
+        lat = f.t_ns - req.t_end_ns
+        mine = self.turns.get(req.unit)
+        seen = mine if mine is not None and len(mine) >= TIMING_SEEN else (
+            self.line_turns if len(self.line_turns) >= TIMING_SEEN else None)
+        turn = max(seen) if seen is not None else None
+        wait = min(self.waits) if len(self.waits) >= 2 else None
+        # (the words name no learned figure: a part decoded alone learns them again, and says the same)
+        if (wait is not None and lat >= RETRY_AT_WAIT * wait and (turn is None or lat > 2 * turn)
+                or wait is None and turn is not None and lat > max(RETRY_TURNS * turn, RETRY_MIN_NS)):
+            return (f"{lat / 1e6:.1f} ms after it, far later than the answers on this line come and when the "
+                    f"master's timer runs out (an echo comes as soon as the unit answers)")
+        return None
+
+    def _timing(self, req: Frame, f: Frame, lat: int) -> None:
+        """An answer in time to a request that is not echo-shaped: how soon the unit (and the line) answers."""
+        if lat <= 0 or f.time_source == "none" or f.function in _ECHOES or not f.crc_ok or f.function & 0x80:
+            return
+        mine = self.turns.get(req.unit)
+        if mine is None:
+            mine = self.turns[req.unit] = deque(maxlen=8)
+        mine.append(lat)
+        self.line_turns.append(lat)
 
     def _damaged(self, f: Frame) -> bool:
         """A CRC-bad frame the bytes say more about: the pending request's response with its address cut
@@ -208,6 +257,8 @@ class Pairer:
                 f.annotations.append(
                     note(codes.LATE_RESPONSE, f"{lat / 1e6:.1f} ms after the request", 0, len(f.raw))
                 )
+            elif not (f.time_source in PER_READ and lat <= 0):
+                self._timing(req, f, lat)
             why = (response_mismatch(req.adu, f.adu)
                    if req.crc_ok and f.crc_ok and f.protocol in _MODBUS else None)
             if why:
@@ -265,6 +316,8 @@ class Pairer:
             out = self._unanswered("next request", f.t_ns - req.t_end_ns if f.time_source != "none" else None)
             if req.raw == f.raw:
                 f.annotations.append(note(codes.RETRY, f"repeats frame #{req.index}", 0, len(f.raw)))
+                if f.time_source != "none" and f.t_ns > req.t_end_ns:
+                    self.waits.append(f.t_ns - req.t_end_ns)  # the master's timer: how long it waits
         else:
             out = []
         self.last_request = f

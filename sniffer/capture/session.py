@@ -60,6 +60,7 @@ if TYPE_CHECKING:
 from sniffer.formats import FileSink
 from sniffer.formats.mcap.sink import CaptureStorageError
 from sniffer.formats.mcap.rotating import SegmentPlan
+from sniffer.sinks.base import Sink, overrides
 from sniffer.events import CaptureError
 
 
@@ -81,6 +82,7 @@ class Session:
         self.keep_partial = keep_partial
         self.need_baud = need_baud
         self.on_event = on_event  # called with each source event (a progress bar)
+        self.hooks: list = []  # told `opened(self)` and `ended(self)` (sniffer.decoding: the bar, the notes)
         self.label = label or spec.port or spec.input or spec.scenario or ""  # what the status file says it is
         self.info: CaptureInfo | None = None
         self.resolved: Resolved | None = None
@@ -125,7 +127,7 @@ class Session:
 
     @property
     def outputs(self) -> list:
-        return [o for s in self.planned for o in getattr(s, "outputs", ())]
+        return [o for s in self.planned if isinstance(s, (Sink, FileSink, SegmentPlan)) for o in s.outputs]
 
     # ------------------------------------------------------------ running
     def open(self) -> CaptureInfo:
@@ -186,18 +188,16 @@ class Session:
             if triggers is not None:
                 triggers.settled = self.pipeline.settled
             for s in self.sinks:  # parts cut later (segments, windows, dataset files) start with what it knows then
-                if hasattr(s, "decoder_state"):
-                    s.decoder_state = self.pipeline.decoder_state
-                if hasattr(s, "state_version"):
-                    s.state_version = self.pipeline.state_version
-                if hasattr(s, "waiting"):
-                    s.waiting = self.pipeline.waiting
+                if overrides(s, "bind"):
+                    s.bind(self.pipeline)
         except BaseException as e:
             self._abandon()
             if isinstance(e, (CaptureStorageError, OSError)):  # e.g. the disk is full already
                 raise CaptureError(self._storage_text(e)) from None
             raise
         self.info = info
+        for h in self.hooks:
+            h.opened(self)
         return info
 
     def status_path(self) -> str | None:
@@ -219,6 +219,8 @@ class Session:
         for o in self.outputs:
             o.discard()
         self._close_source()
+        for h in self.hooks:
+            h.ended(self)
 
     def __iter__(self) -> Iterator[Frame]:
         """The session's one stream of frames (iterating again continues it)."""
@@ -233,9 +235,9 @@ class Session:
         self._started = True
         self.open()
         p = self.pipeline
-        flushers = [s.maybe_flush for s in self.sinks if hasattr(s, "maybe_flush")]
-        rotators = [s for s in self.sinks if hasattr(s, "rotate_if")]  # segments close between events
-        clocks = [s.advance for s in self.sinks if hasattr(s, "advance")]  # capture time, every event
+        flushers = [s.maybe_flush for s in self.sinks if overrides(s, "maybe_flush")]
+        rotators = [s for s in self.sinks if overrides(s, "rotate_if")]  # segments close between events
+        clocks = [s.advance for s in self.sinks if overrides(s, "advance")]  # capture time, every event
         watcher = self._watch()
         stop, on_event, feed = self.stop, self.on_event, p.feed
         completed = False
@@ -285,6 +287,25 @@ class Session:
         for _ in self:
             pass
         return self
+
+    def pieces(self, plan, batch: int = 1024) -> Iterator:
+        """A part plan's pieces (sniffer.parallel.outputs) of the frames, in order, `batch` frames a piece: what
+        a run by parts gives, from this one process (a command reads either the same way)."""
+        sink, n, first = None, 0, True
+        for f in self:
+            if sink is None:
+                sink = plan.part_sink(self.info, first)
+                sink.start(self.info)
+                first = False
+            sink.frame(f)
+            n += 1
+            if n >= batch:
+                sink.close()
+                yield sink.piece()
+                sink, n = None, 0
+        if sink is not None:
+            sink.close()
+            yield sink.piece()
 
     def close(self) -> None:
         """End a session that was opened but is not run to its end (its outputs are discarded)."""
@@ -337,22 +358,30 @@ class Session:
         finally:
             self._close_source()
             self.ended = True
-            unexpected = not completed and not self.interrupted and self.error is None
-            kept = []
-            for o in self.outputs:
-                if self.storage_error and self.keep_partial:  # cut short: never under the name asked for
-                    if o.keep_part():
-                        kept.append(o.part)
-                elif self.storage_error or unexpected:
-                    o.discard()
-                else:
-                    o.commit()
-            kept += [p for s in self.sinks for p in getattr(s, "kept_parts", ())]  # e.g. a segment cut short
-            if kept:
-                how = ": `sniffer replay` reads it, `sniffer repair` finishes it" \
-                    if all(".mcap" in p for p in kept) else ""
-                self.error = f"{self.error or 'cannot write'}; what was written is kept as {', '.join(kept)} " \
-                             f"(not complete{how})"
+            try:
+                self._outputs_end(completed)
+            finally:
+                for h in self.hooks:
+                    h.ended(self)
+
+    def _outputs_end(self, completed: bool) -> None:
+        """The outputs renamed into place, kept as parts, or discarded (see the module doc)."""
+        unexpected = not completed and not self.interrupted and self.error is None
+        kept = []
+        for o in self.outputs:
+            if self.storage_error and self.keep_partial:  # cut short: never under the name asked for
+                if o.keep_part():
+                    kept.append(o.part)
+            elif self.storage_error or unexpected:
+                o.discard()
+            else:
+                o.commit()
+        kept += [p for s in self.sinks if isinstance(s, Sink) for p in s.kept_parts]  # e.g. a segment cut short
+        if kept:
+            how = ": `sniffer replay` reads it, `sniffer repair` finishes it" \
+                if all(".mcap" in p for p in kept) else ""
+            self.error = f"{self.error or 'cannot write'}; what was written is kept as {', '.join(kept)} " \
+                         f"(not complete{how})"
 
     def _storage_text(self, e: Exception) -> str:
         return storage_text(e, self.outputs, self.keep_partial)
@@ -415,7 +444,8 @@ def run(spec: CaptureSpec, source, sinks: Iterable = (), **kw) -> Session:
 
 def decode_capture(path: str | os.PathLike[str], spec: CaptureSpec | None = None, sinks: Iterable = (),
                    *, on_event=None) -> Session:
-    """An opened session over a capture file: iterate it for its decoded frames, one at a time.
+    """An opened session over a capture file: iterate it for its decoded frames, one at a time (one process;
+    the commands take sniffer.decoding.decode_file, which decodes by parts too).
 
     `.info` is the capture's metadata with the settings used; CaptureError /
     SettingsError (one line) for unreadable input or impossible settings.

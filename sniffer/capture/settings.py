@@ -33,6 +33,7 @@ from sniffer.line import LineSettings, SettingsError
 from sniffer.mqtt.options import MqttSpec
 from sniffer.capture.pairer import DEFAULT_TIMEOUT_MS
 from sniffer.capture.pipeline import Pipeline, roles_of
+from sniffer.formats import STREAM_FORMATS
 from sniffer.formats.mcap.segments import Keep, Rotate
 from sniffer.sources.logic_options import LogicSpec
 from sniffer.triggers.options import TriggerSpec
@@ -322,7 +323,7 @@ class CaptureSpec:
             scenario=opt("scenario"), seed=opt("seed", 1) or 1, faults=tuple(opt("fault") or ()),
             duration_s=finite(duration, "--duration", upper=MAX_DURATION_S),
             out=None if opt("no_out") else opt("out"),
-            stream=None if opt("quiet") else (fmt if fmt in ("text", "jsonl", "pcapng") else "text"),
+            stream=None if opt("quiet") else (fmt if fmt in STREAM_FORMATS else STREAM_FORMATS[0]),
             headless=bool(opt("headless")), publish=opt("publish"),
             publish_backlog=opt("publish_backlog", 100_000), trigger=trigger, mqtt=MqttSpec.from_args(args),
             rotate=rotate, keep=keep, status=opt("status"), wait_port=bool(opt("wait_port")),

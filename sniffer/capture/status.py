@@ -34,6 +34,7 @@ from decoders.registry import code_book
 from sniffer import codes
 from sniffer.events import Gap
 from sniffer.formats.outputs import OutputError, check_output, write_json_atomic
+from sniffer.sinks.base import Sink, overrides
 from sniffer.stderr import say
 from sniffer.analysis.unitfigures import UnitBook
 
@@ -53,7 +54,7 @@ def iso(wall_ns: int | None) -> str | None:
     return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(wall_ns // _NS))
 
 
-class StatusSink:
+class StatusSink(Sink):
     """Counts what the status file says and writes it (see the module doc).
 
     `session` gives the other sinks (their `status()`), the source (a lost port)
@@ -151,10 +152,9 @@ class StatusSink:
         d["port"] = self._port()
         d.update(more)
         for sink in s.sinks:
-            fn = getattr(sink, "status", None)
-            if fn is not None and sink is not self:
+            if overrides(sink, "status") and sink is not self:
                 try:
-                    d.update(fn())
+                    d.update(sink.status())
                 except Exception as e:  # noqa: BLE001 - a section that fails must not stop the capture
                     d[type(sink).__name__] = {"error": str(e)[:200]}
         return d

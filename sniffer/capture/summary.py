@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 import time
 
+from sniffer.sinks.base import Sink
+
 
 def default_capture_name() -> str:
     return time.strftime("sniffer-%Y%m%d-%H%M%S.mcap")
@@ -22,7 +24,7 @@ def written(session) -> str:
             continue
         kind = os.path.splitext(o.path)[1].lstrip(".").upper() or "file"
         parts.append(f"{kind} {o.path} ({size} bytes)")
-    parts += [s.written_text for s in session.sinks if hasattr(s, "written_text")]
+    parts += [s.written_text for s in session.sinks if isinstance(s, Sink) and s.written_text]
     return "; " + ", ".join(parts) if parts else ""
 
 

@@ -15,6 +15,8 @@ cli.py parses the flags into a CaptureSpec and calls `run(name, spec, args)`.
 
 from __future__ import annotations
 
+import argparse
+
 import functools
 import importlib
 import pkgutil
@@ -43,6 +45,22 @@ def modules() -> dict:
     return dict(sorted(found.items()))
 
 
+class _Version(argparse.Action):
+    """--version: the version and which per-frame path runs (sniffer.hot), on two lines (argparse's own
+    version action rewraps its text into one)."""
+
+    def __init__(self, option_strings, version: str, dest=argparse.SUPPRESS, help="show the version and which "
+                 "per-frame path runs (compiled or pure Python), then exit") -> None:
+        super().__init__(option_strings, dest=dest, default=argparse.SUPPRESS, nargs=0, help=help)
+        self.version = version
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        from sniffer.hot import describe
+
+        print(f"{self.version}\n{describe()}")  # stdout, as argparse's version action writes it
+        parser.exit()
+
+
 def build_parser():
     """The `sniffer` parser: each command module adds its own."""
     from sniffer import __version__
@@ -51,7 +69,7 @@ def build_parser():
     p = Parser(prog="sniffer", description=prose("Passive RS-485 sniffer for PLC <-> drive links (Modbus RTU, "
                                                  "Modbus ASCII, PD-series): it listens, never sends."),
                epilog=FIELD_WORKFLOW)
-    p.add_argument("--version", action="version", version=f"sniffer {__version__}")
+    p.add_argument("--version", action=_Version, version=f"sniffer {__version__}")
     sub = p.add_subparsers(dest="cmd", metavar="COMMAND", parser_class=Parser)
     for m in modules().values():
         m.add_parser(sub)

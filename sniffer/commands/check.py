@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sniffer.analysis.check import (
-    EXIT_DIFFERENT, EXIT_ERROR, EXIT_SAME, GoldenSink, Tolerances, golden_lines, golden_version,
+    EXIT_DIFFERENT, EXIT_ERROR, EXIT_SAME, Tolerances, golden_lines, golden_version,
     options_line, read_lines, resolve, FINDING, GOLDEN_HEADER, GOLDEN_V1,
 )
 from sniffer.analysis.checksummary import CheckSummary, summarize
@@ -149,11 +149,7 @@ def check_outcome(capture, golden, *, spec=None, update: bool = False, findings:
     golden = Path(golden)
     try:
         tol = resolve(golden, time_ms, latency_ms, rules)
-        if jobs > 1:
-            if not update and not golden.exists():
-                return _no_golden(golden)
-            return _check_parts(capture, golden, spec, tol, update, jobs, findings, allow_unfinished)
-        return _check_one(capture, golden, spec, tol, update, findings, allow_unfinished)
+        return _check(capture, golden, spec, tol, update, jobs, findings, allow_unfinished)
     except (CaptureError, SettingsError, DeviceMapError, ValueError, OSError) as e:
         why = f"{e.filename}: {e.strerror}" if isinstance(e, OSError) and e.filename else str(e)
         return Outcome(EXIT_ERROR, message=f"sniffer check: error: {why}\n")
@@ -176,80 +172,32 @@ def _verdict(s: CheckSummary, err: str | None) -> Outcome:
     return Outcome(EXIT_DIFFERENT, s)
 
 
-def _check_one(capture, golden: Path, spec, tol: Tolerances, update: bool, findings: bool,
-               allow_unfinished: bool = False) -> Outcome:
-    from sniffer.capture.session import decode_capture
+def _check(capture, golden: Path, spec, tol: Tolerances, update: bool, jobs: int,
+           findings: bool, allow_unfinished: bool = False) -> Outcome:
+    """The golden lines of the capture, in order (by parts in `jobs` processes or not: sniffer.decoding), compared
+    with the golden or written as it; with the findings: the frames through one diagnosis here, then its
+    findings."""
+    from sniffer.decoding import decode_file
     from sniffer.formats.outputs import Output
+    from sniffer.parallel.outputs import GoldenPlan
 
-    names = Names()
-    if not update:
-        session = decode_capture(capture, spec)  # an unreadable capture is said first
-        if not golden.exists():
-            session.close()
-            return _no_golden(golden)
-        frames = _named(session, names)
-        version = golden_version(golden)
-        if findings or holds_findings(golden):
-            new = with_findings(session, golden_lines(session.info.t0_ns, diagnosed(session, frames), version))
-        else:
-            new = golden_lines(session.info.t0_ns, frames, version)
-        s = summarize(read_lines(golden), new, tol, _names(capture, golden), names)
-        err = _failed(session)
-        if not err:
-            _cut_short(session, True)
-        return _verdict(s, err)
-    golden.parent.mkdir(parents=True, exist_ok=True)  # a new golden folder is part of --update-golden
-    out = Output(golden, inputs=[capture, *(spec.read_paths() if spec else ())], what="--golden")
-    sink = GoldenSink(out, options_line(tol))
-    err = "interrupted"
-    try:
-        session = decode_capture(capture, spec, [sink])
-        frames = _named(session, names)
-        if findings:
-            new = with_findings(session, golden_lines(session.info.t0_ns, diagnosed(session, frames)))
-            sink.session = session
-        else:
-            new = golden_lines(session.info.t0_ns, frames)
-        d = ""
-        if golden.exists():
-            d = summarize(read_lines(golden), new, Tolerances(0, 0), _names(capture, golden), names).diff
-        for _ in new:  # decode what the comparison did not need
-            pass
-        err = _failed(session) or _cut_short(session, allow_unfinished)
-    finally:
-        sink.close()
-        if err:  # a golden from a damaged or failed decode would be wrong: keep the old one
-            out.discard()
-        else:
-            out.commit()
-    if err:
-        return Outcome(EXIT_ERROR, message=f"sniffer check: error: {err}\n")
-    return Outcome(EXIT_SAME, message=f"sniffer check: wrote {golden} ({session.frames_out} frames)\n" + d)
-
-
-def _check_parts(capture, golden: Path, spec, tol: Tolerances, update: bool, jobs: int,
-                 findings: bool, allow_unfinished: bool = False) -> Outcome:
-    """The check with the capture decoded by parts: the golden lines come from the workers, in order (with the
-    findings: the frames, through one diagnosis here, then its findings)."""
-    from sniffer.formats.outputs import Output
-    from sniffer.parallel.outputs import FramesPlan, GoldenPlan
-    from sniffer.parallel.run import decode_capture
-
+    run = decode_file(capture, spec, jobs=jobs)  # an unreadable capture is said first
+    if not update and not golden.exists():
+        run.close()
+        return _no_golden(golden)
     version = 2 if update else golden_version(golden)
     findings = findings or (not update and holds_findings(golden))
     out = None
     if update:
-        golden.parent.mkdir(parents=True, exist_ok=True)
+        golden.parent.mkdir(parents=True, exist_ok=True)  # a new golden folder is part of --update-golden
         out = Output(golden, inputs=[capture, *(spec.read_paths() if spec else ())], what="--golden")
-    run = decode_capture(capture, spec, jobs)
     header = GOLDEN_HEADER if version >= 2 else GOLDEN_V1
     names = Names()
     kept = options_line(tol) if update else None
 
     def lines():
         if findings:
-            frames = (f for part in run.parts([FramesPlan()]) for f in part.pieces[0])
-            it = with_findings(run, golden_lines(run.info.t0_ns, diagnosed(run, _named(frames, names)), version))
+            it = with_findings(run, golden_lines(run.info.t0_ns, diagnosed(run, _named(run, names)), version))
             yield next(it)
             if kept:
                 yield kept
@@ -258,8 +206,7 @@ def _check_parts(capture, golden: Path, spec, tol: Tolerances, update: bool, job
         yield header
         if kept:
             yield kept
-        for part in run.parts([GoldenPlan(version)]):
-            part_lines, part_names = part.pieces[0]
+        for part_lines, part_names in run.pieces(GoldenPlan(version)):
             names.add_seen(part_names)
             yield from part_lines
 
@@ -281,11 +228,11 @@ def _check_parts(capture, golden: Path, spec, tol: Tolerances, update: bool, job
             d = ""
             if golden.exists():
                 d = summarize(read_lines(golden), new, Tolerances(0, 0), _names(capture, golden), names).diff
-            for _ in new:
+            for _ in new:  # decode what the comparison did not need
                 pass
         err = _failed(run) or _cut_short(run, allow_unfinished)
     finally:
-        if err:
+        if err:  # a golden from a damaged or failed decode would be wrong: keep the old one
             out.discard()
         else:
             out.commit()
@@ -313,7 +260,7 @@ def _failed(session) -> str | None:
 def _cut_short(session, allowed: bool) -> str | None:
     """A capture not closed cleanly: its note (as `replay` says it), and unless `allowed`, why its golden is not
     written (a golden of the frames up to a cut would pass later checks of the same cut file, and miss the rest)."""
-    from sniffer.commands.replay import note_unfinished, unfinished_paths
+    from sniffer.decoding import note_unfinished, unfinished_paths
 
     paths = unfinished_paths(session)
     if not paths:
@@ -336,8 +283,7 @@ def with_findings(session, lines: Iterator[str]) -> Iterator[str]:
 
 
 def diagnosed(session, frames=None):
-    """The session's frames (or `frames`, a parallel run's), each through a diagnosis engine first (kept as
-    `session.diagnosis`)."""
+    """The run's frames (or `frames`), each through a diagnosis engine first (kept as `session.diagnosis`)."""
     engine = session.diagnosis = Diagnosis()
     engine.start_session(session)
     for f in session if frames is None else frames:

@@ -9,6 +9,7 @@ from sniffer.capture.settings import CaptureSpec
 from sniffer.commands.flags import UsageError  # noqa: F401 - the commands' usage error, re-exported
 from sniffer.formats import FileSink
 from sniffer.stderr import say  # noqa: F401 - the commands' one line on stderr
+from sniffer.parallel.options import jobs_for  # noqa: F401 - the commands' name for it
 from sniffer.capture.summary import default_capture_name, summary_line, written  # noqa: F401 - re-exported
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -124,46 +125,6 @@ def report(session: Session, *, label: str = "") -> int:
         say(f"error: {session.error}{unchanged}")
         return EXIT_FAILED if session.storage_error else EXIT_USAGE
     return EXIT_OK
-
-
-def jobs_for(spec: CaptureSpec, args) -> int:
-    """The processes a decoding command runs with (sniffer.parallel): 1 where a part cannot carry what the
-    command needs across its cut (said in one line when --jobs asked for more)."""
-    from sniffer.parallel.options import default_jobs, jobs_of, one_process_why
-
-    jobs = jobs_of(args) if getattr(args, "jobs", None) else default_jobs(spec, args)
-    if jobs > 1:
-        why = one_process_why(spec, args)
-        if why:
-            if getattr(args, "jobs", None):
-                say(f"note: --jobs {jobs}: one process ({why})")
-            return 1
-    return jobs
-
-
-def parallel_run(spec: CaptureSpec, source, outputs, jobs: int, progress_label: str | None = None):
-    """A ParallelRun (sniffer.parallel.run) of `source` into `outputs` [(plan, writer)], opened; with a progress
-    bar on stderr when `progress_label` is given (closed by `run_with_bar`)."""
-    from sniffer.parallel.run import ParallelRun
-
-    run = ParallelRun(spec, source, outputs, jobs=jobs)
-    run.bar = None
-    if progress_label is not None:
-        from sniffer.capture.progress import ReplayProgress
-
-        run.bar = ReplayProgress(progress_label, source=source, frames=lambda: run.frames_out)
-        run.on_event = run.bar.update
-    return run
-
-
-def run_with_bar(run) -> None:
-    """run.open(); run.run(), the progress bar (if any) closed whatever happens."""
-    try:
-        run.open()
-        run.run()
-    finally:
-        if run.bar is not None:
-            run.bar.close()
 
 
 def tui_wanted(spec: CaptureSpec) -> bool:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from sniffer.events import CaptureInfo, Chunk
-from sniffer.capture.session import Session
+from sniffer.decoding import decode
 from sniffer.capture.settings import CaptureSpec
 from sniffer.commands.common import UsageError, report, stream_sink
 from sniffer.commands.flags import MAX_BAUD, command_parser, decode_flags, number, stream_flags
@@ -107,6 +107,6 @@ def run(spec: CaptureSpec, args) -> int:
                 raise UsageError(f"not hex: {h[:60]!r}") from None
         if data:
             frames.append(data)
-    session = Session(spec, HexSource(frames, spec), [stream_sink(spec, line_buffered=False)], need_baud=False)
+    session = decode(spec, HexSource(frames, spec), [stream_sink(spec, line_buffered=False)], need_baud=False)
     session.run()
     return report(session)

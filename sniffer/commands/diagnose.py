@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import sys
 
-from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.commands.common import jobs_for, report
 from sniffer.commands.flags import command_parser, decode_flags, input_flags, jobs_flag, progress_flag, serial_flags
-from sniffer.commands.replay import file_source, frames_by_parts, note_unfinished
+from sniffer.commands.replay import file_source
+from sniffer.decoding import decode
 
 
 def add_parser(subparsers) -> None:
@@ -42,31 +42,9 @@ def add_parser(subparsers) -> None:
     decode_flags(p, "file")
 
 
-def _one_process(spec: CaptureSpec, source, engine, progress: bool) -> Session:
-    session = Session(spec, source, [])
-    bar = None
-    if progress:
-        from sniffer.capture.progress import ReplayProgress
-
-        bar = ReplayProgress(spec.input, source=source, frames=lambda: session.frames_out)
-        session.on_event = bar.update
-    try:
-        session.open()
-        note_unfinished(session)
-        engine.start_session(session)
-        frame = engine.frame
-        for f in session:
-            frame(f)
-    finally:
-        if bar is not None:
-            bar.close()
-    note_unfinished(session)  # a rotated capture's segments are opened as the reading reaches them
-    return session
-
-
 def _settings(session) -> str:
-    """Where the frames were read: the line's settings, or each link's (a parallel run's own session has them)."""
-    links = getattr(getattr(getattr(session, "session", session), "pipeline", None), "resolved", None)
+    """Where the frames were read: the line's settings, or each link's."""
+    links = getattr(session.pipeline, "resolved", None)
     if isinstance(links, dict) and len(links) > 1:
         each = ", ".join(f"{name} at {r.describe()}" for name, r in links.items())
         return f"on {len(links)} links ({each})"
@@ -80,13 +58,15 @@ def run(spec: CaptureSpec, args) -> int:
     reference = load(args.params, spec.with_(input=None, inputs=())) if args.params else None
     source = file_source(spec)
     engine = Diagnosis(reference)
-    jobs = jobs_for(spec, args)
-    if jobs > 1:  # decoded by parts in worker processes; the engine takes their frames here, in order
-        session = frames_by_parts(spec, source, jobs, spec.input if args.progress else None,
-                                  engine.start_session, engine.frame)
-    else:
-        session = _one_process(spec, source, engine, args.progress)
+    session = decode(spec, source, jobs=jobs_for(spec, args), progress=spec.input if args.progress else None)
+    session.open()
+    engine.start_session(session)
+    frame = engine.frame
+    for f in session:  # by parts or not, every frame here, in order
+        frame(f)
     findings = engine.findings()
+    for line in reference.notes() if reference is not None else ():
+        print(f"sniffer: note: {line}", file=sys.stderr)
     if args.format == "json":
         sys.stdout.write(to_json(findings))
     else:

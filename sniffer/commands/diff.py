@@ -41,10 +41,10 @@ def run(spec: CaptureSpec, args) -> int:
 
 def summarize_capture(path, spec=None) -> dict:
     """Decode a capture file and summarise it as it decodes; CaptureError for unreadable or damaged input."""
-    from sniffer.capture.session import decode_capture
+    from sniffer.decoding import decode_file
     from sniffer.events import CaptureError
 
-    session = decode_capture(path, spec)
+    session = decode_file(path, spec)
     s = Summary()
     for f in session:
         s.add(f)

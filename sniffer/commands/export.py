@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import argparse
 
-from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.formats import EXPORT_FORMATS, FileSink
 from sniffer.commands.common import UsageError, jobs_for, report, say
 from sniffer.commands.flags import command_parser, dataset_flags, foxglove_flags, input_format_flag, logic_flags
 from sniffer.commands.replay import file_source
+from sniffer.decoding import decode
 
 
 class ExportTo(argparse.Action):
@@ -81,35 +81,14 @@ def run(spec: CaptureSpec, args) -> int:
     spec = spec.with_(input=files[0], inputs=(files[0],))  # a folder of segments is one capture (segset.py)
     # checked before the input is read; written as it fills, never by the clock: the same bytes every time
     sink = FileSink(args.to, spec.out, inputs=spec.read_paths(), timed_flush=False)
-    source = file_source(spec)
-    jobs = jobs_for(spec, args)
-    if jobs > 1:
-        from sniffer.commands.common import parallel_run, run_with_bar
-        from sniffer.parallel.outputs import file_output
-
-        run = parallel_run(spec, source, [file_output(sink)], jobs, spec.input if args.progress else None)
-        run_with_bar(run)
-        return _done(run, spec)
-    session = Session(spec, source, [sink])
-    bar = None
-    if args.progress:
-        from sniffer.capture.progress import ReplayProgress
-
-        bar = ReplayProgress(spec.input, source=source, frames=lambda: session.frames_out)
-        session.on_event = bar.update
-    try:
-        session.open()
-        session.run()
-    finally:
-        if bar is not None:
-            bar.close()
+    session = decode(spec, file_source(spec), [sink], jobs=jobs_for(spec, args),
+                     progress=spec.input if args.progress else None)
+    session.open()
+    session.run()
     return _done(session, spec)
 
 
 def _done(session, spec: CaptureSpec) -> int:
-    from sniffer.commands.replay import note_unfinished
-
-    note_unfinished(getattr(session, "session", session))  # a parallel run's own session
     rc = report(session, label=spec.input)
     if rc == 0:
         say(f"wrote {', '.join(o.path for o in session.outputs)} ({session.frames_out} frames)")

@@ -338,7 +338,9 @@ def input_flags(p) -> None:
 
 def stream_flags(p, quiet: str = "") -> None:
     """--format text|jsonl of the frames on stdout; `quiet`: the help of --quiet (what is still written)."""
-    p.add_argument("--format", choices=["text", "jsonl", "pcapng"], default="text", help="the frames on stdout: one "
+    from sniffer.formats import STREAM_FORMATS
+
+    p.add_argument("--format", choices=STREAM_FORMATS, default=STREAM_FORMATS[0], help="the frames on stdout: one "
                    "line each (text), one JSON object each (jsonl), or a pcapng stream for Wireshark (`| wireshark -k "
                    "-i -`: Modbus RTU packets, each with a comment of the registers, CRC, pair and latency)")
     if quiet:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 
 from sniffer.formats.outputs import Output, shown
-from sniffer.capture.session import Session
+from sniffer.decoding import decode
 from sniffer.capture.settings import CaptureSpec
 from sniffer.commands.common import EXIT_USAGE, UsageError, report, say
 from sniffer.commands.flags import command_parser, decode_flags, input_flags, serial_flags
@@ -43,7 +43,7 @@ def run(spec: CaptureSpec, args) -> int:
     out = Output(spec.out, inputs=spec.read_paths())  # checked before the input is read
     model_id = os.path.splitext(os.path.basename(out.path))[0]
     learner = Learner()
-    session = Session(spec, file_source(spec), [])
+    session = decode(spec, file_source(spec))
     from sniffer.protocols import PROTOCOLS
 
     try:

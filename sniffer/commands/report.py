@@ -13,14 +13,14 @@ from __future__ import annotations
 import os
 
 from sniffer.formats.outputs import Output, readable, shown
-from sniffer.capture.session import Session
 from sniffer.capture.settings import CaptureSpec
 from sniffer.events import CaptureError
 from sniffer.commands.common import EXIT_OK, jobs_for, report, say
 from sniffer.commands.flags import (
     command_parser, decode_flags, input_format_flag, jobs_flag, progress_flag, serial_flags,
 )
-from sniffer.commands.replay import file_source, frames_by_parts, note_unfinished
+from sniffer.commands.replay import file_source
+from sniffer.decoding import decode
 
 
 def add_parser(subparsers) -> None:
@@ -90,26 +90,11 @@ def run(spec: CaptureSpec, args) -> int:
         for path in captures:
             cspec = spec.with_(input=path, inputs=(path,))  # one capture: a file or a rotated capture's segments
             source = file_source(cspec)
-            if jobs > 1:
-                rc = max(rc, _parts(cspec, source, path, collector, args, jobs))
-                continue
-            session = Session(cspec, source, [])
-            bar = None
-            if args.progress:
-                from sniffer.capture.progress import ReplayProgress
-
-                bar = ReplayProgress(path, source=source, frames=lambda s=session: s.frames_out)
-                session.on_event = bar.update
-            try:
-                session.open()
-                note_unfinished(session)
-                collector.begin(path, session)
-                for f in session:
-                    collector.frame(f)
-            finally:
-                if bar is not None:
-                    bar.close()
-            note_unfinished(session)  # a rotated capture's segments are opened as the reading reaches them
+            session = decode(cspec, source, jobs=jobs, progress=path if args.progress else None)
+            session.open()
+            collector.begin(path, session)
+            for f in session:  # by parts or not, every frame here, in order
+                collector.frame(f)
             collector.end(session)
             rc = max(rc, report(session, label=path))
         data = collector.to_data()
@@ -125,15 +110,6 @@ def run(spec: CaptureSpec, args) -> int:
     frames = data["totals"]["frames"]
     say(f"wrote {out.path} ({len(page.encode()):,} bytes: {frames:,} frames from {len(captures)} capture(s))")
     return rc
-
-
-def _parts(spec: CaptureSpec, source, path: str, collector, args, jobs: int) -> int:
-    """One capture decoded by parts in `jobs` processes (sniffer.parallel); the collector takes its frames here,
-    in order, as from one session."""
-    run = frames_by_parts(spec, source, jobs, path if args.progress else None,
-                          lambda r: collector.begin(path, r), collector.frame)
-    collector.end(run)
-    return report(run, label=path)
 
 
 def _compare(collector, golden: str, captures: list[str], spec: CaptureSpec) -> dict:

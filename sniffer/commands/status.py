@@ -320,7 +320,8 @@ _TRIGGER_COUNTS = (("windows", "window{} written"), ("open", "open now"),
                    ("failed_windows", "window{} could not be written"))
 
 
-_TRIGGER_KNOWN = {"fired", "ring_bytes", "last", "on_trigger", *(key for key, _ in _TRIGGER_COUNTS)}
+_TRIGGER_KNOWN = {"fired", "ring_bytes", "last", "on_trigger", "window_bytes", "window_line_bytes",
+                  *(key for key, _ in _TRIGGER_COUNTS)}
 
 
 def _times(n, what: str) -> str:
@@ -336,6 +337,9 @@ def _trigger_lines(st: Fields, t: dict) -> list[tuple[str, str]]:
 
     words = [f"fired {_times(g('fired', 'int'), 'time{}')}"]
     words += [_times(v, text) for key, text in _TRIGGER_COUNTS if (v := g(key, "int")) or (key == "windows" and v == 0)]
+    size, line = g("window_bytes", "int"), g("window_line_bytes", "int")
+    if size and g("windows", "int"):  # `3 windows written (1.2MB, 4.1x the line's bytes they hold)`
+        words[1] += f" ({_size(size)}" + (f", {size / line:.1f}x the line's bytes they hold)" if line else ")")
     ring = g("ring_bytes", "int")
     if ring is not None:
         words.append(f"{_size(ring)} held for --pre")

@@ -94,6 +94,10 @@ class DatasetSink(TableSink):
         self._state: dict = {}
         self._version = None
 
+    def bind(self, pipeline) -> None:
+        self.decoder_state = pipeline.decoder_state
+        self.state_version = pipeline.state_version
+
     def start(self, info: CaptureInfo) -> None:
         from sniffer.dataset.layout import link_name
 

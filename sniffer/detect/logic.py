@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from sniffer.frame import CAN_REQ, CAN_RSP
 from sniffer.line import LineSettings
 from sniffer.events import CaptureError
+from sniffer.orphans import external_ends_with_parent
 from sniffer.sources.logic_options import LogicSpec
 from sniffer.detect.bitwidth import Measurement, measure
 
@@ -63,7 +64,7 @@ def collect_edges(acquire: list[str], channels: list[str], where: str) -> dict[s
     edges: dict[str, list[tuple[int, int]]] = {ch: [] for ch in channels}
     lists = [edges[ch] for ch in channels]
     proc = subprocess.Popen([sigrok_cli(), *acquire, *edge_args(channels)], stdin=subprocess.DEVNULL,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=external_ends_with_parent())
     prev = None
     full = 0
     try:

@@ -59,11 +59,11 @@ class CorrelateGroup(Group):
     # ------------------------------------------------------------ frames
     def noise(self, f, link: Link, codes: frozenset) -> None:
         if self.now:
-            self._count(link, True, f.index)
+            self._count(link, True, f.index, link.cut)
 
     def other(self, f, link: Link, unit: Unit | None, codes: frozenset) -> None:
         if self.now:
-            self._count(link, _bad(f, codes), f.index)
+            self._count(link, _bad(f, codes), f.index, link.cut)
 
     def request(self, f, link: Link, unit: Unit, codes: frozenset, key: tuple) -> None:
         if self.now:
@@ -71,7 +71,7 @@ class CorrelateGroup(Group):
 
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
         if self.now:
-            self._count(link, _bad(f, codes), f.index)
+            self._count(link, _bad(f, codes), f.index, link.cut)
         # `points` last: reading it builds a block's dicts, which only a drive's own map can use here
         if (unit is None or not f.crc_ok or f.function not in (0x03, 0x04) or f.model is None
                 or f.model == "generic" or not f.points):
@@ -103,7 +103,7 @@ class CorrelateGroup(Group):
                     rate = "acceleration" if sig == "frequency" else "current_rate"
                     now[(unit, rate)] = (v - was[1]) / ((f.t_ns - was[0]) / 1e9)
 
-    def _count(self, link: Link, bad: bool, index: int) -> None:
+    def _count(self, link: Link, bad: bool, index: int, cut: tuple | None = None) -> None:
         now = self.now.get(link.name)
         if not now:
             return
@@ -114,6 +114,10 @@ class CorrelateGroup(Group):
             x[0] += 1
             if bad:
                 x[1] += 1
+                if cut is not None:  # a driver's signature: set apart, in case a driver finding explains it
+                    if len(x) == 2:
+                        x.append({})
+                    x[2][cut] = x[2].get(cut, 0) + 1
                 top = self.top[k] = max(self.top.get(k, step), step)
                 if step > 0 and step * 2 >= top:
                     ex = self.examples.setdefault(k, [])
@@ -137,7 +141,10 @@ class CorrelateGroup(Group):
     # ------------------------------------------------------------ verdicts
     def findings(self, d: Diagnosis) -> list[Finding]:
         tests = []
+        cut = _drivers_named(d)
         for k, bins in self.bins.items():
+            if cut:
+                bins = _without_cuts(bins, {(u, field) for name, u, field in cut if name == k[0]})
             bad = sum(x[1] for x in bins.values())
             if bad < MIN_BAD or len(bins) < 2:
                 continue
@@ -205,6 +212,25 @@ def _splits(bins: dict[int, list]) -> list[tuple]:
         b_lo = sum(bins[x][1] for x in steps if x <= s)
         out.append((s + 1, total - n_lo, bad - b_lo, n_lo, b_lo))
     return [t for t in out if t[1] and t[3]]
+
+
+def _drivers_named(d: Diagnosis) -> set:
+    from sniffer.diagnose.wiring import WiringGroup
+
+    return set().union(*(g.cut(d) for g in d.groups if isinstance(g, WiringGroup)))
+
+
+def _without_cuts(bins: dict[int, list], cut: set) -> dict[int, list]:
+    """The bins without the answers a driver fault named on the link damaged (its cut first or last bytes):
+    a unit whose answers are mostly cut would hide the load's interference under the cut's damage, which has
+    nothing to do with the load.  The frames go from both counts: they were no chance for the noise to show."""
+    if not cut:
+        return bins
+    out = {}
+    for step, x in bins.items():
+        gone = sum(n for c, n in x[2].items() if c in cut) if len(x) > 2 else 0
+        out[step] = [x[0] - gone, x[1] - gone]
+    return out
 
 
 def _registers(link: Link, model: str | None) -> dict[int, str]:

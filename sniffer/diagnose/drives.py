@@ -4,6 +4,9 @@
   text).  One trip is one episode: from the first answer that reports it to the first answer of the
   same read that no longer does; meanwhile the master's writes to the drive are counted (a run command
   written into a fault does nothing) and the last write before the episode ends is named (the reset);
+  where the drive's answers are mostly lost (cut, damaged: the fault register cannot be read), the master's
+  own writes still say it: each write that sets a bit its model names a fault reset is a trip the master
+  saw and reset (`_blind_trips`; a master that resets drives whose answers say nothing is not judged);
 (noise_correlated_with_load, the line's damage against what the drives do: correlate.py)
 """
 
@@ -21,6 +24,8 @@ if TYPE_CHECKING:
     from sniffer.diagnose.engine import Diagnosis
 
 _WRITES = frozenset((0x05, 0x06, 0x0F, 0x10))
+MIN_RESETS = 2  # fault resets written to a drive whose answers are lost: a trip seen by the master only
+LOST = 0.5  # of a drive's answers damaged: its fault register cannot be read
 
 
 
@@ -45,9 +50,13 @@ class DrivesGroup(Group):
         self.open: dict[tuple, dict[str, _Episode]] = {}  # (link, unit) -> fault text -> episode
         self.done: dict[tuple, list[_Episode]] = {}  # (link, unit, text) -> episodes (first and last kept)
         self.counts: dict[tuple, int] = {}
+        self.reset_bits: dict[tuple, dict[int, int]] = {}  # (link, model) -> register -> its fault-reset bits
+        self.resets: dict[tuple, list] = {}  # (link, unit) -> [count, [(t_ns, frame), ...] first and last kept]
 
     # ------------------------------------------------------------ frames
     def request(self, f, link: Link, unit: Unit, codes: frozenset, key: tuple) -> None:
+        if f.function in _WRITES and f.model is not None and f.model != "generic":
+            self._reset(f, link, unit)
         if self.open and f.function in _WRITES:
             eps = self.open.get((link.name, unit.unit))
             if eps:
@@ -56,6 +65,24 @@ class DrivesGroup(Group):
                     e.writes += 1
                     e.written.update(n for n in names if n)
                     e.last_write = (f.index, _short(f.summary))
+
+    def _reset(self, f, link: Link, unit: Unit) -> None:
+        """A write that sets a fault-reset bit (as the model's map names the bits of the register written)."""
+        bits = self.reset_bits.get((link.name, f.model))
+        if bits is None:
+            bits = self.reset_bits[(link.name, f.model)] = _reset_bits(link, f.model)
+        if not bits or not f.points:
+            return
+        for p in f.points:
+            mask = bits.get(p.get("address"))
+            raw = p.get("raw")
+            if mask and isinstance(raw, int) and raw & mask:
+                x = self.resets.setdefault((link.name, unit.unit), [0, []])
+                x[0] += 1
+                x[1].append((f.t_ns, f.index))
+                if len(x[1]) > 6:
+                    del x[1][3]  # the first three and the latest ones
+                return
 
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
         if unit is None or not f.crc_ok or (f.model is None or f.model == "generic") and not self.open and not codes:
@@ -107,7 +134,35 @@ class DrivesGroup(Group):
 
     # ------------------------------------------------------------ verdicts
     def findings(self, d: Diagnosis) -> list[Finding]:
-        return self._trips(d)
+        out = self._trips(d)
+        return out + self._blind_trips(d, {(f.link, f.unit) for f in out})
+
+    def _blind_trips(self, d: Diagnosis, said: set) -> list[Finding]:
+        """Trips only the master's fault resets show: the drive's answers, which would name the fault, are mostly
+        lost (a driver that cuts them, damage); each reset is a trip the master saw and acknowledged."""
+        out = []
+        for (name, unit), (n, seen) in sorted(self.resets.items()):
+            u = d.links[name].units.get(unit)
+            if n < MIN_RESETS or (name, unit) in said or u is None:
+                continue
+            # its answers lost: damaged, or so broken (a USB adapter's reads split them) that none paired
+            answers = max(u.requests, u.answers + u.garbled)
+            lost = u.damaged_answers + max(u.garbled, u.no_response)
+            if not answers or lost < LOST * answers:
+                continue  # its answers are read: a reset with no fault read is the PLC's habit, not a trip
+            t0, t1 = d.seconds(seen[0][0]), d.seconds(seen[-1][0])
+            out.append(Finding(
+                "drive_fault", ERROR, unit=unit, link=name, t_start=t0, t_end=t1, episode_count=n,
+                evidence={"fault_resets_written": n, "answers": answers, "answers_lost": lost,
+                          "answers_lost_share": round(lost / answers, 3)},
+                episodes=[Episode(d.seconds(t), d.seconds(t), 1, f"fault reset #{i}") for t, i in seen],
+                frames=[i for _, i in seen[:4]],
+                text=f"Unit {unit} trips: the master wrote a fault reset to it {count_of(n, 'time')} (first at "
+                     f"{t0:.1f} s); which fault cannot be read: {lost / answers:.0%} of its answers are lost ({lost} "
+                     f"of {answers} damaged or missing).",
+                action=f"Read unit {unit}'s fault history on its keypad (the bus lost the answers that say it), "
+                       f"remove the cause, and fix what damages its answers first."))
+        return out
 
     def _trips(self, d: Diagnosis) -> list[Finding]:
         """One finding per drive: its faults (the manual's text), each episode from when to when, what the
@@ -152,6 +207,21 @@ class DrivesGroup(Group):
                 action=f"Look up {rows[0][0].split(' (')[0]} (and the others) in the drive's manual and remove the "
                        f"cause; a PLC that resets the drive and runs it again at once only repeats the trip."))
         return out
+
+
+def _reset_bits(link: Link, model: str) -> dict[int, int]:
+    """register -> the bits its map names a fault reset (one-bit fields named "... reset"), in the model's map."""
+    try:
+        m = link.decoder(model).map
+        rows = m.registers.items()
+    except AttributeError:
+        return {}
+    out = {}
+    for addr, r in rows:
+        for fdef in m.bits.get(r.bits or "", []) if r.bits else ():
+            if fdef["lo"] == fdef["hi"] and "reset" in fdef["name"].lower():
+                out[addr] = out.get(addr, 0) | 1 << fdef["lo"]
+    return out
 
 
 def _trip_words(e: _Episode) -> str:

@@ -93,6 +93,18 @@ class Windows:
         if hit:
             self.hits[k] = self.hits.get(k, 0) + 1
 
+    def mark(self, t_ns: int) -> None:
+        """A hit on a chance counted already (add): an answer to a broadcast counted when the broadcast went."""
+        if self.t0 is None:
+            self.add(t_ns, True)
+            return
+        k = (t_ns - self.t0) // self.width
+        if k >= MAX_WINDOWS:
+            self._coarser()
+            k = (t_ns - self.t0) // self.width
+        self.n[k] = max(self.n.get(k, 0), self.hits.get(k, 0) + 1)
+        self.hits[k] = self.hits.get(k, 0) + 1
+
     def _coarser(self) -> None:
         while (self.n and max(self.n) // 2 >= MAX_WINDOWS // 2) or not self.n:
             n: dict[int, int] = {}

@@ -287,7 +287,8 @@ class MastersGroup(Group):
         ev = {"its_requests": sent, "its_period_ms": round(period, 1), "it_reads": "; ".join(types),
               "request_types_in_the_first_masters_cycle": len(s.held),
               "collisions_crc_damaged_frames": collided,
-              "first_master_requests_cut_short": interrupts, "late_answers": s.late}
+              "first_master_requests_cut_short": interrupts, "late_answers": s.late,
+              "requests_by_master": _by_master(s, spread)}
         who = f"unit {unit}" if unit is not None else f"units {', '.join(map(str, units))}"
         frames = [i for k in spread for i in s.indices.get(k, [])[:2]] + s.late_frames[:2] + s.burst_frames[:2]
         meet = (f"It collides with the first master: {collided} CRC-damaged frames are two transmitters at once, "
@@ -322,3 +323,15 @@ class MastersGroup(Group):
                  + ", ".join(f"unit {u} ({n})" for u, n in top[:3]) + ": the line spends that time twice.",
             action="Find why those units miss answers (see the other findings on them); a retry that follows a "
                    "damaged answer is the line's noise, one that follows silence a timeout or a busy drive.")
+
+
+def _by_master(s: _Link, second: dict) -> dict:
+    """Each request type (its first tries) labelled with the master it most likely comes from: the second's
+    schedule (drifting through the cycle), the first's (holding a place in it), or neither told ('unsure':
+    too rare to test, or between the two).  Most requests first; a type names its unit, function and range."""
+    rows = []
+    for k, (_, _, n) in s.times.items():
+        who = "second" if k in second else "first" if k in s.held else "unsure"
+        rows.append((who != "second", -n, f"u{k[0]} {key_text(k[1:])}", who, n))
+    rows.sort()
+    return {text: {"master": who, "requests": n} for _, _, text, who, n in rows}

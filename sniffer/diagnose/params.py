@@ -16,8 +16,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from sniffer.codes import ERROR, WARNING
+from sniffer.diagnose.episodes import Episode, Windows
 from sniffer.diagnose.state import Group, Link, Unit
-from sniffer.diagnose.finding import Finding
+from sniffer.diagnose.finding import Finding, count_of
 
 if TYPE_CHECKING:
     from sniffer.diagnose.engine import Diagnosis
@@ -31,7 +32,7 @@ _WRITE_FUNCTIONS = frozenset((0x06, 0x10))
 
 class _UnitParams:
     __slots__ = ("model", "save", "groups", "ids", "saves", "first_save", "last_save", "pending", "written",
-                 "reverted", "last_answer", "silences", "save_frames", "first_unsaved", "failed_save")
+                 "reverted", "last_answer", "silences", "save_frames", "first_unsaved", "failed_save", "when")
 
     def __init__(self) -> None:
         self.model = None
@@ -49,6 +50,7 @@ class _UnitParams:
         self.save_frames: list[int] = []
         self.first_unsaved: int | None = None
         self.failed_save: tuple | None = None  # (index, code, name) of a save refused after the unsaved writes
+        self.when = Windows()  # its answers in time, the acknowledged saves hit: when it saved so often
 
 
 class ParamsGroup(Group):
@@ -81,6 +83,8 @@ class ParamsGroup(Group):
         if p.last_answer is not None and f.t_ns - p.last_answer > SILENCE_NS:
             p.silences.append((p.last_answer, f.t_ns))
         p.last_answer = f.t_end_ns
+        if p.save is not None:
+            p.when.add(f.t_ns)
         if not f.writes:
             return
         if self.reference is not None:
@@ -110,6 +114,7 @@ class ParamsGroup(Group):
         if p.first_save is None:
             p.first_save = f.t_ns
         p.last_save = f.t_ns
+        p.when.mark(f.t_ns)
         p.pending.clear()
         p.written.clear()
         p.failed_save = None
@@ -155,7 +160,8 @@ class ParamsGroup(Group):
             failed = f" (the save after them was refused: {code}{name}, #{ix})"
             ev["save_refused"] = f"#{ix}"
             frames.append(ix)
-        text = (f"Unit {unit}: {', '.join(names[:4])} written and acknowledged ({writes} writes since the last save), "
+        since = count_of(writes, "write")
+        text = (f"Unit {unit}: {', '.join(names[:4])} written and acknowledged ({since} since the last save), "
                 f"and no save ({p.save:04X}H) after them{failed}: the drive loses them at its next power cycle.")
         sev = WARNING
         if p.reverted:
@@ -168,9 +174,11 @@ class ParamsGroup(Group):
                     f"({p.save:04X}H), and reads back {got}{when}.")
             frames.append(ix)
             sev = ERROR
+        t0 = d.seconds(first) if first is not None else d.seconds(link.first_ns)
+        # one episode: from the first write not saved to the end of the capture (nothing saved them since)
+        when = [Episode(t0, d.seconds(link.last_ns), writes, "writes not saved")] if t0 is not None else []
         return Finding("params_not_saved", sev, unit=unit, link=link.name, evidence=ev, frames=frames,
-                       t_start=d.seconds(first) if first is not None else d.seconds(link.first_ns),
-                       t_end=d.seconds(link.last_ns), text=text,
+                       t_start=t0, t_end=d.seconds(link.last_ns), text=text, episodes=when,
                        action=f"After the PLC's parameter writes to unit {unit}, write the save command "
                               f"({p.save:04X}H) "
                               f"once (not every cycle), or set the parameters on the drive itself.")
@@ -188,6 +196,7 @@ class ParamsGroup(Group):
         return Finding(
             "eeprom_wear", ERROR if years < 1 else WARNING, unit=unit, link=link.name,
             t_start=d.seconds(p.first_save), t_end=d.seconds(p.last_save), frames=p.save_frames,
+            episodes=p.when.episodes(d.seconds, "saves"),
             evidence={"saves": p.saves, "span_s": round(span_ns / 1e9, 1), "saves_per_hour": round(per_hour, 1),
                       "endurance_writes": ENDURANCE, "years_to_endurance": round(years, 3)},
             text=f"Unit {unit}'s parameters are saved to EEPROM {per_hour:.0f} times an hour ({p.saves} saves in "

@@ -18,6 +18,7 @@ from sniffer.codes import INFO, WARNING
 from sniffer.analysis.diff import key_text
 from sniffer.diagnose.state import Group, Link, Unit
 from sniffer.diagnose.finding import Finding, count_of
+from sniffer.diagnose.episodes import Episode
 from sniffer.diagnose.stats import Quantiles
 
 if TYPE_CHECKING:
@@ -149,8 +150,11 @@ class PollsGroup(Group):
             return None
         rows.sort(key=lambda r: -r[0])
         share = sum(b for b, _, _ in rows) * link.char_ns / max(span_s * 1e9, 1)
+        t0, t1 = d.seconds(link.first_ns), d.seconds(link.last_ns)
         return Finding(
-            "poll_redundant", INFO, link=link.name, t_start=d.seconds(link.first_ns), t_end=d.seconds(link.last_ns),
+            "poll_redundant", INFO, link=link.name, t_start=t0, t_end=t1,
+            # the reads all along: one episode (a read whose answer changed would not be one of these)
+            episodes=[Episode(t0, t1, sum(t.n for _, _, t in rows), "reads whose answer never changed")],
             evidence={"reads": {text: {"per_s": round(t.n / span_s, 2), "changes": t.changes}
                                 for _, text, t in rows[:8]},
                       "line_share": round(share, 3)},

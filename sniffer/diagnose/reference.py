@@ -47,6 +47,7 @@ class Reference:
         self.source = source
         self.rows = rows  # (link, unit, register id or address text, value)
         self._resolved: dict[tuple, dict[int, tuple]] = {}  # (link, unit) -> addr -> (name, value)
+        self._unknown: dict[tuple, tuple[str, list[str]]] = {}  # (link, unit) -> (model, names its map lacks)
 
     def addresses(self, link, unit: int, model: str | None) -> dict[int, tuple]:
         """`model`: the one the unit's frame was decoded with."""
@@ -66,6 +67,29 @@ class Reference:
             addr = r.addr if r is not None else _address(name)
             if addr is not None:
                 out[addr] = (name if r is not None or not by_id else name, value)
+            else:
+                self._unknown.setdefault((link.name, unit), (model or "generic", []))[1].append(name)
+        return out
+
+    def notes(self) -> list[str]:
+        """What of the reference was compared with nothing, in words: rows naming a register the unit's map does
+        not have, and units the capture never heard (said, not dropped: a typo would hide a changed value)."""
+        where = os.path.basename(self.source)
+        out = []
+        for (ln, unit), (model, names) in sorted(self._unknown.items(), key=lambda kv: (kv[0][0], kv[0][1])):
+            shown = ", ".join(repr(n[:40]) for n in names[:5])
+            shown += f" and {len(names) - 5} more" if len(names) > 5 else ""
+            rows = f"{len(names)} rows" if len(names) != 1 else "1 row"
+            verb = "name" if len(names) != 1 else "names"
+            out.append(f"--params {where}: {rows} of unit {unit}{f' on {ln}' if ln else ''} {verb} no register of "
+                       f"its map ({model}) and no address: {shown}; not compared")
+        heard = {u for _, u in self._resolved} | {u for _, u in self._unknown}
+        missing = sorted({u for _, u, _, _ in self.rows} - heard)
+        if missing:
+            units = ", ".join(map(str, missing[:10]))
+            units += f" and {len(missing) - 10} more" if len(missing) > 10 else ""
+            out.append(f"--params {where}: unit{'s' if len(missing) > 1 else ''} {units} never answered in the "
+                       "capture; not compared")
         return out
 
     def compare(self, d, read: dict) -> list[Finding]:

@@ -69,7 +69,7 @@ class Link:
 
     __slots__ = ("name", "resolved", "registry", "line", "char_ns", "t35_ns", "units", "first_ns", "last_ns", "frames",
                  "bytes", "good_frames", "good_bytes", "matched_bytes", "crc_bad", "noise_frames", "noise_bytes",
-                 "last_role", "last_unit", "due", "slot", "time_sources", "requests", "echo_retries", "damage",
+                 "last_role", "last_unit", "due", "slot", "cut", "time_sources", "requests", "echo_retries", "damage",
                  "gaps_ns")
 
     def __init__(self, name: str, resolved=None, registry=None) -> None:
@@ -96,6 +96,9 @@ class Link:
         # (unit, t_end_ns, answer length or None) of a request whose answer has not come yet
         self.due: tuple[int, int, int | None] | None = None
         self.slot: Unit | None = None  # this frame is a damaged burst in that unit's answer slot (Diagnosis.frame)
+        # this frame is an answer whose damage is a driver's (unit, "first" | "last"): its first or last byte (set
+        # by wiring.py for the groups after it: a cut's damage says nothing of the load's interference)
+        self.cut: tuple[int, str] | None = None
         self.time_sources: dict[str, int] = {}
         self.requests: OrderedDict[int, tuple] = OrderedDict()  # index -> (unit, request, its request_type)
         self.echo_retries: OrderedDict[int, None] = OrderedDict()  # "answers" that are the master's retry

@@ -20,7 +20,8 @@ from sniffer.diagnose.codesets import LATE, RETRY, UNANSWERED
 from sniffer.codes import WARNING
 from sniffer.events import PER_READ
 from sniffer.diagnose.state import Group, Link, Unit
-from sniffer.diagnose.finding import Finding
+from sniffer.diagnose.episodes import Episode
+from sniffer.diagnose.finding import Finding, count_of
 from sniffer.diagnose.stats import Quantiles, spearman
 
 if TYPE_CHECKING:
@@ -31,6 +32,7 @@ TAIL_NEAR = 0.6  # a slowest answer in time this close to the master's wait: a t
 MIN_BINS = 8
 DRIFT_P = 1e-3
 DRIFT_RATIO = 1.5
+RISE_RUN = 5  # stretches in a row: a drift that came and went
 
 
 class _Waits:
@@ -179,7 +181,7 @@ class TimingGroup(Group):
         per_read = sum(link.time_sources.get(s, 0) for s in PER_READ) > link.time_sources.get("byte", 0)
         least = max(1.0, 2 * link.char_ns / 1e6) * (3 if per_read else 1)  # ms: read times blur a small shift
         if p > DRIFT_P or abs(b - a) < least or not (ratio >= DRIFT_RATIO or ratio <= 1 / DRIFT_RATIO):
-            return None
+            return self._rise(d, link, u, meds, least)
         way = "grows" if b > a else "shrinks"
         return Finding(
             "latency_drift", WARNING, unit=u.unit, link=link.name, t_start=d.seconds(u.first_ns),
@@ -193,3 +195,38 @@ class TimingGroup(Group):
                  f"{b:.1f} ms in the last.",
             action=f"Watch unit {u.unit}: a drive that answers ever slower is busier (a fault log filling, a "
                    f"hot CPU, a scan it runs); at this rate it will outgrow the master's timeout.")
+
+    def _rise(self, d: Diagnosis, link: Link, u: Unit, meds: list, least: float) -> Finding | None:
+        """A drift that came and went: a run of at least RISE_RUN stretches (and a tenth of them) whose median
+        answer time is DRIFT_RATIO times the unit's usual one (the median of its stretches) and `least` ms above,
+        in under half of the capture (else it is the usual).  An episode each such run."""
+        ys = sorted(m[1] for m in meds)
+        usual = ys[len(ys) // 2]
+        runs: list[list] = []
+        for mid, med, n in meds:
+            if usual > 0 and med >= DRIFT_RATIO * usual and med - usual >= least:
+                if runs and abs(mid - runs[-1][3] - u.lat_bins.width / 1e9) < 1e-6:  # the stretch after
+                    runs[-1][1:4] = [max(runs[-1][1], med), runs[-1][2] + n, mid]
+                    runs[-1][4] += 1
+                else:
+                    runs.append([mid, med, n, mid, 1])
+        need = max(RISE_RUN, len(meds) // 10)
+        runs = [r for r in runs if r[4] >= need]
+        if not runs or sum(r[4] for r in runs) > len(meds) // 2:
+            return None
+        half = u.lat_bins.width / 2e9
+        base = d.seconds(u.lat_bins.t0) or 0.0
+        top = max(r[1] for r in runs)
+        episodes = [Episode(base + r[0] - half, base + r[3] + half, r[2], f"answers while the median was "
+                            f"{DRIFT_RATIO:g} times the usual {usual:.1f} ms or more") for r in runs]
+        first = episodes[0]
+        return Finding(
+            "latency_drift", WARNING, unit=u.unit, link=link.name, t_start=first.from_s, t_end=episodes[-1].to_s,
+            frames=[u.first_answer, u.last_answer] if u.first_answer is not None else [], episodes=episodes,
+            evidence={"usual_median_ms": round(usual, 2), "highest_median_ms": round(top, 2),
+                      "stretches": len(meds), "stretches_slow": sum(r[4] for r in runs), "answers": u.lat.n},
+            text=f"Unit {u.unit}'s answer time rose for a while: from {first.from_s:.0f} s to {first.to_s:.0f} s its "
+                 f"median reached {top:.1f} ms, against {usual:.1f} ms the rest of the capture"
+                 + (f" ({count_of(len(episodes), 'time')} in all)" if len(episodes) > 1 else "") + ".",
+            action=f"Watch unit {u.unit}: a drive that answers slower for a while is busier then (a fault log "
+                   f"being written, a scan, a hot CPU); if it comes back, find what it does at those times.")

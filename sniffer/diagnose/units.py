@@ -167,6 +167,7 @@ class UnitsGroup(Group):
         return Finding(
             "unit_silent", ERROR, unit=u.unit, link=link.name, t_start=d.seconds(u.first_ns),
             t_end=d.seconds(u.last_ns), frames=u.frames,
+            episodes=[Episode(d.seconds(u.first_ns), d.seconds(u.last_ns), u.requests, "requests unanswered")],
             evidence={"requests": u.requests, "retries": u.retries, "answers": 0, "span_s": round(span, 1)},
             text=f"Unit {u.unit} never answered: {u.requests} requests to it ({u.retries} of them retries) over "
                  f"{span:.1f} s got no response, good or damaged.{echoes}",

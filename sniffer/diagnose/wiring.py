@@ -71,11 +71,17 @@ class WiringGroup(Group):
         self.answers: dict[tuple, _Answers] = {}
         self.strays: dict[str, dict] = {}
         self.de: dict[tuple, dict] = {}  # (link, unit) -> a logic capture's driver-enable times on its answers
+        # link -> whether the last answer's CRC held: a flagged byte right after an intact answer is a stray out of
+        # the released line (bus_unbiased), not the answer's last byte cut off it
+        self.last_ok: dict[str, bool] = {}
 
     def response(self, f, link: Link, unit: Unit | None, codes: frozenset, req) -> None:
         de_on, de_off = getattr(f, "de_on_ns", None), getattr(f, "de_off_ns", None)
         if (de_on is not None or de_off is not None) and unit is not None:
             self._de(link, unit, de_on, de_off, f.index)
+        link.cut = None
+        if f.role == "response":
+            self.last_ok[link.name] = bool(f.crc_ok)
         if f.crc_ok and not codes:
             if unit is not None:  # a clean answer: counted in its Unit, and a chance in time for its episodes
                 a = self._answers(link, unit)
@@ -115,6 +121,8 @@ class WiringGroup(Group):
             elif x.code == "modbus.crc.one_byte":
                 first |= x.start == 0
                 last |= x.start == n - 1
+        if first or last:
+            link.cut = (unit.unit, "first" if first else "last")
         if first:
             a.first += 1
             a.addresses[f.raw[0]] += 1
@@ -155,20 +163,23 @@ class WiringGroup(Group):
                     x["f_off"].append(index)
 
     def other(self, f, link: Link, unit: Unit | None, codes: frozenset) -> None:
+        link.cut = None
         if link.slot is not None:
             self.response(f, link, link.slot, codes, None)
 
     def noise(self, f, link: Link, codes: frozenset) -> None:
+        link.cut = None
         if link.slot is not None:
             self.response(f, link, link.slot, codes, None)
             return
         u = link.last_unit
         if (len(f.raw) == 1 and codes and link.last_role == "response" and u is not None and u.present
                 and f.idle_before_ns is not None and f.idle_before_ns < link.char_ns
-                and not UART.isdisjoint(codes)):
+                and not UART.isdisjoint(codes) and not self.last_ok.get(link.name, False)):
             # a flagged byte glued to an answer: its last byte, cut off it (a framer that keeps a flagged byte out
             # of a CRC-good frame leaves the answer a byte short and this after it)
             a = self._answers(link, u)
+            link.cut = (u.unit, "last")
             a.last += 1
             if len(a.frames_last) < 8:
                 a.frames_last.append(f.index)
@@ -210,21 +221,33 @@ class WiringGroup(Group):
         a = self.answers.get((name, unit))
         return (u.answers + u.garbled if u is not None else 0) + (a.orphans if a is not None else 0)
 
+    def cut(self, d: Diagnosis) -> set[tuple[str, int, str]]:
+        """(link, unit, "first" | "last") of each driver the bytes name (driver_enable_late, _disable_early)."""
+        return {(f.link or "", f.unit, field) for field, kind in (("first", "driver_enable_late"),
+                                                                   ("last", "driver_disable_early"))
+                for f in self._driver(d, field, kind)}
+
     def _driver(self, d: Diagnosis, field: str, kind: str) -> list[Finding]:
         out = []
         for (name, unit), a in self.answers.items():
             hits = getattr(a, field)
             total = self._total(d, name, unit)
-            if hits < MIN_HITS or hits < MIN_RATE * total or hits < DOMINANT * a.damaged:
+            if hits < MIN_HITS or hits < MIN_RATE * total:
                 continue
             a.answers = total
             rate = hits / a.answers
-            others = [(getattr(self.answers[(name, u2)], field) if (name, u2) in self.answers else 0,
-                       self._total(d, name, u2)) for u2, x in d.links[name].units.items() if u2 != unit and x.present]
-            o_hits, o_answers = sum(h for h, _ in others), sum(n for _, n in others)
+            others = [(self.answers.get((name, u2)), self._total(d, name, u2))
+                      for u2, x in d.links[name].units.items() if u2 != unit and x.present]
+            o_hits = sum(getattr(o, field) for o, _ in others if o is not None)
+            o_damaged = sum(o.damaged for o, _ in others if o is not None)
+            o_answers = sum(n for _, n in others)
             o_rate = o_hits / o_answers if o_answers else 0.0
             if o_rate > OTHERS_BELOW * rate:
                 continue  # the others' answers suffer too: not this unit's driver
+            # most of its damage beyond what every unit's answers suffer (noise on the line) is the one byte
+            background = (o_damaged - o_hits) / o_answers * total if o_answers else 0.0
+            if hits < DOMINANT * (a.damaged - background):
+                continue
             link = d.links[name]
             ev = {"answers": a.answers, f"{field}_byte_damaged": hits, "rate": round(rate, 3),
                   "other_units_rate": round(o_rate, 4), "damaged_answers": a.damaged}

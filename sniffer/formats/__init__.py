@@ -35,22 +35,29 @@ class Format:
     reader: str | None = None  # "module" with `sniff(path)` and its source class `SOURCE`
     export: bool = False  # offered by `sniffer export --to`
     extra: str | None = None  # the optional extra its writer needs (sniffer.EXTRAS)
+    parts: bool = False  # written by parts (sniffer.parallel.outputs.file_output), else whole in the coordinator
+    stream: int = 0  # its place among the formats of the frames on stdout (`--format`; 1 the default), 0: none
+    tui: int = 0  # its place in the TUI's export dialog, 0: not offered there
 
 
 TABLE: tuple[Format, ...] = (
-    Format("mcap", (".mcap",), "sniffer.formats.mcap.sink:open_sink", "sniffer.formats.mcap.reader", True),
-    Format("csv", (".csv",), "sniffer.formats.csvexport:open_sink", None, True),
-    Format("parquet", (".parquet",), "sniffer.formats.parquet:open_sink", None, True, extra="fleet"),
-    Format("pcap", (".pcap",), "sniffer.formats.pcap.writer:open_sink", "sniffer.formats.pcap.reader", True),
-    Format("pcapng", (".pcapng",), "sniffer.formats.pcap.writer:open_sink", None, True),
-    Format("jsonl", (".jsonl",), "sniffer.formats.jsonl:open_sink", None, True),
-    Format("text", (".txt",), "sniffer.formats.text:open_sink"),
+    Format("mcap", (".mcap",), "sniffer.formats.mcap.sink:open_sink", "sniffer.formats.mcap.reader", True,
+           parts=True, tui=1),
+    Format("csv", (".csv",), "sniffer.formats.csvexport:open_sink", None, True, parts=True, tui=3),
+    Format("parquet", (".parquet",), "sniffer.formats.parquet:open_sink", None, True, extra="fleet", parts=True),
+    Format("pcap", (".pcap",), "sniffer.formats.pcap.writer:open_sink", "sniffer.formats.pcap.reader", True,
+           parts=True, tui=2),
+    Format("pcapng", (".pcapng",), "sniffer.formats.pcap.writer:open_sink", None, True, parts=True, stream=3),
+    Format("jsonl", (".jsonl",), "sniffer.formats.jsonl:open_sink", None, True, parts=True, stream=2),
+    Format("text", (".txt",), "sniffer.formats.text:open_sink", parts=True, stream=1),
     Format("bytecsv", (".csv",), "sniffer.formats.bytecsv.writer:open_sink", "sniffer.formats.bytecsv.reader"),
     Format("saleae", (".csv",), None, "sniffer.formats.saleae"),
     Format("sigrok", (".sr",), None, "sniffer.sources.srzip"),  # decoded by sigrok-cli (sources/sigrok_cli.py)
 )
 WRITERS = {f.name: f for f in TABLE if f.writer}
 EXPORT_FORMATS = tuple(f.name for f in TABLE if f.export)
+STREAM_FORMATS = tuple(f.name for f in sorted(TABLE, key=lambda f: f.stream) if f.stream)  # the first: default
+TUI_FORMATS = {f.name: f.suffixes[0] for f in sorted(TABLE, key=lambda f: f.tui) if f.tui}  # -> its extension
 FORMATS = tuple(WRITERS)
 # what a capture file's name may end in, longest first (a window or dataset name drops it)
 CAPTURE_SUFFIXES = (".part", ".mcap", ".csv", ".pcapng", ".pcap")
@@ -92,6 +99,7 @@ class FileSink:
         if WRITERS[fmt].extra:
             need(WRITERS[fmt].extra, f"--to {fmt}")
         self.fmt = fmt
+        self.split = "file" if WRITERS[fmt].parts else None  # how it is written by parts (sniffer.sinks.base.Sink)
         self.timed_flush = timed_flush
         self.path = os.fspath(out)
         if fmt in ("csv", "parquet"):

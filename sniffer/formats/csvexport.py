@@ -15,6 +15,7 @@ import os
 from decimal import Decimal
 
 from sniffer.formats.rows import FRAMES, POINTS
+from sniffer.hot import HOT
 from sniffer.formats.tables import TableSink
 
 
@@ -60,8 +61,25 @@ def header(columns) -> bytes:
     return (",".join(f'"{name}"' for name, _ in columns) + "\n").encode()
 
 
+# a batch's text written in C (sniffer/_hot.c csv_text); None: by csv_text_py, the reference
+_CSV_TEXT = None if HOT is None else HOT.csv_text
+_KINDS: dict[tuple, tuple[str, ...]] = {}
+
+
 def csv_text(rows: list, columns) -> bytes:
     """Rows (tuples in the columns' order) -> their CSV lines, UTF-8."""
+    if _CSV_TEXT is not None and type(rows) is list:
+        kinds = _KINDS.get(columns)
+        if kinds is None:
+            kinds = _KINDS[columns] = tuple(kind for _, kind in columns)
+        text = _CSV_TEXT(rows, kinds, float_text)
+        if text is not None:  # None: a cell not of its column's plain type
+            return text
+    return csv_text_py(rows, columns)
+
+
+def csv_text_py(rows: list, columns) -> bytes:
+    """csv_text in Python: the reference."""
     cells = [_column(kind, col) for (_, kind), col in zip(columns, zip(*rows))]
     return ("\n".join(map(",".join, zip(*cells))) + "\n").encode()
 

@@ -16,6 +16,8 @@ class JsonlSink(StreamSink):
     """Lines written in batches, or one by one with `flush` (StreamSink)."""
 
     newline = b"\n"
+    kind = "jsonl"
+    split = "stream"  # by parts: its lines, written in order (sniffer.parallel.outputs)
 
     def __init__(self, out: BinaryIO | None = None, flush: bool = False, own: bool = False) -> None:
         super().__init__(out or sys.stdout.buffer, flush, own)

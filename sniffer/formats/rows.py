@@ -31,6 +31,7 @@ from pathlib import Path
 import msgspec
 
 from sniffer.frame import Frame
+from sniffer.hot import HOT
 
 # Every column with its type, in row order: "int" (int64), "float" (float64), "str", "bool"; all nullable.
 # The Arrow schemas (schemas.py) and the CSV writer (csvexport.py) are made from these.
@@ -96,6 +97,10 @@ def _text(v) -> str | None:
     return msgspec.json.encode(v).decode()
 
 
+# the rows of a frame's points built in C (sniffer/_hot.c point_rows); None: by point_rows_py, the reference
+_POINT_ROWS = None if HOT is None else HOT.point_rows
+
+
 def point_rows(f: Frame, t0_ns: int) -> list[tuple]:
     pts = f.points
     if not pts:
@@ -103,6 +108,15 @@ def point_rows(f: Frame, t0_ns: int) -> list[tuple]:
     t = (f.t_ns - t0_ns) / 1e9
     head = (f.index, t, f.unit, f.function, f.role, f.crc_ok, f.model)
     link = f.link or None
+    if _POINT_ROWS is not None and type(pts) is list:
+        rows = _POINT_ROWS(pts, head, link, _text)
+        if rows is not None:  # None: a point that is not a plain dict
+            return rows
+    return point_rows_py(pts, head, link)
+
+
+def point_rows_py(pts: list, head: tuple, link: str | None) -> list[tuple]:
+    """point_rows' loop in Python: the reference (a row a point: its frame's `head`, its own cells, `link`)."""
     rows = []
     for p in pts:
         raw = p.get("raw")

@@ -12,6 +12,7 @@ from typing import TextIO
 
 from sniffer.events import CaptureInfo
 from sniffer.frame import Frame
+from sniffer.hot import HOT
 from sniffer.sinks.base import Sink
 
 _MARK = {"error": "!!", "warning": "! ", "info": "  ", None: "  "}
@@ -21,8 +22,21 @@ _UNIT = [f"{i:<3d}" for i in range(256)]
 _NO_TIME = f"{'-':>12}"  # the time column of a frame without a time
 
 
+# the common frame's line written in C (sniffer/_hot.c frame_line); None: by frame_line_py, the reference
+_FRAME_LINE = None if HOT is None else HOT.frame_line
+
+
 def frame_line(f: Frame, t0_ns: int, link_width: int = 0) -> str:
     """The frame's line; `link_width` > 0: with a link column that wide (several links)."""
+    if _FRAME_LINE is not None and not link_width:
+        line = _FRAME_LINE(f, t0_ns)
+        if line is not None:  # None: a frame of another kind (noise, annotations, no time, DE ...)
+            return line
+    return frame_line_py(f, t0_ns, link_width)
+
+
+def frame_line_py(f: Frame, t0_ns: int, link_width: int = 0) -> str:
+    """frame_line in Python: the reference, and the writer of every line the compiled one leaves."""
     # frames typed in (`sniffer decode`) have no time: their column says so, not a made-up figure
     t = f"{(f.t_ns - t0_ns) / 1e9:12.6f}" if f.time_source != "none" else _NO_TIME
     if link_width:
@@ -116,6 +130,9 @@ def link_width(info: CaptureInfo | None) -> int:
 
 
 class TextSink(StreamSink):
+    kind = "text"
+    split = "stream"  # by parts: its lines, written in order (sniffer.parallel.outputs)
+
     def __init__(self, out: TextIO | None = None, flush: bool = False, own: bool = False) -> None:
         super().__init__(out or sys.stdout, flush, own)
         self.link_width = 0

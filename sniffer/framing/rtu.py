@@ -58,6 +58,7 @@ from sniffer.framing.crc_rules import NEXT, Crc16Framing
 from sniffer.frame import CAN_REQ, CAN_RSP, Frame
 from sniffer.framing.linebuf import WAIT, HARD, MAX_NOISE, NONE, SOFT, LineBuffer
 from sniffer.framing.rtu_lengths import KNOWN_FUNCTIONS, MAX_ADU, Need, candidates, roles
+from sniffer.hot import HOT
 
 __all__ = ["RtuFramer", "HARD", "SOFT", "NONE", "MAX_NOISE", "WAIT"]
 _READS = frozenset((0x01, 0x02, 0x03, 0x04))  # request 8 bytes, response byte count + 5
@@ -67,6 +68,9 @@ _ECHOES = frozenset((0x05, 0x06, 0x08))  # 8 bytes both ways
 class RtuFramer(Crc16Framing, LineBuffer):
     protocol = "modbus-rtu"
     codes = codes.RTU_CODES
+    # `_fast`'s loop compiled (sniffer/_hot.c rtu_fast: same decisions, it hands every case it does not
+    # settle back to `_step`); None: `_fast` itself runs (SNIFFER_PURE, no compiler, or a subclass that says so)
+    _compiled_fast = None if HOT is None else staticmethod(HOT.rtu_fast)
 
     def noise_reason(self, raw: bytes) -> str:
         return _noise_reason(raw)
@@ -78,7 +82,8 @@ class RtuFramer(Crc16Framing, LineBuffer):
         # _fast stops where _step would wait too (the rest of a frame), _step is not asked
         waits = False
         if not self.flags:
-            waits = self._fast(out)
+            fast = self._compiled_fast
+            waits = self._fast(out) if fast is None else fast(self, out, Frame, roles)
             if out:
                 self._last_good = (out[-1].role_fits, out[-1].raw)
         if not waits:

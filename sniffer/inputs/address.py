@@ -24,6 +24,15 @@ _HOSTNAME = re.compile(r"(?=.{1,253}$)[A-Za-z0-9](?:[A-Za-z0-9-]{0,61}[A-Za-z0-9
                        r"(?:\.[A-Za-z0-9](?:[A-Za-z0-9-]{0,61}[A-Za-z0-9])?)*\.?")
 
 
+def is_host(text: str) -> bool:
+    """A host name, an IPv4 or an IPv6 address (without brackets): what any connecting option may name."""
+    try:
+        ipaddress.ip_address(text)
+        return True
+    except ValueError:
+        return bool(_HOSTNAME.fullmatch(text))
+
+
 @dataclass(frozen=True)
 class Address:
     scheme: str

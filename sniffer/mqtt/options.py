@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from urllib.parse import unquote, urlsplit
 
 from sniffer import need
+from sniffer.inputs.address import is_host
 from sniffer.line import SettingsError
 
 DEFAULT_QUEUE = 10_000
@@ -124,6 +125,9 @@ def parse_url(url: str) -> MqttSpec:
         raise SettingsError(f"--mqtt {shown}: give mqtt://HOST[:PORT]/PREFIX (or mqtts:// for TLS)")
     if not u.hostname:
         raise SettingsError(f"--mqtt {shown}: no broker host (mqtt://HOST[:PORT]/PREFIX)")
+    if not is_host(u.hostname):
+        raise SettingsError(f"--mqtt {shown}: {u.hostname[:40]!r} is not a host name or address "
+                            "(mqtt://HOST[:PORT]/PREFIX)")
     if port == 0:
         raise SettingsError(f"--mqtt {shown}: port 0")
     prefix = unquote(u.path).strip("/")

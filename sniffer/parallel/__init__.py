@@ -7,7 +7,7 @@
     worker.py   the worker process and its pipe
     outputs.py  each output's two halves: a plan (in the workers) and a writer (in the coordinator)
     whole.py    MCAP and Parquet, written by one writer over the whole capture
-    run.py      ParallelRun: what the commands drive instead of a Session (the same results)
+    run.py      ParallelRun: a run by parts (sniffer.decoding.decode gives it for jobs > 1; a Session's results)
     fleet.py    ingest: a fleet's capture files, one per worker process or per Dask worker
 
 docs/parallel.md says what crosses a cut and why the output is the same.

@@ -3,6 +3,7 @@
     jobs = jobs_of(args)                     # N, or the machine's cores; 1: one process
     why = one_process_why(spec, args)        # None, or the one line that says why one process decodes it
     jobs = default_jobs(spec, args)          # no --jobs: parts only where they are faster
+    jobs = jobs_for(spec, args)              # what a command runs with: the above, said in one line
 
 A capture is decoded by parts only where the output is then the same as one
 process's.  The things a part cannot carry across its cut (a trigger window's
@@ -118,6 +119,21 @@ def _links(spec) -> int:
             close_source(source)
         except Exception:  # noqa: BLE001 - as above
             pass
+
+
+def jobs_for(spec, args) -> int:
+    """The processes a decoding command runs with (sniffer.decoding.decode): --jobs, else `default_jobs`; 1 where
+    a part cannot carry what the command needs across its cut (said in one line when --jobs asked for more)."""
+    from sniffer.stderr import say
+
+    jobs = jobs_of(args) if getattr(args, "jobs", None) else default_jobs(spec, args)
+    if jobs > 1:
+        why = one_process_why(spec, args)
+        if why:
+            if getattr(args, "jobs", None):
+                say(f"note: --jobs {jobs}: one process ({why})")
+            return 1
+    return jobs
 
 
 def one_process_why(spec, args=None) -> str | None:

@@ -268,14 +268,19 @@ class _Calls(Sink):
 class SinkWriter:
     """Any pipeline sink (sniffer.sinks.base.Sink) fed a CallsPlan's pieces in order: start, every raw event and
     frame as one process calls them, close.  What a command runs in the coordinator when it must see every
-    frame in one place (a diagnosis over the whole capture)."""
+    frame in one place (a diagnosis over the whole capture).  A planned file (sniffer.formats.FileSink) that
+    does not split is opened at begin()."""
 
     def __init__(self, sink) -> None:
         self.sink = sink
-        self.outputs = tuple(getattr(sink, "outputs", ()))
+        self.outputs = tuple(getattr(sink, "outputs", ()))  # a plain object with the four calls has none
         self.held: list = []
 
     def begin(self, info) -> None:
+        from sniffer.formats import FileSink
+
+        if isinstance(self.sink, FileSink):
+            self.sink = self.sink.open()
         self.sink.start(info)
 
     def add(self, piece) -> None:
@@ -362,11 +367,35 @@ def file_output(file_sink) -> tuple:
     return plan, FileWriter(file_sink, plan)
 
 
+def _stream_output(sink) -> tuple:
+    """A text or JSONL stream sink (replay's stdout): the lines by parts, written in order to its stream."""
+    return StreamPlan(sink.kind), StreamWriter(sink.out)
+
+
+def _health_output(warning) -> tuple:
+    return HealthPlan(), HealthWriter(warning)
+
+
+# how a sink splits into parts, by the name it gives (`Sink.split`, `FileSink.split`): (plan, writer) of it
+SPLITS = {"file": file_output, "stream": _stream_output, "health": _health_output}
+
+
+def split(sink) -> tuple:
+    """(plan, writer) of any sink or planned file: by its `split`, else it runs in the coordinator, fed every
+    frame and raw event in one process's order (CallsPlan, SinkWriter)."""
+    if isinstance(sink, tuple):  # split already: (plan, writer)
+        return sink
+    how = getattr(sink, "split", None)  # a FileSink plan is no Sink: it says it too
+    if how is not None:
+        return SPLITS[how](sink)
+    return CallsPlan(raw=True), SinkWriter(sink)
+
+
 def stdout_for(kind: str):
     import sys
 
     return sys.stdout.buffer if kind == "jsonl" else sys.stdout
 
 
-__all__ = ["CallsPlan", "FilePlan", "FileWriter", "FramesPlan", "GoldenPlan", "HealthPlan", "HealthWriter",
-           "SinkWriter", "StreamPlan", "StreamWriter", "file_output", "stdout_for"]
+__all__ = ["SPLITS", "CallsPlan", "FilePlan", "FileWriter", "FramesPlan", "GoldenPlan", "HealthPlan", "HealthWriter",
+           "SinkWriter", "StreamPlan", "StreamWriter", "file_output", "split", "stdout_for"]

@@ -5,6 +5,8 @@
 closed pipe.  `die_with_parent(sig)` asks the kernel to send `sig` when the parent ends (SIGINT to
 the capture, which then closes its MCAP as on Ctrl-C; SIGKILL to a viewer, which holds no file).
 
+External programs (sigrok-cli) get the same through `external_ends_with_parent()` as their preexec_fn.
+
 The worker processes of `--jobs` (sniffer.parallel: a replay's parts, an ingest's captures) and of
 `detect` (one per port) call `worker_ends_with_parent(*worker_args())` first: a parent killed outright
 (SIGKILL, the OOM killer) leaves no worker decoding on for nobody.
@@ -12,31 +14,12 @@ The worker processes of `--jobs` (sniffer.parallel: a replay's parts, an ingest'
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import os
 import signal
-import sys
 import threading
 import time
 
-PR_SET_PDEATHSIG = 1
-
-
-def die_with_parent(sig: int) -> bool:
-    """Have the kernel send `sig` to this process when its parent ends; False where it cannot (not Linux)."""
-    if not sys.platform.startswith("linux"):
-        return False
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-        if libc.prctl(PR_SET_PDEATHSIG, sig, 0, 0, 0) != 0:
-            return False
-    except OSError:
-        return False
-    if os.getppid() == 1:  # the parent ended before we asked
-        os.kill(os.getpid(), sig)
-    return True
-
+from sniffer.orphans import die_with_parent, external_ends_with_parent  # noqa: F401 - the processes' too
 
 WATCH_S = 0.5  # how often a worker looks whether its parent is still there
 

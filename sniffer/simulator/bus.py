@@ -250,7 +250,8 @@ class _Bus:
         slow = bool(spec.slow_prob) and rng.random() < spec.slow_prob
         ta = max(self._chars(spec.slow_turnaround_chars if slow else spec.turnaround_chars), self.quiet)
         if spec.turnaround_growth_per_min:
-            ta = int(ta * (1 + spec.turnaround_growth_per_min * self.now / 60e9))
+            grown = self.plan.drift_minutes(spec.unit, self.now) if self.plan is not None else self.now / 60e9
+            ta = int(ta * (1 + spec.turnaround_growth_per_min * grown))
         if spec.late_prob and rng.random() < spec.late_prob:
             ta = int(rng.uniform(*spec.late_timeouts) * self.timeout)  # after the master gave up (a fault)
         else:

@@ -78,7 +78,8 @@ KINDS: dict[str, FaultKind] = {k.name: k for k in (
     FaultKind("wrong_line_settings", "the sniffer is set to another baud and parity than the line "
                                      "(KIND:BAUD: that baud)", unit=False),
     FaultKind("second_master", "a second PLC polls the unit on its own schedule"),
-    FaultKind("latency_drift", "the unit's turnaround grows through the capture", levels=(0.5, 4.0, 10.0),
+    FaultKind("latency_drift", "the unit's turnaround grows through the capture (KIND@FROM-TO: grows from FROM, "
+                               "back to what it was at TO)", spans=True, levels=(0.5, 4.0, 10.0),
               severity="growth of its turnaround per minute, as a share of itself"),
     FaultKind("second_master_blind", "a second PLC polls the unit on its own clock and never listens first: "
                                      "it collides with the first master"),
@@ -351,6 +352,7 @@ class BusFaults:
         self.load = find(bus.sc, "noise_correlated_with_load")
         self.ramps = find(bus.sc, "noise_during_ramps")
         self.silent = [f for f in find(bus.sc, "unit_silent") if f.spanned]
+        self.drifts = find(bus.sc, "latency_drift")
         self.refusing = find(bus.sc, "unit_refuses")
         m2 = next((k for k in SECOND_MASTERS if k in faults), None)
         self.m2_unit = faults.get(m2) if m2 is not None else None
@@ -360,6 +362,15 @@ class BusFaults:
         self.free_ns = 0  # the bus time from which the line was quiet before `between` was called (bus.run)
         self.power_unit = faults.get("params_not_saved")
         self.power_off: tuple[int, int] | None = None  # (from, to) in bus time
+
+    def drift_minutes(self, unit: int, now: int) -> float:
+        """How long (minutes) the unit's turnaround has been growing: from the capture's start, or from its
+        latency_drift span's start while in the span (none outside it: the cause went)."""
+        spans = [f for f in self.drifts if f.unit == unit]
+        if not spans or not any(f.spanned for f in spans):
+            return now / 60e9
+        on = next((f for f in spans if f.active(now)), None)
+        return 0.0 if on is None else (now - on.start_s * 1e9) / 60e9
 
     def interference(self, now: int) -> float:
         """Extra chance that a frame is hit: grows with the load unit's output frequency, or with how hard the

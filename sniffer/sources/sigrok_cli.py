@@ -35,6 +35,7 @@ from collections.abc import Iterator
 
 from sniffer.events import CaptureInfo
 from sniffer.events import CaptureError
+from sniffer.orphans import external_ends_with_parent
 from sniffer.sources.logic_options import DeviceSpec, LogicSpec
 from sniffer.sources.sigrok_uart import UART, SigrokUart, decoder_args
 
@@ -162,7 +163,8 @@ class SigrokSource:
         # a session of its own: the terminal's Ctrl-C reaches the capture, which stops sigrok-cli with its key (a
         # sigrok-cli killed by the signal would end without what it had decoded)
         self.proc = subprocess.Popen([exe, *self.argv], stdin=subprocess.PIPE if self.live else subprocess.DEVNULL,
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
+                                     preexec_fn=external_ends_with_parent())
         for fd in (self.proc.stdout.fileno(), self.proc.stderr.fileno()):
             os.set_blocking(fd, False)
         try:

@@ -66,6 +66,7 @@ class TriggerSink(Sink):
         self.settled = lambda: 2  # the session binds its pipeline's (Pipeline.settled)
         self.files: dict[int, WindowFile | None] = {}  # window number -> its file (None: could not be written)
         self.written: list[str] = []
+        self.window_bytes = self.window_line_bytes = 0  # the windows' files, and the line's bytes they hold
         self.failed_windows = 0
         self.last: dict | None = None
         self.runner = (CommandRunner(spec.on_trigger, spec.on_trigger_timeout_s, self.report)
@@ -81,6 +82,10 @@ class TriggerSink(Sink):
         self._state_moved = False
 
     # ------------------------------------------------------------ the sink
+    def bind(self, pipeline) -> None:
+        self.decoder_state = pipeline.decoder_state
+        self.state_version = pipeline.state_version
+
     def start(self, info) -> None:
         self.info = info
         self.t0 = info.t0_ns
@@ -90,11 +95,12 @@ class TriggerSink(Sink):
 
     def raw(self, event) -> None:
         data = encode_event(event)
+        settled = self.settled(event.link) if event.link else self.settled()
         if type(event) is Chunk:
             bt = event.byte_t_ns
             t = bt[0] if bt else event.t_ns - len(event.data) * self.char_ns  # the first byte (as linebuf.py)
             # nothing pending (on its own link, with several): no orphan answer at a start
-            kind = RAW_CLEAN if (self.settled(event.link) if event.link else self.settled()) == 2 else RAW
+            kind = RAW_CLEAN if settled == 2 else RAW
         else:
             t, kind = event.t_ns, RAW
         if self._state_moved:  # what the frames before this event taught the decoders: from here on
@@ -104,11 +110,17 @@ class TriggerSink(Sink):
         self.ring.add(kind, t, event.t_ns, data)
         for w in self.plan.active:
             f = self.files.get(w.n)
-            if f is not None and t <= w.end_ns:
-                try:
-                    f.raw(t, event.t_ns, data)
-                except Exception as e:  # noqa: BLE001 - a full disk loses the window, never the capture
-                    self._drop(w, f, e)
+            if f is None:
+                continue
+            if t > w.end_ns and (settled or not f.tail_open):
+                # past its end, a window takes the reads that finish a frame begun (bytes wait in the framer):
+                # its file has no /frames, a replay of its /raw gives its frames, the last one whole
+                f.tail_open = False
+                continue
+            try:
+                f.raw(t, event.t_ns, data, len(event.data) if type(event) is Chunk else 0)
+            except Exception as e:  # noqa: BLE001 - a full disk loses the window, never the capture
+                self._drop(w, f, e)
 
     def frame(self, frame) -> None:
         data = frame_json(frame, self.t0)
@@ -156,6 +168,7 @@ class TriggerSink(Sink):
     def status(self) -> dict:
         p = self.plan
         st = {"fired": p.fired, "windows": len(self.written), "open": len(p.active), "suppressed": p.suppressed,
+              "window_bytes": self.window_bytes, "window_line_bytes": self.window_line_bytes,
               "failed_windows": self.failed_windows, "last": self.last, "ring_bytes": self.ring.nbytes}
         if self.runner is not None:
             st["on_trigger"] = self.runner.status()
@@ -272,7 +285,7 @@ class TriggerSink(Sink):
                     if f.first_ns is not None and f.first_ns <= t <= w.end_ns:
                         f.frame(t, data)
                 elif t <= w.end_ns and i >= first.get(decode_event(data).link, 1 << 62):
-                    f.raw(t, log, data)
+                    f.raw(t, log, data, _line_bytes(data))
             return
         for i, (kind, t, log, data) in enumerate(self.ring.records(since)):
             if i < first:
@@ -281,7 +294,7 @@ class TriggerSink(Sink):
                 if f.first_ns is not None and f.first_ns <= t <= w.end_ns:
                     f.frame(t, data)
             elif t <= w.end_ns:
-                f.raw(t, log, data)
+                f.raw(t, log, data, _line_bytes(data))
 
     def _lost(self, w: Window, e: Exception, kept: str | None = None) -> None:
         self.files[w.n] = None
@@ -301,6 +314,11 @@ class TriggerSink(Sink):
             self._lost(w, e, f.output.part if f.output.state == "kept" else None)
             return
         self.written.append(path)
+        try:
+            self.window_bytes += os.path.getsize(path)
+            self.window_line_bytes += f.line_bytes
+        except OSError:
+            pass  # taken away already (--on-trigger of an earlier window, a cleaner): its size is not known
         span = ((f.last_ns or 0) - (f.first_ns or 0)) / _NS
         self.report(f"window {path}: {span:.1f} s, {f.frames} frames, rules {', '.join(meta['rules'])}"
                     + ("" if meta["post_complete"] else " (the capture ended inside its post span)"))
@@ -333,6 +351,12 @@ class TriggerSink(Sink):
 
 
 __all__ = ["ALIGN_NS", "TriggerSink"]
+
+
+def _line_bytes(data: bytes) -> int:
+    """The line's bytes in an encoded /raw event (the ring's)."""
+    ev = decode_event(data)
+    return len(ev.data) if type(ev) is Chunk else 0
 
 
 def _shown(rule: str, limit: int = 80) -> str:

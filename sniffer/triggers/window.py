@@ -53,15 +53,18 @@ class WindowFile:
         copy.extra = {**copy.extra, "trigger": first}
         if decoder_state is not None:
             record(copy, decoder_state)
-        self.sink = McapSink(self.output.part)
+        self.sink = McapSink(self.output.part, compact=True)
         self.sink.start(copy)
-        self.raw_events = self.frames = 0
+        self.raw_events = self.frames = self.line_bytes = 0
         self.first_ns: int | None = None  # the first raw event's time
         self.last_ns: int | None = None
+        self.tail_open = True  # past the window's end, the reads that finish a frame begun are still taken
 
-    def raw(self, t_ns: int, log_ns: int, data: bytes) -> None:
+    def raw(self, t_ns: int, log_ns: int, data: bytes, line_bytes: int = 0) -> None:
+        """An encoded /raw event at t_ns (its first byte); `line_bytes`: the line's bytes it carries."""
         self.sink.encoded("raw", log_ns, data)
         self.raw_events += 1
+        self.line_bytes += line_bytes
         if self.first_ns is None:
             self.first_ns = t_ns
         self.last_ns = t_ns

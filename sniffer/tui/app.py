@@ -39,7 +39,7 @@ from sniffer.tui.plot import JumpToFrame, PlotPane
 from sniffer.tui.plotmodel import PlotSet
 from sniffer.tui.readring import ReadRing
 from sniffer.tui.registers import RegisterWatch
-from sniffer.tui.sink import INTAKE_BUDGET_S, INTAKE_PERIOD_S, TuiSink
+from sniffer.tui.sink import INTAKE_BUDGET_S, INTAKE_GAP_S, INTAKE_TURN_S, TuiSink
 from sniffer.tui.status import status_text
 from sniffer.tui.txlist import TransactionList, TransactionsPane
 from sniffer.tui.units import UnitsTable
@@ -121,6 +121,18 @@ class ConfirmQuit(ModalScreen[bool]):
 
     def action_answer(self, stop: bool) -> None:
         self.dismiss(stop)
+
+
+async def _loop_idle(loop, most: int = 64) -> None:
+    """Give the event loop INTAKE_GAP_S, then as long as it has callbacks ready (a key's way to its widget
+    is several hops, each a callback: one turn between two hops made a key wait several turns), at most
+    `most` rounds.  `_ready` is CPython's event loop's queue of ready callbacks (private: a loop without it
+    just gets the gap)."""
+    await asyncio.sleep(INTAKE_GAP_S)
+    for _ in range(most):
+        if not getattr(loop, "_ready", None):
+            return
+        await asyncio.sleep(0)
 
 
 def _terminal_fd(driver_class) -> int | None:
@@ -213,6 +225,7 @@ class SnifferApp(App):
         self._tables_at = None  # (store state, tab) the units / registers tables were last built for
         self._status_text = None
         self._shown_rows = 0  # store rows when the list was last told
+        self._intake_task: asyncio.Task | None = None  # taking a backlog in between polls (_intake)
         self.notices: deque[str] = deque()  # lines a capture process said on stderr: shown as notifications
         self.export_status: str | None = None  # an export running on its worker: how far it is
         self.reads = ReadRing()  # the byte view's last reads (sniffer.analysis.reads)
@@ -257,10 +270,13 @@ class SnifferApp(App):
         self.byte_view = self.query_one("#byteview", ByteView)
         self.frame_list.focus()
         self.set_interval(1 / self.poll_hz, self._tick)
-        self._more = self.set_interval(INTAKE_PERIOD_S, self._intake, pause=True)  # while frames wait
         if self.feed is not None:
             self._thread = threading.Thread(target=self._run_feed, name="tui-feed", daemon=True)
             self._thread.start()
+
+    def on_unmount(self) -> None:
+        if self._intake_task is not None:
+            self._intake_task.cancel()
 
     def _run_feed(self) -> None:
         try:
@@ -312,13 +328,16 @@ class SnifferApp(App):
             self.exit(self.feed_result)
             return
         self.poll(INTAKE_BUDGET_S)
-        if self.sink.backlog:
-            self._more.resume()
+        if self.sink.backlog and (self._intake_task is None or self._intake_task.done()):
+            self._intake_task = asyncio.create_task(self._intake())
 
-    def _intake(self) -> None:
-        """Between two polls, while frames wait: more of them into the store (the next poll shows them)."""
-        if not self.sink.drain_into(self._take, budget_s=INTAKE_BUDGET_S) or not self.sink.backlog:
-            self._more.pause()
+    async def _intake(self) -> None:
+        """Between two polls, while frames wait: turns of INTAKE_TURN_S taking them into the store, each
+        followed by INTAKE_GAP_S of the event loop's own work (a key, a timer, a redraw), so a replay loads
+        at most of the UI thread's time and a key waits about one turn (the next poll shows the frames)."""
+        loop = asyncio.get_running_loop()
+        while self.sink.drain_into(self._take, budget_s=INTAKE_TURN_S) and self.sink.backlog:
+            await _loop_idle(loop)
 
     def poll(self, budget_s: float | None = None) -> None:
         """Frames into the store (at most max_batch, and for at most `budget_s` if given), then the view."""

@@ -27,11 +27,11 @@ from sniffer.events import CaptureInfo, Chunk
 from sniffer.frame import Frame
 from sniffer.formats.outputs import OutputError, shown
 from sniffer.formats.mcap.segments import INDEX_NAME
-from sniffer.formats import FileSink
+from sniffer.formats import TUI_FORMATS, FileSink
 from sniffer.formats.mcap.sink import CaptureStorageError
 from sniffer.formats.rows import points_path
 
-FORMATS = {"mcap": ".mcap", "pcap": ".pcap", "csv": ".csv"}  # format -> extension, in the modal's order
+FORMATS = TUI_FORMATS  # format -> extension, in the modal's order (the formats' table)
 WHATS = {"view": "view", "bookmarks": "bookmarks"}  # what -> the default file name's tag
 
 

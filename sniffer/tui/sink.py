@@ -36,8 +36,12 @@ from sniffer.analysis.reads import RING_READS, Read, ReadMarker
 from sniffer.sinks.base import Sink
 
 MAX_BACKLOG = 2_000  # frames waiting for the UI before a replay waits
-INTAKE_BUDGET_S = 0.004  # the UI thread's turn at taking frames in: a key waits at most about this long
-INTAKE_PERIOD_S = 0.02  # between two turns while frames wait (the view is drawn at the App's poll rate)
+INTAKE_BUDGET_S = 0.004  # the poll's turn at taking frames in (it also draws)
+# between polls, while frames wait (a replay loading): turns this long, each followed by this much of the event
+# loop's own work.  Turns of 4 ms every 20 ms left the UI thread idle 80 % of a load (656 frames/s under load);
+# a key now waits about one turn, well within 100 ms.
+INTAKE_TURN_S = 0.015
+INTAKE_GAP_S = 0.002
 INTAKE_CHUNK = 32  # frames drain_into hands over first, before it knows what a frame costs
 
 

@@ -37,6 +37,7 @@ import msgspec
 
 from sniffer.events import TIME_SOURCES, CaptureInfo, Chunk, Gap, Tick
 from sniffer.formats.records import FRAME_SCHEMA
+from sniffer.hot import HOT
 
 MAGIC = b"\x89MCAP0\r\n"
 CAPTURE_TOPIC = "/capture"
@@ -44,6 +45,11 @@ RAW_TOPIC = "/raw"
 FRAMES_TOPIC = "/frames"
 METADATA_NAME = "sniffer.capture"
 RAW_FORMAT = "1"  # channel metadata "sniffer.format": bump when /raw changes incompatibly
+# a compact file's /raw (segments, trigger windows): a message holds the events of up to a second, a JSON
+# array of format 1's objects, and there is no /frames channel (a replay decodes them again, exactly)
+RAW_BATCH_FORMAT = "2"
+RAW_FORMATS = (RAW_FORMAT, RAW_BATCH_FORMAT)
+BATCH_NS = 1_000_000_000  # a batch spans at most this much capture time (and ends at every flush)
 
 RAW_SCHEMA = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -110,6 +116,14 @@ CAPTURE_SCHEMA = {
 }
 
 
+RAW_BATCH_SCHEMA = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": "sniffer.RawEvents",
+    "description": "The source events of up to a second, in order (sniffer.format 2)",
+    "type": "array",
+    "items": {k: v for k, v in RAW_SCHEMA.items() if k != "$schema"},
+}
+
 # (topic, schema name, JSON schema) of every channel, in the order a writer registers them
 CHANNELS = (
     (CAPTURE_TOPIC, "sniffer.CaptureInfo", CAPTURE_SCHEMA),
@@ -149,12 +163,43 @@ def encode_event(ev: Chunk | Tick | Gap) -> bytes:
     return msgspec.json.encode(d)
 
 
+# the messages this sniffer writes itself, read in C (sniffer/_hot.c decode_raw); None: every message by
+# decode_event_py, the reference
+_DECODE_RAW = None if HOT is None else HOT.decode_raw
+
+
+def encode_batch(encoded: list[bytes]) -> bytes:
+    """The /raw message of format 2 holding these encoded events (encode_event's)."""
+    return b"[" + b",".join(encoded) + b"]"
+
+
+def decode_batch(data: bytes) -> list[Chunk | Tick | Gap]:
+    """The events of a format 2 /raw message (kinds this version does not know left out); ValueError as
+    decode_event."""
+    items = msgspec.json.decode(data)
+    if not isinstance(items, list):
+        raise ValueError("a /raw message of format 2 is not a list")
+    return [ev for ev in map(_event, items) if ev is not None]
+
+
 def decode_event(data: bytes) -> Chunk | Tick | Gap | None:
     """Event from a /raw message; None for a kind this version does not know.
 
     Raises ValueError (or KeyError/TypeError) on a malformed message.
     """
-    d = msgspec.json.decode(data)
+    if _DECODE_RAW is not None:
+        ev = _DECODE_RAW(data, Chunk, Tick)  # None: not a shape it reads (another tool's, damaged, a gap...)
+        if ev is not None:
+            return ev
+    return decode_event_py(data)
+
+
+def decode_event_py(data: bytes) -> Chunk | Tick | Gap | None:
+    """decode_event in Python: the reference, and the reader of every message the compiled one leaves."""
+    return _event(msgspec.json.decode(data))
+
+
+def _event(d: dict) -> Chunk | Tick | Gap | None:
     kind = d["kind"]
     t = int(d["t_ns"])
     link = str(d.get("link") or "")

@@ -18,7 +18,7 @@ import struct
 import zlib
 from dataclasses import dataclass
 
-from sniffer.formats.mcap.format import RAW_TOPIC
+from sniffer.formats.mcap.format import RAW_FORMAT, RAW_TOPIC
 
 _RECORD = struct.Struct("<BQ")
 _INDEX_HEAD = struct.Struct("<BQHI")  # opcode, length, channel id, records length
@@ -91,8 +91,8 @@ def raw_index(path: str) -> RawIndex | None:
             if summary is None or summary.statistics is None or not summary.chunk_indexes:
                 return None
             raw = [c.id for c in summary.channels.values() if c.topic == RAW_TOPIC]
-            if len(raw) != 1:
-                return None
+            if len(raw) != 1 or summary.channels[raw[0]].metadata.get("sniffer.format", RAW_FORMAT) != RAW_FORMAT:
+                return None  # a compact file's /raw message holds several events: numbered by message, read in order
             channel = raw[0]
             chunks, total = [], 0
             for ci in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):

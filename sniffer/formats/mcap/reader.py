@@ -22,7 +22,8 @@ from mcap.records import Message, Metadata
 
 from sniffer.events import CaptureInfo, Chunk as ChunkEvent, Gap, Tick
 from sniffer.formats.mcap.format import (
-    CAPTURE_TOPIC, FRAMES_TOPIC, MAGIC, METADATA_NAME, RAW_FORMAT, RAW_TOPIC, decode_event, info_from_metadata,
+    CAPTURE_TOPIC, FRAMES_TOPIC, MAGIC, METADATA_NAME, RAW_BATCH_FORMAT, RAW_FORMAT, RAW_FORMATS, RAW_TOPIC,
+    decode_batch, decode_event, info_from_metadata,
 )
 from sniffer.formats.records import loads
 from sniffer.events import CaptureError
@@ -117,7 +118,7 @@ class McapSource:
         self.open()
         scan, records = self._scan, self._records
         assert scan is not None and records is not None
-        checked: set[int] = set()
+        batched: dict[int, bool] = {}  # /raw channel -> its messages hold several events (format 2)
         last: int | None = None
         hole: str | None = None
         early, self._early = self._early, []
@@ -136,26 +137,28 @@ class McapSource:
                     continue
                 if topic != RAW_TOPIC:
                     continue
-                if rec.channel_id not in checked:
+                batch = batched.get(rec.channel_id)
+                if batch is None:
                     fmt = scan.channels[rec.channel_id].metadata.get("sniffer.format", RAW_FORMAT)
-                    if fmt != RAW_FORMAT:
+                    if fmt not in RAW_FORMATS:
                         raise CaptureError(f"{self.path}: /raw format {quote(str(fmt), 40)} is newer than this "
-                                           f"sniffer reads ({RAW_FORMAT})")
-                    checked.add(rec.channel_id)
+                                           f"sniffer reads ({RAW_BATCH_FORMAT})")
+                    batch = batched[rec.channel_id] = fmt == RAW_BATCH_FORMAT
                 try:
-                    ev = decode_event(rec.data)
+                    evs = decode_batch(rec.data) if batch else (decode_event(rec.data),)
                 except (ValueError, KeyError, TypeError) as e:
                     self._log.add("bad messages", f"{self.path}: damaged /raw message #{rec.sequence} skipped "
                                                   f"({str(e)[:200]})")
                     hole = hole or f"damaged /raw message #{rec.sequence} skipped"
                     continue
-                if ev is None:
-                    continue
-                if hole is not None:
-                    yield gap_before(last, ev, hole)
-                    hole = None
-                last = _last_time(ev)
-                yield ev
+                for ev in evs:
+                    if ev is None:
+                        continue
+                    if hole is not None:
+                        yield gap_before(last, ev, hole)
+                        hole = None
+                    last = _last_time(ev)
+                    yield ev
             if hole is not None and last is not None:
                 yield Gap(last, last, hole)
         except OSError as e:

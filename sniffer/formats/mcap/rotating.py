@@ -181,6 +181,10 @@ class SegmentSink(Sink):
         self._cur.frame(frame)
         self._seg.frames += 1
 
+    def bind(self, pipeline) -> None:
+        self.decoder_state = pipeline.decoder_state
+        self.waiting = pipeline.waiting
+
     def maybe_flush(self) -> None:
         if self._cur is not None:
             self._cur.maybe_flush()
@@ -244,7 +248,8 @@ class SegmentSink(Sink):
         waiting = self.waiting() if self.waiting is not None else None
         if waiting:  # cut while a request waited (busy links are seldom all quiet): read alone, it pairs its answer
             seg_info.extra[WAITING_KEY] = waiting
-        self._cur = McapSink(self._out.part, flush_interval_s=self.flush_interval_s, packing=self._packing)
+        self._cur = McapSink(self._out.part, flush_interval_s=self.flush_interval_s, packing=self._packing,
+                             compact=True)
         self._cur.start(seg_info)
         span = self.rotate.span_ns
         if span:  # on the clock: 1h segments change on the hour

@@ -38,6 +38,7 @@ from mcap.stream_reader import breakup_chunk, get_chunk_data_stream
 from sniffer.formats.mcap.format import MAGIC
 from sniffer.events import CaptureError
 from sniffer.inputs import open_regular
+from sniffer.hot import HOT
 
 _READERS = {
     Opcode.HEADER: Header.read,
@@ -146,6 +147,7 @@ class Scan:
         self.channels: dict[int, Channel] = {}
         self._chunked = False
         self._summary: dict | None = None
+        self._skip_ids: frozenset[int] | None = None  # ids of the channels skipped, until `channels` changes
 
     def skipped(self, topic: str) -> bool:
         """Are this topic's messages left out?"""
@@ -162,6 +164,7 @@ class Scan:
         ch = self._summary.get(("channel", cid))
         if isinstance(ch, Channel):
             self.channels[cid] = ch
+            self._skip_ids = None
             return ch
         return None
 
@@ -228,7 +231,7 @@ class Scan:
                     if first and opcode != Opcode.HEADER:
                         raise ValueError("the file does not start with a header record")
                     if opcode == Opcode.CHUNK and self._skip:
-                        recs = _walk_chunk(fh.read(length), self.channels, self.skipped)
+                        recs = _walk_chunk(fh.read(length), self.channels, self.skipped, skip_ids=self._skipped_ids())
                     else:
                         recs = _parse(opcode, fh.read(length))
                 except Exception as e:  # parsing foreign bytes: any failure means damage
@@ -243,6 +246,7 @@ class Scan:
                 for r in recs:
                     if isinstance(r, Channel):
                         self.channels[r.id] = r
+                        self._skip_ids = None
                     yield r
                 if opcode in (Opcode.DATA_END, Opcode.FOOTER):
                     self.finished = True
@@ -263,6 +267,15 @@ class Scan:
                 return
             pos = q
 
+    def _skipped_ids(self) -> frozenset[int]:
+        """The ids of the known channels whose messages are left out: the same for every chunk until a
+        channel is added (a file of many channels has hundreds, and thousands of chunks)."""
+        ids = self._skip_ids
+        if ids is None:
+            skip = self.skipped
+            ids = self._skip_ids = frozenset(cid for cid, ch in self.channels.items() if skip(ch.topic))
+        return ids
+
     def _past_indexes(self, pos: int) -> int:
         """Past the message index records a chunk is followed by (one per channel in it), read in blocks:
         a file with many channels has hundreds after each chunk.  One that is not well formed is left to
@@ -271,14 +284,7 @@ class Scan:
         while True:
             fh.seek(pos)
             buf = fh.read(_SCAN_BLOCK)
-            i, n = 0, len(buf)
-            while i + 15 <= n:
-                opcode, length = _RECORD_HEAD.unpack_from(buf, i)
-                end = i + 9 + length
-                if (opcode != Opcode.MESSAGE_INDEX or end > n or (length - 6) % 16
-                        or int.from_bytes(buf[i + 11 : i + 15], "little") != length - 6):
-                    break
-                i = end
+            i = _index_run(buf)
             if i == 0:
                 return pos
             pos += i
@@ -328,6 +334,20 @@ class Scan:
         return op in _VALID_OPCODES and length < 2**32
 
 
+def _index_run_py(buf: bytes) -> int:
+    """How many bytes from the start of `buf` are whole, well-formed message index records (the reference
+    of sniffer/_hot.c index_run)."""
+    i, n = 0, len(buf)
+    while i + 15 <= n:
+        opcode, length = _RECORD_HEAD.unpack_from(buf, i)
+        end = i + 9 + length
+        if (opcode != Opcode.MESSAGE_INDEX or end > n or (length - 6) % 16
+                or int.from_bytes(buf[i + 11 : i + 15], "little") != length - 6):
+            break
+        i = end
+    return i
+
+
 def _name(opcode: int) -> str:
     try:
         return Opcode(opcode).name.lower().replace("_", " ")
@@ -338,21 +358,32 @@ def _name(opcode: int) -> str:
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 
 
-def _walk_chunk(body: bytes, channels: dict[int, Channel], skip) -> list[McapRecord]:
+# the run of plain messages in a chunk, read in C (sniffer/_hot.c chunk_messages); None: in Python
+_CHUNK_MESSAGES = None if HOT is None else HOT.chunk_messages
+_index_run = _index_run_py if HOT is None else HOT.index_run
+
+
+def _walk_chunk(body: bytes, channels: dict[int, Channel], skip, messages=_CHUNK_MESSAGES,
+                skip_ids: frozenset[int] | None = None) -> list[McapRecord]:
     """breakup_chunk (CRC checked) that does not build the messages of the topics `skip(topic)` leaves out.
 
     Channels defined in the chunk count from where they stand; a message whose
-    channel is not known yet is kept (its reader decides what it is).
+    channel is not known yet is kept (its reader decides what it is).  `messages` (the compiled loop)
+    reads runs of well-formed messages and stops before any other record, which the loop here reads.
     """
     chunk = _chunk(body)
     stream, n = get_chunk_data_stream(chunk, validate_crc=True)
     data = stream.read(n)
     out: list[McapRecord] = []
     known = dict(channels)
-    skipped = {cid for cid, ch in known.items() if skip(ch.topic)}
+    skipped = set(skip_ids) if skip_ids is not None else {cid for cid, ch in known.items() if skip(ch.topic)}
     unpack_head, unpack_msg = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
     pos = 0
     while pos < n:
+        if messages is not None:
+            pos = messages(data, pos, skipped, Message, out)
+            if pos >= n:
+                break
         opcode, length = unpack_head(data, pos)
         start, pos = pos + 9, pos + 9 + length
         if pos > n:

@@ -13,11 +13,17 @@ The file is written by sniffer.formats.mcap.writer (plain MCAP, chunked, zstd).
 
 Durability.  The writer collects messages in a chunk in memory.  Every
 `flush_interval_s` of *wall* time (the sink's monotonic clock, checked on each
-raw()/frame() call and on `maybe_flush()`) the chunk is finished and written
-to the OS, so a SIGKILL loses at most that much.  Wall time, not event time:
-the bound is about how much a crash loses, and a fast file conversion would
-otherwise write thousands of tiny chunks per second.  No fsync: the page cache
-survives a killed process; power loss is not covered.
+raw()/frame() call and on `maybe_flush()`) the chunk is written to the OS, so a
+SIGKILL loses at most that much.  A live capture writes the open chunk each
+time over its copy of the time before (McapWriter.flush(seal=False)) and seals
+it every `SEAL_S` (or when it holds CHUNK_SIZE): one chunk of many seconds
+packs far tighter than a chunk a second and needs one set of index records.
+Wall time, not event time: the bound is about how much a crash loses, and a
+fast file conversion would otherwise write thousands of tiny chunks per
+second.  No fsync: the page cache survives a killed process; power loss is not
+covered.  The rewrite is one write() of the open chunk's records; a kill that
+lands inside that call (tens of microseconds a second) leaves the copy torn,
+and the reader skips it: then the open chunk is lost, at most SEAL_S.
 
 Full disk.  Bytes reach the file only through `_AppendFile`, which writes
 whole records and, when the OS refuses a write (ENOSPC, EFBIG, EIO), cuts the
@@ -40,7 +46,8 @@ from sniffer.formats.mcap import foxglove
 from sniffer.events import CaptureInfo, Chunk, Gap, Tick
 from sniffer.frame import Frame
 from sniffer.formats.mcap.format import (
-    CAPTURE_TOPIC, CHANNELS, FRAMES_TOPIC, METADATA_NAME, RAW_FORMAT, RAW_TOPIC, encode_event, info_to_metadata,
+    BATCH_NS, CAPTURE_TOPIC, CHANNELS, FRAMES_TOPIC, METADATA_NAME, RAW_BATCH_FORMAT, RAW_BATCH_SCHEMA, RAW_FORMAT,
+    RAW_TOPIC, encode_batch, encode_event, info_to_metadata,
 )
 from sniffer.formats.mcap.writer import McapWriter
 from sniffer.formats.outputs import FILE_MODE
@@ -54,6 +61,8 @@ CHUNK_SIZE = 512 * 1024
 # zstd's level: an export's chunks are full and many (3: fast); a live capture writes a small chunk every
 # flush interval, where level 9 packs 12 % tighter for about 7 ms a chunk (benchmarks/bench_segment_bytes.py)
 EXPORT_LEVEL, LIVE_LEVEL = 3, 9
+# a live capture's open chunk is written every flush interval over its copy and sealed after this long
+SEAL_S = 30.0
 
 
 class CaptureStorageError(Exception):
@@ -127,6 +136,34 @@ class _AppendFile:
             self._pending_len -= len(piece)
             self.on_disk += len(piece)
 
+    def rewrite(self, offset: int, data: bytes) -> None:
+        """Write `data` at `offset`, over the file's last records (the open chunk's copy), and end the file there.
+
+        If the OS refuses, the file is cut back to `offset` (what was there is partly overwritten)."""
+        self.flush()
+        assert self._fd is not None and offset <= self.on_disk, "rewrite past the end"
+        view = memoryview(data)
+        done = 0
+        try:
+            os.lseek(self._fd, offset, os.SEEK_SET)
+            while done < len(data):
+                n = os.write(self._fd, view[done:])
+                if n <= 0:
+                    raise OSError(5, "write returned 0 bytes")
+                done += n
+            if offset + len(data) < self.on_disk:
+                os.ftruncate(self._fd, offset + len(data))
+        except OSError as e:
+            self.failed = e
+            try:
+                os.ftruncate(self._fd, offset)
+                os.lseek(self._fd, offset, os.SEEK_SET)
+            except OSError:
+                pass
+            self.on_disk = offset
+            raise
+        self.on_disk = offset + len(data)
+
     def close(self) -> None:
         if self._fd is not None:
             fd, self._fd = self._fd, None
@@ -141,6 +178,12 @@ class McapSink(Sink):
     file (whose complete records stay readable).  `clock` (monotonic ns)
     decides when to flush; tests pass a fake one.  `foxglove=False` writes
     the capture alone (what a benchmark sets beside it).
+
+    `compact=True` (rotated segments, trigger windows: files a live capture writes all day) writes no
+    /frames channel and batches /raw (sniffer.format 2: a message holds the events of up to a second,
+    until the next flush): per message, a file carries 16 bytes of message index and about as many of
+    record head, which with a message per event and per frame took more than the line's bytes three
+    times over.  A replay decodes the frames again from /raw, exactly; Foxglove's parts are all there.
     """
 
     def __init__(
@@ -152,8 +195,15 @@ class McapSink(Sink):
         compress: bool = True,
         foxglove: bool = True,
         packing: tuple[int, int] = (0, 0),
+        seal_interval_s: float = SEAL_S,
+        compact: bool = False,
     ) -> None:
+        self.compact = compact
+        self._batch: list[bytes] = []  # compact: the /raw events not yet in a message
+        self._batch_t = 0
         self.path = os.fspath(path)
+        self._seal_ns = int(seal_interval_s * 1e9)
+        self._last_seal = 0
         self._packing = packing  # how the chunks of the file before (a segment's) compressed
         self._interval_ns = int(flush_interval_s * 1e9) if flush_interval_s < 1e9 else 1 << 62  # inf: when full
         self._clock = clock
@@ -201,7 +251,9 @@ class McapSink(Sink):
         open_chunk_bytes) and of the summary it will end with (a Foxglove capture has a channel per
         register: the summary repeats them)."""
         w = self._writer
-        return self._file.tell() + (w.summary_bytes + w.open_chunk_bytes() if w is not None else 0)
+        if w is None:
+            return self._file.tell()
+        return self._file.tell() - w.copy_bytes + w.summary_bytes + w.open_chunk_bytes()
 
     @property
     def message_bytes(self) -> int:
@@ -223,9 +275,13 @@ class McapSink(Sink):
             meta = {"sniffer.format": RAW_FORMAT}
             ids = {}
             for topic, name, schema in CHANNELS:
+                if self.compact and topic == FRAMES_TOPIC:
+                    continue
+                if self.compact and topic == RAW_TOPIC:
+                    name, schema, meta = "sniffer.RawEvents", RAW_BATCH_SCHEMA, {"sniffer.format": RAW_BATCH_FORMAT}
                 sid = w.register_schema(name, "jsonschema", msgspec.json.encode(schema))
                 ids[topic] = w.register_channel(topic, "json", sid, meta)
-            self._ch_capture, self._ch_raw, self._ch_frames = ids[CAPTURE_TOPIC], ids[RAW_TOPIC], ids[FRAMES_TOPIC]
+            self._ch_capture, self._ch_raw, self._ch_frames = ids[CAPTURE_TOPIC], ids[RAW_TOPIC], ids.get(FRAMES_TOPIC)
             if self._foxglove_on:
                 self._start_foxglove(info)
             self._add(self._ch_capture, info.t0_ns, msgspec.json.encode(info.to_dict()))
@@ -235,11 +291,15 @@ class McapSink(Sink):
 
     def raw(self, event: Chunk | Tick | Gap) -> None:
         if self._usable():
-            self._write(self._ch_raw, event.t_ns, encode_event(event))
+            if self.compact:
+                self._batched(event.t_ns, encode_event(event))
+            else:
+                self._write(self._ch_raw, event.t_ns, encode_event(event))
 
     def frame(self, frame: Frame) -> None:
         if self._usable():
-            self._write(self._ch_frames, frame.t_ns, frame_json(frame, self._t0))
+            if not self.compact:
+                self._write(self._ch_frames, frame.t_ns, frame_json(frame, self._t0))
             if self._fox is not None:
                 self._foxglove(self._fox.frame(frame, frame.t_ns), frame.t_ns)
 
@@ -247,9 +307,13 @@ class McapSink(Sink):
         """A /raw event or /frames record already encoded (`kind` "raw" or "frame"): a trigger's ring."""
         if self._usable():
             if kind == "raw":
-                self._write(self._ch_raw, t_ns, data)
+                if self.compact:
+                    self._batched(t_ns, data)
+                else:
+                    self._write(self._ch_raw, t_ns, data)
             else:
-                self._write(self._ch_frames, t_ns, data)
+                if not self.compact:
+                    self._write(self._ch_frames, t_ns, data)
                 if self._fox is not None:
                     self._foxglove(self._fox.record(data, t_ns), t_ns)
 
@@ -264,10 +328,13 @@ class McapSink(Sink):
     def maybe_flush(self) -> None:
         """Flush if flush_interval_s has passed: call it from the live loop when idle."""
         if self._usable() and self._clock() - self._last_flush >= self._interval_ns:
-            self.flush()
+            try:
+                self._flush_now(seal=False)
+            except OSError as e:
+                raise self._fail(e) from None
 
     def flush(self) -> None:
-        """Finish the current chunk and hand it to the OS now."""
+        """Finish (seal) the current chunk and hand it to the OS now."""
         if self._usable():
             try:
                 self._flush_now()
@@ -285,6 +352,7 @@ class McapSink(Sink):
         try:
             if self._writer is not None and self.error is None:
                 try:
+                    self._end_batch()
                     for topic, t_ns, data in self._fox.finish() if self._fox is not None else ():
                         self._add(self._fox_channels[topic], t_ns, data)  # each register's last sample
                     self._writer.finish()
@@ -343,11 +411,30 @@ class McapSink(Sink):
             raise RuntimeError("McapSink used before start() or after close()")
         return True
 
+    def _batched(self, t_ns: int, data: bytes) -> None:
+        """A compact file's /raw event: into the open batch, which becomes a message at the next flush or once
+        it spans BATCH_NS of capture time."""
+        try:
+            if self._batch and t_ns - self._batch_t >= BATCH_NS:
+                self._end_batch()
+            if not self._batch:
+                self._batch_t = t_ns
+            self._batch.append(data)
+            if self._clock() - self._last_flush >= self._interval_ns:
+                self._flush_now(seal=False)
+        except OSError as e:
+            raise self._fail(e) from None
+
+    def _end_batch(self) -> None:
+        if self._batch:
+            batch, self._batch = self._batch, []
+            self._add(self._ch_raw, self._batch_t, encode_batch(batch))
+
     def _write(self, channel: int, t_ns: int, data: bytes) -> None:
         try:
             self._add(channel, t_ns, data)
             if self._clock() - self._last_flush >= self._interval_ns:
-                self._flush_now()
+                self._flush_now(seal=False)
         except OSError as e:
             raise self._fail(e) from None
 
@@ -357,10 +444,17 @@ class McapSink(Sink):
         self._seq[channel] = (seq + 1) & 0xFFFFFFFF
         self._writer.add_message(channel, log_time, data, log_time, seq)
 
-    def _flush_now(self) -> None:
-        self._writer.flush()  # the chunk and its message indexes, in one write
+    def _flush_now(self, seal: bool = True) -> None:
+        """The open chunk and its message indexes to the OS in one write; sealed when asked, or once it has
+        been open SEAL_S (seal=False: a copy, written over by the next flush)."""
+        now = self._clock()
+        seal = seal or now - self._last_seal >= self._seal_ns
+        self._end_batch()
+        self._writer.flush(seal=seal)
         self._file.flush()
-        self._last_flush = self._clock()
+        self._last_flush = now
+        if seal:
+            self._last_seal = now
 
     def _fail(self, e: OSError) -> CaptureStorageError:
         what = e.strerror or str(e)

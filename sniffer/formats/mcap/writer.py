@@ -17,6 +17,17 @@ library reads it back in the tests (tests/test_mcap.py).
 `out` is a stream with write() and tell(); every write() call carries whole
 records (a chunk and its message indexes in one call), which is what
 sinks.mcap._AppendFile relies on to cut a failed file back cleanly.
+
+A live capture keeps one chunk open for many seconds and writes it out every
+second all the same: `flush(seal=False)` writes the open chunk as it is (a
+whole chunk record with its message indexes, readable as any other) in place
+of the copy the last such flush wrote (`out.rewrite(offset, data)`), and the
+messages stay open; `flush()` seals it (its chunk index goes to the summary).
+A short chunk every second costs its own index records and its compression's
+start (a live capture's file was 13.6 times the line's bytes with one a
+second; benchmarks/bench_segment_bytes.py).  Any other record (a channel
+registered late, metadata, an attachment, the end) seals the open chunk first,
+so the rewritten copy is always the file's last records.
 """
 
 from __future__ import annotations
@@ -79,12 +90,17 @@ class McapWriter:
         self._raw_bytes, self._packed_bytes = packing
         self.chunk_bytes = 0  # compressed message bytes of this file's chunks written so far
         self._finished = False
+        # the open chunk's copy on disk (flush(seal=False)): where it starts, its bytes, (raw, compressed) sizes
+        self._copy_at: int | None = None
+        self.copy_bytes = 0
+        self._copy_packing = (0, 0)
 
     # ------------------------------------------------------------ definitions
     def start(self, profile: str = "", library: str = "") -> None:
         self._out.write(MAGIC + _record(OP_HEADER, _str(profile) + _str(library)))
 
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+        self._seal_copy()
         sid = len(self._schemas) + 1
         rec = _record(OP_SCHEMA, _U16.pack(sid) + _str(name) + _str(encoding) + _U32.pack(len(data)) + data)
         self._schemas.append(rec)
@@ -94,6 +110,7 @@ class McapWriter:
 
     def register_channel(self, topic: str, message_encoding: str, schema_id: int,
                          metadata: dict[str, str] | None = None) -> int:
+        self._seal_copy()
         cid = len(self._channels)
         rec = _record(OP_CHANNEL, _U16.pack(cid) + _U16.pack(schema_id) + _str(topic) + _str(message_encoding)
                       + _map_str(metadata or {}))
@@ -105,6 +122,7 @@ class McapWriter:
         return cid
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        self._seal_copy()
         offset = self._out.tell()
         rec = _record(OP_METADATA, _str(name) + _map_str(data))
         self._out.write(rec)
@@ -113,6 +131,7 @@ class McapWriter:
 
     def add_attachment(self, name: str, media_type: str, data: bytes, log_time: int, create_time: int = 0) -> None:
         """A file carried in the capture (outside the chunks, indexed in the summary)."""
+        self._seal_copy()
         offset = self._out.tell()
         body = (_U64.pack(log_time) + _U64.pack(create_time) + _str(name) + _str(media_type)
                 + _U64.pack(len(data)) + data)
@@ -143,8 +162,16 @@ class McapWriter:
         if len(chunk) >= self.chunk_size:
             self.flush()
 
-    def flush(self) -> None:
-        """Finish the current chunk (and its message indexes) and write it in one call."""
+    def _seal_copy(self) -> None:
+        """Seal the open chunk if a copy of it is on disk: a record written after it must not be overwritten."""
+        if self._copy_at is not None:
+            self.flush()
+
+    def flush(self, seal: bool = True) -> None:
+        """Write the open chunk (and its message indexes) in one call.
+
+        seal=True finishes it: its chunk index is kept for the summary and the next message opens a new chunk.
+        seal=False writes a copy of it and keeps it open: the next flush writes it again, over this copy."""
         chunk = self._chunk
         if not chunk:
             return
@@ -153,7 +180,7 @@ class McapWriter:
         body = (_U64.pack(self._c_start) + _U64.pack(self._c_end) + _U64.pack(len(raw))
                 + _U32.pack(zlib.crc32(raw)) + _str(self.compression) + _U64.pack(len(data)) + data)
         chunk_rec = _record(OP_CHUNK, body)
-        chunk_offset = self._out.tell()
+        chunk_offset = self._out.tell() if self._copy_at is None else self._copy_at
         pieces = [chunk_rec]
         index_offsets = {}
         pos = chunk_offset + len(chunk_rec)
@@ -163,7 +190,15 @@ class McapWriter:
             index_offsets[cid] = pos
             pos += len(rec)
             pieces.append(rec)
-        self._out.write(b"".join(pieces))
+        blob = b"".join(pieces)
+        if self._copy_at is None:
+            self._out.write(blob)
+        else:
+            self._out.rewrite(chunk_offset, blob)
+        if not seal:
+            self._copy_at, self.copy_bytes, self._copy_packing = chunk_offset, len(blob), (len(raw), len(data))
+            return
+        self._copy_at, self.copy_bytes, self._copy_packing = None, 0, (0, 0)
         offsets = b"".join(_U16.pack(c) + _U64.pack(o) for c, o in index_offsets.items())
         self._chunk_indexes.append(_record(OP_CHUNK_INDEX, (
             _U64.pack(self._c_start) + _U64.pack(self._c_end) + _U64.pack(chunk_offset) + _U64.pack(len(chunk_rec))
@@ -191,11 +226,12 @@ class McapWriter:
         """What the open chunk will add to the file once written, estimated: its messages at the compression
         of the chunks before it, their index entries (16 bytes each), the records around them and the
         chunk's index in the summary.  0 before a chunk was written (no compression known: a guess would
-        close a segment early, under its size)."""
+        close a segment early, under its size).  A copy of the open chunk on disk gives its own compression."""
         n = len(self._chunk)
-        if not n or not self._raw_bytes:
+        raw, packed = self._copy_packing if self._copy_at is not None else (self._raw_bytes, self._packed_bytes)
+        if not n or not raw:
             return 0
-        return n * self._packed_bytes // self._raw_bytes + 16 * self._open_messages + 25 * len(self._index) + 140
+        return n * packed // raw + 16 * self._open_messages + 25 * len(self._index) + 140
 
     def message_bytes(self) -> int:
         """The messages' compressed bytes in this file: its chunks written, and the open one estimated at the
