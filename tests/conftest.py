@@ -1,3 +1,4 @@
+import os
 import sys
 import time
 from pathlib import Path
@@ -37,6 +38,33 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.get_closest_marker("slow") is None and slow_reason(item, rule):
             item.add_marker(pytest.mark.slow)
+        if _shares_a_fixture(item):
+            item.add_marker(pytest.mark.xdist_group(item.module.__name__))
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        items[:] = sorted(items, key=lambda item: not _known_long(item))  # stable: the rest keep their order
+
+
+# --- the suite on several cores (README: `pytest -n auto --dist loadgroup`, pytest-xdist) ----------------------
+def _known_long(item) -> bool:
+    """A test tests/fastlane.py lists as long (SLOW_FILES, SLOW_TESTS: minutes of simulation, worker processes).
+    Under xdist these start first, and the many short tests fill in behind them: a long test taken last would
+    leave the other worker idle until it ends."""
+    from fastlane import SLOW_FILES, SLOW_TESTS
+
+    name = Path(str(item.fspath)).name
+    return name in SLOW_FILES or f"{name}::{getattr(item, 'originalname', None) or item.name}" in SLOW_TESTS
+
+
+def _shares_a_fixture(item) -> bool:
+    """Whether a test uses a fixture made once for its module (or class): a built wheel and venv, a simulated
+    day, a dataset.  Such a module runs whole on one worker (`--dist loadgroup` keeps an xdist_group together),
+    so the fixture is made once, not once on each worker; every other test goes to whichever worker is free.
+    Session fixtures are made once per worker: they are cheap, and grouping their users would serialise the
+    suite."""
+    info = getattr(item, "_fixtureinfo", None)
+    if info is None:
+        return False
+    return any(defs[-1].scope in ("module", "class", "package") for defs in info.name2fixturedefs.values())
 
 
 def _compile_sources() -> None:
@@ -71,6 +99,7 @@ def pytest_sessionfinish(session):
 
 
 _CPU: dict[str, float] = {}  # lane test -> CPU seconds of its setup and call
+_CPU_PROPERTY = "lane_cpu_s"
 
 
 def _guarded(item, phase: str):
@@ -85,6 +114,8 @@ def _guarded(item, phase: str):
     finally:
         _GUARD.watching = False
         _CPU[item.nodeid] = _CPU.get(item.nodeid, 0.0) + time.process_time() - cpu
+        if phase == "call":  # on the test's report, for the summary in pytest-xdist's controller
+            item.user_properties.append((_CPU_PROPERTY, _CPU[item.nodeid]))
     if _GUARD.used:
         pytest.fail(f"{item.nodeid} {' and '.join(_GUARD.used)} in its {phase} but is not marked slow: the fast "
                     f"lane (-m 'not slow') keeps no processes, ptys, Pilot, browsers or brokers.  Let the rule in "
@@ -101,6 +132,13 @@ def pytest_runtest_setup(item):
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item):
     return (yield from _guarded(item, "call"))
+
+
+def pytest_runtest_logreport(report):
+    """A lane test's CPU as its worker measured it (under xdist the summary is written by the controller)."""
+    for name, value in report.user_properties:
+        if name == _CPU_PROPERTY:
+            _CPU[report.nodeid] = value
 
 
 def pytest_terminal_summary(terminalreporter):

@@ -540,6 +540,9 @@ def test_a_segment_closed_for_its_size_holds_frames_not_only_its_own_records(tmp
         frames += [fr(f"0103{addr:04X}007D"), fr("0103FA" + data)]
     info = CaptureInfo(baud=line.baud, parity=line.parity, stopbits=line.stopbits)
     size = 10**6
+    # flushed as the writer fills its chunks (as replay and simulate write segments): the frames come as fast as
+    # this process makes them, so a flush every wall-clock second would cut chunks by the machine's load (more
+    # chunks, more message indexes: 249,881 bytes of messages against 250,000 on a loaded machine)
     Session(CaptureSpec(), EventSource(info, bursts(frames, line, gap_chars=40)),
             [SegmentPlan(str(tmp_path / "wide"), Rotate(max_bytes=size), timed_flush=False)]).run()
     index = _index(tmp_path / "wide")
