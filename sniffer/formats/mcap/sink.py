@@ -139,9 +139,12 @@ class _AppendFile:
     def rewrite(self, offset: int, data: bytes) -> None:
         """Write `data` at `offset`, over the file's last records (the open chunk's copy), and end the file there.
 
-        If the OS refuses, the file is cut back to `offset` (what was there is partly overwritten)."""
+        If the OS refuses (disk full, EFBIG), the copy that was there is put back (its blocks are the file's
+        already, so writing them again needs no new space) and the file ends after it: what was captured up to
+        the last copy stays.  Only if that fails too is the file cut back to `offset`."""
         self.flush()
         assert self._fd is not None and offset <= self.on_disk, "rewrite past the end"
+        previous = os.pread(self._fd, self.on_disk - offset, offset) if offset < self.on_disk else b""
         view = memoryview(data)
         done = 0
         try:
@@ -155,12 +158,17 @@ class _AppendFile:
                 os.ftruncate(self._fd, offset + len(data))
         except OSError as e:
             self.failed = e
-            try:
-                os.ftruncate(self._fd, offset)
-                os.lseek(self._fd, offset, os.SEEK_SET)
-            except OSError:
-                pass
             self.on_disk = offset
+            try:
+                if previous and os.pwrite(self._fd, previous, offset) == len(previous):
+                    self.on_disk = offset + len(previous)
+                os.ftruncate(self._fd, self.on_disk)
+            except OSError:
+                try:
+                    os.ftruncate(self._fd, offset)
+                    self.on_disk = offset
+                except OSError:
+                    pass
             raise
         self.on_disk = offset + len(data)
 
