@@ -96,7 +96,7 @@ class Publisher:
         self._closing.set()
         if self._thread is not None:
             self._thread.join(max(0.0, self._close_by - time.monotonic()) + 0.5)  # the thread ends by _close_by
-        left = self.q.qsize() + self._unwritten
+        left = self.q.qsize() + self._unwritten + len(self.stale)  # stale: a retained topic's latest not sent again
         if self.connects or left or self.dropped or self.lost or self.superseded:
             self.report(f"mqtt: {self.published} messages published to {self.spec.broker}"
                         + (f", {self.dropped} dropped (queue full)" if self.dropped else "")
@@ -250,6 +250,11 @@ class Publisher:
                 return
 
     def _hand_over(self, n: int) -> bool:
+        if self._finishing and self.stale:  # the end: the broker's retained state first (_collapse_queue)
+            for _ in range(min(n, len(self.stale))):
+                topic = self.stale.pop()
+                self._publish(topic, self.retained[topic], True)
+            return True
         for _ in range(n):
             try:
                 item = self.q.get_nowait()
@@ -264,6 +269,24 @@ class Publisher:
                 self._publish(topic, self.retained[topic], True)
             return True
         return False
+
+    def _collapse_queue(self) -> None:
+        """The end, before what is left goes out: every retained topic still queued (or dropped earlier) is sent
+        once, as its latest value and first; the events after it, in their order.  The time the end may take is
+        bounded (CLOSE_S): on a busy machine it went on the older queued values of a topic and the broker kept
+        one of them, not the capture's last."""
+        events = []
+        while True:
+            try:
+                item = self.q.get_nowait()
+            except queue.Empty:
+                break
+            if item[2]:
+                self.stale.add(item[0])
+            else:
+                events.append(item)
+        for item in events:  # room: they came out of it, and nothing is queued any more at the end
+            self.q.put_nowait(item)
 
     def _publish(self, topic: str, payload: bytes, retain: bool) -> None:
         info = self._client.publish(topic, payload, qos=0, retain=retain)
@@ -288,6 +311,7 @@ class Publisher:
                     return
             finally:
                 self._closing.set()
+        self._collapse_queue()
         try:
             while time.monotonic() < by and (self.q.qsize() or self.stale or c.want_write()):
                 if not c.want_write():

@@ -88,7 +88,8 @@ class _AppendFile:
     MAX_PENDING = 8 << 20  # write out early if a flush is long overdue
 
     def __init__(self, path: str) -> None:
-        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_BINARY", 0) | getattr(os, "O_CLOEXEC", 0)
+        # read too: a rewrite of the open chunk keeps the copy it replaces, to put it back if the disk is full
+        flags = os.O_RDWR | os.O_CREAT | os.O_TRUNC | getattr(os, "O_BINARY", 0) | getattr(os, "O_CLOEXEC", 0)
         self._fd: int | None = os.open(path, flags, FILE_MODE)
         self._pending: deque[bytes] = deque()
         self._pending_len = 0
