@@ -1215,6 +1215,323 @@ done:
     return result;
 }
 
+/* ------------------------------------------------------------------ analysis/linehealth.py LineHealthPy */
+
+/* Health: LineHealthPy's window and counters (the reference, analysis/linehealth.py) as a C type;
+   LineHealth subclasses it and builds the Change.  Times within +-2**61 ns, sizes within 2**40 and a
+   badness of None, 0, 1 or 2 are kept here (every sum and share then exact in 64 bits and doubles);
+   any other value hands the whole state to a LineHealthPy (self._hand_over()) that runs from then on. */
+#define H_TIME_MAX (1LL << 61)
+#define H_SIZE_MAX (1LL << 40)
+
+typedef struct {
+    PyObject_HEAD
+    PyObject *link;
+    PyObject *py;  /* the reference it handed over to, or NULL */
+    long long window_ns, min_span_ns, min_frames, min_bytes;
+    double broken_share, recovered_share;
+    Py_ssize_t cap, head, len;  /* the ring: item i at (head + i) % cap */
+    long long *t, *nb;
+    signed char *bad;  /* -1: good */
+    long long frames, nbytes, nbad, bad_bytes, kinds[3], warnings;
+    int broken;
+} Health;
+
+static PyObject *s_change, *s_hand_over;
+
+static int health_init(Health *self, PyObject *args, PyObject *kw)
+{
+    PyObject *link;
+    Py_ssize_t cap;
+    if (!PyArg_ParseTuple(args, "OLLnLLdd", &link, &self->window_ns, &self->min_span_ns, &cap, &self->min_frames,
+                          &self->min_bytes, &self->broken_share, &self->recovered_share))
+        return -1;
+    if (cap < 1 || cap > 4096 || self->window_ns < 0 || self->window_ns > H_TIME_MAX || self->min_span_ns < 0
+        || self->min_span_ns > H_TIME_MAX || self->min_frames < 1) {
+        PyErr_SetString(PyExc_ValueError, "Health: a window LineHealthPy keeps");
+        return -1;
+    }
+    PyMem_Free(self->t);
+    PyMem_Free(self->nb);
+    PyMem_Free(self->bad);
+    self->t = PyMem_New(long long, cap);
+    self->nb = PyMem_New(long long, cap);
+    self->bad = PyMem_New(signed char, cap);
+    if (!self->t || !self->nb || !self->bad) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    Py_INCREF(link);
+    Py_XSETREF(self->link, link);
+    Py_CLEAR(self->py);
+    self->cap = cap;
+    self->head = self->len = 0;
+    self->frames = self->nbytes = self->nbad = self->bad_bytes = self->warnings = 0;
+    self->kinds[0] = self->kinds[1] = self->kinds[2] = 0;
+    self->broken = 0;
+    return 0;
+}
+
+static void health_dealloc(Health *self)
+{
+    PyObject_GC_UnTrack(self);
+    Py_CLEAR(self->link);
+    Py_CLEAR(self->py);
+    PyMem_Free(self->t);
+    PyMem_Free(self->nb);
+    PyMem_Free(self->bad);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int health_traverse(Health *self, visitproc visit, void *arg)
+{
+    Py_VISIT(self->link);
+    Py_VISIT(self->py);
+    Py_VISIT(Py_TYPE(self));
+    return 0;
+}
+
+static int health_clear(Health *self)
+{
+    Py_CLEAR(self->link);
+    Py_CLEAR(self->py);
+    return 0;
+}
+
+static void health_drop_first(Health *self)  /* _drop(win.popleft()) */
+{
+    Py_ssize_t i = self->head;
+    self->frames--;
+    self->nbytes -= self->nb[i];
+    if (self->bad[i] >= 0) {
+        self->nbad--;
+        self->bad_bytes -= self->nb[i];
+        self->kinds[(int)self->bad[i]]--;
+    }
+    self->head = (i + 1) % self->cap;
+    self->len--;
+}
+
+static inline long long health_first_t(Health *self) { return self->t[self->head]; }
+static inline long long health_last_t(Health *self) { return self->t[(self->head + self->len - 1) % self->cap]; }
+
+static void health_expire(Health *self, long long t_ns)
+{
+    while (self->len && health_first_t(self) <= t_ns - self->window_ns)
+        health_drop_first(self);
+}
+
+static int health_enough(Health *self)
+{
+    return self->frames >= self->min_frames && self->nbytes >= self->min_bytes
+           && (health_last_t(self) - health_first_t(self) >= self->min_span_ns || self->len == self->cap);
+}
+
+/* the shares as the reference compares them: an int against a float times an int, exact below 2**53 */
+static int health_most_bad(Health *self)
+{
+    return (double)self->nbad > self->broken_share * (double)self->frames
+           && (double)self->bad_bytes > self->broken_share * (double)self->nbytes;
+}
+
+static int health_mostly_good(Health *self)
+{
+    return (double)self->nbad <= self->recovered_share * (double)self->frames
+           && (double)self->bad_bytes <= self->recovered_share * (double)self->nbytes;
+}
+
+static PyObject *health_judge_c(Health *self)
+{
+    if (!self->broken) {
+        if (!health_most_bad(self) || !health_enough(self))
+            Py_RETURN_NONE;
+        self->broken = 1;
+        self->warnings++;
+    } else {
+        if (!health_mostly_good(self) || !health_enough(self))
+            Py_RETURN_NONE;
+        self->broken = 0;
+    }
+    return PyObject_CallMethodNoArgs((PyObject *)self, s_change);
+}
+
+/* the reference takes over: self._hand_over() builds it from window() and the counters */
+static int health_hand_over(Health *self)
+{
+    PyObject *py = PyObject_CallMethodNoArgs((PyObject *)self, s_hand_over);
+    if (py == NULL)
+        return -1;
+    Py_XSETREF(self->py, py);
+    return 0;
+}
+
+/* an exact int within +-limit, else 0 (not one for this type: hand over) */
+static int health_int(PyObject *o, long long limit, long long *out)
+{
+    int overflow;
+    if (!PyLong_Check(o))
+        return 0;
+    *out = PyLong_AsLongLongAndOverflow(o, &overflow);
+    if (overflow || (*out == -1 && PyErr_Occurred())) {
+        PyErr_Clear();
+        return 0;
+    }
+    return *out >= -limit && *out <= limit;
+}
+
+#define HEALTH_DELEGATE(name, ...)                                        \
+    if (self->py != NULL)                                                 \
+        return PyObject_CallMethod(self->py, name, __VA_ARGS__)
+
+static PyObject *health_add(Health *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    long long t, n, b = -1;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "add(t_ns, nbytes, bad)");
+        return NULL;
+    }
+    if (self->py == NULL
+        && !(health_int(args[0], H_TIME_MAX, &t) && health_int(args[1], H_SIZE_MAX, &n) && n >= 0
+             && (args[2] == Py_None || (health_int(args[2], 2, &b) && b >= 0))))
+        if (health_hand_over(self) < 0)
+            return NULL;
+    HEALTH_DELEGATE("add", "OOO", args[0], args[1], args[2]);
+    if (self->len == self->cap)
+        health_drop_first(self);  /* the deque drops it on append */
+    Py_ssize_t i = (self->head + self->len) % self->cap;
+    self->t[i] = t;
+    self->nb[i] = n;
+    self->bad[i] = (signed char)b;
+    self->len++;
+    self->frames++;
+    self->nbytes += n;
+    if (b >= 0) {
+        self->nbad++;
+        self->bad_bytes += n;
+        self->kinds[b]++;
+    }
+    if (health_first_t(self) <= t - self->window_ns)
+        health_expire(self, t);
+    return health_judge_c(self);
+}
+
+static PyObject *health_advance(Health *self, PyObject *arg)
+{
+    long long t;
+    if (self->py == NULL && !health_int(arg, H_TIME_MAX, &t) && health_hand_over(self) < 0)
+        return NULL;
+    HEALTH_DELEGATE("advance", "O", arg);
+    health_expire(self, t);
+    Py_RETURN_NONE;
+}
+
+static PyObject *health_judge(Health *self, PyObject *unused)
+{
+    HEALTH_DELEGATE("judge", NULL);
+    return health_judge_c(self);
+}
+
+static PyObject *health_enough_m(Health *self, PyObject *unused)
+{
+    HEALTH_DELEGATE("enough", NULL);
+    return PyBool_FromLong(health_enough(self));  /* frames >= min_frames >= 1 first: the window is not empty */
+}
+
+static PyObject *health_most_bad_m(Health *self, PyObject *unused)
+{
+    HEALTH_DELEGATE("most_bad", NULL);
+    return PyBool_FromLong(health_most_bad(self));
+}
+
+static PyObject *health_mostly_good_m(Health *self, PyObject *unused)
+{
+    HEALTH_DELEGATE("mostly_good", NULL);
+    return PyBool_FromLong(health_mostly_good(self));
+}
+
+static PyObject *health_window(Health *self, PyObject *unused)
+{
+    HEALTH_DELEGATE("window", NULL);
+    PyObject *out = PyList_New(self->len);
+    if (out == NULL)
+        return NULL;
+    for (Py_ssize_t k = 0; k < self->len; k++) {
+        Py_ssize_t i = (self->head + k) % self->cap;
+        PyObject *item = self->bad[i] < 0 ? Py_BuildValue("(LLO)", self->t[i], self->nb[i], Py_None)
+                                          : Py_BuildValue("(LLi)", self->t[i], self->nb[i], (int)self->bad[i]);
+        if (item == NULL) {
+            Py_DECREF(out);
+            return NULL;
+        }
+        PyList_SET_ITEM(out, k, item);
+    }
+    return out;
+}
+
+enum { H_FRAMES, H_NBYTES, H_BAD, H_BAD_BYTES, H_KINDS, H_BROKEN, H_WARNINGS, H_LINK, H_WINDOW_NS, H_MIN_SPAN_NS,
+       };
+static const char *const health_names[] = {"frames", "nbytes", "bad", "bad_bytes", "kinds", "broken", "warnings",
+                                           "link", "window_ns", "min_span_ns"};
+
+static PyObject *health_get(Health *self, void *closure)
+{
+    int which = (int)(intptr_t)closure;
+    if (self->py != NULL)
+        return PyObject_GetAttrString(self->py, health_names[which]);
+    switch (which) {
+    case H_FRAMES: return PyLong_FromLongLong(self->frames);
+    case H_NBYTES: return PyLong_FromLongLong(self->nbytes);
+    case H_BAD: return PyLong_FromLongLong(self->nbad);
+    case H_BAD_BYTES: return PyLong_FromLongLong(self->bad_bytes);
+    case H_KINDS: return Py_BuildValue("[LLL]", self->kinds[0], self->kinds[1], self->kinds[2]);
+    case H_BROKEN: return PyBool_FromLong(self->broken);
+    case H_WARNINGS: return PyLong_FromLongLong(self->warnings);
+    case H_LINK: Py_INCREF(self->link); return self->link;
+    case H_WINDOW_NS: return PyLong_FromLongLong(self->window_ns);
+    default: return PyLong_FromLongLong(self->min_span_ns);
+    }
+}
+
+static PyObject *health_handed_over(Health *self, void *unused)
+{
+    return PyBool_FromLong(self->py != NULL);
+}
+
+#define HGET(name, which) {name, (getter)health_get, NULL, NULL, (void *)(intptr_t)(which)}
+static PyGetSetDef health_getset[] = {
+    HGET("frames", H_FRAMES), HGET("nbytes", H_NBYTES), HGET("bad", H_BAD), HGET("bad_bytes", H_BAD_BYTES),
+    HGET("kinds", H_KINDS), HGET("broken", H_BROKEN), HGET("warnings", H_WARNINGS), HGET("link", H_LINK),
+    HGET("window_ns", H_WINDOW_NS), HGET("min_span_ns", H_MIN_SPAN_NS),
+    {"handed_over", (getter)health_handed_over, NULL, "Did unusual input hand it to LineHealthPy?", NULL},
+    {NULL, NULL, NULL, NULL, NULL},
+};
+
+static PyMethodDef health_methods[] = {
+    {"add", (PyCFunction)(void (*)(void))health_add, METH_FASTCALL, "LineHealthPy.add(t_ns, nbytes, bad)."},
+    {"advance", (PyCFunction)health_advance, METH_O, "LineHealthPy.advance(t_ns)."},
+    {"judge", (PyCFunction)health_judge, METH_NOARGS, "LineHealthPy.judge()."},
+    {"enough", (PyCFunction)health_enough_m, METH_NOARGS, "LineHealthPy.enough()."},
+    {"most_bad", (PyCFunction)health_most_bad_m, METH_NOARGS, "LineHealthPy.most_bad()."},
+    {"mostly_good", (PyCFunction)health_mostly_good_m, METH_NOARGS, "LineHealthPy.mostly_good()."},
+    {"window", (PyCFunction)health_window, METH_NOARGS, "The window's (t_ns, nbytes, bad), oldest first."},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject HealthType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "sniffer._hot.Health",
+    .tp_doc = "LineHealthPy's window and counters (analysis/linehealth.py); subclassed by LineHealth.",
+    .tp_basicsize = sizeof(Health),
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE | Py_TPFLAGS_HAVE_GC,
+    .tp_new = PyType_GenericNew,
+    .tp_init = (initproc)health_init,
+    .tp_dealloc = (destructor)health_dealloc,
+    .tp_traverse = (traverseproc)health_traverse,
+    .tp_clear = (inquiry)health_clear,
+    .tp_methods = health_methods,
+    .tp_getset = health_getset,
+};
+
 /* ------------------------------------------------------------------ the module */
 
 static PyMethodDef methods[] = {
@@ -1287,8 +1604,17 @@ PyMODINIT_FUNC PyInit__hot(void)
     INTERN(s_id, "id");
     INTERN(s_text, "text");
     INTERN(s_unit, "unit");
+    INTERN(s_change, "_change");
+    INTERN(s_hand_over, "_hand_over");
     msg_kwnames = Py_BuildValue("(sssss)", "channel_id", "sequence", "log_time", "publish_time", "data");
     if (msg_kwnames == NULL)
         return NULL;
-    return PyModule_Create(&module);
+    if (PyType_Ready(&HealthType) < 0)
+        return NULL;
+    PyObject *m = PyModule_Create(&module);
+    if (m == NULL || PyModule_AddObjectRef(m, "Health", (PyObject *)&HealthType) < 0) {
+        Py_XDECREF(m);
+        return NULL;
+    }
+    return m;
 }

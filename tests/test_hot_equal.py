@@ -571,3 +571,116 @@ def test_message_index_run_alike(records, cut):
         buf += struct.pack("<BQ", op, max(0, len(body) + skew)) + body
     buf = bytes(buf[: max(0, len(buf) - cut)])
     assert HOT.index_run(buf) == mcap_scan._index_run_py(buf)
+
+
+# ------------------------------------------------------------------ line health: analysis/linehealth.py
+
+def _called(method):
+    try:
+        return method()
+    except Exception as e:  # noqa: BLE001 - a window of odd values fails in the reference: alike here
+        return type(e).__name__
+
+
+def _health_state(h) -> tuple:
+    return (h.link, h.window_ns, h.min_span_ns, h.frames, h.nbytes, h.bad, h.bad_bytes, list(h.kinds), h.broken,
+            h.warnings, h.window(), _called(h.enough), _called(h.most_bad), _called(h.mostly_good))
+
+
+def _health_run(make, steps) -> list:
+    """Each step's result (a Change, an exception's type) and the state after it."""
+    h, out = make(), []
+    for op, *args in steps:
+        try:
+            out.append(h.add(*args) if op == "add" else h.advance(*args))
+        except Exception as e:  # noqa: BLE001 - the reference's error is part of what must match
+            out.append(type(e).__name__)
+        out.append(_health_state(h))
+    return out
+
+
+def _compiled_health(**kw):
+    from sniffer.analysis import linehealth
+
+    h = linehealth.LineHealth("a", **kw)
+    return h
+
+
+_times = st.integers(0, 40).map(lambda k: k * 125_000_000)  # steps of 1/8 s: within, across and past the window
+_health_steps = st.lists(st.one_of(
+    st.tuples(st.just("add"), _times, st.integers(0, 300), st.sampled_from((None, None, 0, 1, 2))),
+    st.tuples(st.just("advance"), _times)), max_size=120)
+
+
+def _cumulative(steps):
+    """Times in order, as a capture gives them (each step's time is a gap after the last)."""
+    t, out = 10**12, []
+    for op, dt, *rest in steps:
+        t += dt
+        out.append((op, t, *rest))
+    return out
+
+
+@settings(max_examples=300, deadline=None)
+@given(_health_steps, st.sampled_from((1, 2, 8, 20, 200)), st.sampled_from((0.0, 0.5, 1.0, 5.0)))
+def test_line_health_alike(steps, max_frames, window_s):
+    from sniffer.analysis.linehealth import LineHealthPy
+
+    _need_hot()
+    steps = _cumulative(steps)
+    kw = {"max_frames": max_frames, "window_s": window_s}
+    compiled = _compiled_health(**kw)
+    assert not compiled.handed_over and type(compiled).__name__ == "LineHealth"
+    assert _health_run(lambda: _compiled_health(**kw), steps) == _health_run(lambda: LineHealthPy("a", **kw), steps)
+
+
+def test_line_health_breaks_and_recovers_alike():
+    """A line that breaks, recovers and breaks again: the same Changes, field by field."""
+    from sniffer.analysis.linehealth import LineHealthPy
+
+    _need_hot()
+    rng = random.Random(3)
+    steps, t = [], 0
+    for phase in (None, 0, None, 2, 1, None, 0):
+        for _ in range(rng.randint(50, 400)):
+            t += rng.randint(1, 60_000_000)
+            steps.append(("add", t, rng.randint(4, 260), phase if rng.random() < 0.9 else None))
+    got, want = _health_run(_compiled_health, steps), _health_run(lambda: LineHealthPy("a"), steps)
+    assert got == want
+    assert sum(1 for x in want if x is not None and not isinstance(x, tuple)) >= 4  # it broke and recovered
+
+
+@pytest.mark.parametrize("odd", [2**61 + 1, -(2**62), 2**70, 1.5, True, "x", None])
+def test_line_health_hands_odd_times_to_the_reference(odd):
+    """A time the C window does not keep hands the state over; from then on the reference runs."""
+    from sniffer.analysis.linehealth import LineHealthPy
+
+    _need_hot()
+    steps = [("add", 10**9 + k * 10**8, 40, k % 2 or None) for k in range(30)] + [("add", odd, 40, 2)]
+    steps += [("add", 2**62 + k, 9, 0) for k in range(12)] + [("advance", 2**63)]
+    assert _health_run(_compiled_health, steps) == _health_run(lambda: LineHealthPy("a"), steps)
+
+
+@pytest.mark.parametrize("nbytes,bad", [(2**41, None), (-1, 0), (3, 3), (3, -1), (3, 1.0), (3, "x"), (2**80, 1)])
+def test_line_health_hands_odd_frames_to_the_reference(nbytes, bad):
+    from sniffer.analysis.linehealth import LineHealthPy
+
+    _need_hot()
+    steps = [("add", 10**9 + k * 10**8, 40, 2) for k in range(20)] + [("add", 4 * 10**9, nbytes, bad)]
+    steps += [("add", 4 * 10**9 + k, 9, None) for k in range(12)]
+    assert _health_run(_compiled_health, steps) == _health_run(lambda: LineHealthPy("a"), steps)
+
+
+@pytest.mark.parametrize("kw", [{"max_frames": 5000}, {"max_frames": None}, {"max_frames": 0},
+                                {"window_s": 1e10}, {"window_s": -1.0}, {"window_s": float("nan")}])
+def test_line_health_odd_windows_are_the_reference(kw):
+    from sniffer.analysis.linehealth import LineHealth, LineHealthPy
+
+    _need_hot()
+    try:
+        want = type(LineHealthPy("a", **kw))
+    except Exception as e:  # noqa: BLE001 - the same error either way
+        with pytest.raises(type(e)):
+            LineHealth("a", **kw)
+        return
+    assert type(LineHealth("a", **kw)) is want
