@@ -1379,23 +1379,9 @@ static int health_int(PyObject *o, long long limit, long long *out)
     return *out >= -limit && *out <= limit;
 }
 
-#define HEALTH_DELEGATE(name, ...)                                        \
-    if (self->py != NULL)                                                 \
-        return PyObject_CallMethod(self->py, name, __VA_ARGS__)
-
-static PyObject *health_add(Health *self, PyObject *const *args, Py_ssize_t nargs)
+/* LineHealthPy.add on kept values (b: badness, -1 for None) */
+static PyObject *health_push(Health *self, long long t, long long n, long long b)
 {
-    long long t, n, b = -1;
-    if (nargs != 3) {
-        PyErr_SetString(PyExc_TypeError, "add(t_ns, nbytes, bad)");
-        return NULL;
-    }
-    if (self->py == NULL
-        && !(health_int(args[0], H_TIME_MAX, &t) && health_int(args[1], H_SIZE_MAX, &n) && n >= 0
-             && (args[2] == Py_None || (health_int(args[2], 2, &b) && b >= 0))))
-        if (health_hand_over(self) < 0)
-            return NULL;
-    HEALTH_DELEGATE("add", "OOO", args[0], args[1], args[2]);
     if (self->len == self->cap)
         health_drop_first(self);  /* the deque drops it on append */
     Py_ssize_t i = (self->head + self->len) % self->cap;
@@ -1413,6 +1399,26 @@ static PyObject *health_add(Health *self, PyObject *const *args, Py_ssize_t narg
     if (health_first_t(self) <= t - self->window_ns)
         health_expire(self, t);
     return health_judge_c(self);
+}
+
+#define HEALTH_DELEGATE(name, ...)                                        \
+    if (self->py != NULL)                                                 \
+        return PyObject_CallMethod(self->py, name, __VA_ARGS__)
+
+static PyObject *health_add(Health *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    long long t, n, b = -1;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "add(t_ns, nbytes, bad)");
+        return NULL;
+    }
+    if (self->py == NULL
+        && !(health_int(args[0], H_TIME_MAX, &t) && health_int(args[1], H_SIZE_MAX, &n) && n >= 0
+             && (args[2] == Py_None || (health_int(args[2], 2, &b) && b >= 0))))
+        if (health_hand_over(self) < 0)
+            return NULL;
+    HEALTH_DELEGATE("add", "OOO", args[0], args[1], args[2]);
+    return health_push(self, t, n, b);
 }
 
 static PyObject *health_advance(Health *self, PyObject *arg)
@@ -1532,6 +1538,97 @@ static PyTypeObject HealthType = {
     .tp_getset = health_getset,
 };
 
+/* LineWarning.frame_py: badness(f) and LineWatch.add for a frame of a link whose Health runs in C; the
+   Change or None, or NotImplemented where the Python code decides (a new link, a handed-over window, a
+   frame of odd types).  badness: noise 2; a CRC neither False nor None good; a UART code 1; CRC False 0. */
+static PyObject *s_link, *s_code;
+
+static PyObject *health_frame(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "health_frame(lines, frame, uart_codes)");
+        return NULL;
+    }
+    PyObject *lines = args[0], *f = args[1], *uart = args[2], *link, *h, *v;
+    long long t, n, b = -1;
+    if (!PyDict_CheckExact(lines) || !PyFrozenSet_CheckExact(uart))
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((link = PyObject_GetAttr(f, s_link)) == NULL)
+        return NULL;
+    int truth = PyUnicode_CheckExact(link) ? PyUnicode_GET_LENGTH(link) != 0 : -2;
+    if (truth == 0 || link == Py_None) {  /* f.link or "" */
+        Py_SETREF(link, Py_NewRef(s_empty));
+        truth = 1;
+    }
+    if (truth < 0) {
+        Py_DECREF(link);
+        Py_RETURN_NOTIMPLEMENTED;
+    }
+    h = PyDict_GetItemWithError(lines, link);  /* borrowed */
+    Py_DECREF(link);
+    if (h == NULL) {
+        if (PyErr_Occurred())
+            return NULL;
+        Py_RETURN_NOTIMPLEMENTED;
+    }
+    if (!PyObject_TypeCheck(h, &HealthType) || ((Health *)h)->py != NULL)
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((v = PyObject_GetAttr(f, s_t_ns)) == NULL)
+        return NULL;
+    int ok = health_int(v, H_TIME_MAX, &t);
+    Py_DECREF(v);
+    if (!ok)
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((v = PyObject_GetAttr(f, s_raw)) == NULL)
+        return NULL;
+    ok = PyBytes_CheckExact(v);
+    n = ok ? PyBytes_GET_SIZE(v) : 0;
+    Py_DECREF(v);
+    if (!ok || n > H_SIZE_MAX)
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((v = PyObject_GetAttr(f, s_protocol)) == NULL)
+        return NULL;
+    ok = PyUnicode_CheckExact(v);
+    int noise = ok && PyUnicode_Compare(v, s_noise) == 0;
+    Py_DECREF(v);
+    if (!ok)
+        Py_RETURN_NOTIMPLEMENTED;
+    if (noise)
+        b = 2;
+    else {
+        PyObject *crc = PyObject_GetAttr(f, s_crc_ok);
+        if (crc == NULL)
+            return NULL;
+        if (crc == Py_False || crc == Py_None) {  /* else a good CRC: no UART error either */
+            PyObject *anns = PyObject_GetAttr(f, s_annotations);
+            if (anns == NULL || !PyList_CheckExact(anns)) {
+                Py_DECREF(crc);
+                if (anns == NULL)
+                    return NULL;
+                Py_DECREF(anns);
+                Py_RETURN_NOTIMPLEMENTED;
+            }
+            for (Py_ssize_t i = 0; i < PyList_GET_SIZE(anns) && b < 0; i++) {
+                PyObject *code = PyObject_GetAttr(PyList_GET_ITEM(anns, i), s_code);
+                int in = code == NULL ? -1 : PySet_Contains(uart, code);
+                Py_XDECREF(code);
+                if (in < 0) {
+                    Py_DECREF(anns);
+                    Py_DECREF(crc);
+                    return NULL;
+                }
+                if (in)
+                    b = 1;
+            }
+            Py_DECREF(anns);
+            if (b < 0 && crc == Py_False)
+                b = 0;
+        }
+        Py_DECREF(crc);
+    }
+    return health_push((Health *)h, t, n, b);
+}
+
 /* ------------------------------------------------------------------ the module */
 
 static PyMethodDef methods[] = {
@@ -1548,6 +1645,9 @@ static PyMethodDef methods[] = {
      "csvexport.csv_text: csv_text(rows, kinds, float_text) -> bytes, or None for cells of another type."},
     {"frame_line", frame_line, METH_VARARGS,
      "text.frame_line for the common frame: frame_line(frame, t0_ns) -> str, or None for the others."},
+    {"health_frame", (PyCFunction)(void (*)(void))health_frame, METH_FASTCALL,
+     "LineWarning.frame_py's badness and LineWatch.add: health_frame(lines, frame, uart) -> Change, None or "
+     "NotImplemented."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -1605,6 +1705,8 @@ PyMODINIT_FUNC PyInit__hot(void)
     INTERN(s_text, "text");
     INTERN(s_unit, "unit");
     INTERN(s_change, "_change");
+    INTERN(s_link, "link");
+    INTERN(s_code, "code");
     INTERN(s_hand_over, "_hand_over");
     msg_kwnames = Py_BuildValue("(sssss)", "channel_id", "sequence", "log_time", "publish_time", "data");
     if (msg_kwnames == NULL)

@@ -684,3 +684,76 @@ def test_line_health_odd_windows_are_the_reference(kw):
             LineHealth("a", **kw)
         return
     assert type(LineHealth("a", **kw)) is want
+
+
+def _warnings(compiled: bool, frames) -> tuple:
+    """What a LineWarning says of `frames` on one path, and every link's state after."""
+    from sniffer.analysis.linehealth import LineHealthPy, LineWarning, LineWatch
+
+    class PyWatch(LineWatch):
+        health = LineHealthPy
+
+    class PyWarning(LineWarning):
+        _compiled_frame = None
+
+    said: list[str] = []
+    w = (LineWarning if compiled else PyWarning)(lambda info, link: f"hint {link}", said.append)
+    if not compiled:
+        w.watch = PyWatch()
+    for f in frames:
+        w.frame(f)
+    return said, {k: _health_state(h) for k, h in w.watch.lines.items()}
+
+
+@st.composite
+def _health_frames(draw):
+    from sniffer.codes import UART_FRAMING, UART_PARITY, Annotation
+
+    codes = (UART_FRAMING.code, UART_PARITY.code, "modbus.crc.mismatch", "pair.orphan_response")
+    out, t = [], 10**12
+    for k in range(draw(st.integers(0, 300))):
+        t += draw(st.sampled_from((0, 1, 10**6, 4 * 10**7, 10**8, 6 * 10**9)))
+        f = Frame(k, t, t + 1, bytes(draw(st.integers(0, 90))), draw(st.sampled_from(("modbus-rtu", "noise", "x"))),
+                  crc_ok=draw(st.sampled_from((True, False, None, False))))
+        f.link = draw(st.sampled_from(("", "", "a", "b", None)))
+        for code in draw(st.lists(st.sampled_from(codes), max_size=3)):
+            f.annotations.append(Annotation(code, "error", "x", 0, 1))
+        out.append(f)
+    return out
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(_health_frames())
+def test_line_warning_alike(frames):
+    _need_hot()
+    assert _warnings(True, frames) == _warnings(False, frames)
+
+
+def test_line_warning_alike_on_a_breaking_line():
+    """Bad runs of each kind between good ones: the warnings said are the same (and there are some)."""
+    from sniffer.codes import UART_PARITY, Annotation
+
+    _need_hot()
+    rng, frames, t = random.Random(5), [], 10**9
+    for kind in ("good", "crc", "good", "uart", "good", "noise", "good", "crc"):
+        for _ in range(rng.randint(100, 500)):
+            t += rng.randint(10**6, 3 * 10**7)
+            f = Frame(len(frames), t, t + 1, bytes(rng.randint(1, 40)), "noise" if kind == "noise" else "modbus-rtu",
+                      crc_ok=kind == "good" or (None if kind == "uart" else False))
+            if kind == "uart":
+                f.annotations.append(Annotation(UART_PARITY.code, "error", "x", 0, 1))
+            f.link = rng.choice(("", "a"))
+            frames.append(f)
+    said, states = _warnings(True, frames)
+    assert (said, states) == _warnings(False, frames)
+    assert len(said) >= 4 and all("hint" in s for s in said)
+
+
+def test_line_warning_odd_frames_take_the_reference():
+    """A link that is not a string, a time past 2**61, raw that is not bytes: frame_py decides (alike)."""
+    _need_hot()
+    frames = [Frame(k, 10**9 + k * 10**7, 0, b"\0" * 9, "noise") for k in range(250)]
+    frames[100].t_ns = 2**62
+    frames[120].raw = bytearray(9)
+    frames[130].link = 7
+    assert _warnings(True, frames) == _warnings(False, frames)

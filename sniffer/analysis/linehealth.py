@@ -215,6 +215,8 @@ else:
 class LineWatch:
     """Every link's LineHealth, fed the capture's frames (a capture of one line has the link "")."""
 
+    health = LineHealth  # what judges a link: LineHealthPy for the reference (tests/test_hot_equal.py)
+
     def __init__(self) -> None:
         self.lines: dict[str, LineHealth] = {}
 
@@ -225,7 +227,7 @@ class LineWatch:
         """A frame by what counts of it (a frame of a part decoded elsewhere: sniffer.parallel)."""
         h = self.lines.get(link)
         if h is None:
-            h = self.lines[link] = LineHealth(link)
+            h = self.lines[link] = self.health(link)
         return h.add(t_ns, nbytes, bad)
 
     def broken(self) -> list[str]:
@@ -252,6 +254,8 @@ class LineWarning(Sink):
     `hint(info, link)` says what to do (sniffer.detect.hint); `say` writes the line (sniffer.stderr.say)."""
 
     split = "health"  # by parts: a few numbers a frame cross, the warning itself runs in the coordinator
+    # frame_py in C (sniffer/_hot.c health_frame) for a link whose LineHealth runs in C; None: frame_py only
+    _compiled_frame = staticmethod(HOT.health_frame) if HOT is not None else None
 
     def __init__(self, hint: Callable[[object, str], str], say: Callable[[str], None]) -> None:
         self.hint = hint
@@ -263,14 +267,28 @@ class LineWarning(Sink):
         self.info = info
 
     def frame(self, f) -> None:
+        compiled = self._compiled_frame
+        if compiled is not None:
+            change = compiled(self.watch.lines, f, _UART)
+            if change is not NotImplemented:
+                if change is not None and change.broken:
+                    self._say(change)
+                return
+        self.frame_py(f)
+
+    def frame_py(self, f) -> None:
+        """The reference of frame()."""
         self.observe(f.link or "", f.t_ns, len(f.raw), badness(f))
 
     def observe(self, link: str, t_ns: int, nbytes: int, bad: int | None) -> None:
         """A frame by what counts of it (LineWatch.add)."""
         change = self.watch.add(link, t_ns, nbytes, bad)
         if change is not None and change.broken:
-            self.say("warning: " + warning_text(change, line_settings(self.info, change.link),
-                                                self.hint(self.info, change.link)))
+            self._say(change)
+
+    def _say(self, change: Change) -> None:
+        self.say("warning: " + warning_text(change, line_settings(self.info, change.link),
+                                            self.hint(self.info, change.link)))
 
 
 def line_settings(info, link: str = "") -> str:
