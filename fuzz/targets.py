@@ -125,9 +125,10 @@ def run_framers(data: bytes) -> None:
 
 def run_hot(data: bytes) -> None:
     """The compiled path (sniffer._hot) against the pure-Python one on the same bytes: the RTU framer on reads
-    shaped by the first byte (as `framers`), the bytes as a /raw message and as the records of an MCAP chunk.
-    Any difference is a crash.  The other targets run whichever path the process loaded (the compiled one
-    unless SNIFFER_PURE=1); this one runs both.  Without the extension built it checks nothing."""
+    shaped by the first byte (as `framers`), the bytes as a /raw message, as the records of an MCAP chunk and
+    as a line's frames through the line-settings warning's window (4 bytes a frame).  Any difference is a
+    crash.  The other targets run whichever path the process loaded (the compiled one unless SNIFFER_PURE=1);
+    this one runs both.  Without the extension built it checks nothing."""
     from sniffer.hot import HOT
 
     if HOT is None or not data:
@@ -177,6 +178,27 @@ def run_hot(data: bytes) -> None:
     skip = (lambda topic: topic != "/raw")  # noqa: E731
     if outcome(_walk_chunk, body, dict(known), skip) != outcome(_walk_chunk, body, dict(known), skip, None):
         raise Unexpected("an MCAP chunk's records differ between the compiled and the pure path")
+    _health_alike(shape, line)
+
+
+def _health_alike(shape: int, line: bytes) -> None:
+    """LineHealth (C) and LineHealthPy on the same frames: 4 bytes each (time step, size, badness, add or
+    advance); the window size from `shape`.  The state after every step must be the same."""
+    from sniffer.analysis.linehealth import LineHealth, LineHealthPy
+
+    kw = {"max_frames": 1 + (shape & 0x3F) * 4, "window_s": (shape >> 6) * 2.0}
+    states = []
+    for h in (LineHealth("a", **kw), LineHealthPy("a", **kw)):
+        t, out = 10**12, []
+        for i in range(0, len(line) - 3, 4):
+            dt, size, bad, op = line[i:i + 4]
+            t += dt * dt * 100_000
+            b = (None, None, 0, 1, 2)[bad % 5]
+            out.append(h.add(t, size, b) if op & 1 else h.advance(t))
+            out.append((h.frames, h.nbytes, h.bad, h.bad_bytes, list(h.kinds), h.broken, h.warnings, h.window()))
+        states.append(out)
+    if states[0] != states[1]:
+        raise Unexpected("the line health's window differs between the compiled and the pure path")
 
 
 def run_filter(data: bytes) -> None:
