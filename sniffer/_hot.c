@@ -1629,6 +1629,290 @@ static PyObject *health_frame(PyObject *module, PyObject *const *args, Py_ssize_
     return health_push((Health *)h, t, n, b);
 }
 
+/* ------------------------------------------------------------------ decoders/generic/decoder.py decode_py */
+
+/* GenericModbus.decode_py for the plain generic decoder (no model) on the traffic of nearly every line:
+   0x01-0x04 requests, 0x03/0x04 responses, 0x06 both ways, 0x10 both ways, with the register-shadow
+   writes (UnitState.commit) they do.  Every case that would annotate (an odd byte count, a quantity out
+   of range, no request, a CRC-bad frame's read), every other function, and a shadow that is not a plain
+   dict (sniffer.parallel's Overlay) returns NotImplemented before anything is changed: decode_py decides
+   it.  ctx: (RESPONSE, RegisterBlock, UnitState, space by function (256), most quantity by function (256)). */
+static PyObject *s_writes, *s_points_slot, *s_tables;
+
+static int gen_commit(PyObject *f, PyObject *d, PyObject *space, long start, PyObject *values)
+{
+    Py_ssize_t k = PyList_GET_SIZE(values);
+    for (Py_ssize_t i = 0; i < k; i++) {
+        PyObject *key = PyLong_FromLong(start + (long)i);
+        if (key == NULL || PyDict_SetItem(d, key, PyList_GET_ITEM(values, i)) < 0) {
+            Py_XDECREF(key);
+            return -1;
+        }
+        Py_DECREF(key);
+    }
+    PyObject *writes = PyObject_GetAttr(f, s_writes);
+    if (writes == NULL)
+        return -1;
+    PyObject *w = Py_BuildValue("[OlO]", space, start, values);
+    int r = w == NULL ? -1 : PyList_Append(writes, w);
+    Py_XDECREF(w);
+    Py_DECREF(writes);
+    return r;
+}
+
+static PyObject *gen_words(const unsigned char *p, Py_ssize_t k)
+{
+    PyObject *out = PyList_New(k);
+    if (out == NULL)
+        return NULL;
+    for (Py_ssize_t i = 0; i < k; i++) {
+        PyObject *v = PyLong_FromLong((p[2 * i] << 8) | p[2 * i + 1]);
+        if (v == NULL) {
+            Py_DECREF(out);
+            return NULL;
+        }
+        PyList_SET_ITEM(out, i, v);
+    }
+    return out;
+}
+
+/* the shadow dict of `space`, or NULL with no error (not a plain dict: decode_py) */
+static PyObject *gen_table(PyObject *state, PyObject *space, int *err)
+{
+    PyObject *tables = PyObject_GetAttr(state, s_tables), *d;
+    *err = tables == NULL;
+    if (tables == NULL || !PyDict_CheckExact(tables)) {
+        Py_XDECREF(tables);
+        return NULL;
+    }
+    d = PyDict_GetItemWithError(tables, space);
+    *err = d == NULL && PyErr_Occurred();
+    Py_DECREF(tables);
+    return d != NULL && PyDict_CheckExact(d) ? d : NULL;  /* borrowed: the state holds it */
+}
+
+/* a frame attribute that must be exact bytes (NULL with no error: not bytes) */
+static PyObject *gen_bytes(PyObject *o, int *err)
+{
+    PyObject *b = PyObject_GetAttr(o, s_adu);
+    *err = b == NULL;
+    if (b != NULL && !PyBytes_CheckExact(b))
+        Py_CLEAR(b);
+    return b;
+}
+
+/* crc_ok as 1 (True), 0 (False or None), -1 (anything else: decode_py) */
+static int gen_crc(PyObject *o, int *err)
+{
+    PyObject *c = PyObject_GetAttr(o, s_crc_ok);
+    *err = c == NULL;
+    int r = c == Py_True ? 1 : (c == Py_False || c == Py_None) ? 0 : -1;
+    Py_XDECREF(c);
+    return r;
+}
+
+static int gen_set_block(PyObject *f, PyObject *block_cls, PyObject *space, long addr, PyObject *values, int offset,
+                         const char *prefix)
+{
+    PyObject *block = PyObject_CallFunction(block_cls, "OlOi", space, addr, values, offset);
+    if (block == NULL)
+        return -1;
+    PyObject *summary = PyObject_CallMethod(block, "summary", NULL);
+    if (summary != NULL && prefix[0])
+        Py_SETREF(summary, PyUnicode_FromFormat("%s%U", prefix, summary));
+    int r = summary == NULL ? -1 : PyObject_SetAttr(f, s_points_slot, block);
+    if (r == 0)
+        r = PyObject_SetAttr(f, s_summary, summary);
+    Py_XDECREF(summary);
+    Py_DECREF(block);
+    return r;
+}
+
+static PyObject *generic_fast(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 4 || !PyTuple_Check(args[3]) || PyTuple_GET_SIZE(args[3]) != 5) {
+        PyErr_SetString(PyExc_TypeError, "generic_fast(frame, request, state, ctx)");
+        return NULL;
+    }
+    PyObject *f = args[0], *req = args[1], *state = args[2], *ctx = args[3];
+    PyObject *response = PyTuple_GET_ITEM(ctx, 0), *block_cls = PyTuple_GET_ITEM(ctx, 1);
+    PyObject *spaces = PyTuple_GET_ITEM(ctx, 3), *maxq = PyTuple_GET_ITEM(ctx, 4);
+    PyObject *v, *adu = NULL, *radu = NULL, *values = NULL, *result = NULL, *d = NULL;
+    int err = 0;
+    if (!Py_IS_TYPE(state, (PyTypeObject *)PyTuple_GET_ITEM(ctx, 2)))
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((v = PyObject_GetAttr(f, s_function)) == NULL)
+        return NULL;
+    long fc = PyLong_CheckExact(v) ? PyLong_AsLong(v) : -1;
+    Py_DECREF(v);
+    if (fc == -1 && PyErr_Occurred())
+        PyErr_Clear();
+    if (fc < 1 || fc > 0x10)
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((v = PyObject_GetAttr(f, s_role)) == NULL)
+        return NULL;
+    int is_rsp = PyUnicode_CheckExact(v) ? PyUnicode_Compare(v, response) == 0 : -1;
+    Py_DECREF(v);
+    int crc = gen_crc(f, &err);
+    if (err)
+        return NULL;
+    if (is_rsp < 0 || crc < 0)
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((adu = gen_bytes(f, &err)) == NULL)
+        return err ? NULL : Py_NewRef(Py_NotImplemented);
+    const unsigned char *p = (const unsigned char *)PyBytes_AS_STRING(adu);
+    Py_ssize_t n = PyBytes_GET_SIZE(adu);
+    PyObject *space = PyTuple_GET_ITEM(spaces, fc), *hi_o = PyTuple_GET_ITEM(maxq, fc);
+    long hi = hi_o == Py_None ? 0x10000 : PyLong_AsLong(hi_o);
+    long unit0 = 0;
+    if ((v = PyObject_GetAttr(f, s_unit_attr)) == NULL)
+        goto done;
+    unit0 = PyLong_CheckExact(v) && PyLong_AsLong(v) == 0;
+    Py_DECREF(v);
+    if (PyErr_Occurred())
+        PyErr_Clear();  /* a unit past a C long: not 0 */
+    if (n < 3 || space == Py_None)
+        goto hand_back;
+    long a = n >= 6 ? (p[2] << 8) | p[3] : 0, q = n >= 6 ? (p[4] << 8) | p[5] : 0;
+    if (n < 6 && !((fc == 3 || fc == 4) && is_rsp))
+        goto hand_back;  /* every other handler reads an address and a quantity or value */
+
+    if (fc <= 4 && !is_rsp) {  /* _read_req */
+        if (q < 1 || q > hi || a + q > 0x10000)
+            goto hand_back;
+        PyObject *s = PyUnicode_FromFormat("read %U %ld..%ld (%ld)", space, a, a + q - 1, q);
+        if (s == NULL || PyObject_SetAttr(f, s_summary, s) < 0) {
+            Py_XDECREF(s);
+            goto done;
+        }
+        Py_DECREF(s);
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    if (fc == 3 || fc == 4 || (fc == 0x10 && is_rsp)) {  /* both read the request: CRC-good, 6 bytes or more */
+        if (req == Py_None || gen_crc(req, &err) != 1) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if ((radu = gen_bytes(req, &err)) == NULL) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if (PyBytes_GET_SIZE(radu) < 6)
+            goto hand_back;
+    }
+    if (fc == 3 || fc == 4) {  /* _read_regs_rsp (is_rsp: the request side went above) */
+        if (!is_rsp)
+            goto hand_back;
+        Py_ssize_t k = p[2] >> 1;
+        const unsigned char *r = (const unsigned char *)PyBytes_AS_STRING(radu);
+        long addr = (r[2] << 8) | r[3];
+        if ((p[2] & 1) || n < 3 + 2 * k || addr + k > 0x10000 || !crc)
+            goto hand_back;
+        if (k && (d = gen_table(state, space, &err)) == NULL) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if ((values = gen_words(p + 3, k)) == NULL)
+            goto done;
+        if (k && gen_commit(f, d, space, addr, values) < 0)
+            goto done;
+        if (gen_set_block(f, block_cls, space, addr, values, 3, "") < 0)
+            goto done;
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    if (fc == 6) {  /* _write_single, the plain branch */
+        int commit = crc && (is_rsp || unit0);
+        if (commit && (d = gen_table(state, space, &err)) == NULL) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if (commit) {
+            if ((values = gen_words(p + 4, 1)) == NULL || gen_commit(f, d, space, a, values) < 0)
+                goto done;
+        }
+        PyObject *pts = Py_BuildValue("[{s:N,s:l,s:l,s:l,s:O,s:[ii]}]", "name",
+                                      PyUnicode_FromFormat("%U[%ld]", space, a), "address", a, "raw", q, "value", q,
+                                      "unit", Py_None, "span", 4, 6);
+        if (pts == NULL)
+            goto done;
+        int r = PyObject_SetAttr(f, s_points_slot, pts);
+        Py_DECREF(pts);
+        if (r < 0)
+            goto done;
+        PyObject *s = PyUnicode_FromFormat("%s %U[%ld]=%ld", is_rsp ? "wrote" : "write", space, a, q);
+        if (s == NULL || PyObject_SetAttr(f, s_summary, s) < 0) {
+            Py_XDECREF(s);
+            goto done;
+        }
+        Py_DECREF(s);
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    if (fc == 0x10 && !is_rsp) {  /* _write_multi_req */
+        if (n < 7)
+            goto hand_back;
+        Py_ssize_t k = p[6] >> 1;
+        if (n < 7 + 2 * k || q < 1 || q > hi || a + k > 0x10000)
+            goto hand_back;
+        int commit = unit0 && crc && k;
+        if (commit && (d = gen_table(state, space, &err)) == NULL) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if ((values = gen_words(p + 7, k)) == NULL)
+            goto done;
+        if (commit && gen_commit(f, d, space, a, values) < 0)
+            goto done;
+        if (gen_set_block(f, block_cls, space, a, values, 7, "write ") < 0)
+            goto done;
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    if (fc == 0x10) {  /* _write_multi_rsp: the request's values, confirmed by a response naming the same registers */
+        if (q < 1 || q > hi || a + q > 0x10000)
+            goto hand_back;
+        const unsigned char *r = (const unsigned char *)PyBytes_AS_STRING(radu);
+        Py_ssize_t rn = PyBytes_GET_SIZE(radu), k = rn >= 7 ? r[6] >> 1 : 0;
+        long ra = (r[2] << 8) | r[3];
+        if ((v = PyObject_GetAttr(req, s_function)) == NULL)
+            goto done;
+        int same_fc = PyLong_CheckExact(v) && PyLong_AsLong(v) == 0x10;
+        Py_DECREF(v);
+        if (!same_fc)
+            goto hand_back;
+        int commit = crc && memcmp(r + 2, p + 2, 4) == 0 && rn >= 7 && rn >= 7 + 2 * k && k && ra + k <= 0x10000;
+        if (commit && (d = gen_table(state, space, &err)) == NULL) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if (commit && ((values = gen_words(r + 7, k)) == NULL || gen_commit(f, d, space, ra, values) < 0))
+            goto done;
+        PyObject *s = PyUnicode_FromFormat("wrote %U %ld..%ld (%ld)", space, a, a + q - 1, q);
+        if (s == NULL || PyObject_SetAttr(f, s_summary, s) < 0) {
+            Py_XDECREF(s);
+            goto done;
+        }
+        Py_DECREF(s);
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+hand_back:
+    result = Py_NewRef(Py_NotImplemented);
+done:
+    Py_XDECREF(adu);
+    Py_XDECREF(radu);
+    Py_XDECREF(values);
+    return result;
+}
+
 /* ------------------------------------------------------------------ the module */
 
 static PyMethodDef methods[] = {
@@ -1648,6 +1932,9 @@ static PyMethodDef methods[] = {
     {"health_frame", (PyCFunction)(void (*)(void))health_frame, METH_FASTCALL,
      "LineWarning.frame_py's badness and LineWatch.add: health_frame(lines, frame, uart) -> Change, None or "
      "NotImplemented."},
+    {"generic_fast", (PyCFunction)(void (*)(void))generic_fast, METH_FASTCALL,
+     "GenericModbus.decode_py for the plain decoder's common frames: generic_fast(frame, request, state, ctx) -> "
+     "None, or NotImplemented where decode_py decides."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -1706,6 +1993,9 @@ PyMODINIT_FUNC PyInit__hot(void)
     INTERN(s_unit, "unit");
     INTERN(s_change, "_change");
     INTERN(s_link, "link");
+    INTERN(s_writes, "writes");
+    INTERN(s_points_slot, "_points");
+    INTERN(s_tables, "tables");
     INTERN(s_code, "code");
     INTERN(s_hand_over, "_hand_over");
     msg_kwnames = Py_BuildValue("(sssss)", "channel_id", "sequence", "log_time", "publish_time", "data");

@@ -757,3 +757,142 @@ def test_line_warning_odd_frames_take_the_reference():
     frames[120].raw = bytearray(9)
     frames[130].link = 7
     assert _warnings(True, frames) == _warnings(False, frames)
+
+
+# ------------------------------------------------------------------ the generic decoder: decoders/generic/decoder.py
+
+def _generic_state(f: Frame) -> tuple:
+    pts = f.points
+    return (f.summary, [dict(p) for p in pts], type(f._points).__name__, f.writes, list(f.annotations), f.exception,
+            f.model, f.fields)
+
+
+def _generic_run(compiled: bool, pairs) -> tuple:
+    """Decode each (request, response) with the compiled decoder or the reference; each frame's result and
+    the shadow after all."""
+    from decoders.base import UnitState
+    from decoders.generic import GenericModbus
+
+    class Reference(GenericModbus):  # a subclass: generic_fast is for GenericModbus itself only
+        pass
+
+    dec = GenericModbus() if compiled else Reference()
+    assert (dec._compiled is not None) == compiled
+    state, out = UnitState(1), []
+    state.holding.update({k: k * 3 for k in range(0, 70000, 7)})
+    for req, rsp in pairs:
+        for f, peer in ((req, None), (rsp, req)):
+            if f is None:
+                continue
+            f = _copy_frame(f)
+            dec.decode(f, peer, state)
+            out.append(_generic_state(f))
+    return out, state.snapshot()
+
+
+def _copy_frame(f: Frame) -> Frame:
+    g = Frame(f.index, f.t_ns, f.t_end_ns, f.raw, f.protocol, f.unit, f.function, f.role_fits, f.crc_ok)
+    g.adu, g.role = f.adu, f.role
+    return g
+
+
+def _gframe(adu: bytes, role: str, crc_ok) -> Frame:
+    f = Frame(0, 0, 1, adu + b"\x00\x00", "modbus-rtu", adu[0] if adu else None, adu[1] if len(adu) > 1 else None,
+              3, crc_ok)
+    f.adu, f.role = adu, role
+    return f
+
+
+@st.composite
+def _generic_pairs(draw):
+    from sniffer.frame import REQUEST, RESPONSE, UNKNOWN
+
+    pairs = []
+    for _ in range(draw(st.integers(1, 8))):
+        fc = draw(st.sampled_from((3, 3, 4, 6, 0x10, 0x10, 1, 5, 0x0F, 0x17, 0x83, 7)))
+        unit = draw(st.sampled_from((1, 0, 1, 247)))
+        a = draw(st.sampled_from((0, 100, 8448, 65535, 65500, 65534)))
+        q = draw(st.sampled_from((1, 2, 10, 123, 124, 125, 126, 0)))
+        k = draw(st.integers(0, 130)) if draw(st.booleans()) else q
+        words = bytes(draw(st.binary(min_size=2 * min(k, 127), max_size=2 * min(k, 127))))
+        if fc == 0x10:
+            req = bytes([unit, fc]) + struct.pack(">HHB", a, q, draw(st.sampled_from((2 * k, 2 * k + 1, 2 * k)))
+                                                  & 0xFF) + words
+        elif fc == 6:
+            req = bytes([unit, fc]) + struct.pack(">HH", a, q)
+        else:
+            req = bytes([unit, fc]) + struct.pack(">HH", a, q)
+        if fc in (3, 4):
+            rsp = bytes([unit, fc, draw(st.sampled_from((2 * k, 2 * k, 2 * k + 1))) & 0xFF]) + words
+        elif fc == 0x10:
+            rsp = bytes([unit, fc]) + struct.pack(">HH", draw(st.sampled_from((a, a, a + 1))) & 0xFFFF, q)
+        else:
+            rsp = req
+        cut = draw(st.sampled_from((None, None, None, 1, 2, 3, 5, 6, 7)))
+        if cut is not None:
+            rsp = rsp[:cut] if draw(st.booleans()) else rsp
+            req = req[:cut] if draw(st.booleans()) else req
+        crc = st.sampled_from((True, True, True, False, None))
+        rrole = draw(st.sampled_from((REQUEST, REQUEST, UNKNOWN)))
+        r = _gframe(req, rrole, draw(crc)) if len(req) > 1 and draw(st.integers(0, 5)) else None
+        s = _gframe(rsp, draw(st.sampled_from((RESPONSE, RESPONSE, UNKNOWN))), draw(crc))
+        if len(rsp) > 1 and r is not None and draw(st.integers(0, 5)) == 0:
+            s.function = draw(st.sampled_from((3, 0x10, 6)))  # a response to another function
+        pairs.append((r, s))
+    return pairs
+
+
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(_generic_pairs())
+def test_generic_decoder_alike(pairs):
+    _need_hot()
+    assert _generic_run(True, pairs) == _generic_run(False, pairs)
+
+
+def test_generic_decoder_compiled_for_the_common_frames():
+    """The common frames do take the compiled path (it does not hand every one back)."""
+    from decoders.base import UnitState
+    from decoders.generic import GenericModbus
+    from sniffer.frame import REQUEST, RESPONSE
+
+    _need_hot()
+    from decoders.generic.decoder import _HOT_CTX
+
+    state = UnitState(1)
+    req = _gframe(bytes([1, 3, 0x21, 0, 0, 2]), REQUEST, True)
+    rsp = _gframe(bytes([1, 3, 4, 0, 7, 0, 9]), RESPONSE, True)
+    assert HOT.generic_fast(req, None, state, _HOT_CTX) is None
+    assert HOT.generic_fast(rsp, req, state, _HOT_CTX) is None
+    assert rsp.summary == "holding[8448]=7 holding[8449]=9" and rsp.writes == [["holding", 8448, [7, 9]]]
+    assert state.holding == {8448: 7, 8449: 9}
+    w = _gframe(bytes([1, 0x10, 0, 5, 0, 2, 4, 0, 1, 0, 2]), REQUEST, True)
+    assert HOT.generic_fast(w, None, state, _HOT_CTX) is None and w.summary == "write holding[5]=1 holding[6]=2"
+    wr = _gframe(bytes([1, 0x10, 0, 5, 0, 2]), RESPONSE, True)
+    assert HOT.generic_fast(wr, w, state, _HOT_CTX) is None and wr.summary == "wrote holding 5..6 (2)"
+    assert state.holding[6] == 2 and GenericModbus()._compiled is HOT.generic_fast
+
+
+def _standard_pairs(unit: int) -> list:
+    """A well-formed (request, response) of each common function, as raw ADUs."""
+    return [
+        (bytes([unit, 3, 0x21, 0, 0, 2]), bytes([unit, 3, 4, 0, 7, 0, 9])),
+        (bytes([unit, 4, 0, 0, 0, 1]), bytes([unit, 4, 2, 0xFF, 0xFE])),
+        (bytes([unit, 6, 0, 9, 0x12, 0x34]), bytes([unit, 6, 0, 9, 0x12, 0x34])),
+        (bytes([unit, 0x10, 0, 5, 0, 2, 4, 0, 1, 0, 2]), bytes([unit, 0x10, 0, 5, 0, 2])),
+        (bytes([unit, 1, 0, 0, 0, 9]), bytes([unit, 1, 2, 0xFF, 0x01])),
+    ]
+
+
+@pytest.mark.parametrize("unit", [0, 1])
+@pytest.mark.parametrize("req_crc", [True, False, None, "absent"])
+@pytest.mark.parametrize("rsp_crc", [True, False, None])
+@pytest.mark.parametrize("rsp_role", ["response", "unknown"])
+def test_generic_decoder_alike_on_every_flag(unit, req_crc, rsp_crc, rsp_role):
+    """Each common function's pair under every CRC verdict, role and broadcast: the same frames and shadow."""
+    from sniffer.frame import REQUEST, RESPONSE, UNKNOWN
+
+    _need_hot()
+    role = RESPONSE if rsp_role == "response" else UNKNOWN
+    pairs = [(None if req_crc == "absent" else _gframe(q, REQUEST, req_crc), _gframe(r, role, rsp_crc))
+             for q, r in _standard_pairs(unit)]
+    assert _generic_run(True, pairs) == _generic_run(False, pairs)
