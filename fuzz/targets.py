@@ -126,9 +126,10 @@ def run_framers(data: bytes) -> None:
 def run_hot(data: bytes) -> None:
     """The compiled path (sniffer._hot) against the pure-Python one on the same bytes: the RTU framer on reads
     shaped by the first byte (as `framers`), the bytes as a /raw message, as the records of an MCAP chunk and
-    as a line's frames through the line-settings warning's window (4 bytes a frame).  Any difference is a
-    crash.  The other targets run whichever path the process loaded (the compiled one unless SNIFFER_PURE=1);
-    this one runs both.  Without the extension built it checks nothing."""
+    as a line's frames through the line-settings warning's window (4 bytes a frame), and as a request and a
+    response through the generic decoder.  Any difference is a crash.  The other targets run whichever
+    path the process loaded (the compiled one unless SNIFFER_PURE=1); this one runs both.  Without the
+    extension built it checks nothing."""
     from sniffer.hot import HOT
 
     if HOT is None or not data:
@@ -179,6 +180,35 @@ def run_hot(data: bytes) -> None:
     if outcome(_walk_chunk, body, dict(known), skip) != outcome(_walk_chunk, body, dict(known), skip, None):
         raise Unexpected("an MCAP chunk's records differ between the compiled and the pure path")
     _health_alike(shape, line)
+    _generic_alike(shape, line)
+
+
+def _generic_alike(shape: int, line: bytes) -> None:
+    """GenericModbus (generic_fast) and a subclass of it (decode_py only) on the bytes cut in two ADUs, a
+    request and its response, CRC verdicts and roles from `shape`: the same frames and register shadow."""
+    from decoders.base import UnitState
+    from decoders.generic import GenericModbus
+    from sniffer.frame import REQUEST, RESPONSE, UNKNOWN, Frame
+
+    class Reference(GenericModbus):
+        pass
+
+    cut = 2 + (shape & 0x0F)
+    verdicts = (True, False, None, True)
+    got = []
+    for dec in (GenericModbus(), Reference()):
+        state, out, frames = UnitState(1), [], []
+        for adu, role, crc in ((line[:cut], REQUEST, verdicts[(shape >> 4) & 3]),
+                               (line[cut:], RESPONSE if shape & 0x40 else UNKNOWN, verdicts[shape >> 6])):
+            f = Frame(0, 0, 1, adu + b"\0\0", "modbus-rtu", adu[0] if adu else None,
+                      adu[1] if len(adu) > 1 else None, 3, crc)
+            f.adu, f.role = adu, role
+            dec.decode(f, frames[-1] if frames else None, state)
+            frames.append(f)
+            out.append((f.summary, [dict(p) for p in f.points], f.writes, list(f.annotations), f.exception))
+        got.append((out, state.snapshot()))
+    if got[0] != got[1]:
+        raise Unexpected("the generic decoder's frames differ between the compiled and the pure path")
 
 
 def _health_alike(shape: int, line: bytes) -> None:
