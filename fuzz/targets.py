@@ -125,9 +125,11 @@ def run_framers(data: bytes) -> None:
 
 def run_hot(data: bytes) -> None:
     """The compiled path (sniffer._hot) against the pure-Python one on the same bytes: the RTU framer on reads
-    shaped by the first byte (as `framers`), the bytes as a /raw message and as the records of an MCAP chunk.
-    Any difference is a crash.  The other targets run whichever path the process loaded (the compiled one
-    unless SNIFFER_PURE=1); this one runs both.  Without the extension built it checks nothing."""
+    shaped by the first byte (as `framers`), the bytes as a /raw message, as the records of an MCAP chunk and
+    as a line's frames through the line-settings warning's window (4 bytes a frame), and as a request and a
+    response through the generic decoder.  Any difference is a crash.  The other targets run whichever
+    path the process loaded (the compiled one unless SNIFFER_PURE=1); this one runs both.  Without the
+    extension built it checks nothing."""
     from sniffer.hot import HOT
 
     if HOT is None or not data:
@@ -177,6 +179,56 @@ def run_hot(data: bytes) -> None:
     skip = (lambda topic: topic != "/raw")  # noqa: E731
     if outcome(_walk_chunk, body, dict(known), skip) != outcome(_walk_chunk, body, dict(known), skip, None):
         raise Unexpected("an MCAP chunk's records differ between the compiled and the pure path")
+    _health_alike(shape, line)
+    _generic_alike(shape, line)
+
+
+def _generic_alike(shape: int, line: bytes) -> None:
+    """GenericModbus (generic_fast) and a subclass of it (decode_py only) on the bytes cut in two ADUs, a
+    request and its response, CRC verdicts and roles from `shape`: the same frames and register shadow."""
+    from decoders.base import UnitState
+    from decoders.generic import GenericModbus
+    from sniffer.frame import REQUEST, RESPONSE, UNKNOWN, Frame
+
+    class Reference(GenericModbus):
+        pass
+
+    cut = 2 + (shape & 0x0F)
+    verdicts = (True, False, None, True)
+    got = []
+    for dec in (GenericModbus(), Reference()):
+        state, out, frames = UnitState(1), [], []
+        for adu, role, crc in ((line[:cut], REQUEST, verdicts[(shape >> 4) & 3]),
+                               (line[cut:], RESPONSE if shape & 0x40 else UNKNOWN, verdicts[shape >> 6])):
+            f = Frame(0, 0, 1, adu + b"\0\0", "modbus-rtu", adu[0] if adu else None,
+                      adu[1] if len(adu) > 1 else None, 3, crc)
+            f.adu, f.role = adu, role
+            dec.decode(f, frames[-1] if frames else None, state)
+            frames.append(f)
+            out.append((f.summary, [dict(p) for p in f.points], f.writes, list(f.annotations), f.exception))
+        got.append((out, state.snapshot()))
+    if got[0] != got[1]:
+        raise Unexpected("the generic decoder's frames differ between the compiled and the pure path")
+
+
+def _health_alike(shape: int, line: bytes) -> None:
+    """LineHealth (C) and LineHealthPy on the same frames: 4 bytes each (time step, size, badness, add or
+    advance); the window size from `shape`.  The state after every step must be the same."""
+    from sniffer.analysis.linehealth import LineHealth, LineHealthPy
+
+    kw = {"max_frames": 1 + (shape & 0x3F) * 4, "window_s": (shape >> 6) * 2.0}
+    states = []
+    for h in (LineHealth("a", **kw), LineHealthPy("a", **kw)):
+        t, out = 10**12, []
+        for i in range(0, len(line) - 3, 4):
+            dt, size, bad, op = line[i:i + 4]
+            t += dt * dt * 100_000
+            b = (None, None, 0, 1, 2)[bad % 5]
+            out.append(h.add(t, size, b) if op & 1 else h.advance(t))
+            out.append((h.frames, h.nbytes, h.bad, h.bad_bytes, list(h.kinds), h.broken, h.warnings, h.window()))
+        states.append(out)
+    if states[0] != states[1]:
+        raise Unexpected("the line health's window differs between the compiled and the pure path")
 
 
 def run_filter(data: bytes) -> None:

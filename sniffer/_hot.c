@@ -1215,6 +1215,704 @@ done:
     return result;
 }
 
+/* ------------------------------------------------------------------ analysis/linehealth.py LineHealthPy */
+
+/* Health: LineHealthPy's window and counters (the reference, analysis/linehealth.py) as a C type;
+   LineHealth subclasses it and builds the Change.  Times within +-2**61 ns, sizes within 2**40 and a
+   badness of None, 0, 1 or 2 are kept here (every sum and share then exact in 64 bits and doubles);
+   any other value hands the whole state to a LineHealthPy (self._hand_over()) that runs from then on. */
+#define H_TIME_MAX (1LL << 61)
+#define H_SIZE_MAX (1LL << 40)
+
+typedef struct {
+    PyObject_HEAD
+    PyObject *link;
+    PyObject *py;  /* the reference it handed over to, or NULL */
+    long long window_ns, min_span_ns, min_frames, min_bytes;
+    double broken_share, recovered_share;
+    Py_ssize_t cap, head, len;  /* the ring: item i at (head + i) % cap */
+    long long *t, *nb;
+    signed char *bad;  /* -1: good */
+    long long frames, nbytes, nbad, bad_bytes, kinds[3], warnings;
+    int broken;
+} Health;
+
+static PyObject *s_change, *s_hand_over;
+
+static int health_init(Health *self, PyObject *args, PyObject *kw)
+{
+    PyObject *link;
+    Py_ssize_t cap;
+    if (!PyArg_ParseTuple(args, "OLLnLLdd", &link, &self->window_ns, &self->min_span_ns, &cap, &self->min_frames,
+                          &self->min_bytes, &self->broken_share, &self->recovered_share))
+        return -1;
+    if (cap < 1 || cap > 4096 || self->window_ns < 0 || self->window_ns > H_TIME_MAX || self->min_span_ns < 0
+        || self->min_span_ns > H_TIME_MAX || self->min_frames < 1) {
+        PyErr_SetString(PyExc_ValueError, "Health: a window LineHealthPy keeps");
+        return -1;
+    }
+    PyMem_Free(self->t);
+    PyMem_Free(self->nb);
+    PyMem_Free(self->bad);
+    self->t = PyMem_New(long long, cap);
+    self->nb = PyMem_New(long long, cap);
+    self->bad = PyMem_New(signed char, cap);
+    if (!self->t || !self->nb || !self->bad) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    Py_INCREF(link);
+    Py_XSETREF(self->link, link);
+    Py_CLEAR(self->py);
+    self->cap = cap;
+    self->head = self->len = 0;
+    self->frames = self->nbytes = self->nbad = self->bad_bytes = self->warnings = 0;
+    self->kinds[0] = self->kinds[1] = self->kinds[2] = 0;
+    self->broken = 0;
+    return 0;
+}
+
+static void health_dealloc(Health *self)
+{
+    PyObject_GC_UnTrack(self);
+    Py_CLEAR(self->link);
+    Py_CLEAR(self->py);
+    PyMem_Free(self->t);
+    PyMem_Free(self->nb);
+    PyMem_Free(self->bad);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int health_traverse(Health *self, visitproc visit, void *arg)
+{
+    Py_VISIT(self->link);
+    Py_VISIT(self->py);
+    Py_VISIT(Py_TYPE(self));
+    return 0;
+}
+
+static int health_clear(Health *self)
+{
+    Py_CLEAR(self->link);
+    Py_CLEAR(self->py);
+    return 0;
+}
+
+static void health_drop_first(Health *self)  /* _drop(win.popleft()) */
+{
+    Py_ssize_t i = self->head;
+    self->frames--;
+    self->nbytes -= self->nb[i];
+    if (self->bad[i] >= 0) {
+        self->nbad--;
+        self->bad_bytes -= self->nb[i];
+        self->kinds[(int)self->bad[i]]--;
+    }
+    self->head = (i + 1) % self->cap;
+    self->len--;
+}
+
+static inline long long health_first_t(Health *self) { return self->t[self->head]; }
+static inline long long health_last_t(Health *self) { return self->t[(self->head + self->len - 1) % self->cap]; }
+
+static void health_expire(Health *self, long long t_ns)
+{
+    while (self->len && health_first_t(self) <= t_ns - self->window_ns)
+        health_drop_first(self);
+}
+
+static int health_enough(Health *self)
+{
+    return self->frames >= self->min_frames && self->nbytes >= self->min_bytes
+           && (health_last_t(self) - health_first_t(self) >= self->min_span_ns || self->len == self->cap);
+}
+
+/* the shares as the reference compares them: an int against a float times an int, exact below 2**53 */
+static int health_most_bad(Health *self)
+{
+    return (double)self->nbad > self->broken_share * (double)self->frames
+           && (double)self->bad_bytes > self->broken_share * (double)self->nbytes;
+}
+
+static int health_mostly_good(Health *self)
+{
+    return (double)self->nbad <= self->recovered_share * (double)self->frames
+           && (double)self->bad_bytes <= self->recovered_share * (double)self->nbytes;
+}
+
+static PyObject *health_judge_c(Health *self)
+{
+    if (!self->broken) {
+        if (!health_most_bad(self) || !health_enough(self))
+            Py_RETURN_NONE;
+        self->broken = 1;
+        self->warnings++;
+    } else {
+        if (!health_mostly_good(self) || !health_enough(self))
+            Py_RETURN_NONE;
+        self->broken = 0;
+    }
+    return PyObject_CallMethodNoArgs((PyObject *)self, s_change);
+}
+
+/* the reference takes over: self._hand_over() builds it from window() and the counters */
+static int health_hand_over(Health *self)
+{
+    PyObject *py = PyObject_CallMethodNoArgs((PyObject *)self, s_hand_over);
+    if (py == NULL)
+        return -1;
+    Py_XSETREF(self->py, py);
+    return 0;
+}
+
+/* an exact int within +-limit, else 0 (not one for this type: hand over) */
+static int health_int(PyObject *o, long long limit, long long *out)
+{
+    int overflow;
+    if (!PyLong_Check(o))
+        return 0;
+    *out = PyLong_AsLongLongAndOverflow(o, &overflow);
+    if (overflow || (*out == -1 && PyErr_Occurred())) {
+        PyErr_Clear();
+        return 0;
+    }
+    return *out >= -limit && *out <= limit;
+}
+
+/* LineHealthPy.add on kept values (b: badness, -1 for None) */
+static PyObject *health_push(Health *self, long long t, long long n, long long b)
+{
+    if (self->len == self->cap)
+        health_drop_first(self);  /* the deque drops it on append */
+    Py_ssize_t i = (self->head + self->len) % self->cap;
+    self->t[i] = t;
+    self->nb[i] = n;
+    self->bad[i] = (signed char)b;
+    self->len++;
+    self->frames++;
+    self->nbytes += n;
+    if (b >= 0) {
+        self->nbad++;
+        self->bad_bytes += n;
+        self->kinds[b]++;
+    }
+    if (health_first_t(self) <= t - self->window_ns)
+        health_expire(self, t);
+    return health_judge_c(self);
+}
+
+#define HEALTH_DELEGATE(name, ...)                                        \
+    if (self->py != NULL)                                                 \
+        return PyObject_CallMethod(self->py, name, __VA_ARGS__)
+
+static PyObject *health_add(Health *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    long long t, n, b = -1;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "add(t_ns, nbytes, bad)");
+        return NULL;
+    }
+    if (self->py == NULL
+        && !(health_int(args[0], H_TIME_MAX, &t) && health_int(args[1], H_SIZE_MAX, &n) && n >= 0
+             && (args[2] == Py_None || (health_int(args[2], 2, &b) && b >= 0))))
+        if (health_hand_over(self) < 0)
+            return NULL;
+    HEALTH_DELEGATE("add", "OOO", args[0], args[1], args[2]);
+    return health_push(self, t, n, b);
+}
+
+static PyObject *health_advance(Health *self, PyObject *arg)
+{
+    long long t;
+    if (self->py == NULL && !health_int(arg, H_TIME_MAX, &t) && health_hand_over(self) < 0)
+        return NULL;
+    HEALTH_DELEGATE("advance", "O", arg);
+    health_expire(self, t);
+    Py_RETURN_NONE;
+}
+
+static PyObject *health_judge(Health *self, PyObject *unused)
+{
+    HEALTH_DELEGATE("judge", NULL);
+    return health_judge_c(self);
+}
+
+static PyObject *health_enough_m(Health *self, PyObject *unused)
+{
+    HEALTH_DELEGATE("enough", NULL);
+    return PyBool_FromLong(health_enough(self));  /* frames >= min_frames >= 1 first: the window is not empty */
+}
+
+static PyObject *health_most_bad_m(Health *self, PyObject *unused)
+{
+    HEALTH_DELEGATE("most_bad", NULL);
+    return PyBool_FromLong(health_most_bad(self));
+}
+
+static PyObject *health_mostly_good_m(Health *self, PyObject *unused)
+{
+    HEALTH_DELEGATE("mostly_good", NULL);
+    return PyBool_FromLong(health_mostly_good(self));
+}
+
+static PyObject *health_window(Health *self, PyObject *unused)
+{
+    HEALTH_DELEGATE("window", NULL);
+    PyObject *out = PyList_New(self->len);
+    if (out == NULL)
+        return NULL;
+    for (Py_ssize_t k = 0; k < self->len; k++) {
+        Py_ssize_t i = (self->head + k) % self->cap;
+        PyObject *item = self->bad[i] < 0 ? Py_BuildValue("(LLO)", self->t[i], self->nb[i], Py_None)
+                                          : Py_BuildValue("(LLi)", self->t[i], self->nb[i], (int)self->bad[i]);
+        if (item == NULL) {
+            Py_DECREF(out);
+            return NULL;
+        }
+        PyList_SET_ITEM(out, k, item);
+    }
+    return out;
+}
+
+enum { H_FRAMES, H_NBYTES, H_BAD, H_BAD_BYTES, H_KINDS, H_BROKEN, H_WARNINGS, H_LINK, H_WINDOW_NS, H_MIN_SPAN_NS,
+       };
+static const char *const health_names[] = {"frames", "nbytes", "bad", "bad_bytes", "kinds", "broken", "warnings",
+                                           "link", "window_ns", "min_span_ns"};
+
+static PyObject *health_get(Health *self, void *closure)
+{
+    int which = (int)(intptr_t)closure;
+    if (self->py != NULL)
+        return PyObject_GetAttrString(self->py, health_names[which]);
+    switch (which) {
+    case H_FRAMES: return PyLong_FromLongLong(self->frames);
+    case H_NBYTES: return PyLong_FromLongLong(self->nbytes);
+    case H_BAD: return PyLong_FromLongLong(self->nbad);
+    case H_BAD_BYTES: return PyLong_FromLongLong(self->bad_bytes);
+    case H_KINDS: return Py_BuildValue("[LLL]", self->kinds[0], self->kinds[1], self->kinds[2]);
+    case H_BROKEN: return PyBool_FromLong(self->broken);
+    case H_WARNINGS: return PyLong_FromLongLong(self->warnings);
+    case H_LINK: Py_INCREF(self->link); return self->link;
+    case H_WINDOW_NS: return PyLong_FromLongLong(self->window_ns);
+    default: return PyLong_FromLongLong(self->min_span_ns);
+    }
+}
+
+static PyObject *health_handed_over(Health *self, void *unused)
+{
+    return PyBool_FromLong(self->py != NULL);
+}
+
+#define HGET(name, which) {name, (getter)health_get, NULL, NULL, (void *)(intptr_t)(which)}
+static PyGetSetDef health_getset[] = {
+    HGET("frames", H_FRAMES), HGET("nbytes", H_NBYTES), HGET("bad", H_BAD), HGET("bad_bytes", H_BAD_BYTES),
+    HGET("kinds", H_KINDS), HGET("broken", H_BROKEN), HGET("warnings", H_WARNINGS), HGET("link", H_LINK),
+    HGET("window_ns", H_WINDOW_NS), HGET("min_span_ns", H_MIN_SPAN_NS),
+    {"handed_over", (getter)health_handed_over, NULL, "Did unusual input hand it to LineHealthPy?", NULL},
+    {NULL, NULL, NULL, NULL, NULL},
+};
+
+static PyMethodDef health_methods[] = {
+    {"add", (PyCFunction)(void (*)(void))health_add, METH_FASTCALL, "LineHealthPy.add(t_ns, nbytes, bad)."},
+    {"advance", (PyCFunction)health_advance, METH_O, "LineHealthPy.advance(t_ns)."},
+    {"judge", (PyCFunction)health_judge, METH_NOARGS, "LineHealthPy.judge()."},
+    {"enough", (PyCFunction)health_enough_m, METH_NOARGS, "LineHealthPy.enough()."},
+    {"most_bad", (PyCFunction)health_most_bad_m, METH_NOARGS, "LineHealthPy.most_bad()."},
+    {"mostly_good", (PyCFunction)health_mostly_good_m, METH_NOARGS, "LineHealthPy.mostly_good()."},
+    {"window", (PyCFunction)health_window, METH_NOARGS, "The window's (t_ns, nbytes, bad), oldest first."},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject HealthType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "sniffer._hot.Health",
+    .tp_doc = "LineHealthPy's window and counters (analysis/linehealth.py); subclassed by LineHealth.",
+    .tp_basicsize = sizeof(Health),
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE | Py_TPFLAGS_HAVE_GC,
+    .tp_new = PyType_GenericNew,
+    .tp_init = (initproc)health_init,
+    .tp_dealloc = (destructor)health_dealloc,
+    .tp_traverse = (traverseproc)health_traverse,
+    .tp_clear = (inquiry)health_clear,
+    .tp_methods = health_methods,
+    .tp_getset = health_getset,
+};
+
+/* LineWarning.frame_py: badness(f) and LineWatch.add for a frame of a link whose Health runs in C; the
+   Change or None, or NotImplemented where the Python code decides (a new link, a handed-over window, a
+   frame of odd types).  badness: noise 2; a CRC neither False nor None good; a UART code 1; CRC False 0. */
+static PyObject *s_link, *s_code;
+
+static PyObject *health_frame(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "health_frame(lines, frame, uart_codes)");
+        return NULL;
+    }
+    PyObject *lines = args[0], *f = args[1], *uart = args[2], *link, *h, *v;
+    long long t, n, b = -1;
+    if (!PyDict_CheckExact(lines) || !PyFrozenSet_CheckExact(uart))
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((link = PyObject_GetAttr(f, s_link)) == NULL)
+        return NULL;
+    int truth = PyUnicode_CheckExact(link) ? PyUnicode_GET_LENGTH(link) != 0 : -2;
+    if (truth == 0 || link == Py_None) {  /* f.link or "" */
+        Py_SETREF(link, Py_NewRef(s_empty));
+        truth = 1;
+    }
+    if (truth < 0) {
+        Py_DECREF(link);
+        Py_RETURN_NOTIMPLEMENTED;
+    }
+    h = PyDict_GetItemWithError(lines, link);  /* borrowed */
+    Py_DECREF(link);
+    if (h == NULL) {
+        if (PyErr_Occurred())
+            return NULL;
+        Py_RETURN_NOTIMPLEMENTED;
+    }
+    if (!PyObject_TypeCheck(h, &HealthType) || ((Health *)h)->py != NULL)
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((v = PyObject_GetAttr(f, s_t_ns)) == NULL)
+        return NULL;
+    int ok = health_int(v, H_TIME_MAX, &t);
+    Py_DECREF(v);
+    if (!ok)
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((v = PyObject_GetAttr(f, s_raw)) == NULL)
+        return NULL;
+    ok = PyBytes_CheckExact(v);
+    n = ok ? PyBytes_GET_SIZE(v) : 0;
+    Py_DECREF(v);
+    if (!ok || n > H_SIZE_MAX)
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((v = PyObject_GetAttr(f, s_protocol)) == NULL)
+        return NULL;
+    ok = PyUnicode_CheckExact(v);
+    int noise = ok && PyUnicode_Compare(v, s_noise) == 0;
+    Py_DECREF(v);
+    if (!ok)
+        Py_RETURN_NOTIMPLEMENTED;
+    if (noise)
+        b = 2;
+    else {
+        PyObject *crc = PyObject_GetAttr(f, s_crc_ok);
+        if (crc == NULL)
+            return NULL;
+        if (crc == Py_False || crc == Py_None) {  /* else a good CRC: no UART error either */
+            PyObject *anns = PyObject_GetAttr(f, s_annotations);
+            if (anns == NULL || !PyList_CheckExact(anns)) {
+                Py_DECREF(crc);
+                if (anns == NULL)
+                    return NULL;
+                Py_DECREF(anns);
+                Py_RETURN_NOTIMPLEMENTED;
+            }
+            for (Py_ssize_t i = 0; i < PyList_GET_SIZE(anns) && b < 0; i++) {
+                PyObject *code = PyObject_GetAttr(PyList_GET_ITEM(anns, i), s_code);
+                int in = code == NULL ? -1 : PySet_Contains(uart, code);
+                Py_XDECREF(code);
+                if (in < 0) {
+                    Py_DECREF(anns);
+                    Py_DECREF(crc);
+                    return NULL;
+                }
+                if (in)
+                    b = 1;
+            }
+            Py_DECREF(anns);
+            if (b < 0 && crc == Py_False)
+                b = 0;
+        }
+        Py_DECREF(crc);
+    }
+    return health_push((Health *)h, t, n, b);
+}
+
+/* ------------------------------------------------------------------ decoders/generic/decoder.py decode_py */
+
+/* GenericModbus.decode_py for the plain generic decoder (no model) on the traffic of nearly every line:
+   0x01-0x04 requests, 0x03/0x04 responses, 0x06 both ways, 0x10 both ways, with the register-shadow
+   writes (UnitState.commit) they do.  Every case that would annotate (an odd byte count, a quantity out
+   of range, no request, a CRC-bad frame's read), every other function, and a shadow that is not a plain
+   dict (sniffer.parallel's Overlay) returns NotImplemented before anything is changed: decode_py decides
+   it.  ctx: (RESPONSE, RegisterBlock, UnitState, space by function (256), most quantity by function (256)). */
+static PyObject *s_writes, *s_points_slot, *s_tables;
+
+static int gen_commit(PyObject *f, PyObject *d, PyObject *space, long start, PyObject *values)
+{
+    Py_ssize_t k = PyList_GET_SIZE(values);
+    for (Py_ssize_t i = 0; i < k; i++) {
+        PyObject *key = PyLong_FromLong(start + (long)i);
+        if (key == NULL || PyDict_SetItem(d, key, PyList_GET_ITEM(values, i)) < 0) {
+            Py_XDECREF(key);
+            return -1;
+        }
+        Py_DECREF(key);
+    }
+    PyObject *writes = PyObject_GetAttr(f, s_writes);
+    if (writes == NULL)
+        return -1;
+    PyObject *w = Py_BuildValue("[OlO]", space, start, values);
+    int r = w == NULL ? -1 : PyList_Append(writes, w);
+    Py_XDECREF(w);
+    Py_DECREF(writes);
+    return r;
+}
+
+static PyObject *gen_words(const unsigned char *p, Py_ssize_t k)
+{
+    PyObject *out = PyList_New(k);
+    if (out == NULL)
+        return NULL;
+    for (Py_ssize_t i = 0; i < k; i++) {
+        PyObject *v = PyLong_FromLong((p[2 * i] << 8) | p[2 * i + 1]);
+        if (v == NULL) {
+            Py_DECREF(out);
+            return NULL;
+        }
+        PyList_SET_ITEM(out, i, v);
+    }
+    return out;
+}
+
+/* the shadow dict of `space`, or NULL with no error (not a plain dict: decode_py) */
+static PyObject *gen_table(PyObject *state, PyObject *space, int *err)
+{
+    PyObject *tables = PyObject_GetAttr(state, s_tables), *d;
+    *err = tables == NULL;
+    if (tables == NULL || !PyDict_CheckExact(tables)) {
+        Py_XDECREF(tables);
+        return NULL;
+    }
+    d = PyDict_GetItemWithError(tables, space);
+    *err = d == NULL && PyErr_Occurred();
+    Py_DECREF(tables);
+    return d != NULL && PyDict_CheckExact(d) ? d : NULL;  /* borrowed: the state holds it */
+}
+
+/* a frame attribute that must be exact bytes (NULL with no error: not bytes) */
+static PyObject *gen_bytes(PyObject *o, int *err)
+{
+    PyObject *b = PyObject_GetAttr(o, s_adu);
+    *err = b == NULL;
+    if (b != NULL && !PyBytes_CheckExact(b))
+        Py_CLEAR(b);
+    return b;
+}
+
+/* crc_ok as 1 (True), 0 (False or None), -1 (anything else: decode_py) */
+static int gen_crc(PyObject *o, int *err)
+{
+    PyObject *c = PyObject_GetAttr(o, s_crc_ok);
+    *err = c == NULL;
+    int r = c == Py_True ? 1 : (c == Py_False || c == Py_None) ? 0 : -1;
+    Py_XDECREF(c);
+    return r;
+}
+
+static int gen_set_block(PyObject *f, PyObject *block_cls, PyObject *space, long addr, PyObject *values, int offset,
+                         const char *prefix)
+{
+    PyObject *block = PyObject_CallFunction(block_cls, "OlOi", space, addr, values, offset);
+    if (block == NULL)
+        return -1;
+    PyObject *summary = PyObject_CallMethod(block, "summary", NULL);
+    if (summary != NULL && prefix[0])
+        Py_SETREF(summary, PyUnicode_FromFormat("%s%U", prefix, summary));
+    int r = summary == NULL ? -1 : PyObject_SetAttr(f, s_points_slot, block);
+    if (r == 0)
+        r = PyObject_SetAttr(f, s_summary, summary);
+    Py_XDECREF(summary);
+    Py_DECREF(block);
+    return r;
+}
+
+static PyObject *generic_fast(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 4 || !PyTuple_Check(args[3]) || PyTuple_GET_SIZE(args[3]) != 5) {
+        PyErr_SetString(PyExc_TypeError, "generic_fast(frame, request, state, ctx)");
+        return NULL;
+    }
+    PyObject *f = args[0], *req = args[1], *state = args[2], *ctx = args[3];
+    PyObject *response = PyTuple_GET_ITEM(ctx, 0), *block_cls = PyTuple_GET_ITEM(ctx, 1);
+    PyObject *spaces = PyTuple_GET_ITEM(ctx, 3), *maxq = PyTuple_GET_ITEM(ctx, 4);
+    PyObject *v, *adu = NULL, *radu = NULL, *values = NULL, *result = NULL, *d = NULL;
+    int err = 0;
+    if (!Py_IS_TYPE(state, (PyTypeObject *)PyTuple_GET_ITEM(ctx, 2)))
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((v = PyObject_GetAttr(f, s_function)) == NULL)
+        return NULL;
+    long fc = PyLong_CheckExact(v) ? PyLong_AsLong(v) : -1;
+    Py_DECREF(v);
+    if (fc == -1 && PyErr_Occurred())
+        PyErr_Clear();
+    if (fc < 1 || fc > 0x10)
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((v = PyObject_GetAttr(f, s_role)) == NULL)
+        return NULL;
+    int is_rsp = PyUnicode_CheckExact(v) ? PyUnicode_Compare(v, response) == 0 : -1;
+    Py_DECREF(v);
+    int crc = gen_crc(f, &err);
+    if (err)
+        return NULL;
+    if (is_rsp < 0 || crc < 0)
+        Py_RETURN_NOTIMPLEMENTED;
+    if ((adu = gen_bytes(f, &err)) == NULL)
+        return err ? NULL : Py_NewRef(Py_NotImplemented);
+    const unsigned char *p = (const unsigned char *)PyBytes_AS_STRING(adu);
+    Py_ssize_t n = PyBytes_GET_SIZE(adu);
+    PyObject *space = PyTuple_GET_ITEM(spaces, fc), *hi_o = PyTuple_GET_ITEM(maxq, fc);
+    long hi = hi_o == Py_None ? 0x10000 : PyLong_AsLong(hi_o);
+    long unit0 = 0;
+    if ((v = PyObject_GetAttr(f, s_unit_attr)) == NULL)
+        goto done;
+    unit0 = PyLong_CheckExact(v) && PyLong_AsLong(v) == 0;
+    Py_DECREF(v);
+    if (PyErr_Occurred())
+        PyErr_Clear();  /* a unit past a C long: not 0 */
+    if (n < 3 || space == Py_None)
+        goto hand_back;
+    long a = n >= 6 ? (p[2] << 8) | p[3] : 0, q = n >= 6 ? (p[4] << 8) | p[5] : 0;
+    if (n < 6 && !((fc == 3 || fc == 4) && is_rsp))
+        goto hand_back;  /* every other handler reads an address and a quantity or value */
+
+    if (fc <= 4 && !is_rsp) {  /* _read_req */
+        if (q < 1 || q > hi || a + q > 0x10000)
+            goto hand_back;
+        PyObject *s = PyUnicode_FromFormat("read %U %ld..%ld (%ld)", space, a, a + q - 1, q);
+        if (s == NULL || PyObject_SetAttr(f, s_summary, s) < 0) {
+            Py_XDECREF(s);
+            goto done;
+        }
+        Py_DECREF(s);
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    if (fc == 3 || fc == 4 || (fc == 0x10 && is_rsp)) {  /* both read the request: CRC-good, 6 bytes or more */
+        if (req == Py_None || gen_crc(req, &err) != 1) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if ((radu = gen_bytes(req, &err)) == NULL) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if (PyBytes_GET_SIZE(radu) < 6)
+            goto hand_back;
+    }
+    if (fc == 3 || fc == 4) {  /* _read_regs_rsp (is_rsp: the request side went above) */
+        if (!is_rsp)
+            goto hand_back;
+        Py_ssize_t k = p[2] >> 1;
+        const unsigned char *r = (const unsigned char *)PyBytes_AS_STRING(radu);
+        long addr = (r[2] << 8) | r[3];
+        if ((p[2] & 1) || n < 3 + 2 * k || addr + k > 0x10000 || !crc)
+            goto hand_back;
+        if (k && (d = gen_table(state, space, &err)) == NULL) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if ((values = gen_words(p + 3, k)) == NULL)
+            goto done;
+        if (k && gen_commit(f, d, space, addr, values) < 0)
+            goto done;
+        if (gen_set_block(f, block_cls, space, addr, values, 3, "") < 0)
+            goto done;
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    if (fc == 6) {  /* _write_single, the plain branch */
+        int commit = crc && (is_rsp || unit0);
+        if (commit && (d = gen_table(state, space, &err)) == NULL) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if (commit) {
+            if ((values = gen_words(p + 4, 1)) == NULL || gen_commit(f, d, space, a, values) < 0)
+                goto done;
+        }
+        PyObject *pts = Py_BuildValue("[{s:N,s:l,s:l,s:l,s:O,s:[ii]}]", "name",
+                                      PyUnicode_FromFormat("%U[%ld]", space, a), "address", a, "raw", q, "value", q,
+                                      "unit", Py_None, "span", 4, 6);
+        if (pts == NULL)
+            goto done;
+        int r = PyObject_SetAttr(f, s_points_slot, pts);
+        Py_DECREF(pts);
+        if (r < 0)
+            goto done;
+        PyObject *s = PyUnicode_FromFormat("%s %U[%ld]=%ld", is_rsp ? "wrote" : "write", space, a, q);
+        if (s == NULL || PyObject_SetAttr(f, s_summary, s) < 0) {
+            Py_XDECREF(s);
+            goto done;
+        }
+        Py_DECREF(s);
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    if (fc == 0x10 && !is_rsp) {  /* _write_multi_req */
+        if (n < 7)
+            goto hand_back;
+        Py_ssize_t k = p[6] >> 1;
+        if (n < 7 + 2 * k || q < 1 || q > hi || a + k > 0x10000)
+            goto hand_back;
+        int commit = unit0 && crc && k;
+        if (commit && (d = gen_table(state, space, &err)) == NULL) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if ((values = gen_words(p + 7, k)) == NULL)
+            goto done;
+        if (commit && gen_commit(f, d, space, a, values) < 0)
+            goto done;
+        if (gen_set_block(f, block_cls, space, a, values, 7, "write ") < 0)
+            goto done;
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    if (fc == 0x10) {  /* _write_multi_rsp: the request's values, confirmed by a response naming the same registers */
+        if (q < 1 || q > hi || a + q > 0x10000)
+            goto hand_back;
+        const unsigned char *r = (const unsigned char *)PyBytes_AS_STRING(radu);
+        Py_ssize_t rn = PyBytes_GET_SIZE(radu), k = rn >= 7 ? r[6] >> 1 : 0;
+        long ra = (r[2] << 8) | r[3];
+        if ((v = PyObject_GetAttr(req, s_function)) == NULL)
+            goto done;
+        int same_fc = PyLong_CheckExact(v) && PyLong_AsLong(v) == 0x10;
+        Py_DECREF(v);
+        if (!same_fc)
+            goto hand_back;
+        int commit = crc && memcmp(r + 2, p + 2, 4) == 0 && rn >= 7 && rn >= 7 + 2 * k && k && ra + k <= 0x10000;
+        if (commit && (d = gen_table(state, space, &err)) == NULL) {
+            if (err)
+                goto done;
+            goto hand_back;
+        }
+        if (commit && ((values = gen_words(r + 7, k)) == NULL || gen_commit(f, d, space, ra, values) < 0))
+            goto done;
+        PyObject *s = PyUnicode_FromFormat("wrote %U %ld..%ld (%ld)", space, a, a + q - 1, q);
+        if (s == NULL || PyObject_SetAttr(f, s_summary, s) < 0) {
+            Py_XDECREF(s);
+            goto done;
+        }
+        Py_DECREF(s);
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+hand_back:
+    result = Py_NewRef(Py_NotImplemented);
+done:
+    Py_XDECREF(adu);
+    Py_XDECREF(radu);
+    Py_XDECREF(values);
+    return result;
+}
+
 /* ------------------------------------------------------------------ the module */
 
 static PyMethodDef methods[] = {
@@ -1231,6 +1929,12 @@ static PyMethodDef methods[] = {
      "csvexport.csv_text: csv_text(rows, kinds, float_text) -> bytes, or None for cells of another type."},
     {"frame_line", frame_line, METH_VARARGS,
      "text.frame_line for the common frame: frame_line(frame, t0_ns) -> str, or None for the others."},
+    {"health_frame", (PyCFunction)(void (*)(void))health_frame, METH_FASTCALL,
+     "LineWarning.frame_py's badness and LineWatch.add: health_frame(lines, frame, uart) -> Change, None or "
+     "NotImplemented."},
+    {"generic_fast", (PyCFunction)(void (*)(void))generic_fast, METH_FASTCALL,
+     "GenericModbus.decode_py for the plain decoder's common frames: generic_fast(frame, request, state, ctx) -> "
+     "None, or NotImplemented where decode_py decides."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -1287,8 +1991,22 @@ PyMODINIT_FUNC PyInit__hot(void)
     INTERN(s_id, "id");
     INTERN(s_text, "text");
     INTERN(s_unit, "unit");
+    INTERN(s_change, "_change");
+    INTERN(s_link, "link");
+    INTERN(s_writes, "writes");
+    INTERN(s_points_slot, "_points");
+    INTERN(s_tables, "tables");
+    INTERN(s_code, "code");
+    INTERN(s_hand_over, "_hand_over");
     msg_kwnames = Py_BuildValue("(sssss)", "channel_id", "sequence", "log_time", "publish_time", "data");
     if (msg_kwnames == NULL)
         return NULL;
-    return PyModule_Create(&module);
+    if (PyType_Ready(&HealthType) < 0)
+        return NULL;
+    PyObject *m = PyModule_Create(&module);
+    if (m == NULL || PyModule_AddObjectRef(m, "Health", (PyObject *)&HealthType) < 0) {
+        Py_XDECREF(m);
+        return NULL;
+    }
+    return m;
 }

@@ -571,3 +571,328 @@ def test_message_index_run_alike(records, cut):
         buf += struct.pack("<BQ", op, max(0, len(body) + skew)) + body
     buf = bytes(buf[: max(0, len(buf) - cut)])
     assert HOT.index_run(buf) == mcap_scan._index_run_py(buf)
+
+
+# ------------------------------------------------------------------ line health: analysis/linehealth.py
+
+def _called(method):
+    try:
+        return method()
+    except Exception as e:  # noqa: BLE001 - a window of odd values fails in the reference: alike here
+        return type(e).__name__
+
+
+def _health_state(h) -> tuple:
+    return (h.link, h.window_ns, h.min_span_ns, h.frames, h.nbytes, h.bad, h.bad_bytes, list(h.kinds), h.broken,
+            h.warnings, h.window(), _called(h.enough), _called(h.most_bad), _called(h.mostly_good))
+
+
+def _health_run(make, steps) -> list:
+    """Each step's result (a Change, an exception's type) and the state after it."""
+    h, out = make(), []
+    for op, *args in steps:
+        try:
+            out.append(h.add(*args) if op == "add" else h.advance(*args))
+        except Exception as e:  # noqa: BLE001 - the reference's error is part of what must match
+            out.append(type(e).__name__)
+        out.append(_health_state(h))
+    return out
+
+
+def _compiled_health(**kw):
+    from sniffer.analysis import linehealth
+
+    h = linehealth.LineHealth("a", **kw)
+    return h
+
+
+_times = st.integers(0, 40).map(lambda k: k * 125_000_000)  # steps of 1/8 s: within, across and past the window
+_health_steps = st.lists(st.one_of(
+    st.tuples(st.just("add"), _times, st.integers(0, 300), st.sampled_from((None, None, 0, 1, 2))),
+    st.tuples(st.just("advance"), _times)), max_size=120)
+
+
+def _cumulative(steps):
+    """Times in order, as a capture gives them (each step's time is a gap after the last)."""
+    t, out = 10**12, []
+    for op, dt, *rest in steps:
+        t += dt
+        out.append((op, t, *rest))
+    return out
+
+
+@settings(max_examples=300, deadline=None)
+@given(_health_steps, st.sampled_from((1, 2, 8, 20, 200)), st.sampled_from((0.0, 0.5, 1.0, 5.0)))
+def test_line_health_alike(steps, max_frames, window_s):
+    from sniffer.analysis.linehealth import LineHealthPy
+
+    _need_hot()
+    steps = _cumulative(steps)
+    kw = {"max_frames": max_frames, "window_s": window_s}
+    compiled = _compiled_health(**kw)
+    assert not compiled.handed_over and type(compiled).__name__ == "LineHealth"
+    assert _health_run(lambda: _compiled_health(**kw), steps) == _health_run(lambda: LineHealthPy("a", **kw), steps)
+
+
+def test_line_health_breaks_and_recovers_alike():
+    """A line that breaks, recovers and breaks again: the same Changes, field by field."""
+    from sniffer.analysis.linehealth import LineHealthPy
+
+    _need_hot()
+    rng = random.Random(3)
+    steps, t = [], 0
+    for phase in (None, 0, None, 2, 1, None, 0):
+        for _ in range(rng.randint(50, 400)):
+            t += rng.randint(1, 60_000_000)
+            steps.append(("add", t, rng.randint(4, 260), phase if rng.random() < 0.9 else None))
+    got, want = _health_run(_compiled_health, steps), _health_run(lambda: LineHealthPy("a"), steps)
+    assert got == want
+    assert sum(1 for x in want if x is not None and not isinstance(x, tuple)) >= 4  # it broke and recovered
+
+
+@pytest.mark.parametrize("odd", [2**61 + 1, -(2**62), 2**70, 1.5, True, "x", None])
+def test_line_health_hands_odd_times_to_the_reference(odd):
+    """A time the C window does not keep hands the state over; from then on the reference runs."""
+    from sniffer.analysis.linehealth import LineHealthPy
+
+    _need_hot()
+    steps = [("add", 10**9 + k * 10**8, 40, k % 2 or None) for k in range(30)] + [("add", odd, 40, 2)]
+    steps += [("add", 2**62 + k, 9, 0) for k in range(12)] + [("advance", 2**63)]
+    assert _health_run(_compiled_health, steps) == _health_run(lambda: LineHealthPy("a"), steps)
+
+
+@pytest.mark.parametrize("nbytes,bad", [(2**41, None), (-1, 0), (3, 3), (3, -1), (3, 1.0), (3, "x"), (2**80, 1)])
+def test_line_health_hands_odd_frames_to_the_reference(nbytes, bad):
+    from sniffer.analysis.linehealth import LineHealthPy
+
+    _need_hot()
+    steps = [("add", 10**9 + k * 10**8, 40, 2) for k in range(20)] + [("add", 4 * 10**9, nbytes, bad)]
+    steps += [("add", 4 * 10**9 + k, 9, None) for k in range(12)]
+    assert _health_run(_compiled_health, steps) == _health_run(lambda: LineHealthPy("a"), steps)
+
+
+@pytest.mark.parametrize("kw", [{"max_frames": 5000}, {"max_frames": None}, {"max_frames": 0},
+                                {"window_s": 1e10}, {"window_s": -1.0}, {"window_s": float("nan")}])
+def test_line_health_odd_windows_are_the_reference(kw):
+    from sniffer.analysis.linehealth import LineHealth, LineHealthPy
+
+    _need_hot()
+    try:
+        want = type(LineHealthPy("a", **kw))
+    except Exception as e:  # noqa: BLE001 - the same error either way
+        with pytest.raises(type(e)):
+            LineHealth("a", **kw)
+        return
+    assert type(LineHealth("a", **kw)) is want
+
+
+def _warnings(compiled: bool, frames) -> tuple:
+    """What a LineWarning says of `frames` on one path, and every link's state after."""
+    from sniffer.analysis.linehealth import LineHealthPy, LineWarning, LineWatch
+
+    class PyWatch(LineWatch):
+        health = LineHealthPy
+
+    class PyWarning(LineWarning):
+        _compiled_frame = None
+
+    said: list[str] = []
+    w = (LineWarning if compiled else PyWarning)(lambda info, link: f"hint {link}", said.append)
+    if not compiled:
+        w.watch = PyWatch()
+    for f in frames:
+        w.frame(f)
+    return said, {k: _health_state(h) for k, h in w.watch.lines.items()}
+
+
+@st.composite
+def _health_frames(draw):
+    from sniffer.codes import UART_FRAMING, UART_PARITY, Annotation
+
+    codes = (UART_FRAMING.code, UART_PARITY.code, "modbus.crc.mismatch", "pair.orphan_response")
+    out, t = [], 10**12
+    for k in range(draw(st.integers(0, 300))):
+        t += draw(st.sampled_from((0, 1, 10**6, 4 * 10**7, 10**8, 6 * 10**9)))
+        f = Frame(k, t, t + 1, bytes(draw(st.integers(0, 90))), draw(st.sampled_from(("modbus-rtu", "noise", "x"))),
+                  crc_ok=draw(st.sampled_from((True, False, None, False))))
+        f.link = draw(st.sampled_from(("", "", "a", "b", None)))
+        for code in draw(st.lists(st.sampled_from(codes), max_size=3)):
+            f.annotations.append(Annotation(code, "error", "x", 0, 1))
+        out.append(f)
+    return out
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(_health_frames())
+def test_line_warning_alike(frames):
+    _need_hot()
+    assert _warnings(True, frames) == _warnings(False, frames)
+
+
+def test_line_warning_alike_on_a_breaking_line():
+    """Bad runs of each kind between good ones: the warnings said are the same (and there are some)."""
+    from sniffer.codes import UART_PARITY, Annotation
+
+    _need_hot()
+    rng, frames, t = random.Random(5), [], 10**9
+    for kind in ("good", "crc", "good", "uart", "good", "noise", "good", "crc"):
+        for _ in range(rng.randint(100, 500)):
+            t += rng.randint(10**6, 3 * 10**7)
+            f = Frame(len(frames), t, t + 1, bytes(rng.randint(1, 40)), "noise" if kind == "noise" else "modbus-rtu",
+                      crc_ok=kind == "good" or (None if kind == "uart" else False))
+            if kind == "uart":
+                f.annotations.append(Annotation(UART_PARITY.code, "error", "x", 0, 1))
+            f.link = rng.choice(("", "a"))
+            frames.append(f)
+    said, states = _warnings(True, frames)
+    assert (said, states) == _warnings(False, frames)
+    assert len(said) >= 4 and all("hint" in s for s in said)
+
+
+def test_line_warning_odd_frames_take_the_reference():
+    """A link that is not a string, a time past 2**61, raw that is not bytes: frame_py decides (alike)."""
+    _need_hot()
+    frames = [Frame(k, 10**9 + k * 10**7, 0, b"\0" * 9, "noise") for k in range(250)]
+    frames[100].t_ns = 2**62
+    frames[120].raw = bytearray(9)
+    frames[130].link = 7
+    assert _warnings(True, frames) == _warnings(False, frames)
+
+
+# ------------------------------------------------------------------ the generic decoder: decoders/generic/decoder.py
+
+def _generic_state(f: Frame) -> tuple:
+    pts = f.points
+    return (f.summary, [dict(p) for p in pts], type(f._points).__name__, f.writes, list(f.annotations), f.exception,
+            f.model, f.fields)
+
+
+def _generic_run(compiled: bool, pairs) -> tuple:
+    """Decode each (request, response) with the compiled decoder or the reference; each frame's result and
+    the shadow after all."""
+    from decoders.base import UnitState
+    from decoders.generic import GenericModbus
+
+    class Reference(GenericModbus):  # a subclass: generic_fast is for GenericModbus itself only
+        pass
+
+    dec = GenericModbus() if compiled else Reference()
+    assert (dec._compiled is not None) == compiled
+    state, out = UnitState(1), []
+    state.holding.update({k: k * 3 for k in range(0, 70000, 7)})
+    for req, rsp in pairs:
+        for f, peer in ((req, None), (rsp, req)):
+            if f is None:
+                continue
+            f = _copy_frame(f)
+            dec.decode(f, peer, state)
+            out.append(_generic_state(f))
+    return out, state.snapshot()
+
+
+def _copy_frame(f: Frame) -> Frame:
+    g = Frame(f.index, f.t_ns, f.t_end_ns, f.raw, f.protocol, f.unit, f.function, f.role_fits, f.crc_ok)
+    g.adu, g.role = f.adu, f.role
+    return g
+
+
+def _gframe(adu: bytes, role: str, crc_ok) -> Frame:
+    f = Frame(0, 0, 1, adu + b"\x00\x00", "modbus-rtu", adu[0] if adu else None, adu[1] if len(adu) > 1 else None,
+              3, crc_ok)
+    f.adu, f.role = adu, role
+    return f
+
+
+@st.composite
+def _generic_pairs(draw):
+    from sniffer.frame import REQUEST, RESPONSE, UNKNOWN
+
+    pairs = []
+    for _ in range(draw(st.integers(1, 8))):
+        fc = draw(st.sampled_from((3, 3, 4, 6, 0x10, 0x10, 1, 5, 0x0F, 0x17, 0x83, 7)))
+        unit = draw(st.sampled_from((1, 0, 1, 247)))
+        a = draw(st.sampled_from((0, 100, 8448, 65535, 65500, 65534)))
+        q = draw(st.sampled_from((1, 2, 10, 123, 124, 125, 126, 0)))
+        k = draw(st.integers(0, 130)) if draw(st.booleans()) else q
+        words = bytes(draw(st.binary(min_size=2 * min(k, 127), max_size=2 * min(k, 127))))
+        if fc == 0x10:
+            req = bytes([unit, fc]) + struct.pack(">HHB", a, q, draw(st.sampled_from((2 * k, 2 * k + 1, 2 * k)))
+                                                  & 0xFF) + words
+        elif fc == 6:
+            req = bytes([unit, fc]) + struct.pack(">HH", a, q)
+        else:
+            req = bytes([unit, fc]) + struct.pack(">HH", a, q)
+        if fc in (3, 4):
+            rsp = bytes([unit, fc, draw(st.sampled_from((2 * k, 2 * k, 2 * k + 1))) & 0xFF]) + words
+        elif fc == 0x10:
+            rsp = bytes([unit, fc]) + struct.pack(">HH", draw(st.sampled_from((a, a, a + 1))) & 0xFFFF, q)
+        else:
+            rsp = req
+        cut = draw(st.sampled_from((None, None, None, 1, 2, 3, 5, 6, 7)))
+        if cut is not None:
+            rsp = rsp[:cut] if draw(st.booleans()) else rsp
+            req = req[:cut] if draw(st.booleans()) else req
+        crc = st.sampled_from((True, True, True, False, None))
+        rrole = draw(st.sampled_from((REQUEST, REQUEST, UNKNOWN)))
+        r = _gframe(req, rrole, draw(crc)) if len(req) > 1 and draw(st.integers(0, 5)) else None
+        s = _gframe(rsp, draw(st.sampled_from((RESPONSE, RESPONSE, UNKNOWN))), draw(crc))
+        if len(rsp) > 1 and r is not None and draw(st.integers(0, 5)) == 0:
+            s.function = draw(st.sampled_from((3, 0x10, 6)))  # a response to another function
+        pairs.append((r, s))
+    return pairs
+
+
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(_generic_pairs())
+def test_generic_decoder_alike(pairs):
+    _need_hot()
+    assert _generic_run(True, pairs) == _generic_run(False, pairs)
+
+
+def test_generic_decoder_compiled_for_the_common_frames():
+    """The common frames do take the compiled path (it does not hand every one back)."""
+    from decoders.base import UnitState
+    from decoders.generic import GenericModbus
+    from sniffer.frame import REQUEST, RESPONSE
+
+    _need_hot()
+    from decoders.generic.decoder import _HOT_CTX
+
+    state = UnitState(1)
+    req = _gframe(bytes([1, 3, 0x21, 0, 0, 2]), REQUEST, True)
+    rsp = _gframe(bytes([1, 3, 4, 0, 7, 0, 9]), RESPONSE, True)
+    assert HOT.generic_fast(req, None, state, _HOT_CTX) is None
+    assert HOT.generic_fast(rsp, req, state, _HOT_CTX) is None
+    assert rsp.summary == "holding[8448]=7 holding[8449]=9" and rsp.writes == [["holding", 8448, [7, 9]]]
+    assert state.holding == {8448: 7, 8449: 9}
+    w = _gframe(bytes([1, 0x10, 0, 5, 0, 2, 4, 0, 1, 0, 2]), REQUEST, True)
+    assert HOT.generic_fast(w, None, state, _HOT_CTX) is None and w.summary == "write holding[5]=1 holding[6]=2"
+    wr = _gframe(bytes([1, 0x10, 0, 5, 0, 2]), RESPONSE, True)
+    assert HOT.generic_fast(wr, w, state, _HOT_CTX) is None and wr.summary == "wrote holding 5..6 (2)"
+    assert state.holding[6] == 2 and GenericModbus()._compiled is HOT.generic_fast
+
+
+def _standard_pairs(unit: int) -> list:
+    """A well-formed (request, response) of each common function, as raw ADUs."""
+    return [
+        (bytes([unit, 3, 0x21, 0, 0, 2]), bytes([unit, 3, 4, 0, 7, 0, 9])),
+        (bytes([unit, 4, 0, 0, 0, 1]), bytes([unit, 4, 2, 0xFF, 0xFE])),
+        (bytes([unit, 6, 0, 9, 0x12, 0x34]), bytes([unit, 6, 0, 9, 0x12, 0x34])),
+        (bytes([unit, 0x10, 0, 5, 0, 2, 4, 0, 1, 0, 2]), bytes([unit, 0x10, 0, 5, 0, 2])),
+        (bytes([unit, 1, 0, 0, 0, 9]), bytes([unit, 1, 2, 0xFF, 0x01])),
+    ]
+
+
+@pytest.mark.parametrize("unit", [0, 1])
+@pytest.mark.parametrize("req_crc", [True, False, None, "absent"])
+@pytest.mark.parametrize("rsp_crc", [True, False, None])
+@pytest.mark.parametrize("rsp_role", ["response", "unknown"])
+def test_generic_decoder_alike_on_every_flag(unit, req_crc, rsp_crc, rsp_role):
+    """Each common function's pair under every CRC verdict, role and broadcast: the same frames and shadow."""
+    from sniffer.frame import REQUEST, RESPONSE, UNKNOWN
+
+    _need_hot()
+    role = RESPONSE if rsp_role == "response" else UNKNOWN
+    pairs = [(None if req_crc == "absent" else _gframe(q, REQUEST, req_crc), _gframe(r, role, rsp_crc))
+             for q, r in _standard_pairs(unit)]
+    assert _generic_run(True, pairs) == _generic_run(False, pairs)

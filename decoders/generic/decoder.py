@@ -15,6 +15,7 @@ from sniffer.codes import (
     QUANTITY, Code, note, note_in,
 )
 from sniffer.frame import REQUEST, RESPONSE, Frame
+from sniffer.hot import HOT
 from sniffer.protocols import MODBUS_MAX_QUANTITY, MODBUS_TABLES, TABLE_END, modbus_range_ok
 
 from ..base import UnitState
@@ -92,6 +93,18 @@ class GenericModbus:
 
     # ---- decode ----------------------------------------------------------
     def decode(self, f: Frame, request: Frame | None, state: UnitState) -> None:
+        """decode_py, in C for the plain decoder's common frames (sniffer/_hot.c generic_fast)."""
+        fast = self._compiled
+        if fast is None or fast(f, request, state, _HOT_CTX) is NotImplemented:
+            self.decode_py(f, request, state)
+
+    @functools.cached_property
+    def _compiled(self):
+        """sniffer._hot.generic_fast for the generic decoder itself (a model's hooks run in Python), else None."""
+        return HOT.generic_fast if HOT is not None and type(self) is GenericModbus else None
+
+    def decode_py(self, f: Frame, request: Frame | None, state: UnitState) -> None:
+        """The reference of decode (tests/test_hot_equal.py holds the two alike)."""
         adu = f.adu  # unit + PDU, without CRC/LRC: spans below are ADU offsets
         fc = f.function
         if fc is None or len(adu) < 2:
@@ -324,6 +337,9 @@ _INLINE = {
     (0x0F, REQUEST): "_write_multi_req", (0x10, REQUEST): "_write_multi_req",
     (0x0F, RESPONSE): "_write_multi_rsp", (0x10, RESPONSE): "_write_multi_rsp",
 }
+# what generic_fast reads besides the frame: the role word, the block and state types, the two tables by function
+_HOT_CTX = (RESPONSE, RegisterBlock, UnitState, tuple(SPACE.get(fc) for fc in range(256)),
+            tuple(MODBUS_MAX_QUANTITY.get(fc) for fc in range(256)))
 _HH = Struct(">HH")
 _WORDS = tuple(Struct(f">{k}H") for k in range(128))  # a byte count's words: 0..127
 _BITS = tuple(tuple((b >> i) & 1 for i in range(8)) for b in range(256))  # a byte's bits, LSB first

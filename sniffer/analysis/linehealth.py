@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 from decoders.registry import code_book
 from sniffer import codes
+from sniffer.hot import HOT
 from sniffer.sinks.base import Sink
 
 WINDOW_S = 5.0
@@ -87,8 +88,9 @@ class Change:
                 f"errors, UART errors or noise ({by})")
 
 
-class LineHealth:
-    """One line's judgement (see the module doc): feed it every frame in time order."""
+class LineHealthPy:
+    """One line's judgement (see the module doc): feed it every frame in time order.  The reference:
+    LineHealth is the compiled copy of it where sniffer._hot is built (tests/test_hot_equal.py)."""
 
     def __init__(self, link: str = "", *, window_s: float = WINDOW_S, max_frames: int = MAX_FRAMES) -> None:
         self.link = link
@@ -160,14 +162,60 @@ class LineHealth:
         return self._change()
 
     def _change(self) -> Change:
-        win = self._win
-        span = (win[-1][0] - win[0][0]) / _NS if win else 0.0
-        return Change(self.broken, self.link, self.frames, self.bad, self.nbytes, self.bad_bytes, span,
-                      (self.kinds[0], self.kinds[1], self.kinds[2]))
+        return _change(self, self._win)
+
+    def window(self) -> list[tuple[int, int, int | None]]:
+        """The window's (t_ns, nbytes, badness), oldest first."""
+        return list(self._win)
+
+
+def _change(h, win) -> Change:
+    span = (win[-1][0] - win[0][0]) / _NS if win else 0.0
+    return Change(h.broken, h.link, h.frames, h.bad, h.nbytes, h.bad_bytes, span, (h.kinds[0], h.kinds[1], h.kinds[2]))
+
+
+if HOT is None:
+    LineHealth = LineHealthPy
+else:
+    class LineHealth(HOT.Health):
+        """LineHealthPy with its window and counters in C (sniffer/_hot.c Health): the same judgement,
+        at a few C calls a frame.  A window the C type does not keep (more than 4096 frames, times past
+        2**61 ns) is a LineHealthPy from the start; an unusual frame (a time past 2**61, a float) hands
+        the state to a LineHealthPy, which runs from then on (_hand_over)."""
+
+        def __new__(cls, link: str = "", *, window_s: float = WINDOW_S, max_frames: int = MAX_FRAMES):
+            try:
+                window_ns, min_span_ns = int(window_s * _NS), int(min(MIN_SPAN_S, window_s) * _NS)
+            except (TypeError, ValueError, OverflowError):
+                return LineHealthPy(link, window_s=window_s, max_frames=max_frames)  # it says what is wrong
+            if (type(max_frames) is not int or not 1 <= max_frames <= 4096 or not 0 <= window_ns <= 2**61
+                    or not 0 <= min_span_ns <= 2**61):
+                return LineHealthPy(link, window_s=window_s, max_frames=max_frames)
+            self = super().__new__(cls)
+            self.max_frames = max_frames
+            super().__init__(self, link, window_ns, min_span_ns, max_frames, MIN_FRAMES, MIN_BYTES, BROKEN_SHARE,
+                             RECOVERED_SHARE)
+            return self
+
+        def __init__(self, link: str = "", *, window_s: float = WINDOW_S, max_frames: int = MAX_FRAMES) -> None:
+            pass  # made in __new__ (which may give a LineHealthPy instead)
+
+        def _change(self) -> Change:
+            return _change(self, self.window())
+
+        def _hand_over(self) -> LineHealthPy:
+            py = LineHealthPy.__new__(LineHealthPy)
+            py.link, py.window_ns, py.min_span_ns = self.link, self.window_ns, self.min_span_ns
+            py._win = deque(self.window(), maxlen=self.max_frames)
+            py.frames, py.nbytes, py.bad, py.bad_bytes = self.frames, self.nbytes, self.bad, self.bad_bytes
+            py.kinds, py.broken, py.warnings = self.kinds, self.broken, self.warnings
+            return py
 
 
 class LineWatch:
     """Every link's LineHealth, fed the capture's frames (a capture of one line has the link "")."""
+
+    health = LineHealth  # what judges a link: LineHealthPy for the reference (tests/test_hot_equal.py)
 
     def __init__(self) -> None:
         self.lines: dict[str, LineHealth] = {}
@@ -179,7 +227,7 @@ class LineWatch:
         """A frame by what counts of it (a frame of a part decoded elsewhere: sniffer.parallel)."""
         h = self.lines.get(link)
         if h is None:
-            h = self.lines[link] = LineHealth(link)
+            h = self.lines[link] = self.health(link)
         return h.add(t_ns, nbytes, bad)
 
     def broken(self) -> list[str]:
@@ -206,6 +254,8 @@ class LineWarning(Sink):
     `hint(info, link)` says what to do (sniffer.detect.hint); `say` writes the line (sniffer.stderr.say)."""
 
     split = "health"  # by parts: a few numbers a frame cross, the warning itself runs in the coordinator
+    # frame_py in C (sniffer/_hot.c health_frame) for a link whose LineHealth runs in C; None: frame_py only
+    _compiled_frame = staticmethod(HOT.health_frame) if HOT is not None else None
 
     def __init__(self, hint: Callable[[object, str], str], say: Callable[[str], None]) -> None:
         self.hint = hint
@@ -217,14 +267,28 @@ class LineWarning(Sink):
         self.info = info
 
     def frame(self, f) -> None:
+        compiled = self._compiled_frame
+        if compiled is not None:
+            change = compiled(self.watch.lines, f, _UART)
+            if change is not NotImplemented:
+                if change is not None and change.broken:
+                    self._say(change)
+                return
+        self.frame_py(f)
+
+    def frame_py(self, f) -> None:
+        """The reference of frame()."""
         self.observe(f.link or "", f.t_ns, len(f.raw), badness(f))
 
     def observe(self, link: str, t_ns: int, nbytes: int, bad: int | None) -> None:
         """A frame by what counts of it (LineWatch.add)."""
         change = self.watch.add(link, t_ns, nbytes, bad)
         if change is not None and change.broken:
-            self.say("warning: " + warning_text(change, line_settings(self.info, change.link),
-                                                self.hint(self.info, change.link)))
+            self._say(change)
+
+    def _say(self, change: Change) -> None:
+        self.say("warning: " + warning_text(change, line_settings(self.info, change.link),
+                                            self.hint(self.info, change.link)))
 
 
 def line_settings(info, link: str = "") -> str:

@@ -1,7 +1,8 @@
 """Which per-frame path runs: the compiled one (sniffer._hot, from sniffer/_hot.c) or the pure-Python one.
 
 The pure-Python functions are the reference; each compiled function is a copy of one of them, swapped in
-where it is called (framing/rtu.py, formats/mcap/scan.py, formats/mcap/format.py), and it hands back to the
+where it is called (framing/rtu.py, formats/mcap/scan.py, formats/mcap/format.py, decoders/generic/decoder.py;
+analysis/linehealth.py holds a C type, Health, under its LineHealth), and it hands back to the
 Python code every case it does not decide.  tests/test_hot_equal.py holds both paths byte for byte.
 SNIFFER_PURE=1 in the environment runs the pure-Python path (with the extension built); without a
 compiler at install time it is the only one.  `sniffer --version` says which path runs, and why.
