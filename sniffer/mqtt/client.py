@@ -212,11 +212,7 @@ class Publisher:
     def _resync(self) -> int:
         """On (re)connecting: `online`, every retained value as it is now, then the queued events."""
         events = []
-        while True:
-            try:
-                item = self.q.get_nowait()
-            except queue.Empty:
-                break
+        for item in self._drain():
             if not item[2]:
                 events.append(item)
             else:  # an older (or the same) value of a topic the snapshot sends as it is now: not sent itself
@@ -251,9 +247,7 @@ class Publisher:
 
     def _hand_over(self, n: int) -> bool:
         if self._finishing and self.stale:  # the end: the broker's retained state first (_collapse_queue)
-            for _ in range(min(n, len(self.stale))):
-                topic = self.stale.pop()
-                self._publish(topic, self.retained[topic], True)
+            self._send_stale(n)
             return True
         for _ in range(n):
             try:
@@ -264,11 +258,24 @@ class Publisher:
         else:
             return True
         if self.stale:  # retained values dropped from a full queue: their latest, now there is room
-            for _ in range(min(n, len(self.stale))):
-                topic = self.stale.pop()
-                self._publish(topic, self.retained[topic], True)
+            self._send_stale(n)
             return True
         return False
+
+    def _send_stale(self, n: int) -> None:
+        """Up to `n` retained topics whose latest value was not sent (dropped, lost): that latest, now."""
+        for _ in range(min(n, len(self.stale))):
+            topic = self.stale.pop()
+            self._publish(topic, self.retained[topic], True)
+
+    def _drain(self) -> list:
+        """Everything queued, in order, taken out of the queue."""
+        items = []
+        while True:
+            try:
+                items.append(self.q.get_nowait())
+            except queue.Empty:
+                return items
 
     def _collapse_queue(self) -> None:
         """The end, before what is left goes out: every retained topic still queued (or dropped earlier) is sent
@@ -276,11 +283,7 @@ class Publisher:
         bounded (CLOSE_S): on a busy machine it went on the older queued values of a topic and the broker kept
         one of them, not the capture's last."""
         events = []
-        while True:
-            try:
-                item = self.q.get_nowait()
-            except queue.Empty:
-                break
+        for item in self._drain():
             if item[2]:
                 self.stale.add(item[0])
             else:
