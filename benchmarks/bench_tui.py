@@ -48,7 +48,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests"))
 
-from tui_helpers import replay_frames
+from tui_helpers import key_latency, replay_frames
 
 import tui_terminal
 
@@ -78,27 +78,6 @@ def synthetic(n: int):
 
 def rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-
-
-async def key_latency(app, pilot, key: str) -> float:
-    """Seconds from posting a key to the moment the App has acted on it (the cursor moved).
-
-    Pilot.press itself also waits for the screen to go idle, which a 15 Hz poll never
-    quite lets happen; that wait is not what a user feels, so it is not counted.
-    """
-    fl = app.frame_list
-    before = fl.cursor
-    if key == "home" and before == 0 or key == "up" and before <= 0:
-        fl.cursor = len(app.store.view) - 1
-        await asyncio.sleep(0)
-        before = fl.cursor
-    t = time.perf_counter()
-    task = asyncio.create_task(pilot.press(key))
-    while fl.cursor == before and time.perf_counter() - t < 5:
-        await asyncio.sleep(0.0005)
-    dt = time.perf_counter() - t
-    await task
-    return dt
 
 
 async def run_rate(rate: int, seconds: float, frames: list) -> dict:

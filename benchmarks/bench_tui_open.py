@@ -7,7 +7,7 @@ The replay command's own session (CaptureSpec from `replay CAP`, its file source
 App (`run_test`, 120x40) as `replay --tui` runs it.  Printed: the seconds from the App's start to [ended]
 (every frame the replay decoded is in the store: `App.caught_up`), frames per second, the process's CPU
 seconds, and when the register book and the diagnosis had caught up with the list (FrameStore.catch_up);
-and while it loads, the latency of Home / End presses (posted to handled, bench_tui.key_latency:
+and while it loads, the latency of Home / End presses (posted to handled, tui_helpers.key_latency:
 drawing and the terminal left out, tui_terminal.py has those) and the longest stretch the event loop was
 away (a 5 ms timer's lateness: what any key would have waited at most).  Figures only, nothing asserted.
 A pty run with drawing: benchmarks/tui_terminal.py (bench_side_by_side.py's TUI row).
@@ -28,6 +28,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT / "tests"))
 
+from tui_helpers import key_latency  # noqa: E402
+
 PER_S = 372  # the stress scenario's frames per bus second
 
 
@@ -44,20 +46,6 @@ async def _lag(samples: list[float], stop: asyncio.Event, period: float = 0.005)
         t = loop.time()
         await asyncio.sleep(period)
         samples.append(loop.time() - t - period)
-
-
-async def key_latency(app, pilot, key: str) -> float:
-    """Seconds from posting a key to the App having acted on it (the cursor moved): bench_tui.key_latency,
-    here without bench_tui's pyte."""
-    fl = app.frame_list
-    before = fl.cursor
-    t = time.perf_counter()
-    task = asyncio.create_task(pilot.press(key))
-    while fl.cursor == before and time.perf_counter() - t < 5:
-        await asyncio.sleep(0.0005)
-    dt = time.perf_counter() - t
-    await task
-    return dt
 
 
 def open_capture(path: str, n_keys: int, profile: str | None) -> dict:

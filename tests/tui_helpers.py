@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import functools
+import time
 from pathlib import Path
 
 from decoders.registry import default_registry
@@ -133,3 +135,24 @@ def touches(f, addr: int, table: str = "holding") -> bool:
     if any(t == table and s <= addr < s + len(v) for t, s, v in f.writes):
         return True
     return any(p.get("address") == addr for p in f.points)
+
+
+async def key_latency(app, pilot, key: str) -> float:
+    """Seconds from posting a key to the moment the App has acted on it (the cursor moved).
+
+    Pilot.press itself also waits for the screen to go idle, which a 15 Hz poll never
+    quite lets happen; that wait is not what a user feels, so it is not counted.
+    """
+    fl = app.frame_list
+    before = fl.cursor
+    if key == "home" and before == 0 or key == "up" and before <= 0:
+        fl.cursor = len(app.store.view) - 1
+        await asyncio.sleep(0)
+        before = fl.cursor
+    t = time.perf_counter()
+    task = asyncio.create_task(pilot.press(key))
+    while fl.cursor == before and time.perf_counter() - t < 5:
+        await asyncio.sleep(0.0005)
+    dt = time.perf_counter() - t
+    await task
+    return dt
