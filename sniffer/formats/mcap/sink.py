@@ -23,7 +23,7 @@ fast file conversion would otherwise write thousands of tiny chunks per
 second.  No fsync: the page cache survives a killed process; power loss is not
 covered.  The rewrite is one write() of the open chunk's records; a kill that
 lands inside that call (tens of microseconds a second) leaves the copy torn,
-and the reader skips it: then the open chunk is lost, at most SEAL_S.
+and the reader stops there: then the open chunk is lost, at most SEAL_S.
 
 Full disk.  Bytes reach the file only through `_AppendFile`, which writes
 whole records and, when the OS refuses a write (ENOSPC, EFBIG, EIO), cuts the
