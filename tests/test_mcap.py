@@ -296,6 +296,35 @@ def test_cut_files_read_a_prefix(tmp_path):
     assert longest == len(events) + len(frames)  # a file cut in its summary loses nothing
 
 
+def test_a_torn_rewrite_of_the_open_chunk_loses_that_chunk_only(tmp_path):
+    """A kill inside the one write() that puts the open chunk's new copy over the old leaves the first pages new
+    and the rest old: the reader stops at the torn copy, as at any cut, and gives every event of the sealed chunks."""
+    p = tmp_path / "live.mcap"
+    now = [T0]
+    sink = McapSink(p, clock=lambda: now[0], flush_interval_s=1.0, seal_interval_s=10.0)
+    sink.start(INFO)
+    events = [make_event(i) for i in range(1300)]
+    snaps = []
+    for k, ev in enumerate(events):
+        now[0] = T0 + k * 10_000_000  # 13 s of the sink's clock: one chunk sealed at 10 s, then a copy
+        sink.raw(ev)
+        if k in (1150, 1299):  # after the copies of 11 s and of 12 s
+            snaps.append(p.read_bytes())
+    old, new = snaps
+    start = len(os.path.commonprefix([old, new]))  # where the copies begin to differ
+    assert len(new) > len(old) > start + 1000
+    cut = (start + len(old)) // 2
+    torn = tmp_path / "torn.mcap"
+    torn.write_bytes(new[:cut] + old[cut:])  # the new copy's first bytes, then the old one's
+    src = McapSource(torn)
+    assert src.open().extra["mcap_unfinished"] is True
+    got = list(src.events())
+    whole = [e for e in got if not isinstance(e, Gap) or e.reason.startswith("adapter")]
+    assert whole == events[: len(whole)] and len(whole) >= 1000  # the sealed chunk's 10 s
+    assert len(whole) < 1100  # the copy's events are gone: the one case that loses more than a second
+    sink.close()
+
+
 # -- killed writer -------------------------------------------------------------------------
 
 def test_a_live_files_open_chunk_is_on_disk_every_flush_and_sealed_long(tmp_path):

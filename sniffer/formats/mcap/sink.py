@@ -23,7 +23,7 @@ fast file conversion would otherwise write thousands of tiny chunks per
 second.  No fsync: the page cache survives a killed process; power loss is not
 covered.  The rewrite is one write() of the open chunk's records; a kill that
 lands inside that call (tens of microseconds a second) leaves the copy torn,
-and the reader skips it: then the open chunk is lost, at most SEAL_S.
+and the reader stops there: then the open chunk is lost, at most SEAL_S.
 
 Full disk.  Bytes reach the file only through `_AppendFile`, which writes
 whole records and, when the OS refuses a write (ENOSPC, EFBIG, EIO), cuts the
@@ -58,8 +58,9 @@ from sniffer.sinks.base import Sink
 # uncompressed bytes per chunk: a damaged byte loses one chunk; 512 KiB files are 1 % larger than with
 # 1 MiB chunks (mcap's default), 128 KiB ones 14 % (measured on a 256k-frame export)
 CHUNK_SIZE = 512 * 1024
-# zstd's level: an export's chunks are full and many (3: fast); a live capture writes a small chunk every
-# flush interval, where level 9 packs 12 % tighter for about 7 ms a chunk (benchmarks/bench_segment_bytes.py)
+# zstd's level: an export's chunks are full and many (3: fast); a live capture compresses its open chunk
+# again every flush interval, at level 9 about 8 ms for a full one (benchmarks/bench_segment_bytes.py); 19
+# packs a tenth tighter but takes ~0.2 s a chunk, a stall in the capture's loop
 EXPORT_LEVEL, LIVE_LEVEL = 3, 9
 # a live capture's open chunk is written every flush interval over its copy and sealed after this long
 SEAL_S = 30.0
